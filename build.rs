@@ -1,0 +1,131 @@
+//! Build script: finds Embree (4 preferred, else 3), generates its bindings with bindgen, and compiles the small
+//! OpenImageIO C++ shim in `ffi/`. Any missing native dependency stops the build with one message naming the Debian
+//! packages to install.
+
+use std::env;
+use std::path::{Path, PathBuf};
+
+const APT_HINT: &str =
+    "sudo apt-get install libembree-dev libopenimageio-dev libclang-dev clang pkg-config";
+
+fn fail(what: &str) -> ! {
+    eprintln!("\n\ncuticle build error: {what}\n  on Debian/Ubuntu install the native dependencies with:\n    {APT_HINT}\n");
+    panic!("cuticle build error: {what} (install: {APT_HINT})");
+}
+
+/// Which Embree major version the headers belong to, and where they are.
+struct Embree {
+    major: u32,
+    include_dirs: Vec<PathBuf>,
+}
+
+fn find_embree() -> Embree {
+    // Embree 4 ships a pkg-config file; Debian 12's Embree 3.13.5 ships none, so fall back to the header location.
+    if let Ok(lib) = pkg_config::Config::new()
+        .atleast_version("4.0")
+        .probe("embree4")
+    {
+        return Embree {
+            major: 4,
+            include_dirs: lib.include_paths,
+        };
+    }
+    let mut roots: Vec<PathBuf> = Vec::new();
+    if let Some(dir) = env::var_os("EMBREE_DIR") {
+        roots.push(PathBuf::from(dir).join("include"));
+    }
+    roots.extend(["/usr/include", "/usr/local/include"].map(PathBuf::from));
+    for root in &roots {
+        if root.join("embree4/rtcore.h").exists() {
+            println!("cargo:rustc-link-lib=embree4");
+            return Embree {
+                major: 4,
+                include_dirs: vec![root.clone()],
+            };
+        }
+    }
+    if let Ok(lib) = pkg_config::Config::new().probe("embree") {
+        return Embree {
+            major: 3,
+            include_dirs: lib.include_paths,
+        };
+    }
+    for root in &roots {
+        if root.join("embree3/rtcore.h").exists() {
+            if let Some(dir) = env::var_os("EMBREE_DIR") {
+                println!(
+                    "cargo:rustc-link-search=native={}",
+                    Path::new(&dir).join("lib").display()
+                );
+            }
+            println!("cargo:rustc-link-lib=embree3");
+            return Embree {
+                major: 3,
+                include_dirs: vec![root.clone()],
+            };
+        }
+    }
+    fail("Embree headers not found (looked for embree4/rtcore.h and embree3/rtcore.h; set EMBREE_DIR for a custom install)");
+}
+
+fn main() {
+    println!("cargo:rerun-if-changed=build.rs");
+    println!("cargo:rerun-if-changed=ffi");
+    println!("cargo:rerun-if-env-changed=EMBREE_DIR");
+    println!("cargo::rustc-check-cfg=cfg(embree4)");
+    let out = PathBuf::from(env::var("OUT_DIR").expect("cargo sets OUT_DIR"));
+
+    // --- Embree bindings ---------------------------------------------------------------------------------------
+    let embree = find_embree();
+    if embree.major == 4 {
+        println!("cargo:rustc-cfg=embree4");
+    }
+    let mut builder = bindgen::Builder::default()
+        .header("ffi/embree.h")
+        .allowlist_function("rtc.*")
+        .allowlist_type("RTC.*")
+        .allowlist_var("RTC.*")
+        .prepend_enum_name(false)
+        .derive_default(true)
+        .layout_tests(true);
+    if embree.major == 4 {
+        builder = builder.clang_arg("-DCUTICLE_EMBREE4");
+    }
+    for dir in &embree.include_dirs {
+        builder = builder.clang_arg(format!("-I{}", dir.display()));
+    }
+    let bindings =
+        match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| builder.generate())) {
+            Ok(Ok(b)) => b,
+            Ok(Err(e)) => fail(&format!("bindgen could not read the Embree headers: {e}")),
+            Err(_) => fail("bindgen could not load libclang (package libclang-dev)"),
+        };
+    bindings
+        .write_to_file(out.join("embree_bindings.rs"))
+        .expect("write embree bindings to OUT_DIR");
+
+    // --- OpenImageIO shim --------------------------------------------------------------------------------------
+    // Probe without emitting link flags: the static shim must come before libOpenImageIO on the link line.
+    let oiio = match pkg_config::Config::new()
+        .cargo_metadata(false)
+        .probe("OpenImageIO")
+    {
+        Ok(lib) => lib,
+        Err(e) => fail(&format!("OpenImageIO not found by pkg-config ({e})")),
+    };
+    let mut cc = cc::Build::new();
+    cc.cpp(true)
+        .file("ffi/oiio_shim.cpp")
+        .flag_if_supported("-std=c++17")
+        .warnings(true);
+    for dir in &oiio.include_paths {
+        cc.include(dir);
+    }
+    cc.compile("cuticle_oiio_shim");
+    for dir in &oiio.link_paths {
+        println!("cargo:rustc-link-search=native={}", dir.display());
+    }
+    for lib in &oiio.libs {
+        println!("cargo:rustc-link-lib={lib}");
+    }
+}

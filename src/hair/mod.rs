@@ -1,0 +1,180 @@
+//! Hair models: readers for real files (Cem Yuksel's `.hair`, AMD TressFX `.tfx`), procedural models, and the
+//! cubic B-spline [`Strands`] every tracer consumes.
+//!
+//! Data flow: a reader or generator produces a [`HairModel`] (polylines with per-point radius, transparency and
+//! colour, exactly what the file says), then [`Strands::from_model`] turns it into B-spline control points.
+
+pub mod procedural;
+pub mod strands;
+pub mod tfx;
+pub mod yuksel;
+
+use std::path::{Path, PathBuf};
+
+use glam::Vec3;
+
+pub use strands::Strands;
+
+/// Everything that can go wrong while reading or building a hair model. Every variant names the file.
+#[derive(Debug, thiserror::Error)]
+pub enum HairError {
+    /// The file could not be opened or read.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The underlying I/O error.
+        source: std::io::Error,
+    },
+    /// The file was read but its content is not a valid hair model.
+    #[error("{path}: {message}")]
+    Invalid {
+        /// The file (or `procedural:<name>` for generated models).
+        path: PathBuf,
+        /// What is wrong, lower case, with the offending numbers.
+        message: String,
+    },
+}
+
+impl HairError {
+    /// An [`HairError::Invalid`] for `path`.
+    pub fn invalid(path: &Path, message: impl Into<String>) -> Self {
+        HairError::Invalid {
+            path: path.to_path_buf(),
+            message: message.into(),
+        }
+    }
+}
+
+/// A hair model as polylines: the common form of every reader and generator, before B-spline conversion.
+///
+/// All per-point arrays have one entry per point; absent file arrays are filled with the file's defaults.
+#[derive(Debug, Clone, Default)]
+pub struct HairModel {
+    /// All strand points, strand after strand, in model units.
+    pub points: Vec<Vec3>,
+    /// Index of each strand's first point in `points`; `strand_count + 1` entries, the last is `points.len()`.
+    pub strand_offsets: Vec<u32>,
+    /// Per-point fibre radius (half the file's thickness), model units.
+    pub radius: Vec<f32>,
+    /// True when `radius` came from a per-point thickness array in the file; false when it is a default that the
+    /// B-spline conversion may taper (thesis §5.2).
+    pub radius_from_file: bool,
+    /// Per-point transparency in [0, 1] (1 − opacity).
+    pub transparency: Vec<f32>,
+    /// Per-point linear RGB colour.
+    pub color: Vec<[f32; 3]>,
+    /// Human-readable format name ("cem yuksel .hair", "tressfx .tfx", "procedural furball").
+    pub format: String,
+    /// The file's free-text info field, if any.
+    pub info: String,
+}
+
+impl HairModel {
+    /// Number of strands.
+    pub fn strand_count(&self) -> usize {
+        self.strand_offsets.len().saturating_sub(1)
+    }
+
+    /// The index range of strand `s` in the per-point arrays.
+    pub fn strand_range(&self, s: usize) -> std::ops::Range<usize> {
+        self.strand_offsets[s] as usize..self.strand_offsets[s + 1] as usize
+    }
+
+    /// Axis-aligned bounds of the points (not inflated by radius): (min, max).
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        self.points.iter().fold(
+            (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+            |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+        )
+    }
+
+    /// Checks the invariants every reader promises: consistent array lengths, at least 2 points per strand, finite
+    /// points, positive finite radii, transparency in [0, 1]. `path` names the source in the error.
+    pub fn validate(&self, path: &Path) -> Result<(), HairError> {
+        let n = self.points.len();
+        if self.strand_count() == 0 || n == 0 {
+            return Err(HairError::invalid(path, "the model has no strands"));
+        }
+        if self.strand_offsets[0] != 0 || *self.strand_offsets.last().unwrap_or(&0) as usize != n {
+            return Err(HairError::invalid(
+                path,
+                "strand offsets do not cover the point array",
+            ));
+        }
+        for (name, len) in [
+            ("radius", self.radius.len()),
+            ("transparency", self.transparency.len()),
+            ("color", self.color.len()),
+        ] {
+            if len != n {
+                return Err(HairError::invalid(
+                    path,
+                    format!("{name} array has {len} entries for {n} points"),
+                ));
+            }
+        }
+        for s in 0..self.strand_count() {
+            let r = self.strand_range(s);
+            if r.len() < 2 {
+                return Err(HairError::invalid(
+                    path,
+                    format!(
+                        "strand {s} has {} point(s); a strand needs at least 2",
+                        r.len()
+                    ),
+                ));
+            }
+        }
+        if let Some(i) = self.points.iter().position(|p| !p.is_finite()) {
+            return Err(HairError::invalid(
+                path,
+                format!("point {i} is not finite: {:?}", self.points[i]),
+            ));
+        }
+        if let Some(i) = self
+            .radius
+            .iter()
+            .position(|r| !(r.is_finite() && *r > 0.0))
+        {
+            return Err(HairError::invalid(
+                path,
+                format!(
+                    "point {i} has thickness {} (must be > 0)",
+                    2.0 * self.radius[i]
+                ),
+            ));
+        }
+        if let Some(i) = self
+            .transparency
+            .iter()
+            .position(|t| !(0.0..=1.0).contains(t))
+        {
+            return Err(HairError::invalid(
+                path,
+                format!(
+                    "point {i} has transparency {} (must be in [0, 1])",
+                    self.transparency[i]
+                ),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Loads a hair model by file extension: `.hair` (Cem Yuksel) or `.tfx` (TressFX 4 guide strands).
+pub fn load(path: &Path) -> Result<HairModel, HairError> {
+    match path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .as_deref()
+    {
+        Some("hair") => yuksel::read(path),
+        Some("tfx") => tfx::read(path),
+        _ => Err(HairError::invalid(
+            path,
+            "unknown hair format (expected a .hair or .tfx file)",
+        )),
+    }
+}

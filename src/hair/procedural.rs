@@ -1,0 +1,1 @@
+//! Procedural hair models (stub: being written).

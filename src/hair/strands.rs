@@ -1,0 +1,232 @@
+//! Strands as uniform cubic B-splines: the geometry every tracer (Embree round/flat curves, the Rust BVH) consumes.
+//!
+//! **How a curve reaches its root and tip.** A uniform cubic B-spline does not pass through its control points. We
+//! add one phantom point at each end, mirrored through the end point (P₋₁ = 2P₀ − P₁, Pₙ = 2Pₙ₋₁ − Pₙ₋₂), and use the
+//! file's points as the remaining control points. Segment k uses control points k..k+3, so a strand of n file points
+//! gives n + 2 control points and n − 1 segments. With the mirrored phantom the first segment starts exactly at
+//! (P₋₁ + 4P₀ + P₁)/6 = P₀ and the last ends exactly at the tip; interior points are approximated, not interpolated
+//! (the B-spline smooths the polyline, which is why the thesis chose it, §5.2). Radii get the same phantom rule, so
+//! the root and tip radii are exact too.
+//!
+//! **Taper** (thesis §5.2): when the file gives no per-point thickness, the radius falls linearly from the default at
+//! the root to half of it at the tip, by point index. A per-point thickness array in the file is used as it is.
+
+use glam::Vec3;
+
+use super::HairModel;
+
+/// Flat arrays in the layout Embree's curve geometry wants, plus the per-strand shading data.
+#[derive(Debug, Clone, Default)]
+pub struct Strands {
+    /// B-spline control points as (x, y, z, radius): Embree's `RTC_FORMAT_FLOAT4` vertex layout.
+    pub control_points: Vec<[f32; 4]>,
+    /// Index of each strand's first control point; `strand_count + 1` entries.
+    pub strand_offsets: Vec<u32>,
+    /// For each curve segment, the index of its first control point (Embree's `RTC_FORMAT_UINT` index buffer).
+    pub segment_first: Vec<u32>,
+    /// For each curve segment, the strand it belongs to (Embree's `primID` → strand).
+    pub segment_strand: Vec<u32>,
+    /// Per-strand opacity in [0, 1] used by shadow rays (1 − the file's transparency at the root).
+    pub opacity: Vec<f32>,
+    /// Per-strand linear RGB colour (the file's colour at the root).
+    pub color: Vec<[f32; 3]>,
+}
+
+/// A point on a strand: position, derivative along the curve (root → tip, not normalised) and radius.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CurvePoint {
+    /// Position on the curve's centre line.
+    pub position: Vec3,
+    /// dP/du: points from root to tip; zero only for degenerate (repeated) control points.
+    pub tangent: Vec3,
+    /// Radius at this point.
+    pub radius: f32,
+}
+
+/// Uniform cubic B-spline basis at `u` ∈ [0, 1].
+#[inline]
+fn bspline_basis(u: f32) -> [f32; 4] {
+    let t = 1.0 - u;
+    [
+        t * t * t / 6.0,
+        (3.0 * u * u * u - 6.0 * u * u + 4.0) / 6.0,
+        (-3.0 * u * u * u + 3.0 * u * u + 3.0 * u + 1.0) / 6.0,
+        u * u * u / 6.0,
+    ]
+}
+
+/// Derivative of [`bspline_basis`] with respect to `u`.
+#[inline]
+fn bspline_basis_derivative(u: f32) -> [f32; 4] {
+    let t = 1.0 - u;
+    [
+        -0.5 * t * t,
+        (3.0 * u * u - 4.0 * u) * 0.5,
+        (-3.0 * u * u + 2.0 * u + 1.0) * 0.5,
+        0.5 * u * u,
+    ]
+}
+
+impl Strands {
+    /// Converts polylines to B-spline strands (phantom end points; taper when the file has no thickness).
+    pub fn from_model(model: &HairModel) -> Self {
+        let strand_count = model.strand_count();
+        let mut out = Strands {
+            control_points: Vec::with_capacity(model.points.len() + 2 * strand_count),
+            strand_offsets: Vec::with_capacity(strand_count + 1),
+            segment_first: Vec::with_capacity(model.points.len()),
+            segment_strand: Vec::with_capacity(model.points.len()),
+            opacity: Vec::with_capacity(strand_count),
+            color: Vec::with_capacity(strand_count),
+        };
+        for s in 0..strand_count {
+            let range = model.strand_range(s);
+            let n = range.len();
+            let pts = &model.points[range.clone()];
+            let radius_at = |i: usize| {
+                let r = model.radius[range.start + i];
+                if model.radius_from_file {
+                    r
+                } else {
+                    // thesis §5.2: root = default width, tip = half, linear in between.
+                    r * (1.0 - 0.5 * i as f32 / (n - 1) as f32)
+                }
+            };
+            let first = out.control_points.len() as u32;
+            out.strand_offsets.push(first);
+            let cp = |p: Vec3, r: f32| [p.x, p.y, p.z, r];
+            // Phantom root: mirrored so the curve starts exactly at P0 with radius r0. The radius mirror is
+            // kept positive for steep tapers.
+            let (r0, r1) = (radius_at(0), radius_at(1));
+            out.control_points
+                .push(cp(2.0 * pts[0] - pts[1], (2.0 * r0 - r1).max(0.5 * r0)));
+            for (i, p) in pts.iter().enumerate() {
+                out.control_points.push(cp(*p, radius_at(i)));
+            }
+            let (rn, rm) = (radius_at(n - 1), radius_at(n - 2));
+            out.control_points.push(cp(
+                2.0 * pts[n - 1] - pts[n - 2],
+                (2.0 * rn - rm).max(0.5 * rn),
+            ));
+            for k in 0..(n - 1) as u32 {
+                out.segment_first.push(first + k);
+                out.segment_strand.push(s as u32);
+            }
+            out.opacity.push(1.0 - model.transparency[range.start]);
+            out.color.push(model.color[range.start]);
+        }
+        out.strand_offsets.push(out.control_points.len() as u32);
+        out
+    }
+
+    /// Number of strands.
+    pub fn strand_count(&self) -> usize {
+        self.strand_offsets.len().saturating_sub(1)
+    }
+
+    /// Number of cubic segments (Embree primitives).
+    pub fn segment_count(&self) -> usize {
+        self.segment_first.len()
+    }
+
+    /// Evaluates segment `segment` at curve parameter `u` ∈ [0, 1] (Embree's hit `u`).
+    pub fn eval(&self, segment: u32, u: f32) -> CurvePoint {
+        let first = self.segment_first[segment as usize] as usize;
+        let cps = &self.control_points[first..first + 4];
+        let (b, d) = (bspline_basis(u), bspline_basis_derivative(u));
+        let mut position = Vec3::ZERO;
+        let mut tangent = Vec3::ZERO;
+        let mut radius = 0.0;
+        for i in 0..4 {
+            let p = Vec3::new(cps[i][0], cps[i][1], cps[i][2]);
+            position += b[i] * p;
+            tangent += d[i] * p;
+            radius += b[i] * cps[i][3];
+        }
+        CurvePoint {
+            position,
+            tangent,
+            radius,
+        }
+    }
+
+    /// Bounds of the swept curves, inflated by the largest radius: (min, max). The convex-hull property of
+    /// B-splines makes the control-point box conservative.
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+        for c in &self.control_points {
+            let p = Vec3::new(c[0], c[1], c[2]);
+            lo = lo.min(p - Vec3::splat(c[3]));
+            hi = hi.max(p + Vec3::splat(c[3]));
+        }
+        (lo, hi)
+    }
+
+    /// Replaces every strand's opacity (a scene override of the file's transparency).
+    pub fn set_opacity(&mut self, opacity: f32) {
+        self.opacity.iter_mut().for_each(|o| *o = opacity);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn two_strands() -> HairModel {
+        let points = vec![
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(0.0, 1.0, 0.0),
+            Vec3::new(0.5, 2.0, 0.0),
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(1.0, 1.0, 1.0),
+        ];
+        HairModel {
+            strand_offsets: vec![0, 3, 5],
+            radius: vec![0.1; 5],
+            radius_from_file: false,
+            transparency: vec![0.25; 5],
+            color: vec![[1.0, 0.5, 0.25]; 5],
+            points,
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn curve_starts_at_root_and_ends_at_tip() {
+        let m = two_strands();
+        let s = Strands::from_model(&m);
+        assert_eq!(s.strand_count(), 2);
+        assert_eq!(s.segment_count(), 2 + 1, "n points give n - 1 segments");
+        assert_eq!(s.control_points.len(), 5 + 4);
+        let root = s.eval(0, 0.0);
+        let tip = s.eval(1, 1.0);
+        assert!((root.position - m.points[0]).length() < 1e-6, "{root:?}");
+        assert!((tip.position - m.points[2]).length() < 1e-6, "{tip:?}");
+        // Taper: root radius = default, tip = half (thesis §5.2).
+        assert!((root.radius - 0.1).abs() < 1e-6, "{}", root.radius);
+        assert!((tip.radius - 0.05).abs() < 1e-6, "{}", tip.radius);
+        assert!(root.tangent.y > 0.0, "tangent points root → tip");
+        assert_eq!(s.segment_strand, vec![0, 0, 1]);
+        assert!((s.opacity[1] - 0.75).abs() < 1e-6);
+    }
+
+    #[test]
+    fn segments_join_continuously() {
+        let s = Strands::from_model(&two_strands());
+        let a = s.eval(0, 1.0);
+        let b = s.eval(1, 0.0);
+        assert!((a.position - b.position).length() < 1e-6);
+        assert!(
+            (a.tangent - b.tangent).length() < 1e-5,
+            "C1 continuity: {a:?} {b:?}"
+        );
+    }
+
+    #[test]
+    fn file_thickness_is_not_tapered() {
+        let mut m = two_strands();
+        m.radius_from_file = true;
+        let s = Strands::from_model(&m);
+        assert!((s.eval(1, 1.0).radius - 0.1).abs() < 1e-6);
+    }
+}

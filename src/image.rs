@@ -1,0 +1,1 @@
+//! Image output and input through OpenImageIO (stub: being written).

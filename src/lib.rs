@@ -1,0 +1,17 @@
+//! cuticle: a physically based hair renderer.
+//!
+//! Module tree, following the data flow of DESIGN.md:
+//! [`hair`] (files → B-spline strands) → [`accel`] (Embree curves behind the [`accel::Tracer`] trait) →
+//! [`render`] (camera, sampler, shading, film) → [`image`] (OpenImageIO output). [`scene`] reads the TOML that ties
+//! them together. All `unsafe` code lives in [`sys`].
+#![deny(unsafe_code)]
+#![warn(missing_docs)]
+
+pub mod accel;
+pub mod hair;
+pub mod image;
+pub mod ray;
+pub mod render;
+pub mod scene;
+#[allow(unsafe_code)]
+pub mod sys;

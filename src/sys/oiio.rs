@@ -1,0 +1,1 @@
+//! Safe wrappers over the OpenImageIO shim (stub: being written).
