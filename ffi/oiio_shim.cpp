@@ -1,3 +1,229 @@
-// OpenImageIO shim (stub: being written).
+// The C API of oiio_shim.h over OpenImageIO's ImageOutput and ImageInput.
+//
+// Every entry point catches every exception: unwinding into Rust is undefined behaviour.
+
+#include "oiio_shim.h"
+
 #include <OpenImageIO/imageio.h>
-extern "C" int cuticle_oiio_version() { return OIIO_VERSION; }
+
+#include <cstring>
+#include <exception>
+#include <memory>
+#include <string>
+
+using OIIO::ImageInput;
+using OIIO::ImageOutput;
+using OIIO::ImageSpec;
+using OIIO::TypeDesc;
+
+struct CuticleOiioInput {
+    std::unique_ptr<ImageInput> input;
+    ImageSpec spec;
+};
+
+namespace {
+
+// Copies `message` into the caller's buffer, truncated and always NUL-terminated.
+void set_error(char *err, size_t err_cap, const std::string &message) noexcept {
+    if (err == nullptr || err_cap == 0) {
+        return;
+    }
+    const size_t n = message.size() < err_cap - 1 ? message.size() : err_cap - 1;
+    std::memcpy(err, message.data(), n);
+    err[n] = '\0';
+}
+
+// Reports the exception being handled; call only inside a catch block.
+void set_exception_error(char *err, size_t err_cap, const char *what_failed) noexcept {
+    try {
+        throw;
+    } catch (const std::exception &e) {
+        set_error(err, err_cap, std::string(what_failed) + ": " + e.what());
+    } catch (...) {
+        set_error(err, err_cap, std::string(what_failed) + ": unknown C++ exception");
+    }
+}
+
+// OIIO's message, or `fallback` when it left none.
+std::string or_fallback(std::string message, const char *fallback) {
+    return message.empty() ? std::string(fallback) : message;
+}
+
+bool type_desc(int format, TypeDesc *out) {
+    switch (format) {
+    case CUTICLE_OIIO_FLOAT: *out = TypeDesc::FLOAT; return true;
+    case CUTICLE_OIIO_HALF: *out = TypeDesc::HALF; return true;
+    case CUTICLE_OIIO_UINT8: *out = TypeDesc::UINT8; return true;
+    default: return false;
+    }
+}
+
+}  // namespace
+
+extern "C" int cuticle_oiio_version(void) { return OIIO_VERSION; }
+
+extern "C" int cuticle_oiio_write(const char *path, int width, int height, int nchannels,
+                                  const char *const *channel_names, const void *pixels,
+                                  int pixel_format, int file_format, unsigned flags, char *err,
+                                  size_t err_cap) {
+    try {
+        TypeDesc memory_type, file_type;
+        if (!type_desc(pixel_format, &memory_type) || !type_desc(file_format, &file_type)) {
+            set_error(err, err_cap, "unknown pixel format");
+            return 1;
+        }
+        if (path == nullptr || channel_names == nullptr || pixels == nullptr || width <= 0 ||
+            height <= 0 || nchannels <= 0) {
+            set_error(err, err_cap, "invalid arguments (null pointer or empty image)");
+            return 1;
+        }
+        std::unique_ptr<ImageOutput> out = ImageOutput::create(path);
+        if (!out) {
+            set_error(err, err_cap,
+                      or_fallback(OIIO::geterror(), "no OpenImageIO writer for this file type"));
+            return 1;
+        }
+        ImageSpec spec(width, height, nchannels, file_type);
+        spec.channelnames.clear();
+        spec.alpha_channel = -1;
+        spec.z_channel = -1;
+        for (int c = 0; c < nchannels; ++c) {
+            if (channel_names[c] == nullptr) {
+                set_error(err, err_cap, "null channel name");
+                return 1;
+            }
+            spec.channelnames.emplace_back(channel_names[c]);
+            if (spec.channelnames.back() == "A") {
+                spec.alpha_channel = c;
+            } else if (spec.channelnames.back() == "Z") {
+                spec.z_channel = c;
+            }
+        }
+        if (flags & CUTICLE_OIIO_UNASSOCIATED_ALPHA) {
+            spec.attribute("oiio:UnassociatedAlpha", 1);
+        }
+        if (file_type == TypeDesc::UINT8) {
+            // 8-bit output is display-referred: the caller has sRGB-encoded it (OIIO does not).
+            spec.attribute("oiio:ColorSpace", "sRGB");
+        } else {
+            spec.attribute("oiio:ColorSpace", "Linear");
+        }
+        if (!out->open(path, spec)) {
+            set_error(err, err_cap, or_fallback(out->geterror(), "could not open for writing"));
+            return 1;
+        }
+        if (!out->write_image(memory_type, pixels)) {
+            std::string message = or_fallback(out->geterror(), "could not write pixels");
+            out->close();
+            set_error(err, err_cap, message);
+            return 1;
+        }
+        if (!out->close()) {
+            set_error(err, err_cap, or_fallback(out->geterror(), "could not close the file"));
+            return 1;
+        }
+        return 0;
+    } catch (...) {
+        set_exception_error(err, err_cap, "openimageio write");
+        return 1;
+    }
+}
+
+extern "C" CuticleOiioInput *cuticle_oiio_open(const char *path, char *err, size_t err_cap) {
+    try {
+        if (path == nullptr) {
+            set_error(err, err_cap, "null path");
+            return nullptr;
+        }
+        std::unique_ptr<ImageInput> input = ImageInput::open(path);
+        if (!input) {
+            set_error(err, err_cap, or_fallback(OIIO::geterror(), "could not open for reading"));
+            return nullptr;
+        }
+        const ImageSpec &spec = input->spec();
+        if (spec.deep) {
+            set_error(err, err_cap, "deep images are not supported");
+            return nullptr;
+        }
+        if (spec.depth > 1) {
+            set_error(err, err_cap, "volume images are not supported");
+            return nullptr;
+        }
+        if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0 ||
+            static_cast<int>(spec.channelnames.size()) != spec.nchannels) {
+            set_error(err, err_cap, "empty image or inconsistent channel list");
+            return nullptr;
+        }
+        auto result = std::make_unique<CuticleOiioInput>();
+        result->spec = spec;
+        result->input = std::move(input);
+        return result.release();
+    } catch (...) {
+        set_exception_error(err, err_cap, "openimageio open");
+        return nullptr;
+    }
+}
+
+extern "C" void cuticle_oiio_input_size(const CuticleOiioInput *input, int *width, int *height,
+                                        int *nchannels) {
+    // Plain field reads: nothing here can throw.
+    if (input == nullptr) {
+        return;
+    }
+    if (width != nullptr) {
+        *width = input->spec.width;
+    }
+    if (height != nullptr) {
+        *height = input->spec.height;
+    }
+    if (nchannels != nullptr) {
+        *nchannels = input->spec.nchannels;
+    }
+}
+
+extern "C" const char *cuticle_oiio_input_channel_name(const CuticleOiioInput *input,
+                                                       int channel) {
+    // Bounds-checked index into a vector that outlives the returned pointer: nothing can throw.
+    if (input == nullptr || channel < 0 ||
+        static_cast<size_t>(channel) >= input->spec.channelnames.size()) {
+        return nullptr;
+    }
+    return input->spec.channelnames[static_cast<size_t>(channel)].c_str();
+}
+
+extern "C" int cuticle_oiio_read_float(CuticleOiioInput *input, float *out, size_t out_len,
+                                       char *err, size_t err_cap) {
+    try {
+        if (input == nullptr || out == nullptr) {
+            set_error(err, err_cap, "null input or output buffer");
+            return 1;
+        }
+        const ImageSpec &spec = input->spec;
+        const size_t needed = static_cast<size_t>(spec.width) * static_cast<size_t>(spec.height) *
+                              static_cast<size_t>(spec.nchannels);
+        if (out_len != needed) {
+            set_error(err, err_cap, "output buffer has the wrong size");
+            return 1;
+        }
+        if (!input->input->read_image(0, 0, 0, spec.nchannels, TypeDesc::FLOAT, out)) {
+            set_error(err, err_cap, or_fallback(input->input->geterror(), "could not read pixels"));
+            return 1;
+        }
+        return 0;
+    } catch (...) {
+        set_exception_error(err, err_cap, "openimageio read");
+        return 1;
+    }
+}
+
+extern "C" void cuticle_oiio_close(CuticleOiioInput *input) {
+    // Owned here so that `input` is freed even if close() throws.
+    std::unique_ptr<CuticleOiioInput> owned(input);
+    try {
+        if (owned) {
+            owned->input->close();
+        }
+    } catch (...) {
+        // Nothing to report to: the pixels are read already, and unwinding into Rust is not allowed.
+    }
+}

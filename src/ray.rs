@@ -76,8 +76,9 @@ impl Ray {
         if self.dir == Vec3::ZERO {
             return Err(InvalidRay::ZeroDirection);
         }
-        // `!(a >= b)` is also true for NaN.
-        if !(self.tnear >= 0.0) || !(self.tfar > self.tnear) {
+        // Written so that NaN in either bound is rejected too.
+        let interval_ok = self.tnear >= 0.0 && self.tfar > self.tnear;
+        if !interval_ok {
             return Err(InvalidRay::BadInterval);
         }
         Ok(())

@@ -1,1 +1,389 @@
-//! Safe wrappers over the OpenImageIO shim (stub: being written).
+//! Safe wrappers over the OpenImageIO shim (`ffi/oiio_shim.{h,cpp}`).
+//!
+//! The shim is a small `extern "C"` API compiled by `build.rs`; the declarations below mirror
+//! `ffi/oiio_shim.h` by hand. This module checks every length and string before it reaches C++,
+//! so the functions it exposes are safe. Errors come back as [`OiioError`] holding OpenImageIO's
+//! own message; [`crate::image`] adds the file name.
+
+use std::ffi::{c_char, c_int, c_void, CStr, CString};
+use std::path::Path;
+use std::ptr::NonNull;
+
+/// Raw declarations mirroring `ffi/oiio_shim.h`.
+mod ffi {
+    use std::ffi::{c_char, c_int, c_uint, c_void};
+
+    /// `CUTICLE_OIIO_FLOAT`.
+    pub const FLOAT: c_int = 0;
+    /// `CUTICLE_OIIO_HALF`.
+    pub const HALF: c_int = 1;
+    /// `CUTICLE_OIIO_UINT8`.
+    pub const UINT8: c_int = 2;
+    /// `CUTICLE_OIIO_UNASSOCIATED_ALPHA`.
+    pub const UNASSOCIATED_ALPHA: c_uint = 1;
+
+    /// `CuticleOiioInput`: opaque, only ever behind a pointer (the marker makes it neither `Send`,
+    /// `Sync` nor `Unpin`, as the Rustonomicon advises for foreign opaque types).
+    #[repr(C)]
+    pub struct CuticleOiioInput {
+        _private: [u8; 0],
+        _marker: std::marker::PhantomData<(*mut u8, std::marker::PhantomPinned)>,
+    }
+
+    extern "C" {
+        pub fn cuticle_oiio_version() -> c_int;
+        pub fn cuticle_oiio_write(
+            path: *const c_char,
+            width: c_int,
+            height: c_int,
+            nchannels: c_int,
+            channel_names: *const *const c_char,
+            pixels: *const c_void,
+            pixel_format: c_int,
+            file_format: c_int,
+            flags: c_uint,
+            err: *mut c_char,
+            err_cap: usize,
+        ) -> c_int;
+        pub fn cuticle_oiio_open(
+            path: *const c_char,
+            err: *mut c_char,
+            err_cap: usize,
+        ) -> *mut CuticleOiioInput;
+        pub fn cuticle_oiio_input_size(
+            input: *const CuticleOiioInput,
+            width: *mut c_int,
+            height: *mut c_int,
+            nchannels: *mut c_int,
+        );
+        pub fn cuticle_oiio_input_channel_name(
+            input: *const CuticleOiioInput,
+            channel: c_int,
+        ) -> *const c_char;
+        pub fn cuticle_oiio_read_float(
+            input: *mut CuticleOiioInput,
+            out: *mut f32,
+            out_len: usize,
+            err: *mut c_char,
+            err_cap: usize,
+        ) -> c_int;
+        pub fn cuticle_oiio_close(input: *mut CuticleOiioInput);
+    }
+}
+
+/// Bytes reserved for an error message from the shim (longer ones are truncated).
+const ERROR_CAPACITY: usize = 1024;
+
+/// An error reported by OpenImageIO or found before calling it.
+#[derive(Debug, thiserror::Error)]
+#[error("{message}")]
+pub struct OiioError {
+    /// What went wrong, in OpenImageIO's words where it reported the error.
+    pub message: String,
+}
+
+impl OiioError {
+    fn new(message: impl Into<String>) -> Self {
+        OiioError {
+            message: message.into(),
+        }
+    }
+
+    /// The message the shim wrote into `buffer`.
+    fn from_buffer(buffer: &[u8; ERROR_CAPACITY]) -> Self {
+        let message = CStr::from_bytes_until_nul(buffer)
+            .map(|s| s.to_string_lossy().trim_end().to_owned())
+            .unwrap_or_default();
+        if message.is_empty() {
+            Self::new("openimageio failed without a message")
+        } else {
+            Self::new(message)
+        }
+    }
+}
+
+/// The pixel format a file stores.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FileFormat {
+    /// 32-bit float: exact for everything the renderer produces.
+    Float,
+    /// 16-bit half float.
+    Half,
+    /// 8-bit unsigned, 0..=255 meaning 0..=1 (display-referred, already encoded by the caller).
+    Uint8,
+}
+
+impl FileFormat {
+    fn raw(self) -> c_int {
+        match self {
+            FileFormat::Float => ffi::FLOAT,
+            FileFormat::Half => ffi::HALF,
+            FileFormat::Uint8 => ffi::UINT8,
+        }
+    }
+}
+
+/// Interleaved pixels in memory, in one of the formats the shim accepts.
+#[derive(Clone, Copy, Debug)]
+pub enum Pixels<'a> {
+    /// 32-bit floats.
+    F32(&'a [f32]),
+    /// 8-bit values, 255 meaning 1.
+    U8(&'a [u8]),
+}
+
+impl Pixels<'_> {
+    fn len(&self) -> usize {
+        match self {
+            Pixels::F32(p) => p.len(),
+            Pixels::U8(p) => p.len(),
+        }
+    }
+
+    fn raw(&self) -> (*const c_void, c_int) {
+        match self {
+            Pixels::F32(p) => (p.as_ptr().cast(), ffi::FLOAT),
+            Pixels::U8(p) => (p.as_ptr().cast(), ffi::UINT8),
+        }
+    }
+}
+
+/// How [`write_image`] stores the pixels.
+#[derive(Clone, Copy, Debug)]
+pub struct WriteOptions {
+    /// The pixel format in the file; OpenImageIO converts from the memory format.
+    pub format: FileFormat,
+    /// The colour channels are not premultiplied by alpha, so OpenImageIO must not divide them by
+    /// alpha when writing a format with unassociated alpha (PNG).
+    pub unassociated_alpha: bool,
+}
+
+/// The OpenImageIO version linked, as `major * 10000 + minor * 100 + patch` (20407 for 2.4.7).
+pub fn version() -> u32 {
+    // SAFETY: the function takes no arguments and returns a compile-time constant.
+    let v = unsafe { ffi::cuticle_oiio_version() };
+    u32::try_from(v).unwrap_or(0)
+}
+
+fn path_cstring(path: &Path) -> Result<CString, OiioError> {
+    #[cfg(unix)]
+    let bytes = {
+        use std::os::unix::ffi::OsStrExt;
+        path.as_os_str().as_bytes().to_vec()
+    };
+    #[cfg(not(unix))]
+    let bytes = path
+        .to_str()
+        .ok_or_else(|| OiioError::new("path is not valid UTF-8"))?
+        .as_bytes()
+        .to_vec();
+    CString::new(bytes).map_err(|_| OiioError::new("path contains a NUL byte"))
+}
+
+fn to_c_int(value: usize, what: &str) -> Result<c_int, OiioError> {
+    c_int::try_from(value).map_err(|_| OiioError::new(format!("{what} {value} is too large")))
+}
+
+/// Writes `width` × `height` pixels of `channels.len()` interleaved channels to `path`, in the file
+/// format its extension names (OpenImageIO's choice), overwriting any existing file in place
+/// ([`crate::image::write`] adds the atomic temporary-file-and-rename step).
+///
+/// A channel named `A` becomes the alpha channel, one named `Z` the depth channel.
+pub fn write_image<S: AsRef<str>>(
+    path: &Path,
+    width: usize,
+    height: usize,
+    channels: &[S],
+    pixels: Pixels<'_>,
+    options: WriteOptions,
+) -> Result<(), OiioError> {
+    let expected = width
+        .checked_mul(height)
+        .and_then(|n| n.checked_mul(channels.len()))
+        .ok_or_else(|| OiioError::new("image size overflows"))?;
+    if expected == 0 {
+        return Err(OiioError::new(format!(
+            "empty image ({width}x{height}, {} channels)",
+            channels.len()
+        )));
+    }
+    if pixels.len() != expected {
+        return Err(OiioError::new(format!(
+            "pixel buffer holds {} values, {width}x{height}x{} needs {expected}",
+            pixels.len(),
+            channels.len()
+        )));
+    }
+    let c_path = path_cstring(path)?;
+    let names = channels
+        .iter()
+        .map(|name| {
+            CString::new(name.as_ref()).map_err(|_| {
+                OiioError::new(format!(
+                    "channel name {:?} contains a NUL byte",
+                    name.as_ref()
+                ))
+            })
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let name_ptrs: Vec<*const c_char> = names.iter().map(|n| n.as_ptr()).collect();
+    let (pixel_ptr, pixel_format) = pixels.raw();
+    let (c_width, c_height) = (to_c_int(width, "width")?, to_c_int(height, "height")?);
+    let c_nchannels = to_c_int(channels.len(), "channel count")?;
+    let flags = if options.unassociated_alpha {
+        ffi::UNASSOCIATED_ALPHA
+    } else {
+        0
+    };
+    let mut err = [0u8; ERROR_CAPACITY];
+    // SAFETY: `c_path` and every name are NUL-terminated and outlive the call; `name_ptrs` holds
+    // exactly `channels.len()` pointers; `pixel_ptr` points to `expected` = width·height·channels
+    // values of `pixel_format` (checked above); `err` is writable for `ERROR_CAPACITY` bytes.
+    let status = unsafe {
+        ffi::cuticle_oiio_write(
+            c_path.as_ptr(),
+            c_width,
+            c_height,
+            c_nchannels,
+            name_ptrs.as_ptr(),
+            pixel_ptr,
+            pixel_format,
+            options.format.raw(),
+            flags,
+            err.as_mut_ptr().cast(),
+            err.len(),
+        )
+    };
+    if status == 0 {
+        Ok(())
+    } else {
+        Err(OiioError::from_buffer(&err))
+    }
+}
+
+/// An image read by [`read_image`]: interleaved `f32` pixels, top row first.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DecodedImage {
+    /// Width of the data window, in pixels.
+    pub width: usize,
+    /// Height of the data window, in pixels.
+    pub height: usize,
+    /// Channel names in the order OpenImageIO reports them.
+    pub channels: Vec<String>,
+    /// `width * height * channels.len()` values.
+    pub data: Vec<f32>,
+}
+
+/// An open `CuticleOiioInput`, closed on drop.
+struct Input(NonNull<ffi::CuticleOiioInput>);
+
+impl Drop for Input {
+    fn drop(&mut self) {
+        // SAFETY: the handle came from `cuticle_oiio_open` and `Input` owns it: it is closed once.
+        unsafe { ffi::cuticle_oiio_close(self.0.as_ptr()) }
+    }
+}
+
+/// Reads the first subimage of `path` (any format OpenImageIO reads: EXR including DWAA/DWAB,
+/// Radiance HDR, PNG, TIFF, ...), converted to `f32`. 8-bit files come back as stored, divided by
+/// 255 (no sRGB decoding); colour is premultiplied by alpha (OpenImageIO multiplies it in for
+/// formats that store straight alpha, such as PNG).
+pub fn read_image(path: &Path) -> Result<DecodedImage, OiioError> {
+    let c_path = path_cstring(path)?;
+    let mut err = [0u8; ERROR_CAPACITY];
+    // SAFETY: `c_path` is NUL-terminated and outlives the call; `err` is writable for its length.
+    let raw =
+        unsafe { ffi::cuticle_oiio_open(c_path.as_ptr(), err.as_mut_ptr().cast(), err.len()) };
+    let input = Input(NonNull::new(raw).ok_or_else(|| OiioError::from_buffer(&err))?);
+
+    let (mut width, mut height, mut nchannels): (c_int, c_int, c_int) = (0, 0, 0);
+    // SAFETY: `input` is an open handle and the three out-pointers are valid, distinct locals.
+    unsafe {
+        ffi::cuticle_oiio_input_size(input.0.as_ptr(), &mut width, &mut height, &mut nchannels)
+    };
+    let (Ok(width), Ok(height), Ok(nchannels)) = (
+        usize::try_from(width),
+        usize::try_from(height),
+        usize::try_from(nchannels),
+    ) else {
+        return Err(OiioError::new("image reports a negative size"));
+    };
+
+    let channels = (0..nchannels)
+        .map(|c| {
+            let c = to_c_int(c, "channel index")?;
+            // SAFETY: `input` is open; the shim bounds-checks `c` (null when out of range).
+            let name = unsafe { ffi::cuticle_oiio_input_channel_name(input.0.as_ptr(), c) };
+            if name.is_null() {
+                return Err(OiioError::new(format!("channel {c} has no name")));
+            }
+            // SAFETY: a non-null name is NUL-terminated and lives until `input` is closed (after
+            // this copy).
+            let name = unsafe { CStr::from_ptr(name) };
+            Ok(name.to_string_lossy().into_owned())
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+
+    let len = width
+        .checked_mul(height)
+        .and_then(|n| n.checked_mul(nchannels))
+        .ok_or_else(|| OiioError::new("image size overflows"))?;
+    let mut data = vec![0.0f32; len];
+    // SAFETY: `input` is open; `data` is writable for exactly `len` floats, the size the shim
+    // checks against width·height·nchannels; `err` is writable for its length.
+    let status = unsafe {
+        ffi::cuticle_oiio_read_float(
+            input.0.as_ptr(),
+            data.as_mut_ptr(),
+            data.len(),
+            err.as_mut_ptr().cast(),
+            err.len(),
+        )
+    };
+    if status != 0 {
+        return Err(OiioError::from_buffer(&err));
+    }
+    Ok(DecodedImage {
+        width,
+        height,
+        channels,
+        data,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn links_openimageio_2_4_or_later() {
+        assert!(
+            version() >= 20400,
+            "linked OpenImageIO version {}",
+            version()
+        );
+    }
+
+    #[test]
+    fn rejects_a_buffer_of_the_wrong_size() {
+        let err = write_image(
+            Path::new("unused.exr"),
+            2,
+            2,
+            &["R"],
+            Pixels::F32(&[0.0; 3]),
+            WriteOptions {
+                format: FileFormat::Float,
+                unassociated_alpha: false,
+            },
+        )
+        .unwrap_err();
+        assert!(err.message.contains("holds 3 values"), "{err}");
+    }
+
+    #[test]
+    fn reports_a_missing_file() {
+        let err = read_image(Path::new("/nonexistent/cuticle/missing.exr")).unwrap_err();
+        assert!(!err.message.is_empty());
+    }
+}
