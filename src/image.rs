@@ -276,21 +276,13 @@ pub fn linear_to_srgb8(linear: f32) -> u8 {
     (encoded * 255.0 + 0.5) as u8
 }
 
-/// A linear value (alpha) clamped to [0, 1] and rounded to 8 bits. NaN becomes 0.
-fn linear_to_unorm8(value: f32) -> u8 {
-    if value.is_nan() || value <= 0.0 {
-        return 0;
-    }
-    (value.min(1.0) * 255.0 + 0.5) as u8
-}
-
-/// Writes an 8-bit preview of `image`'s `R`, `G`, `B` and, if present, `A` channels to `path`
-/// (atomically; the format follows the extension, normally `.png`). Other channels are left out.
+/// Writes an 8-bit RGB preview of `image`'s `R`, `G`, `B` channels to `path` (atomically; the
+/// format follows the extension, normally `.png`). Other channels, alpha included, are left out:
+/// the preview shows the frame as rendered (with the environment behind the hair where the scene
+/// makes it visible); the EXR carries alpha for compositing.
 ///
-/// The colour is linear and premultiplied (as in EXR); the preview divides it by alpha (PNG stores
-/// straight alpha, and a pixel of alpha 0 becomes black), then applies the sRGB transfer function
-/// with no exposure or tone mapping, clamping to [0, 1] and rounding ([`linear_to_srgb8`]). Alpha
-/// itself is stored linearly. OpenImageIO does not sRGB-encode 8-bit output, which is why this
+/// Encoding is the sRGB transfer function with no exposure or tone mapping, clamping to [0, 1] and
+/// rounding ([`linear_to_srgb8`]). OpenImageIO does not sRGB-encode 8-bit output, which is why this
 /// happens here.
 pub fn write_png_preview(path: impl AsRef<Path>, image: &Image) -> Result<(), ImageError> {
     let path = path.as_ref();
@@ -308,25 +300,12 @@ pub fn write_png_preview(path: impl AsRef<Path>, image: &Image) -> Result<(), Im
         })
     };
     let rgb = [find("R")?, find("G")?, find("B")?];
-    let alpha = image.channel_index("A");
-    let out_channels: &[&str] = if alpha.is_some() {
-        &["R", "G", "B", "A"]
-    } else {
-        &["R", "G", "B"]
-    };
+    let out_channels: &[&str] = &["R", "G", "B"];
 
     let n = image.channels.len();
     let mut bytes = Vec::with_capacity(image.width * image.height * out_channels.len());
     for pixel in image.data.chunks_exact(n) {
-        match alpha {
-            Some(a) => {
-                let a = pixel[a];
-                let unpremultiply = if a > 0.0 { 1.0 / a.min(1.0) } else { 0.0 };
-                bytes.extend(rgb.map(|c| linear_to_srgb8(pixel[c] * unpremultiply)));
-                bytes.push(linear_to_unorm8(a));
-            }
-            None => bytes.extend(rgb.map(|c| linear_to_srgb8(pixel[c]))),
-        }
+        bytes.extend(rgb.map(|c| linear_to_srgb8(pixel[c])));
     }
     write_atomically(path, |temp| {
         oiio::write_image(
@@ -337,7 +316,7 @@ pub fn write_png_preview(path: impl AsRef<Path>, image: &Image) -> Result<(), Im
             Pixels::U8(&bytes),
             WriteOptions {
                 format: FileFormat::Uint8,
-                unassociated_alpha: true,
+                unassociated_alpha: false,
             },
         )
     })
@@ -347,8 +326,7 @@ pub fn write_png_preview(path: impl AsRef<Path>, image: &Image) -> Result<(), Im
 ///
 /// 8-bit files come back as stored, divided by 255: no sRGB decoding. Colour comes back
 /// premultiplied by alpha, as [`Image`] holds it: OpenImageIO multiplies it in for formats that
-/// store straight alpha (PNG), so a preview written by [`write_png_preview`] does not read back
-/// as the values it was made from.
+/// store straight alpha (PNG).
 pub fn read(path: impl AsRef<Path>) -> Result<Image, ImageError> {
     let path = path.as_ref();
     let metadata = fs::metadata(path).map_err(|e| ImageError::io(path, "cannot read", e))?;

@@ -8,6 +8,8 @@
 #![warn(missing_docs)]
 
 pub mod accel;
+pub mod bench;
+pub mod bsdf;
 pub mod hair;
 pub mod image;
 pub mod ray;

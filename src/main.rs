@@ -1,1 +1,288 @@
-fn main() {}
+//! The `cuticle` command line: render a scene, describe a hair file, benchmark tracing.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Instant;
+
+use anyhow::{bail, Context, Result};
+use clap::{Parser, Subcommand};
+
+use cuticle::accel::embree::EmbreeTracer;
+use cuticle::accel::CurveKind;
+use cuticle::hair;
+use cuticle::render;
+use cuticle::scene::{Scene, ShadowMode};
+
+/// cuticle: a physically based hair renderer (Embree curves, thesis hair BSDFs, OpenImageIO output).
+#[derive(Parser)]
+#[command(version, about, propagate_version = true)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render a scene to an EXR (beauty + AOVs) and a PNG preview beside it.
+    Render(RenderArgs),
+    /// Describe a hair file: strands, points, bounds, thickness statistics, format.
+    Info {
+        /// A `.hair` or `.tfx` file.
+        file: PathBuf,
+    },
+    /// Benchmarks (not tests): print throughput figures.
+    #[command(subcommand)]
+    Bench(BenchCommand),
+}
+
+#[derive(clap::Args)]
+struct RenderArgs {
+    /// Scene file (TOML). Without it, the built-in default scene (a procedural fur ball).
+    scene: Option<PathBuf>,
+    /// Output image: `.exr` (beauty + AOVs, plus a `.png` preview beside it) or `.png` (preview only).
+    #[arg(short, long, default_value = "cuticle.exr")]
+    output: PathBuf,
+    /// Camera samples per pixel (overrides film.spp).
+    #[arg(long)]
+    spp: Option<u32>,
+    /// Resolution WxH, e.g. 1280x720 (overrides film.resolution).
+    #[arg(long, value_parser = parse_resolution)]
+    res: Option<[u32; 2]>,
+    /// Worker threads (default: all cores). The image does not depend on it.
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Strand geometry (overrides hair.curves).
+    #[arg(long, value_enum)]
+    curves: Option<CurveKind>,
+    /// Seed of the sample streams (overrides film.seed).
+    #[arg(long)]
+    seed: Option<u32>,
+    /// Self-shadowing (overrides shadows.mode).
+    #[arg(long, value_enum)]
+    shadows: Option<ShadowMode>,
+    /// No progress bar.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+#[derive(Subcommand)]
+enum BenchCommand {
+    /// Primary- and shadow-ray throughput for round and flat curves, BVH build time, peak memory.
+    Trace {
+        /// Scene whose hair model is traced (default: the built-in default scene).
+        scene: Option<PathBuf>,
+        /// Worker threads.
+        #[arg(long, default_value_t = 2)]
+        threads: usize,
+        /// Number of camera rays as a WxH grid (square grids are traced).
+        #[arg(long, value_parser = parse_resolution, default_value = "512x512")]
+        res: [u32; 2],
+    },
+}
+
+fn parse_resolution(s: &str) -> Result<[u32; 2], String> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("expected WxH, e.g. 640x480, got `{s}`"))?;
+    let parse = |v: &str| {
+        v.trim()
+            .parse::<u32>()
+            .map_err(|_| format!("expected WxH, e.g. 640x480, got `{s}`"))
+    };
+    let (w, h) = (parse(w)?, parse(h)?);
+    if w == 0 || h == 0 {
+        return Err(format!("resolution must be at least 1x1, got `{s}`"));
+    }
+    Ok([w, h])
+}
+
+fn load_scene(path: Option<&Path>) -> Result<Scene> {
+    Ok(match path {
+        Some(p) => Scene::load(p)?,
+        None => Scene::default_scene(),
+    })
+}
+
+fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
+    let mut builder = rayon::ThreadPoolBuilder::new();
+    if let Some(n) = threads {
+        if n == 0 {
+            bail!("--threads must be at least 1");
+        }
+        builder = builder.num_threads(n);
+    }
+    builder.build().context("cannot start worker threads")
+}
+
+fn render_command(args: RenderArgs) -> Result<()> {
+    let mut scene = load_scene(args.scene.as_deref())?;
+    if let Some(spp) = args.spp {
+        if spp == 0 {
+            bail!("--spp must be at least 1");
+        }
+        scene.film.spp = spp;
+    }
+    if let Some(res) = args.res {
+        scene.film.resolution = res;
+    }
+    if let Some(curves) = args.curves {
+        scene.hair.curves = curves;
+    }
+    if let Some(seed) = args.seed {
+        scene.film.seed = seed;
+    }
+    if let Some(shadows) = args.shadows {
+        scene.shadows.mode = shadows;
+    }
+    let extension = args
+        .output
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    if !matches!(extension.as_deref(), Some("exr") | Some("png")) {
+        bail!("{}: output must end in .exr or .png", args.output.display());
+    }
+
+    let pool = thread_pool(args.threads)?;
+    let start = Instant::now();
+    let strands = render::load_strands(&scene)?;
+    let load_seconds = start.elapsed().as_secs_f64();
+    let tracer = EmbreeTracer::new(&strands, scene.hair.curves)?;
+    let (image, stats) = pool.install(|| {
+        render::render(
+            &scene,
+            &strands,
+            &tracer,
+            render::Options {
+                progress: !args.quiet,
+            },
+        )
+    });
+
+    if extension.as_deref() == Some("exr") {
+        cuticle::image::write(&args.output, &image)?;
+        let preview = args.output.with_extension("png");
+        cuticle::image::write_png_preview(&preview, &image)?;
+        eprintln!("wrote {} and {}", args.output.display(), preview.display());
+    } else {
+        cuticle::image::write_png_preview(&args.output, &image)?;
+        eprintln!("wrote {}", args.output.display());
+    }
+    let [w, h] = scene.film.resolution;
+    eprintln!(
+        "{} strands ({:?} curves), {w}x{h}, {} spp, {} threads: load {:.2} s, build {:.2} s, render {:.2} s \
+         ({:.2} Mrays/s camera + shadow)",
+        strands.strand_count(),
+        scene.hair.curves,
+        scene.film.spp,
+        pool.current_num_threads(),
+        load_seconds,
+        tracer.build_seconds(),
+        stats.seconds,
+        (stats.camera_rays + stats.shadow_rays) as f64 / stats.seconds / 1e6,
+    );
+    if stats.rejected_rays > 0 {
+        eprintln!(
+            "warning: {} invalid rays were rejected before tracing (a bug: please report)",
+            stats.rejected_rays
+        );
+    }
+    Ok(())
+}
+
+fn info_command(file: &Path) -> Result<()> {
+    let model = hair::load(file)?;
+    let strands = model.strand_count();
+    let points = model.points.len();
+    let lengths: Vec<usize> = (0..strands).map(|s| model.strand_range(s).len()).collect();
+    let (lo, hi) = model.bounds();
+    let thickness: Vec<f32> = model.radius.iter().map(|r| 2.0 * r).collect();
+    let (tmin, tmax) = thickness
+        .iter()
+        .fold((f32::INFINITY, 0.0f32), |(a, b), &t| (a.min(t), b.max(t)));
+    let tmean = thickness.iter().map(|&t| f64::from(t)).sum::<f64>() / points as f64;
+    println!("file:         {}", file.display());
+    println!("format:       {}", model.format);
+    if !model.info.is_empty() {
+        println!("info:         {}", model.info);
+    }
+    println!("strands:      {strands}");
+    println!("points:       {points}");
+    println!(
+        "per strand:   min {} / mean {:.1} / max {} points",
+        lengths.iter().min().unwrap_or(&0),
+        points as f64 / strands.max(1) as f64,
+        lengths.iter().max().unwrap_or(&0)
+    );
+    println!(
+        "bounds:       [{:.4}, {:.4}, {:.4}] .. [{:.4}, {:.4}, {:.4}]",
+        lo.x, lo.y, lo.z, hi.x, hi.y, hi.z
+    );
+    println!(
+        "thickness:    min {tmin:.6} / mean {tmean:.6} / max {tmax:.6} ({})",
+        if model.radius_from_file {
+            "per point, from the file"
+        } else {
+            "file default; tapered to half at the tip"
+        }
+    );
+    let (t0, t1) = model
+        .transparency
+        .iter()
+        .fold((f32::INFINITY, 0.0f32), |(a, b), &t| (a.min(t), b.max(t)));
+    println!("transparency: min {t0:.4} / max {t1:.4}");
+    Ok(())
+}
+
+fn bench_command(command: BenchCommand) -> Result<()> {
+    match command {
+        BenchCommand::Trace {
+            scene,
+            threads,
+            res,
+        } => {
+            let scene = load_scene(scene.as_deref())?;
+            let strands = render::load_strands(&scene)?;
+            let camera = render::camera::Camera::from_config(
+                &scene.camera,
+                strands.bounds(),
+                res[0],
+                res[1],
+            );
+            let mut config = cuticle::bench::TraceConfig::new((res[0] * res[1]) as usize, threads);
+            config.camera = Some(cuticle::bench::BenchCamera {
+                origin: camera.position,
+                target: camera.position + camera.forward,
+                fov_degrees: scene.camera.fov,
+            });
+            if let Some(cuticle::scene::LightConfig::Distant { direction, .. }) =
+                scene.lights.first()
+            {
+                config.to_light = -glam::Vec3::from(*direction);
+            }
+            config.opacity = scene.hair.opacity;
+            let report = cuticle::bench::trace(&strands, &config)?;
+            println!("{report}");
+        }
+    }
+    Ok(())
+}
+
+fn run() -> Result<()> {
+    let cli = Cli::parse();
+    match cli.command {
+        Command::Render(args) => render_command(args),
+        Command::Info { file } => info_command(&file),
+        Command::Bench(b) => bench_command(b),
+    }
+}
+
+fn main() -> ExitCode {
+    match run() {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("cuticle: error: {e:#}");
+            ExitCode::from(2)
+        }
+    }
+}

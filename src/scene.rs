@@ -1,1 +1,430 @@
-//! Scene description (stub).
+//! Scenes: the TOML file a user writes, checked strictly (an unknown key or a wrong type is an error naming the key
+//! and line), and resolved into what the renderer needs.
+//!
+//! ```toml
+//! [hair]                       # exactly one of `file` or `procedural`
+//! file = "../shared/data/hair/furball.hair"   # relative to the scene file
+//! curves = "round"             # or "flat"
+//! opacity = 0.6                # optional: overrides the file's transparency for shadow rays
+//!
+//! [camera]                     # position/look_at absent: auto-framed from the model's bounds
+//! fov = 40.0                   # vertical, degrees
+//!
+//! [film]
+//! resolution = [640, 480]
+//! spp = 16
+//!
+//! [[light]]
+//! kind = "distant"
+//! direction = [1.0, -1.0, 1.0] # the direction light travels
+//! irradiance = 3.0
+//! ```
+
+use std::path::{Path, PathBuf};
+
+use glam::Vec3;
+use serde::Deserialize;
+
+use crate::accel::CurveKind;
+use crate::hair::procedural::Procedural;
+
+/// The default scene, compiled in so `cuticle render` works from any directory with no downloaded data.
+pub const DEFAULT_SCENE: &str = include_str!("../scenes/default.toml");
+
+/// A scene could not be read or is invalid. Messages name the file and, where known, the key and line.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    /// The file could not be read.
+    #[error("{path}: {source}")]
+    Io {
+        /// The scene file.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// TOML syntax, an unknown key, a wrong type, or a value out of range.
+    #[error("{path}: {message}")]
+    Invalid {
+        /// The scene file.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
+}
+
+/// The whole scene file.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scene {
+    /// The hair model and how it is intersected.
+    pub hair: HairConfig,
+    /// The camera.
+    #[serde(default)]
+    pub camera: CameraConfig,
+    /// Resolution, samples, seed.
+    #[serde(default)]
+    pub film: FilmConfig,
+    /// The fibre material.
+    #[serde(default)]
+    pub material: MaterialConfig,
+    /// Light sources, `[[light]]` tables.
+    #[serde(default, rename = "light")]
+    pub lights: Vec<LightConfig>,
+    /// Light arriving from every direction not blocked by hair.
+    #[serde(default)]
+    pub environment: EnvironmentConfig,
+    /// Self-shadowing.
+    #[serde(default)]
+    pub shadows: ShadowConfig,
+    /// Directory of the scene file: relative paths in the scene resolve against it.
+    #[serde(skip)]
+    pub base_dir: PathBuf,
+    /// Where the scene came from (a path, or `<default scene>`), for messages.
+    #[serde(skip)]
+    pub source: PathBuf,
+}
+
+/// `[hair]`: the model and its intersection.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HairConfig {
+    /// A `.hair` or `.tfx` file, relative to the scene file.
+    pub file: Option<PathBuf>,
+    /// A procedural model, e.g. `{ kind = "fur-ball", strands = 12000 }`.
+    pub procedural: Option<Procedural>,
+    /// Round tubes or flat ribbons.
+    #[serde(default)]
+    pub curves: CurveKind,
+    /// Per-strand opacity for shadow rays, overriding the file's transparency (0 = invisible to shadows).
+    pub opacity: Option<f32>,
+    /// Multiplies every strand radius (a thickness control for models whose files are too thick or thin).
+    #[serde(default = "one")]
+    pub radius_scale: f32,
+}
+
+fn one() -> f32 {
+    1.0
+}
+
+/// Where the hair comes from, after checking `[hair]`.
+#[derive(Debug, Clone)]
+pub enum HairSource {
+    /// A file path, already resolved against the scene directory.
+    File(PathBuf),
+    /// A generated model.
+    Procedural(Procedural),
+}
+
+/// `[camera]`: a pinhole camera. Without `position` the camera is placed automatically so the model's bounding
+/// sphere fills the frame, looking along `view` at the model's centre.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CameraConfig {
+    /// Vertical field of view, degrees, in (0, 180).
+    pub fov: f32,
+    /// Eye position, world space.
+    pub position: Option<[f32; 3]>,
+    /// Point looked at (default: the model's bounding-box centre).
+    pub look_at: Option<[f32; 3]>,
+    /// Up vector.
+    pub up: [f32; 3],
+    /// Viewing direction used by auto-framing (from the eye towards the model).
+    pub view: [f32; 3],
+    /// Auto-framing margin: 1 fits the bounding sphere exactly, larger zooms out.
+    pub margin: f32,
+}
+
+impl Default for CameraConfig {
+    fn default() -> Self {
+        CameraConfig {
+            fov: 40.0,
+            position: None,
+            look_at: None,
+            up: [0.0, 1.0, 0.0],
+            view: [0.0, 0.0, -1.0],
+            margin: 1.05,
+        }
+    }
+}
+
+/// `[film]`: image size and sampling.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct FilmConfig {
+    /// Width and height in pixels.
+    pub resolution: [u32; 2],
+    /// Camera samples per pixel.
+    pub spp: u32,
+    /// Seed of the sample streams: same scene + seed ⇒ same image.
+    pub seed: u32,
+    /// Width of the Gaussian pixel filter in pixels (thesis §5.5 used a 3×3 Gaussian).
+    pub filter_width: f32,
+}
+
+impl Default for FilmConfig {
+    fn default() -> Self {
+        FilmConfig {
+            resolution: [640, 480],
+            spp: 16,
+            seed: 0,
+            filter_width: 3.0,
+        }
+    }
+}
+
+/// `[material]`: the fibre's scattering model.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(tag = "model", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum MaterialConfig {
+    /// Kajiya & Kay 1989: a diffuse cylinder plus a specular cone around the mirror direction.
+    KajiyaKay {
+        /// Diffuse albedo, linear RGB; absent ⇒ the per-strand colour of the hair file.
+        #[serde(default)]
+        color: Option<[f32; 3]>,
+        /// Weight of the diffuse term.
+        #[serde(default = "kk_diffuse")]
+        diffuse: f32,
+        /// Weight of the specular term.
+        #[serde(default = "kk_specular")]
+        specular: f32,
+        /// Specular cone exponent (larger = sharper highlight).
+        #[serde(default = "kk_exponent")]
+        exponent: f32,
+    },
+}
+
+fn kk_diffuse() -> f32 {
+    0.7
+}
+fn kk_specular() -> f32 {
+    0.3
+}
+fn kk_exponent() -> f32 {
+    60.0
+}
+
+impl Default for MaterialConfig {
+    fn default() -> Self {
+        MaterialConfig::KajiyaKay {
+            color: None,
+            diffuse: kk_diffuse(),
+            specular: kk_specular(),
+            exponent: kk_exponent(),
+        }
+    }
+}
+
+/// One `[[light]]`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum LightConfig {
+    /// A light at infinity (the sun).
+    Distant {
+        /// The direction light travels, world space (need not be unit length).
+        direction: [f32; 3],
+        /// Irradiance on a surface facing the light.
+        #[serde(default = "one")]
+        irradiance: f32,
+        /// Linear RGB tint, multiplied by `irradiance`.
+        #[serde(default = "white")]
+        color: [f32; 3],
+    },
+}
+
+fn white() -> [f32; 3] {
+    [1.0; 3]
+}
+
+/// `[environment]`: light from every direction.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct EnvironmentConfig {
+    /// Constant radiance, linear RGB.
+    pub radiance: [f32; 3],
+    /// Show the environment behind the hair (alpha stays 0 there either way).
+    pub visible: bool,
+}
+
+impl Default for EnvironmentConfig {
+    fn default() -> Self {
+        EnvironmentConfig {
+            radiance: [0.0; 3],
+            visible: true,
+        }
+    }
+}
+
+/// How strands shadow each other.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum ShadowMode {
+    /// Shadow rays through semi-transparent strands (transmittance query).
+    #[default]
+    Raytraced,
+    /// No self-shadowing.
+    None,
+}
+
+/// `[shadows]`.
+#[derive(Debug, Clone, Deserialize, Default)]
+#[serde(deny_unknown_fields, default)]
+pub struct ShadowConfig {
+    /// Ray traced or none (deep opacity maps arrive with issue 6).
+    pub mode: ShadowMode,
+}
+
+impl Scene {
+    /// Reads and checks a scene file.
+    pub fn load(path: &Path) -> Result<Scene, SceneError> {
+        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+            path: path.into(),
+            source,
+        })?;
+        let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        Scene::parse(&text, path, &base)
+    }
+
+    /// The built-in default scene (a procedural fur ball; no downloaded data).
+    pub fn default_scene() -> Scene {
+        Scene::parse(DEFAULT_SCENE, Path::new("<default scene>"), Path::new("."))
+            .expect("the built-in default scene is valid (tested)")
+    }
+
+    /// Parses scene text; `source` names it in errors, `base_dir` resolves relative paths.
+    pub fn parse(text: &str, source: &Path, base_dir: &Path) -> Result<Scene, SceneError> {
+        let invalid = |message: String| SceneError::Invalid {
+            path: source.into(),
+            message,
+        };
+        // toml's messages carry the line, column and key ("unknown field `fov2`, expected one of ...").
+        let mut scene: Scene =
+            toml::from_str(text).map_err(|e| invalid(e.to_string().trim_end().to_owned()))?;
+        scene.base_dir = base_dir.to_path_buf();
+        scene.source = source.to_path_buf();
+        scene.validate().map_err(invalid)?;
+        Ok(scene)
+    }
+
+    /// Range checks serde cannot express. Messages name the key.
+    fn validate(&self) -> Result<(), String> {
+        let h = &self.hair;
+        if h.file.is_some() == h.procedural.is_some() {
+            return Err("[hair] needs exactly one of `file` or `procedural`".into());
+        }
+        if let Some(o) = h.opacity {
+            if !(0.0..=1.0).contains(&o) {
+                return Err(format!("hair.opacity must be in [0, 1], got {o}"));
+            }
+        }
+        if !(h.radius_scale.is_finite() && h.radius_scale > 0.0) {
+            return Err(format!(
+                "hair.radius_scale must be > 0, got {}",
+                h.radius_scale
+            ));
+        }
+        let c = &self.camera;
+        if !(c.fov > 0.0 && c.fov < 180.0) {
+            return Err(format!(
+                "camera.fov must be in (0, 180) degrees, got {}",
+                c.fov
+            ));
+        }
+        if !(c.margin.is_finite() && c.margin > 0.0) {
+            return Err(format!("camera.margin must be > 0, got {}", c.margin));
+        }
+        for (key, v) in [("camera.up", c.up), ("camera.view", c.view)] {
+            if !Vec3::from(v).is_finite() || Vec3::from(v).length_squared() == 0.0 {
+                return Err(format!("{key} must be a non-zero finite vector, got {v:?}"));
+            }
+        }
+        let f = &self.film;
+        if f.resolution[0] == 0
+            || f.resolution[1] == 0
+            || f.resolution[0] > 32768
+            || f.resolution[1] > 32768
+        {
+            return Err(format!(
+                "film.resolution must be in [1, 32768]², got {:?}",
+                f.resolution
+            ));
+        }
+        if f.spp == 0 || f.spp > 65536 {
+            return Err(format!("film.spp must be in [1, 65536], got {}", f.spp));
+        }
+        if !(f.filter_width.is_finite() && f.filter_width > 0.0 && f.filter_width <= 16.0) {
+            return Err(format!(
+                "film.filter_width must be in (0, 16] pixels, got {}",
+                f.filter_width
+            ));
+        }
+        match &self.material {
+            MaterialConfig::KajiyaKay {
+                color,
+                diffuse,
+                specular,
+                exponent,
+            } => {
+                if let Some(col) = color {
+                    if col.iter().any(|x| !(0.0..=1.0).contains(x)) {
+                        return Err(format!(
+                            "material.color must be in [0, 1] per channel, got {col:?}"
+                        ));
+                    }
+                }
+                if *diffuse < 0.0 || *specular < 0.0 || diffuse + specular > 1.0 {
+                    return Err(format!(
+                        "material.diffuse and material.specular must be >= 0 with a sum <= 1, got {diffuse} and {specular}"
+                    ));
+                }
+                if !(exponent.is_finite() && *exponent >= 1.0) {
+                    return Err(format!("material.exponent must be >= 1, got {exponent}"));
+                }
+            }
+        }
+        for (i, light) in self.lights.iter().enumerate() {
+            match light {
+                LightConfig::Distant {
+                    direction,
+                    irradiance,
+                    color,
+                } => {
+                    let d = Vec3::from(*direction);
+                    if !d.is_finite() || d.length_squared() == 0.0 {
+                        return Err(format!("light[{i}].direction must be a non-zero finite vector, got {direction:?}"));
+                    }
+                    if !(irradiance.is_finite() && *irradiance >= 0.0) {
+                        return Err(format!(
+                            "light[{i}].irradiance must be >= 0, got {irradiance}"
+                        ));
+                    }
+                    if color.iter().any(|x| !(x.is_finite() && *x >= 0.0)) {
+                        return Err(format!(
+                            "light[{i}].color must be >= 0 per channel, got {color:?}"
+                        ));
+                    }
+                }
+            }
+        }
+        if self
+            .environment
+            .radiance
+            .iter()
+            .any(|x| !(x.is_finite() && *x >= 0.0))
+        {
+            return Err(format!(
+                "environment.radiance must be >= 0 per channel, got {:?}",
+                self.environment.radiance
+            ));
+        }
+        Ok(())
+    }
+
+    /// The hair source with file paths resolved against the scene directory.
+    pub fn hair_source(&self) -> HairSource {
+        match (&self.hair.file, &self.hair.procedural) {
+            (Some(file), _) => HairSource::File(self.base_dir.join(file)),
+            (None, Some(p)) => HairSource::Procedural(p.clone()),
+            (None, None) => unreachable!("validate() requires a hair source"),
+        }
+    }
+}

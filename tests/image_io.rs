@@ -156,15 +156,15 @@ fn png_preview_is_srgb_encoded_clamped_and_rounded() {
     assert_eq!(listing(dir.path()), ["preview.png"]);
 }
 
-/// Pixels of R, G, B, A plus an AOV the preview drops: a half-covered 0.5 grey (premultiplied),
-/// an empty pixel, and an opaque white one.
+/// Pixels of R, G, B, A plus an AOV the preview drops: a half-covered pixel, an empty pixel, and
+/// an opaque white one.
 const PREMULTIPLIED_RGBA_AND_DEPTH: [f32; 15] = [
     0.25, 0.25, 0.0, 0.5, 3.0, //
     0.0, 0.0, 0.0, 0.0, 4.0, //
     1.0, 1.0, 1.0, 1.0, 5.0,
 ];
-/// What the PNG must store for them: straight sRGB colour (0.25 / 0.5 = 0.5 → 188), linear alpha.
-const STORED_RGBA: [u8; 12] = [188, 188, 0, 128, 0, 0, 0, 0, 255, 255, 255, 255];
+/// What the PNG must store for them: the colour as rendered, sRGB-encoded (0.25 → 137), no alpha.
+const STORED_RGB: [u8; 9] = [137, 137, 0, 0, 0, 0, 255, 255, 255];
 
 /// Writes the RGBA preview of [`PREMULTIPLIED_RGBA_AND_DEPTH`] into `dir`.
 fn write_rgba_preview(dir: &Path) -> PathBuf {
@@ -178,17 +178,11 @@ fn write_rgba_preview(dir: &Path) -> PathBuf {
 }
 
 #[test]
-fn png_preview_with_alpha_reads_back_premultiplied() {
+fn png_preview_is_rgb_as_rendered() {
     let dir = tempfile::tempdir().unwrap();
     let read = image::read(write_rgba_preview(dir.path())).unwrap();
-    assert_eq!(read.channels, ["R", "G", "B", "A"]);
-    // The file stores straight alpha (checked byte for byte with oiiotool below); reading
-    // premultiplies it again, as OpenImageIO does for every format with straight alpha:
-    // 188 × 128 / 255 = 94.4.
-    assert_eq!(
-        codes(&read),
-        [94, 94, 0, 128, 0, 0, 0, 0, 255, 255, 255, 255]
-    );
+    assert_eq!(read.channels, ["R", "G", "B"]);
+    assert_eq!(codes(&read), STORED_RGB);
 }
 
 #[test]
@@ -390,7 +384,7 @@ fn oiiotool_sees_straight_srgb_colour_in_the_png_preview() {
         "1",
         path.to_str().unwrap(),
     ]);
-    assert!(dump.contains("4 channel, uint8 png"), "{dump}");
+    assert!(dump.contains("3 channel, uint8 png"), "{dump}");
     let stored: Vec<u8> = dump
         .lines()
         .filter_map(|line| line.trim().strip_prefix("Pixel ("))
@@ -402,5 +396,5 @@ fn oiiotool_sees_straight_srgb_colour_in_the_png_preview() {
                 .collect::<Vec<_>>()
         })
         .collect();
-    assert_eq!(stored, STORED_RGBA, "oiiotool --dumpdata:\n{dump}");
+    assert_eq!(stored, STORED_RGB, "oiiotool --dumpdata:\n{dump}");
 }

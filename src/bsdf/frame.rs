@@ -1,0 +1,286 @@
+//! The hair frame of thesis §4.1 (Marschner et al. 2003's notation) and the angles every model is written in.
+//!
+//! - u: the tangent, root → tip. v, w: span the normal plane, u × v = w (right-handed).
+//! - θ ∈ [−π/2, π/2]: the longitudinal angle from the normal plane, sin θ = ω·u (θ = π/2 is u, −π/2 is −u).
+//! - φ ∈ [−π, π]: the azimuth of ω projected on the normal plane, φ = atan2(ω·w, ω·v) (0 is v, π/2 is w).
+//! - θh = (θr + θi)/2, θd = (θr − θi)/2, relative φ = φr − φi wrapped to [−π, π], with r the reflected (view,
+//!   `wo`) and i the incident (light, `wi`) direction, both pointing away from the fibre.
+//!
+//! Local coordinates are (ω·u, ω·v, ω·w) (thesis eq. 22): **x is the tangent component**. The thesis' shader
+//! read the wrong coordinate index when converting to spherical coordinates (§8.1); the tests below pin the
+//! conversion with directions whose θ, φ, θh and θd are known.
+//!
+//! # Where v comes from
+//!
+//! - **Round curves** ([`HairFrame::from_round_curve`]): v is the outward surface normal at the hit, made
+//!   orthogonal to u. Embree's geometric normal `Ng` for round curves points outward but is not unit length
+//!   (and not exactly orthogonal to the tangent), so it is projected and normalised here.
+//! - **Flat ribbons** ([`HairFrame::from_ribbon`]): a ribbon has no outward normal worth the name, so, as the
+//!   thesis did (§5.3.1), v is the Gram-Schmidt orthogonalisation of a per-strand noise vector against u
+//!   ([`strand_noise`]). The azimuth φ is then arbitrary per strand (fixed along a strand, random across
+//!   strands). Every model in this module depends on φr and φi only through φ = φr − φi, so that arbitrary
+//!   rotation changes nothing they compute; it would matter to a model that uses the offset h across the
+//!   fibre or an elliptical cross-section (neither is implemented).
+
+use glam::Vec3;
+use std::f32::consts::{PI, TAU};
+
+/// Smallest cos θ a model divides by (θ within 0.0057° of the tangent). Solid-angle pdfs carry 1/cos θi and
+/// Marschner-type f carries 1/cos²θd; both are integrable singularities, and clamping here keeps every value
+/// finite while changing the integrals by a solid angle of about π·1e-8 sr.
+pub const COS_THETA_MIN: f32 = 1e-4;
+
+/// An orthonormal hair frame (u, v, w) in world space.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HairFrame {
+    /// Tangent, root → tip.
+    pub u: Vec3,
+    /// First normal-plane axis (φ = 0).
+    pub v: Vec3,
+    /// Second normal-plane axis (φ = π/2), u × v.
+    pub w: Vec3,
+}
+
+impl HairFrame {
+    /// The frame of a round curve: u = `tangent` (normalised), v = the component of Embree's outward geometric
+    /// normal `ng` orthogonal to u, normalised. If `ng` is (nearly) parallel to u or zero, v is any vector
+    /// orthogonal to u.
+    pub fn from_round_curve(tangent: Vec3, ng: Vec3) -> HairFrame {
+        Self::gram_schmidt(tangent, ng)
+    }
+
+    /// The frame of a flat ribbon (thesis §5.3.1): v = Gram-Schmidt of the per-strand `noise` vector against u
+    /// (see [`strand_noise`] and the module docs for the consequence: φ is arbitrary per strand).
+    pub fn from_ribbon(tangent: Vec3, noise: Vec3) -> HairFrame {
+        Self::gram_schmidt(tangent, noise)
+    }
+
+    /// u = normalised `tangent` (x axis if zero), v = `a` − (a·u)u normalised, w = u × v.
+    fn gram_schmidt(tangent: Vec3, a: Vec3) -> HairFrame {
+        let u = tangent.try_normalize().unwrap_or(Vec3::X);
+        let v = a - u * a.dot(u);
+        // Guard: `a` (nearly) parallel to u leaves only rounding noise, which would not be orthogonal to u.
+        let v = if v.length_squared() > 1e-8 * a.length_squared() {
+            v.normalize()
+        } else {
+            u.any_orthonormal_vector()
+        };
+        HairFrame {
+            u,
+            v,
+            w: u.cross(v),
+        }
+    }
+
+    /// World → local hair frame (thesis eq. 22): (ω·u, ω·v, ω·w).
+    #[inline]
+    pub fn to_local(&self, world: Vec3) -> Vec3 {
+        Vec3::new(world.dot(self.u), world.dot(self.v), world.dot(self.w))
+    }
+
+    /// Local hair frame → world: x u + y v + z w.
+    #[inline]
+    pub fn to_world(&self, local: Vec3) -> Vec3 {
+        self.u * local.x + self.v * local.y + self.w * local.z
+    }
+}
+
+/// A unit vector that depends only on `strand_id`, for [`HairFrame::from_ribbon`] (the thesis' "hair specific
+/// index to create an arbitrary noise-based vector"). A SplitMix64 hash of the id, mapped uniformly to the sphere.
+pub fn strand_noise(strand_id: u32) -> Vec3 {
+    let mut z = (strand_id as u64).wrapping_add(0x9e37_79b9_7f4a_7c15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^= z >> 31;
+    let a = (z >> 40) as f32 / (1u64 << 24) as f32;
+    let b = ((z >> 8) & 0xff_ffff) as f32 / (1u64 << 24) as f32;
+    super::sphere::uniform_sphere(a, b)
+}
+
+/// θ of a local direction: atan2(x, √(y² + z²)) ∈ [−π/2, π/2] (exact near the poles, unlike asin(x)).
+#[inline]
+pub fn theta(local: Vec3) -> f32 {
+    local.x.atan2(local.y.hypot(local.z))
+}
+
+/// φ of a local direction: atan2(z, y) ∈ [−π, π] (0 for a direction along ±u).
+#[inline]
+pub fn phi(local: Vec3) -> f32 {
+    local.z.atan2(local.y)
+}
+
+/// (sin θ, cos θ) of a local direction, for any non-zero length; cos θ ≥ 0. A zero vector gives (0, 1).
+#[inline]
+pub fn sin_cos_theta(local: Vec3) -> (f32, f32) {
+    let rho = local.y.hypot(local.z);
+    let len = local.x.hypot(rho);
+    if len > 0.0 {
+        (local.x / len, rho / len)
+    } else {
+        (0.0, 1.0)
+    }
+}
+
+/// The unit local direction with longitudinal angle `theta` and azimuth `phi`: (sin θ, cos θ cos φ, cos θ sin φ).
+/// cos θ is clamped at 0 so θ slightly past ±π/2 (rounding) does not flip the azimuth.
+#[inline]
+pub fn from_spherical(theta: f32, phi: f32) -> Vec3 {
+    let (sin_t, cos_t) = theta.sin_cos();
+    let (sin_p, cos_p) = phi.sin_cos();
+    let cos_t = cos_t.max(0.0);
+    Vec3::new(sin_t, cos_t * cos_p, cos_t * sin_p)
+}
+
+/// An angle wrapped to [−π, π].
+#[inline]
+pub fn wrap_phi(x: f32) -> f32 {
+    let y = x - TAU * (x / TAU).round();
+    y.clamp(-PI, PI)
+}
+
+/// The angles of a pair (ωo, ωi), thesis Table 1, with ωr = ωo.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Angles {
+    /// θr = θo, the view direction's longitudinal angle.
+    pub theta_o: f32,
+    /// θi.
+    pub theta_i: f32,
+    /// cos θo ≥ 0.
+    pub cos_theta_o: f32,
+    /// cos θi ≥ 0.
+    pub cos_theta_i: f32,
+    /// Relative azimuth φ = φr − φi ∈ [−π, π].
+    pub phi: f32,
+    /// θh = (θr + θi)/2.
+    pub theta_h: f32,
+    /// θd = (θr − θi)/2.
+    pub theta_d: f32,
+}
+
+impl Angles {
+    /// The angles of local directions `wo` and `wi` (any non-zero length).
+    #[inline]
+    pub fn new(wo: Vec3, wi: Vec3) -> Angles {
+        let theta_o = theta(wo);
+        let theta_i = theta(wi);
+        // φr − φi in one atan2: sin and cos of the difference from the normal-plane projections.
+        let phi = (wo.z * wi.y - wo.y * wi.z).atan2(wo.y * wi.y + wo.z * wi.z);
+        Angles {
+            theta_o,
+            theta_i,
+            cos_theta_o: sin_cos_theta(wo).1,
+            cos_theta_i: sin_cos_theta(wi).1,
+            phi,
+            theta_h: 0.5 * (theta_o + theta_i),
+            theta_d: 0.5 * (theta_o - theta_i),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f32::consts::{FRAC_PI_2, FRAC_PI_4};
+
+    const EPS: f32 = 1e-5; // f32 trigonometry on unit vectors: a few ulps of π.
+
+    fn deg(x: f32) -> f32 {
+        x.to_radians()
+    }
+
+    #[test]
+    fn axes_give_known_angles() {
+        // u → θ = 90°; −u → −90°; v → (0, 0); w → (0, 90°); −v → φ = ±180°.
+        assert!((theta(Vec3::X) - FRAC_PI_2).abs() < EPS);
+        assert!((theta(-Vec3::X) + FRAC_PI_2).abs() < EPS);
+        assert!(theta(Vec3::Y).abs() < EPS && phi(Vec3::Y).abs() < EPS);
+        assert!(theta(Vec3::Z).abs() < EPS && (phi(Vec3::Z) - FRAC_PI_2).abs() < EPS);
+        assert!((phi(-Vec3::Y).abs() - PI).abs() < EPS);
+        assert!((phi(-Vec3::Z) + FRAC_PI_2).abs() < EPS);
+    }
+
+    #[test]
+    fn oblique_direction_gives_known_angles() {
+        // θ = 30°, φ = 45°: (sin 30°, cos 30° cos 45°, cos 30° sin 45°). Reading the wrong index (thesis §8.1),
+        // e.g. sin θ = ω.y, would give θ = 37.8° and fail.
+        let w = Vec3::new(
+            0.5,
+            0.75f32.sqrt() * FRAC_PI_4.cos(),
+            0.75f32.sqrt() * FRAC_PI_4.sin(),
+        );
+        assert!(
+            (theta(w) - deg(30.0)).abs() < EPS,
+            "{}",
+            theta(w).to_degrees()
+        );
+        assert!((phi(w) - deg(45.0)).abs() < EPS, "{}", phi(w).to_degrees());
+        let back = from_spherical(deg(30.0), deg(45.0));
+        assert!((back - w).length() < EPS);
+        // Round trip over a grid, including the poles' neighbourhood and φ = ±π.
+        for i in 0..=36 {
+            for j in 0..=72 {
+                let t = deg(-89.9 + 179.8 * i as f32 / 36.0);
+                let p = deg(-180.0 + 5.0 * j as f32);
+                let v = from_spherical(t, p);
+                assert!((theta(v) - t).abs() < 1e-5, "θ {t} φ {p}");
+                assert!(wrap_phi(phi(v) - p).abs() < 2e-4, "θ {t} φ {p}: {}", phi(v));
+            }
+        }
+    }
+
+    #[test]
+    fn half_and_difference_angles() {
+        // θo = 40°, φo = 10°; θi = −20°, φi = 70°: θh = 10°, θd = 30°, φ = φr − φi = −60°.
+        let wo = from_spherical(deg(40.0), deg(10.0));
+        let wi = from_spherical(deg(-20.0), deg(70.0));
+        let a = Angles::new(wo, wi);
+        assert!((a.theta_o - deg(40.0)).abs() < EPS);
+        assert!((a.theta_i - deg(-20.0)).abs() < EPS);
+        assert!((a.theta_h - deg(10.0)).abs() < EPS);
+        assert!((a.theta_d - deg(30.0)).abs() < EPS);
+        assert!((a.phi - deg(-60.0)).abs() < EPS, "{}", a.phi.to_degrees());
+        assert!((a.cos_theta_i - deg(20.0).cos()).abs() < EPS);
+        // Relative φ wraps: φr = 170°, φi = −170° ⇒ φ = 340° ≡ −20°.
+        let a = Angles::new(
+            from_spherical(0.0, deg(170.0)),
+            from_spherical(0.0, deg(-170.0)),
+        );
+        assert!((a.phi - deg(-20.0)).abs() < 1e-4, "{}", a.phi.to_degrees());
+    }
+
+    #[test]
+    fn round_curve_frame_from_unnormalised_normal() {
+        // Tangent +z, Embree-like Ng = 2.5 x + 0.3 z (outward, not unit, not orthogonal to u).
+        let f = HairFrame::from_round_curve(Vec3::Z, Vec3::new(2.5, 0.0, 0.3));
+        assert!((f.u - Vec3::Z).length() < EPS);
+        assert!((f.v - Vec3::X).length() < EPS);
+        assert!((f.w - Vec3::Y).length() < EPS, "u × v = w: {}", f.w);
+        // World +y lies along w: θ = 0, φ = 90°; world +z along the tangent: θ = 90°.
+        let l = f.to_local(Vec3::Y);
+        assert!(theta(l).abs() < EPS && (phi(l) - FRAC_PI_2).abs() < EPS);
+        assert!((theta(f.to_local(Vec3::Z)) - FRAC_PI_2).abs() < EPS);
+        // world → local → world.
+        let d = Vec3::new(0.3, -0.5, 0.81).normalize();
+        assert!((f.to_world(f.to_local(d)) - d).length() < EPS);
+    }
+
+    #[test]
+    fn ribbon_frame_is_orthonormal_and_fixed_per_strand() {
+        let t = Vec3::new(0.2, 0.9, -0.1).normalize();
+        for id in [0u32, 1, 7, 123_456, u32::MAX] {
+            let n = strand_noise(id);
+            assert!((n.length() - 1.0).abs() < 1e-5);
+            assert_eq!(n, strand_noise(id));
+            let f = HairFrame::from_ribbon(t, n);
+            for (a, b) in [(f.u, f.v), (f.v, f.w), (f.u, f.w)] {
+                assert!(a.dot(b).abs() < 1e-5);
+            }
+            assert!((f.u.cross(f.v) - f.w).length() < 1e-5);
+        }
+        // Degenerate inputs still give a frame: noise parallel to the tangent, zero tangent.
+        let f = HairFrame::from_ribbon(t, t * 3.0);
+        assert!(f.u.dot(f.v).abs() < 1e-5 && (f.v.length() - 1.0).abs() < 1e-5);
+        let f = HairFrame::from_round_curve(Vec3::ZERO, Vec3::ZERO);
+        assert!(f.u.is_finite() && f.v.is_finite() && f.w.is_finite());
+    }
+}

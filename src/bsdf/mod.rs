@@ -1,0 +1,362 @@
+//! Fibre scattering models, in the thesis' §4.1 hair frame. Directions `wo` (towards the viewer) and `wi`
+//! (towards the light) both point away from the fibre; `tangent` runs root → tip.
+//!
+//! # Frame and conventions (all models)
+//!
+//! Every [`Bsdf`] method takes directions in the **local hair frame** of [`frame::HairFrame`]: component
+//! `x` along u (the tangent, root → tip), `y` along v and `z` along w (v, w span the normal plane; u × v = w).
+//! So sin θ = ω.x (θ ∈ [−π/2, π/2], the longitudinal angle from the normal plane) and φ = atan2(ω.z, ω.y)
+//! (φ ∈ [−π, π], 0 along v, π/2 along w). Directions are unit vectors with finite components.
+//!
+//! f is returned in the **fibre convention**: L_o(ωo) = ∫_S² f(ωo, ωi) L_i(ωi) cos θi dωi with cos θi the
+//! cosine of the *longitudinal* angle (|ωi × u|), and dω = cos θ dθ dφ. Each model file states the convention of
+//! its paper and converts at its edge. pdfs are densities per unit solid angle (sr⁻¹), so a sample's weight is
+//! f · cos θi / pdf.
+//!
+//! # Models
+//!
+//! - [`kajiya_kay`]: Kajiya & Kay 1989 diffuse + specular cone (also the diffuse term of the other two).
+//! - [`marschner`]: the R lobe of Marschner et al. 2003 as importance sampled by Hery & Ramamoorthi 2012
+//!   (thesis §4.2), two R-type lobes (primary and secondary highlight, thesis §5.3.1).
+//! - [`ishair`]: Sadeghi et al. 2010's four lobes as importance sampled by Ou et al. 2012 (thesis §4.3).
+//!
+//! Shared pieces sit in their own files: [`frame`] (hair frame, θ/φ conversions), [`gaussian`] (Gaussians, erf,
+//! truncated Gaussian sampling), [`cauchy`] (truncated Cauchy sampling), [`sphere`] (uniform sphere sampling),
+//! [`fresnel`] (dielectric Fresnel, for [`Balance::Fresnel`]), [`stats`] (chi-square test), [`pcg`] (a small
+//! deterministic RNG) and [`plot`] (plain data for `cuticle plot-bsdf`).
+
+pub mod cauchy;
+pub mod frame;
+pub mod fresnel;
+pub mod gaussian;
+pub mod ishair;
+pub mod kajiya_kay;
+pub mod marschner;
+pub mod pcg;
+pub mod plot;
+pub mod sphere;
+pub mod stats;
+#[cfg(test)]
+mod testing;
+
+use glam::Vec3;
+
+/// A fibre scattering model in the local hair frame (see the module docs for axes and conventions).
+///
+/// Every method returns finite values for every unit `wo`, `wi` (including θ = ±π/2 and φ = ±π).
+pub trait Bsdf {
+    /// f(ωo, ωi) per lobe, RGB, for AOVs. [`Bsdf::eval`] is their sum.
+    fn eval_lobes(&self, wo: Vec3, wi: Vec3) -> LobeValues;
+
+    /// f(ωo, ωi), RGB, in the fibre convention (L_o = ∫ f L_i cos θi dωi).
+    fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        self.eval_lobes(wo, wi).sum()
+    }
+
+    /// Draws ωi given ωo from three uniform numbers in [0, 1). `None` when the model has no sample to give
+    /// (every model here always returns one; the integrator must still handle `None`).
+    fn sample(&self, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample>;
+
+    /// The density, per unit solid angle, with which [`Bsdf::sample`] draws `wi` given `wo`. For
+    /// [`Sampling::ClampAndFlip`] this is the density *claimed* by Hery & Ramamoorthi 2012 (thesis eq. 13), which
+    /// is not the one their sampler draws from.
+    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32;
+}
+
+/// One sampled direction.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BsdfSample {
+    /// The sampled incident direction, local hair frame, unit length.
+    pub wi: Vec3,
+    /// f(ωo, ωi) of the whole model (all lobes).
+    pub f: Vec3,
+    /// [`Bsdf::pdf`] of `wi` (the whole mixture, not only the lobe drawn), sr⁻¹, > 0.
+    pub pdf: f32,
+    /// f · cos θi / pdf: the Monte Carlo weight of this sample.
+    pub weight: Vec3,
+    /// The lobe whose sampler drew `wi`; `None` for [`Sampling::Uniform`].
+    pub lobe: Option<Lobe>,
+}
+
+/// The lobes the AOVs separate.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Lobe {
+    /// Surface reflection (Kajiya-Kay's specular cone; Marschner's primary highlight).
+    R,
+    /// Transmission through the fibre (forward scattering).
+    Tt,
+    /// Internal reflection without the glint (Marschner's secondary highlight, ISHair's TRT − g).
+    Trt,
+    /// The two caustic glints of TRT (ISHair's N_g).
+    Glint,
+    /// Kajiya-Kay diffuse.
+    Diffuse,
+}
+
+impl Lobe {
+    /// Every lobe, in AOV order.
+    pub const ALL: [Lobe; 5] = [Lobe::R, Lobe::Tt, Lobe::Trt, Lobe::Glint, Lobe::Diffuse];
+
+    /// A short lower-case name for AOV channels and plots.
+    pub fn name(self) -> &'static str {
+        match self {
+            Lobe::R => "r",
+            Lobe::Tt => "tt",
+            Lobe::Trt => "trt",
+            Lobe::Glint => "glint",
+            Lobe::Diffuse => "diffuse",
+        }
+    }
+}
+
+/// f of each lobe, RGB (zero for the lobes a model does not have).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct LobeValues {
+    /// [`Lobe::R`].
+    pub r: Vec3,
+    /// [`Lobe::Tt`].
+    pub tt: Vec3,
+    /// [`Lobe::Trt`].
+    pub trt: Vec3,
+    /// [`Lobe::Glint`].
+    pub glint: Vec3,
+    /// [`Lobe::Diffuse`].
+    pub diffuse: Vec3,
+}
+
+impl LobeValues {
+    /// The sum of all lobes: the model's f.
+    pub fn sum(&self) -> Vec3 {
+        self.r + self.tt + self.trt + self.glint + self.diffuse
+    }
+
+    /// The value of one lobe.
+    pub fn get(&self, lobe: Lobe) -> Vec3 {
+        match lobe {
+            Lobe::R => self.r,
+            Lobe::Tt => self.tt,
+            Lobe::Trt => self.trt,
+            Lobe::Glint => self.glint,
+            Lobe::Diffuse => self.diffuse,
+        }
+    }
+
+    /// Every lobe scaled by `s`.
+    pub fn scaled(&self, s: f32) -> LobeValues {
+        LobeValues {
+            r: self.r * s,
+            tt: self.tt * s,
+            trt: self.trt * s,
+            glint: self.glint * s,
+            diffuse: self.diffuse * s,
+        }
+    }
+}
+
+/// How [`Bsdf::sample`] draws directions. Variants are never mixed silently: a model that cannot honour one
+/// refuses it in its constructor.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Sampling {
+    /// Importance sampling whose [`Bsdf::pdf`] is exactly the density the sampler draws from (Ou et al.'s
+    /// Cauchy sampling for ISHair; a truncated Gaussian by inverse CDF for Marschner and the Kajiya-Kay cone).
+    #[default]
+    ExactPdf,
+    /// Hery & Ramamoorthi 2012 as published (thesis eq. 7–13): Box-Muller, θs clamped, θi flipped. Biased: the
+    /// claimed pdf (eq. 13) is not the sampled density. Only [`marschner::Marschner`] accepts it.
+    ClampAndFlip,
+    /// Uniform over the sphere (pdf 1/4π), the baseline the thesis asks importance sampling be compared with
+    /// (§7, §8.2).
+    Uniform,
+}
+
+impl Sampling {
+    /// The name used in scene files and messages.
+    pub fn name(self) -> &'static str {
+        match self {
+            Sampling::ExactPdf => "importance",
+            Sampling::ClampAndFlip => "published",
+            Sampling::Uniform => "uniform",
+        }
+    }
+}
+
+/// How the specular lobes and the Kajiya-Kay diffuse term are weighted against each other:
+/// f = w_d · f_diffuse + w_s · f_specular.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Balance {
+    /// w_d = w_s = 1: the colours already carry the balance (what [`kajiya_kay::KajiyaKay::new`] does; the scene
+    /// checks `diffuse + specular ≤ 1`).
+    Sum,
+    /// Thesis §5.3: a user factor s ∈ [0, 1] interpolates linearly, w_s = s, w_d = 1 − s.
+    User {
+        /// s, the specular share.
+        specular: f32,
+    },
+    /// Thesis §8.2 (further work; RenderMan's plausible shaders): w_s = F(η, θo), w_d = 1 − F, with F the
+    /// unpolarised dielectric Fresnel reflectance of the view direction on the fibre's centre line (h = 0, so the
+    /// angle of incidence is θo). Depends on ωo only, so a model balanced this way is **not reciprocal**.
+    Fresnel {
+        /// Relative index of refraction of the cuticle, > 1 (hair keratin: 1.55, Marschner et al. 2003).
+        eta: f32,
+    },
+}
+
+impl Default for Balance {
+    /// An even split, w_s = w_d = 1/2 (chosen here; the thesis leaves the factor to the user).
+    fn default() -> Self {
+        Balance::User { specular: 0.5 }
+    }
+}
+
+impl Balance {
+    /// (w_d, w_s) for a view direction with longitudinal cosine `cos_theta_o`.
+    #[inline]
+    pub fn weights(&self, cos_theta_o: f32) -> (f32, f32) {
+        match *self {
+            Balance::Sum => (1.0, 1.0),
+            Balance::User { specular } => (1.0 - specular, specular),
+            Balance::Fresnel { eta } => {
+                let f = fresnel::dielectric(cos_theta_o, eta);
+                (1.0 - f, f)
+            }
+        }
+    }
+
+    /// Checks the parameters, naming the offending key for `model`.
+    pub fn validate(&self, model: &'static str) -> Result<(), BsdfError> {
+        match *self {
+            Balance::Sum => Ok(()),
+            Balance::User { specular } => check(
+                model,
+                "specular",
+                specular,
+                "in [0, 1]",
+                (0.0..=1.0).contains(&specular),
+            ),
+            Balance::Fresnel { eta } => check(
+                model,
+                "eta",
+                eta,
+                "> 1 and finite",
+                eta > 1.0 && eta.is_finite(),
+            ),
+        }
+    }
+}
+
+/// Completes a sample drawn by `model`'s sampler: f, the mixture pdf and the weight f · cos θi / pdf. `None` if the
+/// pdf is not positive (a direction the sampler cannot produce).
+#[inline]
+pub(crate) fn finish_sample<B: Bsdf + ?Sized>(
+    model: &B,
+    wo: Vec3,
+    wi: Vec3,
+    lobe: Option<Lobe>,
+) -> Option<BsdfSample> {
+    let pdf = model.pdf(wo, wi);
+    if !(pdf > 0.0 && pdf.is_finite()) {
+        return None;
+    }
+    let f = model.eval(wo, wi);
+    let weight = f * (frame::sin_cos_theta(wi).1 / pdf);
+    debug_assert!(weight.is_finite(), "weight {weight} for wo {wo} wi {wi}");
+    Some(BsdfSample {
+        wi,
+        f,
+        pdf,
+        weight,
+        lobe,
+    })
+}
+
+/// A parameter a model refuses, with what it should have been.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum BsdfError {
+    /// A numeric parameter out of its range.
+    #[error("{model}: {key} must be {requirement}, got {value}")]
+    Parameter {
+        /// The model (`"marschner"`, `"ishair"`, `"kajiya-kay"`).
+        model: &'static str,
+        /// The parameter's name, as in the model's parameter struct.
+        key: &'static str,
+        /// What was expected, e.g. "> 0 radians".
+        requirement: &'static str,
+        /// What was given (for colours: the smallest channel).
+        value: f32,
+    },
+    /// A sampling mode the model does not implement.
+    #[error("{model}: sampling = \"{sampling}\" is not available for this model (only marschner has \"published\")")]
+    Sampling {
+        /// The model.
+        model: &'static str,
+        /// The refused mode's name.
+        sampling: &'static str,
+    },
+}
+
+/// `Ok` if `ok`, else a [`BsdfError::Parameter`].
+pub(crate) fn check(
+    model: &'static str,
+    key: &'static str,
+    value: f32,
+    requirement: &'static str,
+    ok: bool,
+) -> Result<(), BsdfError> {
+    if ok {
+        Ok(())
+    } else {
+        Err(BsdfError::Parameter {
+            model,
+            key,
+            requirement,
+            value,
+        })
+    }
+}
+
+/// Checks an RGB colour is finite and ≥ 0 per channel.
+pub(crate) fn check_color(
+    model: &'static str,
+    key: &'static str,
+    c: Vec3,
+) -> Result<(), BsdfError> {
+    let ok = c.is_finite() && c.min_element() >= 0.0;
+    check(
+        model,
+        key,
+        if c.is_finite() {
+            c.min_element()
+        } else {
+            f32::NAN
+        },
+        ">= 0 and finite per channel",
+        ok,
+    )
+}
+
+/// Checks an angular width (β, γ) is in [`WIDTH_MIN`], `max`] radians.
+pub(crate) fn check_width(
+    model: &'static str,
+    key: &'static str,
+    value: f32,
+    max: f32,
+    requirement: &'static str,
+) -> Result<(), BsdfError> {
+    check(
+        model,
+        key,
+        value,
+        requirement,
+        value >= WIDTH_MIN && value <= max,
+    )
+}
+
+/// The smallest lobe width accepted, radians (0.0057°): far below any paper's range (≥ 0.5°), far above where
+/// f32 Gaussians and Cauchy pdfs would overflow.
+pub const WIDTH_MIN: f32 = 1e-4;
+
+/// Luminance weights (Rec. 709) used to turn RGB lobe colours into sampling probabilities.
+#[inline]
+pub(crate) fn luminance(c: Vec3) -> f32 {
+    c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
+}

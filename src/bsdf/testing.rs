@@ -1,0 +1,270 @@
+//! The test battery every hair model runs (STYLE.md, "Tests beside the physics"): white furnace by quadrature,
+//! pdf normalisation, sampled furnace, chi-square of sampled directions against the integrated pdf, reciprocity
+//! and a finiteness sweep. Each model's tests call these with its own parameters.
+
+use super::frame::{from_spherical, sin_cos_theta};
+use super::pcg::Pcg32;
+use super::plot::sampled_vs_analytic;
+use super::stats::{chi_square, sidak};
+use super::{Bsdf, LobeValues};
+use glam::Vec3;
+use std::f32::consts::{FRAC_PI_2, PI};
+
+/// θ cells of the furnace quadrature: midpoint rule in θi, 0.25° apart, ≥ 4 nodes per σ of the narrowest lobe
+/// tested (β = 0.5° ⇒ σ(θi) = 1°); the midpoint rule is spectrally accurate on Gaussians at that spacing.
+const QUAD_THETA: usize = 720;
+/// φ cells of the furnace quadrature: 1° apart (narrowest azimuthal lobe tested: γ = 5°).
+const QUAD_PHI: usize = 360;
+/// Samples of a chi-square test (pbrt-v4's harness uses 10⁶).
+pub const CHI2_SAMPLES: usize = 1_000_000;
+/// Histogram cells: 80 in sin θ by 160 in φ, as pbrt-v4.
+pub const CHI2_BINS: (usize, usize) = (80, 160);
+/// Cells expecting fewer counts than this are pooled (the χ² approximation needs ≥ 5 per cell).
+const CHI2_MIN_EXPECTED: f64 = 5.0;
+/// Family-wise significance of each chi-square battery, Šidák-corrected over its θo.
+pub const CHI2_ALPHA: f64 = 0.01;
+/// Samples of a sampled-furnace estimate: with weights of relative spread ≤ 3 the standard error is ≤ 0.3%.
+pub const FURNACE_SAMPLES: usize = 1_000_000;
+
+/// The local view direction at longitudinal angle `theta_deg` (azimuth 17°, away from every symmetry axis).
+pub fn wo_at(theta_deg: f32) -> Vec3 {
+    from_spherical(theta_deg.to_radians(), 17f32.to_radians())
+}
+
+/// Calls `f(wi, dω·cos θi)` over the quadrature grid of the sphere (midpoint rule in θi and φi).
+fn quadrature(mut f: impl FnMut(Vec3, f64)) {
+    let (dt, dp) = (PI / QUAD_THETA as f32, 2.0 * PI / QUAD_PHI as f32);
+    for i in 0..QUAD_THETA {
+        let t = -FRAC_PI_2 + (i as f32 + 0.5) * dt;
+        let cos_t = t.cos() as f64;
+        for j in 0..QUAD_PHI {
+            let p = -PI + (j as f32 + 0.5) * dp;
+            // dω = cos θ dθ dφ.
+            f(from_spherical(t, p), cos_t * dt as f64 * dp as f64);
+        }
+    }
+}
+
+/// The albedo ∫ f cos θi dωi of every lobe, RGB, by quadrature of [`Bsdf::eval_lobes`].
+pub fn albedo<B: Bsdf + ?Sized>(model: &B, wo: Vec3) -> LobeValues {
+    let mut acc = [[0.0f64; 3]; 5];
+    quadrature(|wi, d_omega| {
+        let l = model.eval_lobes(wo, wi);
+        let w = d_omega * sin_cos_theta(wi).1 as f64;
+        for (k, v) in [l.r, l.tt, l.trt, l.glint, l.diffuse].iter().enumerate() {
+            for c in 0..3 {
+                acc[k][c] += v[c] as f64 * w;
+            }
+        }
+    });
+    let v = |k: usize| Vec3::new(acc[k][0] as f32, acc[k][1] as f32, acc[k][2] as f32);
+    LobeValues {
+        r: v(0),
+        tt: v(1),
+        trt: v(2),
+        glint: v(3),
+        diffuse: v(4),
+    }
+}
+
+/// ∫ pdf dωi by quadrature.
+pub fn pdf_integral<B: Bsdf + ?Sized>(model: &B, wo: Vec3) -> f64 {
+    let mut s = 0.0;
+    quadrature(|wi, d_omega| s += model.pdf(wo, wi) as f64 * d_omega);
+    s
+}
+
+/// (mean, standard error) of the sample weights f cos θi / pdf, RGB summed to their mean channel.
+pub fn sampled_furnace<B: Bsdf + ?Sized>(model: &B, wo: Vec3, n: usize, seed: u64) -> (f64, f64) {
+    let mut rng = Pcg32::new(seed, 7);
+    let (mut s, mut s2) = (0.0f64, 0.0f64);
+    for _ in 0..n {
+        if let Some(x) = model.sample(wo, rng.next_u3()) {
+            let w = (x.weight.x + x.weight.y + x.weight.z) as f64 / 3.0;
+            s += w;
+            s2 += w * w;
+        }
+    }
+    let mean = s / n as f64;
+    let var = (s2 / n as f64 - mean * mean).max(0.0);
+    (mean, (var / n as f64).sqrt())
+}
+
+/// The mean channel of a colour.
+pub fn mean(c: Vec3) -> f64 {
+    (c.x + c.y + c.z) as f64 / 3.0
+}
+
+/// Asserts the sampled furnace (mean of f cos θi / pdf) equals the quadrature furnace within `rel_tol`.
+pub fn assert_sampled_furnace_matches<B: Bsdf + ?Sized>(
+    name: &str,
+    model: &B,
+    wo: Vec3,
+    rel_tol: f64,
+) {
+    let want = mean(albedo(model, wo).sum());
+    let (got, se) = sampled_furnace(model, wo, FURNACE_SAMPLES, 11);
+    println!("{name}: sampled furnace {got:.5} ± {se:.5}, quadrature {want:.5}");
+    assert!(
+        se < 0.3 * rel_tol * want,
+        "{name}: standard error {se} too large to test {rel_tol}"
+    );
+    assert!(
+        (got - want).abs() <= rel_tol * want,
+        "{name}: sampled furnace {got} ± {se} vs quadrature {want}"
+    );
+}
+
+/// Runs the chi-square test of `model.sample` against `model.pdf` at each θo (degrees), with the family-wise
+/// significance [`CHI2_ALPHA`] Šidák-corrected over them. On failure writes both histograms to
+/// `target/chi2-<name>-<θo>.csv` and panics. Returns the p-values.
+pub fn chi_square_battery<B: Bsdf + ?Sized>(
+    name: &str,
+    model: &B,
+    theta_o_deg: &[f32],
+) -> Vec<f64> {
+    let alpha = sidak(CHI2_ALPHA, theta_o_deg.len());
+    let mut ps = Vec::new();
+    for (k, &t) in theta_o_deg.iter().enumerate() {
+        let (obs, exp) =
+            sampled_vs_analytic(model, wo_at(t), CHI2_SAMPLES, CHI2_BINS, 1000 + k as u64);
+        let r = chi_square(&obs, &exp, CHI2_MIN_EXPECTED);
+        let total: f64 = exp.iter().sum();
+        println!(
+            "{name} θo {t}°: χ² {:.1} on {} dof, p = {:.4} (α per test {alpha:.5}); expected total {:.5}",
+            r.statistic,
+            r.dof,
+            r.p_value,
+            total / CHI2_SAMPLES as f64
+        );
+        if r.p_value < alpha || r.outside_support > 0.0 {
+            let path = write_histograms(name, t, &obs, &exp);
+            panic!("{name} θo {t}°: chi-square rejects the sampler: {r:?}; histograms in {path}");
+        }
+        ps.push(r.p_value);
+    }
+    ps
+}
+
+/// Writes `row,col,sampled,expected` for a failed chi-square test; returns the path.
+fn write_histograms(name: &str, theta_o: f32, obs: &[f64], exp: &[f64]) -> String {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("target");
+    let file: String = name
+        .chars()
+        .map(|c| if c.is_ascii_alphanumeric() { c } else { '-' })
+        .collect();
+    let path = dir.join(format!("chi2-{file}-{theta_o}.csv"));
+    let mut s = String::from("row,col,sampled,expected\n");
+    for (i, (o, e)) in obs.iter().zip(exp).enumerate() {
+        s += &format!("{},{},{o},{e}\n", i / CHI2_BINS.1, i % CHI2_BINS.1);
+    }
+    let _ = std::fs::create_dir_all(&dir);
+    match std::fs::write(&path, s) {
+        Ok(()) => path.display().to_string(),
+        Err(e) => format!("(not written: {e})"),
+    }
+}
+
+/// Pairs of directions over the sphere, avoiding the exact poles.
+fn direction_pairs() -> Vec<(Vec3, Vec3)> {
+    let mut v = Vec::new();
+    let mut rng = Pcg32::new(5, 9);
+    for _ in 0..2000 {
+        let a = from_spherical((rng.next_f32() - 0.5) * 3.1, (rng.next_f32() - 0.5) * 6.28);
+        let b = from_spherical((rng.next_f32() - 0.5) * 3.1, (rng.next_f32() - 0.5) * 6.28);
+        v.push((a, b));
+    }
+    v
+}
+
+/// Asserts f(ωo, ωi) = f(ωi, ωo) over many pairs (relative 1e-4) if `reciprocal`, or that some pair differs by
+/// more than 1% if not.
+pub fn assert_reciprocal<B: Bsdf + ?Sized>(model: &B, reciprocal: bool) {
+    let mut worst = 0.0f32;
+    for (a, b) in direction_pairs() {
+        let (fab, fba) = (model.eval(a, b), model.eval(b, a));
+        let scale = fab.max_element().max(fba.max_element()).max(1e-12);
+        worst = worst.max((fab - fba).abs().max_element() / scale);
+    }
+    if reciprocal {
+        assert!(
+            worst < 1e-4,
+            "not reciprocal: worst relative difference {worst}"
+        );
+    } else {
+        assert!(
+            worst > 0.01,
+            "expected a non-reciprocal model, worst relative difference {worst}"
+        );
+    }
+}
+
+/// Angles at and near the poles, the equator and ±π, radians, for the finiteness sweep.
+fn sweep_angles() -> (Vec<f32>, Vec<f32>) {
+    let d = |x: f32| x.to_radians();
+    let thetas = vec![
+        -FRAC_PI_2,
+        d(-89.999),
+        d(-89.0),
+        d(-45.0),
+        0.0,
+        d(30.0),
+        d(89.0),
+        d(89.999),
+        FRAC_PI_2,
+    ];
+    let phis = vec![
+        -PI,
+        d(-179.999),
+        d(-90.0),
+        0.0,
+        d(1e-3),
+        d(90.0),
+        d(179.999),
+        PI,
+    ];
+    (thetas, phis)
+}
+
+/// Asserts eval, eval_lobes, pdf and sample are finite (pdf ≥ 0, f ≥ 0, sample pdf > 0) for directions at and
+/// near θ = ±π/2 and φ = ±π, and for random numbers at 0 and just below 1.
+pub fn assert_finite_sweep<B: Bsdf + ?Sized>(name: &str, model: &B) {
+    let (thetas, phis) = sweep_angles();
+    let dirs: Vec<Vec3> = thetas
+        .iter()
+        .flat_map(|&t| phis.iter().map(move |&p| from_spherical(t, p)))
+        .collect();
+    let us = [0.0, 1e-7, 0.25, 0.5, 0.999, 1.0 - f32::EPSILON / 2.0];
+    for &wo in &dirs {
+        for &wi in &dirs {
+            let l = model.eval_lobes(wo, wi);
+            for lobe in super::Lobe::ALL {
+                let v = l.get(lobe);
+                assert!(
+                    v.is_finite() && v.min_element() >= 0.0,
+                    "{name}: {lobe:?} = {v} for wo {wo} wi {wi}"
+                );
+            }
+            let p = model.pdf(wo, wi);
+            assert!(
+                p.is_finite() && p >= 0.0,
+                "{name}: pdf {p} for wo {wo} wi {wi}"
+            );
+        }
+        for &a in &us {
+            for &b in &us {
+                for &c in &us {
+                    if let Some(s) = model.sample(wo, [a, b, c]) {
+                        let ok = s.wi.is_finite()
+                            && (s.wi.length() - 1.0).abs() < 1e-4
+                            && s.f.is_finite()
+                            && s.pdf.is_finite()
+                            && s.pdf > 0.0
+                            && s.weight.is_finite();
+                        assert!(ok, "{name}: sample {s:?} for wo {wo} u {:?}", [a, b, c]);
+                    }
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,208 @@
+//! The command line as a user drives it: renders to EXR + PNG (read back by `oiiotool`), `info`, and the errors a
+//! user sees for bad input (one readable message, exit code 2, no output file left behind).
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+const EXE: &str = env!("CARGO_BIN_EXE_cuticle");
+
+fn repo(rel: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(rel)
+}
+
+fn cuticle(args: &[&str]) -> Output {
+    Command::new(EXE).args(args).output().expect("run cuticle")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Renders `scene` (None = default) small and fast, checks the EXR channels with oiiotool and the PNG exists.
+fn render_and_check(scene: Option<&Path>, extra: &[&str]) {
+    let dir = tempfile::tempdir().unwrap();
+    let exr = dir.path().join("frame.exr");
+    let mut args = vec![
+        "render",
+        "-q",
+        "-o",
+        exr.to_str().unwrap(),
+        "--res",
+        "96x72",
+        "--spp",
+        "2",
+    ];
+    let scene_str;
+    if let Some(s) = scene {
+        scene_str = s.to_str().unwrap().to_owned();
+        args.insert(1, &scene_str);
+    }
+    args.extend_from_slice(extra);
+    let out = cuticle(&args);
+    assert!(
+        out.status.success(),
+        "cuticle {args:?} failed: {}",
+        stderr(&out)
+    );
+    assert!(
+        exr.exists() && dir.path().join("frame.png").exists(),
+        "{:?}",
+        std::fs::read_dir(dir.path())
+    );
+    let info = Command::new("oiiotool")
+        .args(["--info", "-v", exr.to_str().unwrap()])
+        .output()
+        .expect("oiiotool not found: install the Debian package openimageio-tools");
+    assert!(
+        info.status.success(),
+        "{}",
+        String::from_utf8_lossy(&info.stderr)
+    );
+    let text = String::from_utf8_lossy(&info.stdout);
+    let words = text.split_whitespace().collect::<Vec<_>>().join(" ");
+    assert!(words.contains("96 x 72, 9 channel, float openexr"), "{text}");
+    for channel in [
+        "R",
+        "G",
+        "B",
+        "A",
+        "depth.Z",
+        "tangent.X",
+        "tangent.Y",
+        "tangent.Z",
+        "strand.id",
+    ] {
+        assert!(
+            text.contains(channel),
+            "channel {channel} missing from:\n{text}"
+        );
+    }
+    // Nothing but the two outputs: no temporary files left behind.
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2);
+}
+
+#[test]
+fn renders_the_default_scene() {
+    render_and_check(None, &[]);
+}
+
+#[test]
+fn renders_the_default_scene_with_flat_curves() {
+    render_and_check(None, &["--curves", "flat"]);
+}
+
+#[test]
+fn renders_straight_hair() {
+    render_and_check(Some(&repo("scenes/straight.toml")), &[]);
+}
+
+#[test]
+fn renders_the_fur_ball() {
+    render_and_check(Some(&repo("scenes/furball.toml")), &[]);
+}
+
+#[test]
+fn info_describes_a_real_file() {
+    let out = cuticle(&[
+        "info",
+        repo("../shared/data/hair/furball.hair").to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("strands:      30367"), "{text}");
+    assert!(text.contains("points:       485872"), "{text}");
+}
+
+#[test]
+fn unwritable_output_is_a_clear_error_and_leaves_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let blocker = dir.path().join("not-a-directory");
+    std::fs::write(&blocker, b"x").unwrap();
+    let target = blocker.join("frame.exr");
+    let out = cuticle(&[
+        "render",
+        "-q",
+        "-o",
+        target.to_str().unwrap(),
+        "--res",
+        "16x16",
+        "--spp",
+        "1",
+    ]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    let err = stderr(&out);
+    assert!(
+        err.contains("frame.exr"),
+        "the message names the file: {err}"
+    );
+    assert_eq!(err.trim().lines().count(), 1, "one readable message: {err}");
+    assert_eq!(
+        std::fs::read_dir(dir.path()).unwrap().count(),
+        1,
+        "only the blocker file remains"
+    );
+}
+
+#[test]
+fn scene_errors_name_the_key_and_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("bad.toml");
+    std::fs::write(
+        &scene,
+        "[hair]\nprocedural = { kind = \"fur-ball\" }\n\n[camera]\nfov2 = 3.0\n",
+    )
+    .unwrap();
+    let out = cuticle(&[
+        "render",
+        scene.to_str().unwrap(),
+        "-o",
+        dir.path().join("x.exr").to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = stderr(&out);
+    assert!(
+        err.contains("bad.toml") && err.contains("fov2") && err.contains("line 5"),
+        "{err}"
+    );
+
+    std::fs::write(
+        &scene,
+        "[hair]\nprocedural = { kind = \"fur-ball\" }\n[camera]\nfov = \"wide\"\n",
+    )
+    .unwrap();
+    let out = cuticle(&["render", scene.to_str().unwrap()]);
+    let err = stderr(&out);
+    assert!(err.contains("fov") && err.contains("line 4"), "{err}");
+
+    std::fs::write(
+        &scene,
+        "[hair]\nprocedural = { kind = \"fur-ball\" }\n[camera]\nfov = 0.0\n",
+    )
+    .unwrap();
+    let err = stderr(&cuticle(&["render", scene.to_str().unwrap()]));
+    assert!(err.contains("camera.fov"), "{err}");
+}
+
+#[test]
+fn bad_hair_file_is_a_clear_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let hair = dir.path().join("broken.hair");
+    let real = std::fs::read(repo("../shared/data/hair/straight.hair")).unwrap();
+    std::fs::write(&hair, &real[..1000]).unwrap();
+    let scene = dir.path().join("s.toml");
+    std::fs::write(&scene, "[hair]\nfile = \"broken.hair\"\n").unwrap();
+    let exr = dir.path().join("out.exr");
+    let out = cuticle(&[
+        "render",
+        scene.to_str().unwrap(),
+        "-o",
+        exr.to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = stderr(&out);
+    assert!(err.contains("broken.hair"), "{err}");
+    assert!(!exr.exists());
+    let out = cuticle(&["info", dir.path().join("missing.hair").to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains("missing.hair"));
+}
