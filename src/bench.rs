@@ -1,7 +1,7 @@
 //! Trace throughput benchmark (`cuticle bench trace SCENE`): for round and flat curves, BVH build time, primary-ray
 //! and shadow-ray throughput through the Embree tracer, Embree's memory and the process's peak memory.
 //!
-//! Method: a pinhole camera shoots one ray through each pixel centre of a square image with `rays` pixels. Every
+//! Method: the scene's camera shoots one ray through each pixel centre of its image. Every
 //! primary hit spawns one shadow ray from the hit point towards a distant light, a transmittance query that ignores
 //! the strand it starts on (so no origin offset is needed). Each measurement is repeated (3 times by default) after
 //! one untimed warm-up run, and reported as median (min–max). Queries run on a local rayon pool of `threads`
@@ -19,6 +19,7 @@ use crate::accel::embree::EmbreeTracer;
 use crate::accel::{CurveKind, Hit, Tracer};
 use crate::hair::Strands;
 use crate::ray::Ray;
+use crate::render::camera::Camera;
 use crate::sys::embree::{Cutoff, Device, EmbreeError};
 
 /// Why a benchmark could not run.
@@ -37,62 +38,13 @@ pub enum BenchError {
     },
 }
 
-/// A pinhole camera for the benchmark's primary rays (square image, vertical field of view, +y up).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct BenchCamera {
-    /// Eye position, world space.
-    pub origin: Vec3,
-    /// The point the camera looks at.
-    pub target: Vec3,
-    /// Field of view, degrees.
-    pub fov_degrees: f32,
-}
-
-impl BenchCamera {
-    /// Looks along −z at the centre of `bounds` (min, max), from just far enough that the box's front face fits
-    /// the view.
-    pub fn framing(bounds: (Vec3, Vec3), fov_degrees: f32) -> Self {
-        let (lo, hi) = bounds;
-        let (center, half) = if lo.cmple(hi).all() {
-            ((lo + hi) * 0.5, ((hi - lo) * 0.5).max(Vec3::splat(1e-3)))
-        } else {
-            (Vec3::ZERO, Vec3::ONE)
-        };
-        let tan_half_fov = (0.5 * fov_degrees).to_radians().tan();
-        BenchCamera {
-            origin: center + Vec3::new(0.0, 0.0, half.x.max(half.y) / tan_half_fov + half.z),
-            target: center,
-            fov_degrees,
-        }
-    }
-
-    /// One ray through the centre of each of the first `count` pixels of a square image of ⌈√count⌉² pixels, in
-    /// scanline order. Directions are not normalised.
-    pub fn rays(&self, count: usize) -> Vec<Ray> {
-        let side = (count as f64).sqrt().ceil().max(1.0) as usize;
-        let forward = (self.target - self.origin).normalize_or(Vec3::NEG_Z);
-        let right = forward.cross(Vec3::Y).normalize_or(Vec3::X);
-        let up = right.cross(forward);
-        let scale = (0.5 * self.fov_degrees).to_radians().tan();
-        (0..count)
-            .map(|i| {
-                let x = ((i % side) as f32 + 0.5) / side as f32 * 2.0 - 1.0;
-                let y = 1.0 - ((i / side) as f32 + 0.5) / side as f32 * 2.0;
-                Ray::new(self.origin, forward + scale * (x * right + y * up))
-            })
-            .collect()
-    }
-}
-
 /// What to measure.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TraceConfig {
-    /// Primary rays per repetition.
-    pub rays: usize,
     /// Threads for queries (rayon) and BVH builds (Embree); 0 = all cores.
     pub threads: usize,
-    /// Where the camera is; `None` frames the model's bounds with a 50° view.
-    pub camera: Option<BenchCamera>,
+    /// The camera: one primary ray through each pixel centre of its image.
+    pub camera: Camera,
     /// Direction from a hit point towards the distant light (normalised on use).
     pub to_light: Vec3,
     /// Timed repetitions (after one warm-up run); the median is reported.
@@ -105,13 +57,11 @@ pub struct TraceConfig {
 }
 
 impl TraceConfig {
-    /// `rays` primary rays on `threads` threads, auto-framed camera, light towards (1, 1, −1), 3 repetitions,
-    /// round and flat curves.
-    pub fn new(rays: usize, threads: usize) -> Self {
+    /// Rays from `camera` on `threads` threads, light towards (1, 1, −1), 3 repetitions, round and flat curves.
+    pub fn new(camera: Camera, threads: usize) -> Self {
         TraceConfig {
-            rays,
             threads,
-            camera: None,
+            camera,
             to_light: Vec3::new(1.0, 1.0, -1.0),
             repetitions: 3,
             kinds: vec![CurveKind::Round, CurveKind::Flat],
@@ -206,7 +156,7 @@ pub struct TraceReport {
     /// Timed repetitions.
     pub repetitions: usize,
     /// The camera used.
-    pub camera: BenchCamera,
+    pub camera: Camera,
     /// Normalised direction towards the light.
     pub to_light: Vec3,
     /// Embree version (major, minor, patch).
@@ -235,15 +185,16 @@ impl fmt::Display for TraceReport {
         )?;
         writeln!(
             f,
-            "camera ({:.3}, {:.3}, {:.3}) -> ({:.3}, {:.3}, {:.3}), fov {}°; light direction ({:.3}, {:.3}, {:.3}); \
+            "camera at ({:.3}, {:.3}, {:.3}) looking along ({:.3}, {:.3}, {:.3}), {}x{} rays; light direction ({:.3}, {:.3}, {:.3}); \
              strand opacity {}; median (min-max) of {} runs after 1 warm-up",
-            c.origin.x,
-            c.origin.y,
-            c.origin.z,
-            c.target.x,
-            c.target.y,
-            c.target.z,
-            c.fov_degrees,
+            c.position.x,
+            c.position.y,
+            c.position.z,
+            c.forward.x,
+            c.forward.y,
+            c.forward.z,
+            c.resolution().0,
+            c.resolution().1,
             self.to_light.x,
             self.to_light.y,
             self.to_light.z,
@@ -345,12 +296,10 @@ pub fn trace(strands: &Strands, config: &TraceConfig) -> Result<TraceReport, Ben
             source,
         })?;
     let threads = pool.current_num_threads();
-    let camera = config
-        .camera
-        .unwrap_or_else(|| BenchCamera::framing(strands.bounds(), 50.0));
+    let camera = config.camera;
     let to_light = config.to_light.normalize_or(Vec3::Y);
     let repetitions = config.repetitions.max(1);
-    let primary_rays = camera.rays(config.rays);
+    let primary_rays = camera.pixel_centre_rays();
     let mut embree_version = (0, 0, 0);
     let mut kinds = Vec::new();
     for &kind in &config.kinds {
@@ -468,33 +417,6 @@ mod tests {
         let t = Timing::from_samples(vec![3.0, 1.0, 2.0]);
         assert_eq!((t.median, t.min, t.max), (2.0, 1.0, 3.0));
         assert_eq!(Timing::from_samples(vec![1.0, 2.0]).median, 1.5);
-    }
-
-    #[test]
-    fn camera_rays_cover_the_view() {
-        let camera = BenchCamera {
-            origin: Vec3::new(0.0, 0.5, 4.0),
-            target: Vec3::new(0.0, 0.5, 0.0),
-            fov_degrees: 90.0,
-        };
-        let rays = camera.rays(4);
-        assert_eq!(rays.len(), 4);
-        // 2×2 pixels of a 90° view: directions (±0.5, ±0.5, −1) in camera space.
-        assert!(
-            (rays[0].dir - Vec3::new(-0.5, 0.5, -1.0)).length() < 1e-6,
-            "{:?}",
-            rays[0]
-        );
-        assert!(
-            (rays[3].dir - Vec3::new(0.5, -0.5, -1.0)).length() < 1e-6,
-            "{:?}",
-            rays[3]
-        );
-        let framed = BenchCamera::framing((Vec3::splat(-1.0), Vec3::splat(1.0)), 60.0);
-        assert!(
-            (framed.origin.z - (3.0f32.sqrt() + 1.0)).abs() < 1e-5,
-            "{framed:?}"
-        );
     }
 
     #[test]

@@ -74,7 +74,7 @@ enum BenchCommand {
         /// Worker threads.
         #[arg(long, default_value_t = 2)]
         threads: usize,
-        /// Number of camera rays as a WxH grid (square grids are traced).
+        /// Camera rays: one per pixel of a WxH image through the scene's camera.
         #[arg(long, value_parser = parse_resolution, default_value = "512x512")]
         res: [u32; 2],
     },
@@ -249,12 +249,7 @@ fn bench_command(command: BenchCommand) -> Result<()> {
                 res[0],
                 res[1],
             );
-            let mut config = cuticle::bench::TraceConfig::new((res[0] * res[1]) as usize, threads);
-            config.camera = Some(cuticle::bench::BenchCamera {
-                origin: camera.position,
-                target: camera.position + camera.forward,
-                fov_degrees: scene.camera.fov,
-            });
+            let mut config = cuticle::bench::TraceConfig::new(camera, threads);
             if let Some(cuticle::scene::LightConfig::Distant { direction, .. }) =
                 scene.lights.first()
             {

@@ -643,7 +643,11 @@ fn synthetic_fur(count: usize) -> Strands {
 #[test]
 fn bench_trace_reports_both_curve_kinds() {
     let strands = synthetic_fur(500);
-    let mut config = cuticle::bench::TraceConfig::new(4096, 2);
+    let (lo, hi) = strands.bounds();
+    let centre = 0.5 * (lo + hi);
+    let eye = centre + Vec3::new(0.0, 0.0, 2.5 * (hi - lo).max_element());
+    let camera = cuticle::render::camera::Camera::look_at(eye, centre, Vec3::Y, 50.0, 64, 64);
+    let mut config = cuticle::bench::TraceConfig::new(camera, 2);
     config.repetitions = 1;
     let report = cuticle::bench::trace(&strands, &config).unwrap();
     assert_eq!(report.kinds.len(), 2);
@@ -653,37 +657,6 @@ fn bench_trace_reports_both_curve_kinds() {
         assert!((0.0..=1.0).contains(&k.mean_transmittance), "{report}");
         assert!(k.embree_bytes > 0, "{report}");
     }
-    eprintln!("{report}");
-}
-
-#[test]
-#[ignore = "benchmark, about a minute: CUTICLE_BENCH_HAIR=file.hair [CUTICLE_BENCH_THREADS=2] \
-            [CUTICLE_BENCH_OPACITY=0.3] cargo test --test embree -- --ignored --nocapture"]
-fn bench_trace_full() {
-    let strands = match std::env::var_os("CUTICLE_BENCH_HAIR") {
-        Some(path) => {
-            let model = cuticle::hair::load(std::path::Path::new(&path)).unwrap();
-            eprintln!(
-                "{}: {} strands",
-                path.to_string_lossy(),
-                model.strand_count()
-            );
-            Strands::from_model(&model)
-        }
-        None => {
-            eprintln!("CUTICLE_BENCH_HAIR not set: synthetic fur ball, 10k strands × 16 points");
-            synthetic_fur(10_000)
-        }
-    };
-    let threads = std::env::var("CUTICLE_BENCH_THREADS")
-        .ok()
-        .and_then(|t| t.parse().ok())
-        .unwrap_or(2);
-    let mut config = cuticle::bench::TraceConfig::new(1 << 20, threads);
-    config.opacity = std::env::var("CUTICLE_BENCH_OPACITY")
-        .ok()
-        .and_then(|a| a.parse().ok());
-    let report = cuticle::bench::trace(&strands, &config).unwrap();
     eprintln!("{report}");
 }
 

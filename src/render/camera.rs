@@ -6,7 +6,7 @@ use crate::ray::Ray;
 use crate::scene::CameraConfig;
 
 /// A pinhole camera. Pixel (0, 0) is the top-left corner of the image.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Camera {
     /// Eye position.
     pub position: Vec3,
@@ -77,6 +77,19 @@ impl Camera {
             width,
             height,
         )
+    }
+
+    /// Image size in pixels (width, height).
+    pub fn resolution(&self) -> (u32, u32) {
+        (self.width as u32, self.height as u32)
+    }
+
+    /// One ray through each pixel centre, in scanline order (for benchmarks and tests).
+    pub fn pixel_centre_rays(&self) -> Vec<Ray> {
+        let (w, h) = self.resolution();
+        (0..h)
+            .flat_map(|y| (0..w).map(move |x| self.ray(x as f32 + 0.5, y as f32 + 0.5)))
+            .collect()
     }
 
     /// The primary ray through film position (`x`, `y`) in pixels (continuous; pixel centres at +0.5).
