@@ -60,7 +60,10 @@ fn render_and_check(scene: Option<&Path>, extra: &[&str]) {
     );
     let text = String::from_utf8_lossy(&info.stdout);
     let words = text.split_whitespace().collect::<Vec<_>>().join(" ");
-    assert!(words.contains("96 x 72, 9 channel, float openexr"), "{text}");
+    assert!(
+        words.contains("96 x 72, 9 channel, float openexr"),
+        "{text}"
+    );
     for channel in [
         "R",
         "G",

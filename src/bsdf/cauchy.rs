@@ -12,8 +12,8 @@ pub struct TruncatedCauchy {
     gamma: f64,
     lo: f64,
     hi: f64,
-    /// B = atan((lo − c)/γ).
-    t_lo: f64,
+    /// (lo − c)/γ, whose atan is B.
+    x_lo: f64,
     /// A − B; 0 selects the uniform fallback.
     width: f64,
 }
@@ -22,9 +22,11 @@ impl TruncatedCauchy {
     /// Centre `c`, scale `gamma` > 0, support [`lo`, `hi`] with `lo` < `hi`.
     #[inline]
     pub fn new(c: f64, gamma: f64, lo: f64, hi: f64) -> TruncatedCauchy {
-        let t_lo = ((lo - c) / gamma).atan();
-        let t_hi = ((hi - c) / gamma).atan();
-        let width = t_hi - t_lo;
+        let x_lo = (lo - c) / gamma;
+        let x_hi = (hi - c) / gamma;
+        // A − B = atan2(x_hi − x_lo, 1 + x_lo x_hi) for x_lo < x_hi (tan of a difference; atan2 picks the branch in
+        // (0, π)): one arctangent instead of two, and no cancellation when both ends are far in one tail.
+        let width = (x_hi - x_lo).atan2(1.0 + x_lo * x_hi);
         // Guard: an interval so far out in the tail that A − B vanishes is sampled uniformly (pdf alike).
         let width = if width > 1e-300 && width.is_finite() {
             width
@@ -36,7 +38,7 @@ impl TruncatedCauchy {
             gamma,
             lo,
             hi,
-            t_lo,
+            x_lo,
             width,
         }
     }
@@ -52,7 +54,7 @@ impl TruncatedCauchy {
         if self.width == 0.0 {
             return self.lo + u * (self.hi - self.lo);
         }
-        (self.c + self.gamma * (self.t_lo + u * self.width).tan()).clamp(self.lo, self.hi)
+        (self.c + self.gamma * (self.x_lo.atan() + u * self.width).tan()).clamp(self.lo, self.hi)
     }
 
     /// The density at `x` (0 outside [lo, hi]): 1 / ((A − B) γ (1 + ((x − c)/γ)²)), written with (x − c)/γ so

@@ -100,7 +100,26 @@ pub fn strand_noise(strand_id: u32) -> Vec3 {
 /// θ of a local direction: atan2(x, √(y² + z²)) ∈ [−π/2, π/2] (exact near the poles, unlike asin(x)).
 #[inline]
 pub fn theta(local: Vec3) -> f32 {
-    local.x.atan2(local.y.hypot(local.z))
+    local.x.atan2(rho(local))
+}
+
+/// √(y² + z²), the length of the normal-plane projection (plain sqrt: directions are O(1), so the overflow
+/// care of `hypot`, which costs more than the rest of [`Angles::new`], buys nothing here).
+#[inline]
+fn rho(local: Vec3) -> f32 {
+    (local.y * local.y + local.z * local.z).sqrt()
+}
+
+/// (sin θ, cos θ) from x = ω·u and ρ = √(y² + z²), for any non-zero length; (0, 1) for a zero vector.
+#[inline]
+fn sin_cos_from(x: f32, rho: f32) -> (f32, f32) {
+    let len2 = x * x + rho * rho;
+    if len2 > 0.0 {
+        let inv = 1.0 / len2.sqrt();
+        (x * inv, rho * inv)
+    } else {
+        (0.0, 1.0)
+    }
 }
 
 /// φ of a local direction: atan2(z, y) ∈ [−π, π] (0 for a direction along ±u).
@@ -112,13 +131,7 @@ pub fn phi(local: Vec3) -> f32 {
 /// (sin θ, cos θ) of a local direction, for any non-zero length; cos θ ≥ 0. A zero vector gives (0, 1).
 #[inline]
 pub fn sin_cos_theta(local: Vec3) -> (f32, f32) {
-    let rho = local.y.hypot(local.z);
-    let len = local.x.hypot(rho);
-    if len > 0.0 {
-        (local.x / len, rho / len)
-    } else {
-        (0.0, 1.0)
-    }
+    sin_cos_from(local.x, rho(local))
 }
 
 /// The unit local direction with longitudinal angle `theta` and azimuth `phi`: (sin θ, cos θ cos φ, cos θ sin φ).
@@ -161,15 +174,16 @@ impl Angles {
     /// The angles of local directions `wo` and `wi` (any non-zero length).
     #[inline]
     pub fn new(wo: Vec3, wi: Vec3) -> Angles {
-        let theta_o = theta(wo);
-        let theta_i = theta(wi);
+        let (rho_o, rho_i) = (rho(wo), rho(wi));
+        let theta_o = wo.x.atan2(rho_o);
+        let theta_i = wi.x.atan2(rho_i);
         // φr − φi in one atan2: sin and cos of the difference from the normal-plane projections.
         let phi = (wo.z * wi.y - wo.y * wi.z).atan2(wo.y * wi.y + wo.z * wi.z);
         Angles {
             theta_o,
             theta_i,
-            cos_theta_o: sin_cos_theta(wo).1,
-            cos_theta_i: sin_cos_theta(wi).1,
+            cos_theta_o: sin_cos_from(wo.x, rho_o).1,
+            cos_theta_i: sin_cos_from(wi.x, rho_i).1,
             phi,
             theta_h: 0.5 * (theta_o + theta_i),
             theta_d: 0.5 * (theta_o - theta_i),

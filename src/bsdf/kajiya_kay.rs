@@ -165,9 +165,15 @@ impl KajiyaKay {
     /// The distribution of t = θi + θo the cone sampler draws from.
     #[inline]
     fn cone_distribution(&self, theta_o: f32) -> TruncatedGaussian {
-        let lo = (theta_o - FRAC_PI_2) as f64;
-        TruncatedGaussian::new(0.0, 1.0 / (self.p as f64).sqrt(), lo, lo + PI as f64)
+        let (lo, hi) = cone_range(theta_o);
+        TruncatedGaussian::new(0.0, 1.0 / (self.p as f64).sqrt(), lo as f64, hi as f64)
     }
+}
+
+/// The range of t = θi + θo for θi ∈ [−π/2, π/2], in f32 so that [`KajiyaKay::pdf`] can clamp t to exactly it.
+#[inline]
+fn cone_range(theta_o: f32) -> (f32, f32) {
+    (theta_o - FRAC_PI_2, theta_o + FRAC_PI_2)
 }
 
 /// The Kajiya-Kay diffuse f: k_d / π² (albedo exactly k_d in the fibre convention).
@@ -237,40 +243,57 @@ impl Bsdf for KajiyaKay {
     }
 
     fn sample(&self, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
-        let (wi, lobe) = match self.sampling {
-            Sampling::Uniform => (uniform_sphere(u[0], u[1]), None),
-            Sampling::ExactPdf | Sampling::ClampAndFlip => {
-                let (w_d, w_s) = self.balance.weights(sin_cos_theta(wo).1);
-                let p_s = self.specular_probability(w_d, w_s);
-                if u[0] < p_s {
-                    // Cone: t = θi + θo from the truncated Gaussian, φi uniform.
-                    let theta_o = theta(wo);
-                    let t = self.cone_distribution(theta_o).sample(u[1] as f64) as f32;
-                    let theta_i = (t - theta_o).clamp(-FRAC_PI_2, FRAC_PI_2);
-                    (from_spherical(theta_i, TAU * u[2] - PI), Some(Lobe::R))
-                } else {
-                    let c = ((u[0] - p_s) / (1.0 - p_s)).min(1.0);
-                    (sample_diffuse(u[1], u[2], c), Some(Lobe::Diffuse))
-                }
-            }
+        if self.sampling == Sampling::Uniform {
+            return super::finish_sample(self, wo, uniform_sphere(u[0], u[1]), None);
+        }
+        let (sin_o, cos_o) = sin_cos_theta(wo);
+        let theta_o = theta(wo);
+        // Built once for the sample and for the pdf of the result.
+        let cone = self.cone_distribution(theta_o);
+        let (w_d, w_s) = self.balance.weights(cos_o);
+        let p_s = self.specular_probability(w_d, w_s);
+        let (wi, lobe) = if u[0] < p_s {
+            // Cone: t = θi + θo from the truncated Gaussian, φi uniform.
+            let t = cone.sample(u[1] as f64) as f32;
+            let theta_i = (t - theta_o).clamp(-FRAC_PI_2, FRAC_PI_2);
+            (from_spherical(theta_i, TAU * u[2] - PI), Lobe::R)
+        } else {
+            let c = ((u[0] - p_s) / (1.0 - p_s)).min(1.0);
+            (sample_diffuse(u[1], u[2], c), Lobe::Diffuse)
         };
-        super::finish_sample(self, wo, wi, lobe)
+        let (sin_i, cos_i) = sin_cos_theta(wi);
+        let (d, s) = self.terms(sin_i, cos_i, sin_o, cos_o);
+        let pdf = Self::mixture_pdf(p_s, &cone, theta_o, theta(wi), cos_i);
+        super::make_sample(wi, d + Vec3::splat(s), pdf, cos_i, Some(lobe))
     }
 
     fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
         if self.sampling == Sampling::Uniform {
             return UNIFORM_SPHERE_PDF;
         }
-        let cos_o = sin_cos_theta(wo).1;
-        let (w_d, w_s) = self.balance.weights(cos_o);
-        let p_s = self.specular_probability(w_d, w_s);
-        let cos_i = sin_cos_theta(wi).1;
+        let (w_d, w_s) = self.balance.weights(sin_cos_theta(wo).1);
         let theta_o = theta(wo);
+        let cone = self.cone_distribution(theta_o);
+        let p_s = self.specular_probability(w_d, w_s);
+        Self::mixture_pdf(p_s, &cone, theta_o, theta(wi), sin_cos_theta(wi).1)
+    }
+}
+
+impl KajiyaKay {
+    /// The pdf of the cone/diffuse mixture at a direction θi (longitudinal cosine `cos_i`) for a view at θo.
+    #[inline]
+    fn mixture_pdf(
+        p_s: f32,
+        cone: &TruncatedGaussian,
+        theta_o: f32,
+        theta_i: f32,
+        cos_i: f32,
+    ) -> f32 {
+        // t is in range by construction; clamp away the rounding at θi = ±π/2.
+        let (lo, hi) = cone_range(theta_o);
+        let t = (theta_i + theta_o).clamp(lo, hi);
         // Cone: density p_t(θi + θo) in θi, 1/2π in φi; per solid angle ÷ cos θi.
-        let p_cone = self
-            .cone_distribution(theta_o)
-            .pdf((theta(wi) + theta_o) as f64) as f32
-            / (TAU * cos_i.max(COS_THETA_MIN));
+        let p_cone = cone.pdf(t as f64) as f32 / (TAU * cos_i.max(COS_THETA_MIN));
         p_s * p_cone + (1.0 - p_s) * diffuse_pdf(cos_i)
     }
 }

@@ -250,11 +250,19 @@ impl Marschner {
         let p_s = selection_probability(w_s * self.e_spec, w_d * luminance(self.params.k_d));
         (p_s, [self.prob_1, 1.0 - self.prob_1])
     }
-}
 
-impl Bsdf for Marschner {
-    fn eval_lobes(&self, wo: Vec3, wi: Vec3) -> LobeValues {
-        let a = Angles::new(wo, wi);
+    /// The exact θh distributions of both lobes for a view at `theta_o` ([`Sampling::ExactPdf`] only).
+    #[inline]
+    fn distributions(&self, theta_o: f32) -> Option<[TruncatedGaussian; 2]> {
+        (self.params.sampling == Sampling::ExactPdf).then(|| {
+            self.lobes
+                .map(|(alpha, beta)| theta_h_distribution(alpha, beta, theta_o))
+        })
+    }
+
+    /// Every lobe's f for the angles of a pair of directions.
+    #[inline]
+    fn lobes_at(&self, a: &Angles) -> LobeValues {
         let (w_d, w_s) = self.params.balance.weights(a.cos_theta_o);
         let n = n_r(a.phi);
         let cos_d = a.theta_d.cos();
@@ -270,10 +278,47 @@ impl Bsdf for Marschner {
         }
     }
 
+    /// The mixture pdf for the angles of a pair of directions, given [`Marschner::distributions`] at their θo.
+    #[inline]
+    fn pdf_at(&self, a: &Angles, dists: &Option<[TruncatedGaussian; 2]>) -> f32 {
+        if self.params.sampling == Sampling::Uniform {
+            return UNIFORM_SPHERE_PDF;
+        }
+        let (p_s, probs) = self.selection(a.cos_theta_o);
+        let n = n_r(a.phi);
+        let mut p_spec = 0.0;
+        for (k, &(alpha, beta)) in self.lobes.iter().enumerate() {
+            let p = match dists {
+                None => pdf_eq13(m_r(beta, alpha, a.theta_h), n, a.cos_theta_i),
+                Some(tg) => {
+                    // θh is in range by construction; clamp away the rounding at θi = ±π/2.
+                    let q = 0.5 * a.theta_o as f64;
+                    let theta_h = (a.theta_h as f64).clamp(
+                        q - std::f64::consts::FRAC_PI_4,
+                        q + std::f64::consts::FRAC_PI_4,
+                    );
+                    // p(θi) = p(θh)/2; p(φ) = cos(φ/2)/4 (eq. 10); per solid angle ÷ cos θi.
+                    tg[k].pdf(theta_h) as f32 * 0.5 * (0.25 * n) / a.cos_theta_i.max(COS_THETA_MIN)
+                }
+            };
+            p_spec += probs[k] * p;
+        }
+        p_s * p_spec + (1.0 - p_s) * diffuse_pdf(a.cos_theta_i)
+    }
+}
+
+impl Bsdf for Marschner {
+    fn eval_lobes(&self, wo: Vec3, wi: Vec3) -> LobeValues {
+        self.lobes_at(&Angles::new(wo, wi))
+    }
+
     fn sample(&self, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
         if self.params.sampling == Sampling::Uniform {
             return super::finish_sample(self, wo, uniform_sphere(u[0], u[1]), None);
         }
+        let theta_o = theta(wo);
+        // Built once for the sampled lobe and for the mixture pdf of the result.
+        let dists = self.distributions(theta_o);
         let (p_s, probs) = self.selection(sin_cos_theta(wo).1);
         let (wi, lobe) = if u[0] < p_s {
             // Which R lobe, then u[0] rescaled to [0, 1) once more for the published sampler's third number.
@@ -285,15 +330,13 @@ impl Bsdf for Marschner {
             };
             let v = v.min(1.0);
             let (alpha, beta) = self.lobes[k];
-            let theta_o = theta(wo);
-            let (theta_i, phi_rel) = match self.params.sampling {
-                Sampling::ClampAndFlip => (
+            let (theta_i, phi_rel) = match &dists {
+                None => (
                     theta_i_clamp_and_flip(alpha, beta, theta_o, u[1], u[2]),
                     phi_eq12(v),
                 ),
-                _ => {
-                    let theta_h =
-                        theta_h_distribution(alpha, beta, theta_o).sample(u[1] as f64) as f32;
+                Some(tg) => {
+                    let theta_h = tg[k].sample(u[1] as f64) as f32;
                     (
                         (2.0 * theta_h - theta_o).clamp(-FRAC_PI_2, FRAC_PI_2),
                         phi_eq12(u[2]),
@@ -309,7 +352,9 @@ impl Bsdf for Marschner {
             let c = ((u[0] - p_s) / (1.0 - p_s)).min(1.0);
             (sample_diffuse(u[1], u[2], c), Some(Lobe::Diffuse))
         };
-        super::finish_sample(self, wo, wi, lobe)
+        let a = Angles::new(wo, wi);
+        let f = self.lobes_at(&a).sum();
+        super::make_sample(wi, f, self.pdf_at(&a, &dists), a.cos_theta_i, lobe)
     }
 
     fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
@@ -317,27 +362,7 @@ impl Bsdf for Marschner {
             return UNIFORM_SPHERE_PDF;
         }
         let a = Angles::new(wo, wi);
-        let (p_s, probs) = self.selection(a.cos_theta_o);
-        let n = n_r(a.phi);
-        let mut p_spec = 0.0;
-        for (k, &(alpha, beta)) in self.lobes.iter().enumerate() {
-            let p = match self.params.sampling {
-                Sampling::ClampAndFlip => pdf_eq13(m_r(beta, alpha, a.theta_h), n, a.cos_theta_i),
-                _ => {
-                    let tg = theta_h_distribution(alpha, beta, a.theta_o);
-                    // θh is in range by construction; clamp away the rounding at θi = ±π/2.
-                    let q = 0.5 * a.theta_o as f64;
-                    let theta_h = (a.theta_h as f64).clamp(
-                        q - std::f64::consts::FRAC_PI_4,
-                        q + std::f64::consts::FRAC_PI_4,
-                    );
-                    // p(θi) = p(θh)/2; p(φ) = cos(φ/2)/4 (eq. 10); per solid angle ÷ cos θi.
-                    tg.pdf(theta_h) as f32 * 0.5 * (0.25 * n) / a.cos_theta_i.max(COS_THETA_MIN)
-                }
-            };
-            p_spec += probs[k] * p;
-        }
-        p_s * p_spec + (1.0 - p_s) * diffuse_pdf(a.cos_theta_i)
+        self.pdf_at(&a, &self.distributions(a.theta_o))
     }
 }
 

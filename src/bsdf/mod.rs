@@ -253,13 +253,32 @@ pub(crate) fn finish_sample<B: Bsdf + ?Sized>(
     wi: Vec3,
     lobe: Option<Lobe>,
 ) -> Option<BsdfSample> {
-    let pdf = model.pdf(wo, wi);
+    make_sample(
+        wi,
+        model.eval(wo, wi),
+        model.pdf(wo, wi),
+        frame::sin_cos_theta(wi).1,
+        lobe,
+    )
+}
+
+/// A [`BsdfSample`] from its parts, with the weight f · cos θi / pdf; `None` unless the pdf is positive.
+#[inline]
+pub(crate) fn make_sample(
+    wi: Vec3,
+    f: Vec3,
+    pdf: f32,
+    cos_theta_i: f32,
+    lobe: Option<Lobe>,
+) -> Option<BsdfSample> {
     if !(pdf > 0.0 && pdf.is_finite()) {
         return None;
     }
-    let f = model.eval(wo, wi);
-    let weight = f * (frame::sin_cos_theta(wi).1 / pdf);
-    debug_assert!(weight.is_finite(), "weight {weight} for wo {wo} wi {wi}");
+    let weight = f * (cos_theta_i / pdf);
+    debug_assert!(
+        weight.is_finite(),
+        "weight {weight} for wi {wi}, f {f}, pdf {pdf}"
+    );
     Some(BsdfSample {
         wi,
         f,

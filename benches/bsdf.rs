@@ -1,0 +1,102 @@
+//! Cost of one `eval`, `sample` and `pdf` call of each hair BSDF (issue 4 targets: eval < 100 ns, sample < 200 ns).
+//!
+//! `cargo bench --bench bsdf`. Each measurement runs a batch of 1024 calls on precomputed random directions (uniform
+//! on the sphere, local hair frame) and random numbers, so criterion's time per iteration / 1024 is the time per call;
+//! the reported throughput (elements/s) is calls per second. Single thread, `bench` profile (opt-level 3).
+//! A checksum of the results is returned to `black_box` so no call can be optimised away.
+
+use criterion::{black_box, criterion_group, criterion_main, Criterion, Throughput};
+use cuticle::bsdf::ishair::{IsHair, IsHairParams, LobeSelection};
+use cuticle::bsdf::kajiya_kay::{KajiyaKay, KajiyaKayParams};
+use cuticle::bsdf::marschner::{Marschner, MarschnerParams};
+use cuticle::bsdf::pcg::Pcg32;
+use cuticle::bsdf::sphere::uniform_sphere;
+use cuticle::bsdf::{Bsdf, Sampling};
+use glam::Vec3;
+
+/// Calls per measured iteration.
+const BATCH: usize = 1024;
+
+struct Inputs {
+    wo: Vec<Vec3>,
+    wi: Vec<Vec3>,
+    u: Vec<[f32; 3]>,
+}
+
+fn inputs() -> Inputs {
+    let mut rng = Pcg32::new(2024, 1);
+    let dir = |rng: &mut Pcg32| uniform_sphere(rng.next_f32(), rng.next_f32());
+    let wo = (0..BATCH).map(|_| dir(&mut rng)).collect();
+    let wi = (0..BATCH).map(|_| dir(&mut rng)).collect();
+    let u = (0..BATCH).map(|_| rng.next_u3()).collect();
+    Inputs { wo, wi, u }
+}
+
+fn bench_model(c: &mut Criterion, name: &str, model: &dyn Bsdf, x: &Inputs) {
+    let mut g = c.benchmark_group(name);
+    g.throughput(Throughput::Elements(BATCH as u64));
+    g.bench_function("eval", |b| {
+        b.iter(|| {
+            let mut acc = Vec3::ZERO;
+            for k in 0..BATCH {
+                acc += model.eval(black_box(x.wo[k]), black_box(x.wi[k]));
+            }
+            acc
+        })
+    });
+    g.bench_function("sample", |b| {
+        b.iter(|| {
+            let mut acc = 0.0f32;
+            for k in 0..BATCH {
+                if let Some(s) = model.sample(black_box(x.wo[k]), black_box(x.u[k])) {
+                    acc += s.pdf + s.weight.x;
+                }
+            }
+            acc
+        })
+    });
+    g.bench_function("pdf", |b| {
+        b.iter(|| {
+            let mut acc = 0.0f32;
+            for k in 0..BATCH {
+                acc += model.pdf(black_box(x.wo[k]), black_box(x.wi[k]));
+            }
+            acc
+        })
+    });
+    g.finish();
+}
+
+fn bsdfs(c: &mut Criterion) {
+    let x = inputs();
+    let kk = KajiyaKay::from_params(KajiyaKayParams::default()).unwrap();
+    bench_model(c, "kajiya-kay", &kk, &x);
+    for sampling in [
+        Sampling::ExactPdf,
+        Sampling::ClampAndFlip,
+        Sampling::Uniform,
+    ] {
+        let m = Marschner::new(MarschnerParams {
+            sampling,
+            ..Default::default()
+        })
+        .unwrap();
+        bench_model(c, &format!("marschner-{}", sampling.name()), &m, &x);
+    }
+    for selection in [LobeSelection::Uniform, LobeSelection::ByEnergy] {
+        let m = IsHair::new(IsHairParams {
+            selection,
+            ..Default::default()
+        })
+        .unwrap();
+        bench_model(c, &format!("ishair-{selection:?}").to_lowercase(), &m, &x);
+    }
+}
+
+criterion_group! {
+    name = benches;
+    // 2-core machine, short runs: 2 s per measurement after 1 s warm-up is enough for ±1% on these loops.
+    config = Criterion::default().warm_up_time(std::time::Duration::from_secs(1)).measurement_time(std::time::Duration::from_secs(2)).sample_size(50);
+    targets = bsdfs
+}
+criterion_main!(benches);
