@@ -333,17 +333,19 @@ impl IsHair {
         let p = &self.params;
         let (w_d, w_s) = p.balance.weights(a.cos_theta_o);
         // Guard: cos θd → 0 only for θr = −θi = ±π/2.
-        let cos_d = a.theta_d.cos().max(COS_THETA_MIN);
+        let cos_d = a.cos_theta_d.max(COS_THETA_MIN);
         let s = w_s / (cos_d * cos_d);
         let m = self
             .longitudinal
             .map(|(alpha, beta)| m_x(beta, alpha, a.theta_h));
-        let n_r = n_r(a.phi);
+        // N_R = N_TRT−g = cos(φ/2) from the half-angle vector (see `Angles`).
+        let n_r = a.cos_half_phi;
+        let phi = a.phi();
         LobeValues {
             r: p.color_r * (s * m[0] * n_r),
-            tt: p.color_tt * (s * m[1] * n_tt(p.gamma_tt, a.phi)),
+            tt: p.color_tt * (s * m[1] * n_tt(p.gamma_tt, phi)),
             trt: p.color_trt * (s * m[2] * n_r),
-            glint: p.color_trt * (s * p.glint * m[2] * n_g(p.gamma_g, p.phi_g, a.phi)),
+            glint: p.color_trt * (s * p.glint * m[2] * n_g(p.gamma_g, p.phi_g, phi)),
             diffuse: diffuse_f(p.k_d) * w_d,
         }
     }
@@ -360,9 +362,10 @@ impl IsHair {
         );
         // p(θi) = p(θh)/2 (eq. 20 without its 1/cos θi, applied once below).
         let p_theta = dists.map(|d| 0.5 * d.pdf(theta_h) as f32);
-        let p_r = 0.25 * n_r(a.phi);
-        let p_tt = self.tt.pdf(wrap_phi(a.phi - PI) as f64) as f32;
-        let p_g = 0.5 * self.glint.pdf(a.phi.abs() as f64) as f32;
+        let phi = a.phi();
+        let p_r = 0.25 * a.cos_half_phi;
+        let p_tt = self.tt.pdf(wrap_phi(phi - PI) as f64) as f32;
+        let p_g = 0.5 * self.glint.pdf(phi.abs() as f64) as f32;
         let spec = self.probs[0] * p_theta[0] * p_r
             + self.probs[1] * p_theta[1] * p_tt
             + self.probs[2] * p_theta[2] * p_r

@@ -264,8 +264,9 @@ impl Marschner {
     #[inline]
     fn lobes_at(&self, a: &Angles) -> LobeValues {
         let (w_d, w_s) = self.params.balance.weights(a.cos_theta_o);
-        let n = n_r(a.phi);
-        let cos_d = a.theta_d.cos();
+        // N = cos(φ/2) (eq. 6) and cos θd from the half-angle vectors (see `Angles`).
+        let n = a.cos_half_phi;
+        let cos_d = a.cos_theta_d;
         let f = |k: usize| {
             let (alpha, beta) = self.lobes[k];
             self.c[k] * (w_s * f_lobe(m_r(beta, alpha, a.theta_h), n, cos_d))
@@ -285,7 +286,7 @@ impl Marschner {
             return UNIFORM_SPHERE_PDF;
         }
         let (p_s, probs) = self.selection(a.cos_theta_o);
-        let n = n_r(a.phi);
+        let n = a.cos_half_phi;
         let mut p_spec = 0.0;
         for (k, &(alpha, beta)) in self.lobes.iter().enumerate() {
             let p = match dists {

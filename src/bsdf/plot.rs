@@ -54,7 +54,8 @@ pub fn azimuthal_lobes<B: Bsdf + ?Sized>(
 ///
 /// Expected counts integrate the pdf over each cell with 5 × 5 Gauss-Legendre nodes in (θ, φ) (the measure
 /// cos θ dθ dφ; θ rather than sin θ so that a pdf ∝ 1/cos θi at the poles stays smooth in the variable
-/// integrated). Samples the model declines (`None`) are not counted.
+/// integrated). Samples the model declines (`None`) are not counted. The rule is exact for smooth pdfs only: put
+/// a pdf's jumps on cell edges (ISHair's glints stop at φr − φi = ±π/2, so choose φo a multiple of 2π/columns).
 pub fn sampled_vs_analytic<B: Bsdf + ?Sized>(
     model: &B,
     wo: Vec3,
