@@ -61,7 +61,10 @@ fn render_and_check(scene: Option<&Path>, extra: &[&str]) {
     let text = String::from_utf8_lossy(&info.stdout);
     let words = text.split_whitespace().collect::<Vec<_>>().join(" ");
     assert!(
-        words.contains("96 x 72, 9 channel, float openexr"),
+        words.contains(&format!(
+            "96 x 72, {} channel, float openexr",
+            cuticle::render::CHANNELS.len()
+        )),
         "{text}"
     );
     for channel in [
@@ -74,6 +77,11 @@ fn render_and_check(scene: Option<&Path>, extra: &[&str]) {
         "tangent.Y",
         "tangent.Z",
         "strand.id",
+        "diffuse.R",
+        "lobe_R.G",
+        "lobe_TT.B",
+        "lobe_TRT.R",
+        "lobe_glint.G",
     ] {
         assert!(
             text.contains(channel),

@@ -695,3 +695,73 @@ fn a_full_seen_strand_list_ends_the_ray_dark_and_says_so() {
         );
     }
 }
+
+/// k strands of opacity `a` one behind the other along z, crossed by a ray along −z.
+fn bundle_of(k: usize, a: f32) -> Strands {
+    let bundle: Vec<_> = (0..k)
+        .map(|i| {
+            let z = -0.5 + 0.2 * i as f32;
+            (Vec3::new(0.0, -2.0, z), Vec3::new(0.0, 2.0, z), 0.04, a)
+        })
+        .collect();
+    straight_strands(&bundle)
+}
+
+#[test]
+fn stochastic_occlusion_averages_to_the_transmittance() {
+    // E[not occluded] over ray keys must equal ∏ (1 − a): the stochastic shadow is the exact one, in expectation.
+    let (k, a, n) = (4, 0.3f32, 20_000u64);
+    for kind in KINDS {
+        let strands = bundle_of(k, a);
+        let tracer = tracer(&strands, kind);
+        let ray = Ray::new(Vec3::new(0.01, 0.3, 5.0), Vec3::NEG_Z);
+        let exact = f64::from(tracer.transmittance(&ray, None).unwrap());
+        let visible = (0..n)
+            .filter(|&key| !tracer.occluded_stochastic(&ray, None, key).unwrap())
+            .count() as f64
+            / n as f64;
+        let sigma = (exact * (1.0 - exact) / n as f64).sqrt();
+        assert!(
+            (visible - exact).abs() < 4.0 * sigma,
+            "{kind:?}: stochastic visibility {visible}, exact transmittance {exact} (σ {sigma})"
+        );
+        // Ignoring the first strand removes its factor.
+        let ignored = (0..n)
+            .filter(|&key| !tracer.occluded_stochastic(&ray, Some(0), key).unwrap())
+            .count() as f64
+            / n as f64;
+        let expected = (1.0 - f64::from(a)).powi(k as i32 - 1);
+        assert!((ignored - expected).abs() < 4.0 * (expected * (1.0 - expected) / n as f64).sqrt());
+    }
+}
+
+#[test]
+fn stochastic_closest_hit_is_the_first_present_strand() {
+    let (k, a) = (5, 0.5f32);
+    for kind in KINDS {
+        let strands = bundle_of(k, a);
+        let t = tracer(&strands, kind);
+        let ray = Ray::new(Vec3::new(0.01, 0.3, 5.0), Vec3::NEG_Z);
+        let mut first_counts = vec![0u32; k + 1];
+        for key in 0..4000u64 {
+            let hit = t.intersect_stochastic(&ray, None, key).unwrap();
+            // Strands are numbered from the back (z = −0.5) to the front: the ray meets strand k − 1 first.
+            let expected = (0..k as u32)
+                .rev()
+                .find(|&s| cuticle::accel::strand_present(key, s, a));
+            assert_eq!(hit.map(|h| h.strand), expected, "{kind:?}, key {key}");
+            first_counts[hit.map_or(k, |h| h.strand as usize)] += 1;
+        }
+        // Every strand is sometimes the first present one, and sometimes none is.
+        assert!(first_counts.iter().all(|&c| c > 0), "{first_counts:?}");
+        // With opacity 1 the stochastic query is the opaque one.
+        let opaque = bundle_of(k, 1.0);
+        let t2 = tracer(&opaque, kind);
+        assert_eq!(
+            t2.intersect_stochastic(&ray, None, 99)
+                .unwrap()
+                .map(|h| h.strand),
+            t2.intersect(&ray).unwrap().map(|h| h.strand)
+        );
+    }
+}

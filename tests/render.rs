@@ -82,3 +82,58 @@ fn the_default_scene_shows_lit_hair() {
         assert_eq!(p[4].is_finite(), p[8] >= 0.0);
     }
 }
+
+/// The default scene with `[material]` replaced by `model = "<model>"` and its defaults.
+fn with_material(model: &str) -> Scene {
+    let text = cuticle::scene::DEFAULT_SCENE;
+    let start = text.find("[material]").unwrap();
+    let end = start + text[start..].find("[[light]]").unwrap();
+    let text = format!(
+        "{}[material]\nmodel = \"{model}\"\n\n{}",
+        &text[..start],
+        &text[end..]
+    );
+    let mut scene = Scene::parse(
+        &text,
+        std::path::Path::new("test"),
+        std::path::Path::new("."),
+    )
+    .unwrap();
+    scene.film.resolution = [64, 48];
+    scene.film.spp = 4;
+    scene
+}
+
+#[test]
+fn every_material_renders_and_its_lobes_add_up_to_the_beauty() {
+    let nc = render::CHANNELS.len();
+    let layer = |name: &str| render::CHANNELS.iter().position(|c| *c == name).unwrap();
+    let lobe_layers = ["diffuse", "lobe_R", "lobe_TT", "lobe_TRT", "lobe_glint"];
+    for model in ["kajiya-kay", "marschner", "ishair"] {
+        let scene = with_material(model);
+        let data = render_with_threads(&scene, 2);
+        let mut hair_pixels = 0;
+        let mut specular_energy = 0.0f64;
+        for p in data.chunks(nc) {
+            assert!(p.iter().all(|v| !v.is_nan()), "{model}: NaN in {p:?}");
+            if p[3] < 1.0 {
+                continue; // the background is in the beauty but in no lobe
+            }
+            hair_pixels += 1;
+            for (c, channel) in ["R", "G", "B"].iter().enumerate() {
+                let sum: f32 = lobe_layers
+                    .iter()
+                    .map(|l| p[layer(&format!("{l}.{channel}"))])
+                    .sum();
+                assert!(
+                    (sum - p[c]).abs() <= 1e-4 * p[c].max(1.0),
+                    "{model}: lobes sum to {sum}, beauty {}",
+                    p[c]
+                );
+            }
+            specular_energy += f64::from(p[layer("lobe_R.G")]);
+        }
+        assert!(hair_pixels > 100, "{model}: {hair_pixels} hair pixels");
+        assert!(specular_energy > 0.0, "{model}: no R highlight at all");
+    }
+}

@@ -106,24 +106,49 @@ impl EmbreeTracer {
 
 impl Tracer for EmbreeTracer {
     fn intersect(&self, ray: &Ray) -> Result<Option<Hit>, InvalidRay> {
-        let Some(hit) = self.scene.intersect1(ray)? else {
-            return Ok(None);
-        };
+        Ok(self.scene.intersect1(ray)?.map(|h| self.hit(h)))
+    }
+
+    fn intersect_stochastic(
+        &self,
+        ray: &Ray,
+        ignore_strand: Option<u32>,
+        key: u64,
+    ) -> Result<Option<Hit>, InvalidRay> {
+        Ok(self
+            .scene
+            .intersect1_stochastic(ray, ignore_strand, key)?
+            .map(|h| self.hit(h)))
+    }
+
+    fn occluded_stochastic(
+        &self,
+        ray: &Ray,
+        ignore_strand: Option<u32>,
+        key: u64,
+    ) -> Result<bool, InvalidRay> {
+        self.scene.occluded1_stochastic(ray, ignore_strand, key)
+    }
+
+    fn transmittance(&self, ray: &Ray, ignore_strand: Option<u32>) -> Result<f32, InvalidRay> {
+        Ok(self.scene.transmittance1(ray, ignore_strand)?.value)
+    }
+}
+
+impl EmbreeTracer {
+    /// A tracer hit from Embree's, with the strand looked up.
+    fn hit(&self, hit: crate::sys::embree::RayHit) -> Hit {
         let strand = self
             .strands
             .strand_of(hit.prim_id)
             .expect("embree reported a segment outside the strand table it was built from");
-        Ok(Some(Hit {
+        Hit {
             t: hit.t,
             segment: hit.prim_id,
             strand,
             u: hit.u,
             v: hit.v,
             ng: hit.ng,
-        }))
-    }
-
-    fn transmittance(&self, ray: &Ray, ignore_strand: Option<u32>) -> Result<f32, InvalidRay> {
-        Ok(self.scene.transmittance1(ray, ignore_strand)?.value)
+        }
     }
 }

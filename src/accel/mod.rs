@@ -45,4 +45,76 @@ pub trait Tracer: Sync {
     /// strands crossed, each strand counted once however many times the tracer reports it. `ignore_strand` is left
     /// out (the strand being shaded: its own scattering is the BSDF's job, not a shadow).
     fn transmittance(&self, ray: &Ray, ignore_strand: Option<u32>) -> Result<f32, InvalidRay>;
+
+    /// The closest hit among the strands *present* for the ray with this `key` (see [`strand_present`]): the
+    /// semi-transparent hair of the thesis' shadows, made stochastic so that light and material samples see the
+    /// same hair. `ignore_strand` is never hit.
+    fn intersect_stochastic(
+        &self,
+        ray: &Ray,
+        ignore_strand: Option<u32>,
+        key: u64,
+    ) -> Result<Option<Hit>, InvalidRay>;
+
+    /// Whether a strand present for this `key` blocks `ray`. Its expectation over keys is
+    /// 1 − [`Tracer::transmittance`]: an unbiased, cheaper (any-hit) estimate of the same shadow.
+    fn occluded_stochastic(
+        &self,
+        ray: &Ray,
+        ignore_strand: Option<u32>,
+        key: u64,
+    ) -> Result<bool, InvalidRay>;
+}
+
+/// Whether strand `strand` of opacity `opacity` is present for the ray identified by `key`: true with probability
+/// `opacity` over keys, and always the same answer for the same (key, strand) — so a strand the tracer reports
+/// twice (front and back of a tube, two segments at a joint) is decided once, and the result does not depend on
+/// traversal order or thread. Opacity 1 is always present, 0 never.
+///
+/// The hash is SplitMix64's finaliser over the key mixed with the strand id; its top 24 bits give u ∈ [0, 1).
+#[inline]
+pub fn strand_present(key: u64, strand: u32, opacity: f32) -> bool {
+    let mut z = key ^ u64::from(strand).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^= z >> 31;
+    let u = (z >> 40) as f32 * (1.0 / (1u64 << 24) as f32);
+    u < opacity
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn presence_frequency_matches_opacity() {
+        for (opacity, strand) in [(0.0, 3), (0.1, 17), (0.5, 123_456), (0.9, 7), (1.0, 0)] {
+            let n = 200_000u64;
+            let hits = (0..n)
+                .filter(|&k| strand_present(k.wrapping_mul(0x2545_f491_4f6c_dd1d), strand, opacity))
+                .count() as f64;
+            let p = f64::from(opacity);
+            let sigma = (p * (1.0 - p) / n as f64).sqrt();
+            let freq = hits / n as f64;
+            assert!(
+                (freq - p).abs() <= 4.0 * sigma + 1e-9,
+                "opacity {opacity}: frequency {freq}"
+            );
+        }
+    }
+
+    #[test]
+    fn strands_decide_independently() {
+        // Two strands of opacity 1/2 on the same ray: both present a quarter of the time (product rule, which is
+        // what makes E[visible] = ∏ (1 − aᵢ)).
+        let n = 200_000u64;
+        let both = (0..n)
+            .filter(|&k| strand_present(k, 10, 0.5) && strand_present(k, 11, 0.5))
+            .count() as f64
+            / n as f64;
+        assert!(
+            (both - 0.25).abs() < 4.0 * (0.25f64 * 0.75 / n as f64).sqrt(),
+            "{both}"
+        );
+    }
 }

@@ -18,19 +18,22 @@ use std::time::Instant;
 use glam::Vec3;
 use rayon::prelude::*;
 
-use crate::accel::{Hit, Tracer};
-use crate::bsdf::kajiya_kay::{cos_theta, KajiyaKay};
+use crate::accel::{CurveKind, Hit, Tracer};
+use crate::bsdf::frame::{sin_cos_theta, strand_noise, HairFrame};
+use crate::bsdf::{Lobe, LobeValues};
 use crate::hair::Strands;
 use crate::image::Image;
 use crate::ray::Ray;
-use crate::scene::{LightConfig, MaterialConfig, Scene, ShadowMode};
+use crate::scene::{LightConfig, Material, Scene, ShadowMode};
 
 use camera::Camera;
 use filter::GaussianFilter;
 use sampler::{dim, PixelSampler};
 
-/// Channels of the film, in order: beauty RGBA, then AOVs as `layer.channel` (EXR naming).
-pub const CHANNELS: [&str; 9] = [
+/// Channels of the film, in order: beauty RGBA, then AOVs as `layer.channel` (EXR naming). The lobe layers
+/// (`diffuse`, `R`, `TT`, `TRT`, `glint`) split the beauty of hair hits by [`Lobe`]: they add up to it, less the
+/// background.
+pub const CHANNELS: [&str; 24] = [
     "R",
     "G",
     "B",
@@ -40,6 +43,21 @@ pub const CHANNELS: [&str; 9] = [
     "tangent.Y",
     "tangent.Z",
     "strand.id",
+    "diffuse.R",
+    "diffuse.G",
+    "diffuse.B",
+    "lobe_R.R",
+    "lobe_R.G",
+    "lobe_R.B",
+    "lobe_TT.R",
+    "lobe_TT.G",
+    "lobe_TT.B",
+    "lobe_TRT.R",
+    "lobe_TRT.G",
+    "lobe_TRT.B",
+    "lobe_glint.R",
+    "lobe_glint.G",
+    "lobe_glint.B",
 ];
 
 /// Side of the square tiles rendered as one unit of parallel work.
@@ -69,10 +87,10 @@ struct Distant {
 struct Shading<'a> {
     strands: &'a Strands,
     tracer: &'a dyn Tracer,
-    /// The material with `k_d` = weight only; the colour is applied per strand.
-    model: KajiyaKay,
-    /// Diffuse colour override; `None` ⇒ per-strand file colour.
-    color: Option<Vec3>,
+    /// The fibre model (local hair frame).
+    material: Material,
+    /// How hits' frames are built: round tubes from Embree's normal, ribbons from a per-strand noise vector.
+    curves: CurveKind,
     distant: Vec<Distant>,
     environment: Vec3,
     shadows: ShadowMode,
@@ -103,7 +121,7 @@ impl Shading<'_> {
         }
     }
 
-    /// Radiance leaving `hit` towards the camera ray's origin.
+    /// Radiance leaving `hit` towards the camera ray's origin, split by lobe.
     fn shade(
         &self,
         ray: &Ray,
@@ -111,7 +129,7 @@ impl Shading<'_> {
         sampler: &PixelSampler,
         index: u32,
         counters: &mut (u64, u64),
-    ) -> Vec3 {
+    ) -> LobeValues {
         let point = self.strands.eval(hit.segment, hit.u);
         let wo = -ray.dir.normalize();
         // A degenerate strand (repeated points) has no tangent: shade it as a fibre perpendicular to the view.
@@ -119,34 +137,46 @@ impl Shading<'_> {
             .tangent
             .try_normalize()
             .unwrap_or_else(|| wo.any_orthonormal_vector());
+        let frame = match self.curves {
+            CurveKind::Round => HairFrame::from_round_curve(tangent, hit.ng),
+            CurveKind::Flat => HairFrame::from_ribbon(tangent, strand_noise(hit.strand)),
+        };
         let p = ray.at(hit.t);
-        let color = self
-            .color
-            .unwrap_or_else(|| Vec3::from(self.strands.color[hit.strand as usize]));
-        let mut radiance = Vec3::ZERO;
+        let tint = if self.material.tint_diffuse_by_strand {
+            Vec3::from(self.strands.color[hit.strand as usize])
+        } else {
+            Vec3::ONE
+        };
+        let wo_local = frame.to_local(wo);
+        let f = |wi: Vec3| {
+            let mut lobes = self.material.bsdf.eval_lobes(wo_local, frame.to_local(wi));
+            lobes.diffuse *= tint;
+            lobes
+        };
+        let mut radiance = LobeValues::default();
+        let mut add = |lobes: LobeValues, scale: Vec3| {
+            for lobe in Lobe::ALL {
+                *radiance.get_mut(lobe) += lobes.get(lobe) * scale;
+            }
+        };
         for light in &self.distant {
-            let (f_d, f_s) = self.model.eval(tangent, wo, light.wi);
-            let f = f_d * color + Vec3::splat(f_s);
-            let cos_i = cos_theta(tangent, light.wi);
-            if cos_i > 0.0 && f.max_element() > 0.0 {
-                radiance += f
-                    * light.irradiance
-                    * cos_i
-                    * self.visibility(p, light.wi, hit.strand, counters);
+            let cos_i = sin_cos_theta(frame.to_local(light.wi)).1;
+            let lobes = f(light.wi);
+            if lobes.sum().max_element() > 0.0 {
+                let v = self.visibility(p, light.wi, hit.strand, counters);
+                add(lobes, light.irradiance * cos_i * v);
             }
         }
         if self.environment.max_element() > 0.0 {
             // One direction per camera sample, uniform over the sphere: pdf = 1 / 4π.
             let (u1, u2) = sampler.get_2d(index, dim::ENVIRONMENT);
             let wi = uniform_sphere(u1, u2);
-            let (f_d, f_s) = self.model.eval(tangent, wo, wi);
-            let f = f_d * color + Vec3::splat(f_s);
-            let cos_i = cos_theta(tangent, wi);
-            radiance += f
-                * self.environment
-                * cos_i
-                * (4.0 * std::f32::consts::PI)
-                * self.visibility(p, wi, hit.strand, counters);
+            let cos_i = sin_cos_theta(frame.to_local(wi)).1;
+            let v = self.visibility(p, wi, hit.strand, counters);
+            add(
+                f(wi),
+                self.environment * cos_i * (4.0 * std::f32::consts::PI) * v,
+            );
         }
         radiance
     }
@@ -178,17 +208,14 @@ pub fn render(
     let [width, height] = scene.film.resolution;
     let camera = Camera::from_config(&scene.camera, strands.bounds(), width, height);
     let filter = GaussianFilter::new(scene.film.filter_width);
-    let MaterialConfig::KajiyaKay {
-        color,
-        diffuse,
-        specular,
-        exponent,
-    } = scene.material.clone();
     let shading = Shading {
         strands,
         tracer,
-        model: KajiyaKay::new(Vec3::splat(diffuse), specular, exponent),
-        color: color.map(Vec3::from),
+        material: scene
+            .material
+            .build()
+            .expect("Scene::parse validated the material"),
+        curves: scene.hair.curves,
         distant: scene
             .lights
             .iter()
@@ -248,6 +275,7 @@ pub fn render(
                 for x in x0..x1 {
                     let sampler = PixelSampler::new(x, y, seed);
                     let mut sum = Vec3::ZERO;
+                    let mut lobes = LobeValues::default();
                     let mut coverage = 0u32;
                     for i in 0..spp {
                         let (dx, dy) = filter.sample(sampler.get_2d(i, dim::FILTER));
@@ -256,13 +284,18 @@ pub fn render(
                         match tracer.intersect(&ray) {
                             Ok(Some(hit)) => {
                                 coverage += 1;
-                                sum += shading.shade(&ray, &hit, &sampler, i, &mut shadow);
+                                let l = shading.shade(&ray, &hit, &sampler, i, &mut shadow);
+                                sum += l.sum();
+                                for lobe in Lobe::ALL {
+                                    *lobes.get_mut(lobe) += l.get(lobe);
+                                }
                             }
                             Ok(None) => sum += background,
                             Err(_) => rejected += 1,
                         }
                     }
                     let beauty = sum / spp as f32;
+                    let lobes = lobes.scaled(1.0 / spp as f32);
                     // AOVs come from one unfiltered ray through the pixel centre: a depth or id averaged across
                     // an edge would name no real surface.
                     let centre = camera.ray(x as f32 + 0.5, y as f32 + 0.5);
@@ -277,7 +310,7 @@ pub fn render(
                         None => (f32::INFINITY, Vec3::ZERO, -1.0),
                     };
                     let o = (((y - y0) * (x1 - x0) + (x - x0)) as usize) * nc;
-                    out[o..o + nc].copy_from_slice(&[
+                    out[o..o + 9].copy_from_slice(&[
                         beauty.x,
                         beauty.y,
                         beauty.z,
@@ -288,6 +321,13 @@ pub fn render(
                         tangent.z,
                         id,
                     ]);
+                    for (k, lobe) in [Lobe::Diffuse, Lobe::R, Lobe::Tt, Lobe::Trt, Lobe::Glint]
+                        .into_iter()
+                        .enumerate()
+                    {
+                        let v = lobes.get(lobe);
+                        out[o + 9 + 3 * k..o + 12 + 3 * k].copy_from_slice(&[v.x, v.y, v.z]);
+                    }
                 }
             }
             counters

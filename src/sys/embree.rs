@@ -895,6 +895,81 @@ unsafe extern "C" fn transmittance_filter(args: *const RTCFilterFunctionNArgumen
     }
 }
 
+/// The payload of the stochastic queries ([`CommittedScene::intersect1_stochastic`],
+/// [`CommittedScene::occluded1_stochastic`]): Embree's context first, then the per-ray key that decides which strands
+/// are present.
+#[repr(C)]
+#[derive(Debug, Clone, Copy)]
+struct StochasticQuery {
+    context: QueryContext,
+    ignore_strand: u32,
+    key: u64,
+}
+
+const _: () = assert!(std::mem::offset_of!(StochasticQuery, context) == 0);
+
+impl StochasticQuery {
+    /// A payload whose context carries [`stochastic_filter`] (Embree 3; Embree 4 takes the filter in the query
+    /// arguments).
+    fn new(ignore_strand: Option<u32>, key: u64) -> Self {
+        #[allow(unused_mut)]
+        let mut context = init_query_context();
+        #[cfg(not(embree4))]
+        {
+            context.filter = Some(stochastic_filter);
+        }
+        StochasticQuery {
+            context,
+            ignore_strand: ignore_strand.unwrap_or(NO_STRAND),
+            key,
+        }
+    }
+
+    /// Whether a reported hit counts: primitives without strand data always do (opaque); a strand does unless it is
+    /// the ignored one or [`crate::accel::strand_present`] says it is absent for this ray.
+    #[inline]
+    fn accepts(&self, strand: Option<(u32, f32)>) -> bool {
+        match strand {
+            None => true,
+            Some((strand, opacity)) => {
+                strand != self.ignore_strand
+                    && crate::accel::strand_present(self.key, strand, opacity)
+            }
+        }
+    }
+}
+
+/// The filter of the stochastic queries, for intersection and occlusion alike: rejects hits on strands that are
+/// absent for this ray, so traversal goes on past them.
+unsafe extern "C" fn stochastic_filter(args: *const RTCFilterFunctionNArguments) {
+    // SAFETY: Embree passes a valid argument struct for the duration of the call.
+    let Some(args) = (unsafe { args.as_ref() }) else {
+        return;
+    };
+    // SAFETY: only the stochastic queries install this filter, and their context pointer is the first field of a
+    // live `StochasticQuery` (repr(C), offset 0 asserted above); the filter only reads it.
+    let query = unsafe { &*args.context.cast::<StochasticQuery>() };
+    // SAFETY: as in `transmittance_filter`: null or the geometry's strand table, kept alive by the scene.
+    let table = unsafe {
+        args.geometryUserPtr
+            .cast_const()
+            .cast::<StrandTable>()
+            .as_ref()
+    };
+    for i in 0..args.N {
+        // SAFETY: `valid` has `N` entries (the filter-function contract).
+        let valid = unsafe { &mut *args.valid.add(i as usize) };
+        if *valid == 0 {
+            continue;
+        }
+        // SAFETY: `hit` is a packet of width `N` and `i < N`.
+        let segment = unsafe { hit_n_prim_id(args.hit, args.N, i) };
+        if !query.accepts(table.and_then(|t| t.lookup(segment))) {
+            *valid = 0;
+        }
+    }
+}
+
 /// An Embree ray for a validated `ray`, and the factor by which its direction was scaled down.
 ///
 /// Embree's own validity test (`RayK::valid`, `kernels/common/ray.h`) also requires every direction component to be
@@ -935,8 +1010,62 @@ impl CommittedScene {
         &self.scene.geometries
     }
 
-    /// The closest hit along `ray` within `[tnear, tfar]`. Rays failing [`Ray::check`] never reach Embree.
+    /// The closest hit along `ray` within `[tnear, tfar]`, every strand opaque. Rays failing [`Ray::check`] never
+    /// reach Embree.
     pub fn intersect1(&self, ray: &Ray) -> Result<Option<RayHit>, InvalidRay> {
+        self.intersect_with(ray, None)
+    }
+
+    /// The closest hit along `ray` among the strands *present* for this ray: strand s is present with probability
+    /// equal to its opacity, decided by [`crate::accel::strand_present`]`(key, s, opacity)` (so the same key and
+    /// strand always decide alike, whatever order Embree reports hits in). `ignore_strand` is never hit.
+    pub fn intersect1_stochastic(
+        &self,
+        ray: &Ray,
+        ignore_strand: Option<u32>,
+        key: u64,
+    ) -> Result<Option<RayHit>, InvalidRay> {
+        let mut query = StochasticQuery::new(ignore_strand, key);
+        self.intersect_with(ray, Some(&mut query))
+    }
+
+    /// Whether any strand present for this ray (see [`CommittedScene::intersect1_stochastic`]) blocks `ray`: an
+    /// unbiased one-sample estimate of [`CommittedScene::transmittance1`] (E[not occluded] = ∏ (1 − opacity)) at
+    /// the cost of an opaque shadow ray.
+    pub fn occluded1_stochastic(
+        &self,
+        ray: &Ray,
+        ignore_strand: Option<u32>,
+        key: u64,
+    ) -> Result<bool, InvalidRay> {
+        let (mut rtc_ray, _) = embree_ray(ray)?;
+        let mut query = StochasticQuery::new(ignore_strand, key);
+        let context = ptr::addr_of_mut!(query).cast::<QueryContext>();
+        #[cfg(not(embree4))]
+        {
+            // SAFETY: the scene is committed with `RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION`; `context` points at the
+            // payload, which outlives the call; the ray passed `Ray::check`.
+            unsafe { rtcOccluded1(self.raw(), context, &mut rtc_ray) };
+        }
+        #[cfg(embree4)]
+        {
+            let mut args = init_occluded_arguments();
+            args.context = context;
+            args.filter = Some(stochastic_filter);
+            args.flags |= RTC_RAY_QUERY_FLAG_INVOKE_ARGUMENT_FILTER;
+            // SAFETY: as for Embree 3, with the filter passed in the arguments.
+            unsafe { rtcOccluded1(self.raw(), &mut rtc_ray, &mut args) };
+        }
+        // Embree marks an occluded ray by setting tfar to −∞.
+        Ok(rtc_ray.tfar == f32::NEG_INFINITY)
+    }
+
+    /// The closest-hit query, with the stochastic filter when `query` is given.
+    fn intersect_with(
+        &self,
+        ray: &Ray,
+        query: Option<&mut StochasticQuery>,
+    ) -> Result<Option<RayHit>, InvalidRay> {
         let (rtc_ray, scale) = embree_ray(ray)?;
         let mut rayhit = RTCRayHit {
             ray: rtc_ray,
@@ -947,15 +1076,32 @@ impl CommittedScene {
         rayhit.hit.instID.fill(RTC_INVALID_GEOMETRY_ID);
         #[cfg(not(embree4))]
         {
-            let mut context = init_query_context();
-            // SAFETY: the scene is committed; `context` and `rayhit` are initialised, aligned locals that Embree
-            // uses only during the call; the ray passed `Ray::check` and is within Embree's limits.
-            unsafe { rtcIntersect1(self.raw(), &mut context, &mut rayhit) };
+            let mut plain = init_query_context();
+            let context = match query {
+                Some(q) => ptr::from_mut(q).cast::<QueryContext>(),
+                None => ptr::addr_of_mut!(plain),
+            };
+            // SAFETY: the scene is committed; `context` is an initialised local context or the first field of a live
+            // `StochasticQuery` whose filter reads only that payload; `rayhit` is an aligned local; Embree uses both
+            // only during the call; the ray passed `Ray::check` and is within Embree's limits.
+            unsafe { rtcIntersect1(self.raw(), context, &mut rayhit) };
         }
         #[cfg(embree4)]
         {
-            // SAFETY: as for Embree 3; null arguments select Embree's defaults (no filter).
-            unsafe { rtcIntersect1(self.raw(), &mut rayhit, ptr::null_mut()) };
+            match query {
+                Some(q) => {
+                    let mut args = RTCIntersectArguments::default();
+                    args.flags =
+                        RTC_RAY_QUERY_FLAG_INCOHERENT | RTC_RAY_QUERY_FLAG_INVOKE_ARGUMENT_FILTER;
+                    args.feature_mask = RTC_FEATURE_FLAG_ALL;
+                    args.context = ptr::from_mut(q).cast::<QueryContext>();
+                    args.filter = Some(stochastic_filter);
+                    // SAFETY: as for Embree 3, with the filter passed in the arguments.
+                    unsafe { rtcIntersect1(self.raw(), &mut rayhit, &mut args) };
+                }
+                // SAFETY: as for Embree 3; null arguments select Embree's defaults (no filter).
+                None => unsafe { rtcIntersect1(self.raw(), &mut rayhit, ptr::null_mut()) },
+            }
         }
         let hit = rayhit.hit;
         if hit.geomID == RTC_INVALID_GEOMETRY_ID {

@@ -28,8 +28,11 @@ use serde::Deserialize;
 use crate::accel::CurveKind;
 use crate::hair::procedural::Procedural;
 
+pub mod material;
+pub use material::{Material, MaterialConfig};
+
 /// The default scene, compiled in so `cuticle render` works from any directory with no downloaded data.
-pub const DEFAULT_SCENE: &str = include_str!("../scenes/default.toml");
+pub const DEFAULT_SCENE: &str = include_str!("../../scenes/default.toml");
 
 /// A scene could not be read or is invalid. Messages name the file and, where known, the key and line.
 #[derive(Debug, thiserror::Error)]
@@ -168,48 +171,6 @@ impl Default for FilmConfig {
             spp: 16,
             seed: 0,
             filter_width: 3.0,
-        }
-    }
-}
-
-/// `[material]`: the fibre's scattering model.
-#[derive(Debug, Clone, Deserialize)]
-#[serde(tag = "model", rename_all = "kebab-case", deny_unknown_fields)]
-pub enum MaterialConfig {
-    /// Kajiya & Kay 1989: a diffuse cylinder plus a specular cone around the mirror direction.
-    KajiyaKay {
-        /// Diffuse albedo, linear RGB; absent ⇒ the per-strand colour of the hair file.
-        #[serde(default)]
-        color: Option<[f32; 3]>,
-        /// Weight of the diffuse term.
-        #[serde(default = "kk_diffuse")]
-        diffuse: f32,
-        /// Weight of the specular term.
-        #[serde(default = "kk_specular")]
-        specular: f32,
-        /// Specular cone exponent (larger = sharper highlight).
-        #[serde(default = "kk_exponent")]
-        exponent: f32,
-    },
-}
-
-fn kk_diffuse() -> f32 {
-    0.7
-}
-fn kk_specular() -> f32 {
-    0.3
-}
-fn kk_exponent() -> f32 {
-    60.0
-}
-
-impl Default for MaterialConfig {
-    fn default() -> Self {
-        MaterialConfig::KajiyaKay {
-            color: None,
-            diffuse: kk_diffuse(),
-            specular: kk_specular(),
-            exponent: kk_exponent(),
         }
     }
 }
@@ -357,30 +318,7 @@ impl Scene {
                 f.filter_width
             ));
         }
-        match &self.material {
-            MaterialConfig::KajiyaKay {
-                color,
-                diffuse,
-                specular,
-                exponent,
-            } => {
-                if let Some(col) = color {
-                    if col.iter().any(|x| !(0.0..=1.0).contains(x)) {
-                        return Err(format!(
-                            "material.color must be in [0, 1] per channel, got {col:?}"
-                        ));
-                    }
-                }
-                if *diffuse < 0.0 || *specular < 0.0 || diffuse + specular > 1.0 {
-                    return Err(format!(
-                        "material.diffuse and material.specular must be >= 0 with a sum <= 1, got {diffuse} and {specular}"
-                    ));
-                }
-                if !(exponent.is_finite() && *exponent >= 1.0) {
-                    return Err(format!("material.exponent must be >= 1, got {exponent}"));
-                }
-            }
-        }
+        self.material.build()?;
         for (i, light) in self.lights.iter().enumerate() {
             match light {
                 LightConfig::Distant {
