@@ -26,6 +26,7 @@
 //! deterministic RNG) and [`plot`] (plain data for `cuticle plot-bsdf`).
 
 pub mod cauchy;
+pub mod chart;
 pub mod frame;
 pub mod fresnel;
 pub mod gaussian;
@@ -138,17 +139,6 @@ impl LobeValues {
             Lobe::Trt => self.trt,
             Lobe::Glint => self.glint,
             Lobe::Diffuse => self.diffuse,
-        }
-    }
-
-    /// A mutable reference to one lobe's value.
-    pub fn get_mut(&mut self, lobe: Lobe) -> &mut Vec3 {
-        match lobe {
-            Lobe::R => &mut self.r,
-            Lobe::Tt => &mut self.tt,
-            Lobe::Trt => &mut self.trt,
-            Lobe::Glint => &mut self.glint,
-            Lobe::Diffuse => &mut self.diffuse,
         }
     }
 
