@@ -142,6 +142,17 @@ impl LobeValues {
         }
     }
 
+    /// A mutable reference to one lobe's value.
+    pub fn get_mut(&mut self, lobe: Lobe) -> &mut Vec3 {
+        match lobe {
+            Lobe::R => &mut self.r,
+            Lobe::Tt => &mut self.tt,
+            Lobe::Trt => &mut self.trt,
+            Lobe::Glint => &mut self.glint,
+            Lobe::Diffuse => &mut self.diffuse,
+        }
+    }
+
     /// Every lobe scaled by `s`.
     pub fn scaled(&self, s: f32) -> LobeValues {
         LobeValues {
