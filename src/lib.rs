@@ -12,8 +12,10 @@ pub mod bench;
 pub mod bsdf;
 pub mod hair;
 pub mod image;
+pub mod light;
 pub mod ray;
 pub mod render;
 pub mod scene;
+pub mod shape;
 #[allow(unsafe_code)]
 pub mod sys;

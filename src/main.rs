@@ -6,12 +6,13 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
+use serde::Deserialize;
 
 use cuticle::accel::embree::EmbreeTracer;
 use cuticle::accel::CurveKind;
 use cuticle::hair;
 use cuticle::render;
-use cuticle::scene::{Scene, ShadowMode};
+use cuticle::scene::{Scene, ShadowMode, TransmittanceMode};
 
 /// cuticle: a physically based hair renderer (Embree curves, thesis hair BSDFs, OpenImageIO output).
 #[derive(Parser)]
@@ -30,6 +31,8 @@ enum Command {
         /// A `.hair` or `.tfx` file.
         file: PathBuf,
     },
+    /// Plot a fibre model's lobes (like the thesis' figure 4) and its sampled-vs-analytic pdf histograms as PNGs.
+    PlotBsdf(PlotArgs),
     /// Benchmarks (not tests): print throughput figures.
     #[command(subcommand)]
     Bench(BenchCommand),
@@ -60,13 +63,71 @@ struct RenderArgs {
     /// Self-shadowing (overrides shadows.mode).
     #[arg(long, value_enum)]
     shadows: Option<ShadowMode>,
+    /// How light samples see semi-transparent strands (overrides shadows.transmittance).
+    #[arg(long, value_enum)]
+    transmittance: Option<TransmittanceMode>,
+    /// Light samples per light at the first shading point (overrides integrator.light_samples).
+    #[arg(long)]
+    light_samples: Option<u32>,
+    /// Material samples at the first shading point (overrides integrator.material_samples).
+    #[arg(long)]
+    material_samples: Option<u32>,
+    /// Indirect bounces, 0 = direct light only (overrides integrator.path_length).
+    #[arg(long)]
+    path_length: Option<u32>,
     /// No progress bar.
     #[arg(short, long)]
     quiet: bool,
 }
 
+#[derive(clap::Args)]
+struct PlotArgs {
+    /// Take the `[material]` of this scene file (parameters included) instead of a model's defaults.
+    scene: Option<PathBuf>,
+    /// The model, with the papers' default parameters (ignored when a scene is given).
+    #[arg(long, value_enum, default_value = "ishair")]
+    material: MaterialName,
+    /// Directory for the PNGs (created if needed).
+    #[arg(short, long, default_value = "plots")]
+    out: PathBuf,
+    /// View direction's longitudinal angle θo, degrees.
+    #[arg(long, default_value_t = 30.0, allow_hyphen_values = true)]
+    theta_o: f32,
+    /// θi of the azimuthal plot, degrees.
+    #[arg(long, default_value_t = -30.0, allow_hyphen_values = true)]
+    theta_i: f32,
+    /// Relative azimuth φ of the longitudinal plot, degrees (180 shows TT).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    phi: f32,
+    /// Directions drawn for the histogram.
+    #[arg(long, default_value_t = 1_000_000)]
+    samples: usize,
+}
+
+/// Model names for `plot-bsdf --material`.
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum MaterialName {
+    /// Kajiya & Kay 1989.
+    KajiyaKay,
+    /// Hery & Ramamoorthi 2012 (thesis §4.2).
+    Marschner,
+    /// Ou et al. 2012 (thesis §4.3).
+    Ishair,
+}
+
 #[derive(Subcommand)]
 enum BenchCommand {
+    /// Wall time of a whole frame (default: furball-512, `scenes/furball.toml`), rays/s and peak memory.
+    Frame {
+        /// Scene to render (default: the built-in default scene).
+        scene: Option<PathBuf>,
+        /// Worker threads.
+        #[arg(long, default_value_t = 2)]
+        threads: usize,
+        /// Timed renders after one warm-up.
+        #[arg(long, default_value_t = 3)]
+        repetitions: usize,
+    },
     /// Primary- and shadow-ray throughput for round and flat curves, BVH build time, peak memory.
     Trace {
         /// Scene whose hair model is traced (default: the built-in default scene).
@@ -134,6 +195,20 @@ fn render_command(args: RenderArgs) -> Result<()> {
     if let Some(shadows) = args.shadows {
         scene.shadows.mode = shadows;
     }
+    if let Some(t) = args.transmittance {
+        scene.shadows.transmittance = t;
+    }
+    if let Some(n) = args.light_samples {
+        scene.integrator.light_samples = n;
+    }
+    if let Some(n) = args.material_samples {
+        scene.integrator.material_samples = n;
+    }
+    if let Some(n) = args.path_length {
+        scene.integrator.path_length = n;
+    }
+    // The overrides go through the scene's own checks, so a bad value is reported like a bad scene key.
+    let scene = scene.revalidate()?;
     let extension = args
         .output
         .extension()
@@ -147,12 +222,14 @@ fn render_command(args: RenderArgs) -> Result<()> {
     let start = Instant::now();
     let strands = render::load_strands(&scene)?;
     let load_seconds = start.elapsed().as_secs_f64();
+    let lights = scene.build_lights()?;
     let tracer = EmbreeTracer::new(&strands, scene.hair.curves)?;
     let (image, stats) = pool.install(|| {
         render::render(
             &scene,
             &strands,
             &tracer,
+            &lights,
             render::Options {
                 progress: !args.quiet,
             },
@@ -171,7 +248,7 @@ fn render_command(args: RenderArgs) -> Result<()> {
     let [w, h] = scene.film.resolution;
     eprintln!(
         "{} strands ({:?} curves), {w}x{h}, {} spp, {} threads: load {:.2} s, build {:.2} s, render {:.2} s \
-         ({:.2} Mrays/s camera + shadow)",
+         ({:.2} Mrays/s: {} camera, {} shadow, {} material rays)",
         strands.strand_count(),
         scene.hair.curves,
         scene.film.spp,
@@ -179,12 +256,15 @@ fn render_command(args: RenderArgs) -> Result<()> {
         load_seconds,
         tracer.build_seconds(),
         stats.seconds,
-        (stats.camera_rays + stats.shadow_rays) as f64 / stats.seconds / 1e6,
+        stats.rays.total() as f64 / stats.seconds / 1e6,
+        stats.rays.camera,
+        stats.rays.shadow,
+        stats.rays.material,
     );
-    if stats.rejected_rays > 0 {
+    if stats.rays.rejected > 0 {
         eprintln!(
             "warning: {} invalid rays were rejected before tracing (a bug: please report)",
-            stats.rejected_rays
+            stats.rays.rejected
         );
     }
     Ok(())
@@ -234,8 +314,58 @@ fn info_command(file: &Path) -> Result<()> {
     Ok(())
 }
 
+fn plot_command(args: PlotArgs) -> Result<()> {
+    use cuticle::scene::MaterialConfig;
+    let config = match &args.scene {
+        Some(path) => Scene::load(path)?.material,
+        None => {
+            let name = match args.material {
+                MaterialName::KajiyaKay => "kajiya-kay",
+                MaterialName::Marschner => "marschner",
+                MaterialName::Ishair => "ishair",
+            };
+            toml::from_str::<toml::Table>(&format!("model = \"{name}\""))
+                .ok()
+                .and_then(|t| MaterialConfig::deserialize(t).ok())
+                .context("building the default material")?
+        }
+    };
+    let material = config.build().map_err(anyhow::Error::msg)?;
+    let options = cuticle::bsdf::plot::PlotOptions {
+        theta_o_deg: args.theta_o,
+        theta_i_deg: args.theta_i,
+        phi_deg: args.phi,
+        samples: args.samples,
+        ..Default::default()
+    };
+    let paths = cuticle::bsdf::plot::write_plots(
+        material.bsdf.as_ref(),
+        material.name,
+        &args.out,
+        &options,
+    )?;
+    for p in paths {
+        println!("wrote {}", p.display());
+    }
+    Ok(())
+}
+
 fn bench_command(command: BenchCommand) -> Result<()> {
     match command {
+        BenchCommand::Frame {
+            scene,
+            threads,
+            repetitions,
+        } => {
+            if threads == 0 {
+                bail!("--threads must be at least 1");
+            }
+            let scene = load_scene(scene.as_deref())?;
+            println!(
+                "{}",
+                cuticle::bench::frame::frame(&scene, threads, repetitions)?
+            );
+        }
         BenchCommand::Trace {
             scene,
             threads,
@@ -268,6 +398,7 @@ fn run() -> Result<()> {
     match cli.command {
         Command::Render(args) => render_command(args),
         Command::Info { file } => info_command(&file),
+        Command::PlotBsdf(args) => plot_command(args),
         Command::Bench(b) => bench_command(b),
     }
 }

@@ -7,13 +7,14 @@ use cuticle::scene::Scene;
 fn render_with_threads(scene: &Scene, threads: usize) -> Vec<f32> {
     let strands = render::load_strands(scene).unwrap();
     let tracer = EmbreeTracer::new(&strands, scene.hair.curves).unwrap();
+    let lights = scene.build_lights().unwrap();
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
         .unwrap();
     let (image, stats) =
-        pool.install(|| render::render(scene, &strands, &tracer, Options::default()));
-    assert_eq!(stats.rejected_rays, 0);
+        pool.install(|| render::render(scene, &strands, &tracer, &lights, Options::default()));
+    assert_eq!(stats.rays.rejected, 0);
     image.data
 }
 

@@ -23,10 +23,35 @@ impl PixelSampler {
         PixelSampler { seed: hash(key) }
     }
 
-    /// Component `dimension` of sample `index`, in [0, 1).
+    /// Component `dimension` (< 256) of sample `index`, in [0, 1).
+    ///
+    /// Sobol points are stratified in blocks of 2¹⁶ indices (the most `sobol_burley` computes); a larger index
+    /// (more than 65536 samples of one dimension in one pixel, e.g. many spp × many light samples) continues in an
+    /// independently scrambled block.
     #[inline]
     pub fn get(&self, index: u32, dimension: u32) -> f32 {
-        sobol_burley::sample(index, dimension, self.seed)
+        self.get_salted(index, dimension, 0)
+    }
+
+    /// As [`PixelSampler::get`], from an independent scrambling chosen by `salt` (e.g. one per light, so that the
+    /// samples of different lights are not correlated).
+    #[inline]
+    pub fn get_salted(&self, index: u32, dimension: u32, salt: u32) -> f32 {
+        let block = index >> 16;
+        let seed = if block == 0 && salt == 0 {
+            self.seed
+        } else {
+            hash(u64::from(self.seed) | (u64::from(block) << 32) ^ (u64::from(salt) << 48))
+        };
+        sobol_burley::sample(index & 0xffff, dimension, seed)
+    }
+
+    /// A 64-bit key for one ray of sample `index` (e.g. the stochastic strand presence of
+    /// [`crate::accel::strand_present`]), unique per (pixel, seed, index, dimension, salt) up to hash collisions.
+    #[inline]
+    pub fn key(&self, index: u32, dimension: u32, salt: u32) -> u64 {
+        let a = hash64((u64::from(self.seed) << 32) | u64::from(index));
+        hash64(a ^ (u64::from(dimension) << 32 | u64::from(salt)))
     }
 
     /// Two consecutive dimensions starting at `dimension`.
@@ -38,11 +63,17 @@ impl PixelSampler {
 
 /// SplitMix64 finaliser folded to 32 bits: decorrelates the per-pixel scrambling seeds.
 #[inline]
-fn hash(mut z: u64) -> u32 {
+fn hash(z: u64) -> u32 {
+    hash64(z) as u32
+}
+
+/// SplitMix64's finaliser.
+#[inline]
+fn hash64(mut z: u64) -> u64 {
     z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    (z ^ (z >> 31)) as u32
+    z ^ (z >> 31)
 }
 
 #[cfg(test)]
@@ -61,6 +92,20 @@ mod tests {
         }
         // A (0, 1)-sequence puts exactly n/16 points in each of 16 equal intervals.
         assert!(bins.iter().all(|&b| b == 16), "{bins:?}");
+    }
+
+    #[test]
+    fn indices_beyond_one_sobol_block_stay_uniform() {
+        let s = PixelSampler::new(5, 9, 1);
+        let mut bins = [0u32; 16];
+        for i in 65_536..65_536 + 4096 {
+            bins[(s.get(i, 3) * 16.0) as usize] += 1;
+        }
+        assert!(bins.iter().all(|&b| b == 256), "{bins:?}");
+        assert_ne!(s.get(7, 3), s.get(65_536 + 7, 3));
+        assert_ne!(s.get_salted(7, 3, 1), s.get(7, 3));
+        assert_ne!(s.key(7, 3, 0), s.key(7, 3, 1));
+        assert_ne!(s.key(7, 3, 0), s.key(8, 3, 0));
     }
 
     #[test]

@@ -28,7 +28,9 @@ use serde::Deserialize;
 use crate::accel::CurveKind;
 use crate::hair::procedural::Procedural;
 
+pub mod lights;
 pub mod material;
+pub use lights::{EnvironmentConfig, LightConfig, ShapeConfig};
 pub use material::{Material, MaterialConfig};
 
 /// The default scene, compiled in so `cuticle render` works from any directory with no downloaded data.
@@ -79,6 +81,12 @@ pub struct Scene {
     /// Self-shadowing.
     #[serde(default)]
     pub shadows: ShadowConfig,
+    /// Light transport: sample counts and path length.
+    #[serde(default)]
+    pub integrator: IntegratorConfig,
+    /// Non-hair geometry, `[[shape]]` tables (a ground plane, a Cornell box).
+    #[serde(default, rename = "shape")]
+    pub shapes: Vec<ShapeConfig>,
     /// Directory of the scene file: relative paths in the scene resolve against it.
     #[serde(skip)]
     pub base_dir: PathBuf,
@@ -175,46 +183,6 @@ impl Default for FilmConfig {
     }
 }
 
-/// One `[[light]]`.
-#[derive(Debug, Clone, Deserialize)]
-#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
-pub enum LightConfig {
-    /// A light at infinity (the sun).
-    Distant {
-        /// The direction light travels, world space (need not be unit length).
-        direction: [f32; 3],
-        /// Irradiance on a surface facing the light.
-        #[serde(default = "one")]
-        irradiance: f32,
-        /// Linear RGB tint, multiplied by `irradiance`.
-        #[serde(default = "white")]
-        color: [f32; 3],
-    },
-}
-
-fn white() -> [f32; 3] {
-    [1.0; 3]
-}
-
-/// `[environment]`: light from every direction.
-#[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct EnvironmentConfig {
-    /// Constant radiance, linear RGB.
-    pub radiance: [f32; 3],
-    /// Show the environment behind the hair (alpha stays 0 there either way).
-    pub visible: bool,
-}
-
-impl Default for EnvironmentConfig {
-    fn default() -> Self {
-        EnvironmentConfig {
-            radiance: [0.0; 3],
-            visible: true,
-        }
-    }
-}
-
 /// How strands shadow each other.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "kebab-case")]
@@ -226,12 +194,66 @@ pub enum ShadowMode {
     None,
 }
 
+/// How light samples' shadow rays account for semi-transparent strands (see [`crate::render::integrator`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum TransmittanceMode {
+    /// Each strand present with probability = opacity: one any-hit query per shadow ray, visibility 0 or 1.
+    #[default]
+    Stochastic,
+    /// ∏ (1 − opacity) over every strand crossed: smooth, but a full traversal per shadow ray.
+    Exact,
+}
+
 /// `[shadows]`.
 #[derive(Debug, Clone, Deserialize, Default)]
 #[serde(deny_unknown_fields, default)]
 pub struct ShadowConfig {
     /// Ray traced or none (deep opacity maps arrive with issue 6).
     pub mode: ShadowMode,
+    /// Stochastic or exact transparency for light samples.
+    pub transmittance: TransmittanceMode,
+}
+
+/// Which strategies estimate direct light (MIS, or one alone for comparisons and tests).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum Strategy {
+    /// Light and material samples combined by the power heuristic.
+    #[default]
+    Mis,
+    /// Light samples only (material samples still continue paths).
+    Light,
+    /// Material samples only (delta lights, which no material sample can hit, are still light-sampled).
+    Material,
+}
+
+/// `[integrator]`: the thesis' sample counts (§6, table 3) and the path length.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct IntegratorConfig {
+    /// Light samples per light at the first shading point (RenderMan's light samples).
+    pub light_samples: u32,
+    /// Material (BSDF) samples at the first shading point.
+    pub material_samples: u32,
+    /// Indirect bounces: 0 = direct light only.
+    pub path_length: u32,
+    /// Clamp each indirect contribution to this value per channel; 0 = off (the default; clamping is biased).
+    pub clamp: f32,
+    /// Direct-light strategy.
+    pub strategy: Strategy,
+}
+
+impl Default for IntegratorConfig {
+    fn default() -> Self {
+        IntegratorConfig {
+            light_samples: 1,
+            material_samples: 1,
+            path_length: 1,
+            clamp: 0.0,
+            strategy: Strategy::Mis,
+        }
+    }
 }
 
 impl Scene {
@@ -264,6 +286,15 @@ impl Scene {
         scene.source = source.to_path_buf();
         scene.validate().map_err(invalid)?;
         Ok(scene)
+    }
+
+    /// Checks the scene again after a program changed it (e.g. command-line overrides); errors name the source.
+    pub fn revalidate(self) -> Result<Scene, SceneError> {
+        self.validate().map_err(|message| SceneError::Invalid {
+            path: self.source.clone(),
+            message,
+        })?;
+        Ok(self)
     }
 
     /// Range checks serde cannot express. Messages name the key.
@@ -319,41 +350,33 @@ impl Scene {
             ));
         }
         self.material.build()?;
-        for (i, light) in self.lights.iter().enumerate() {
-            match light {
-                LightConfig::Distant {
-                    direction,
-                    irradiance,
-                    color,
-                } => {
-                    let d = Vec3::from(*direction);
-                    if !d.is_finite() || d.length_squared() == 0.0 {
-                        return Err(format!("light[{i}].direction must be a non-zero finite vector, got {direction:?}"));
-                    }
-                    if !(irradiance.is_finite() && *irradiance >= 0.0) {
-                        return Err(format!(
-                            "light[{i}].irradiance must be >= 0, got {irradiance}"
-                        ));
-                    }
-                    if color.iter().any(|x| !(x.is_finite() && *x >= 0.0)) {
-                        return Err(format!(
-                            "light[{i}].color must be >= 0 per channel, got {color:?}"
-                        ));
-                    }
-                }
-            }
-        }
-        if self
-            .environment
-            .radiance
-            .iter()
-            .any(|x| !(x.is_finite() && *x >= 0.0))
-        {
+        let i = &self.integrator;
+        if !(1..=1024).contains(&i.light_samples) {
             return Err(format!(
-                "environment.radiance must be >= 0 per channel, got {:?}",
-                self.environment.radiance
+                "integrator.light_samples must be in [1, 1024], got {}",
+                i.light_samples
             ));
         }
+        if !(1..=1024).contains(&i.material_samples) {
+            return Err(format!(
+                "integrator.material_samples must be in [1, 1024], got {}",
+                i.material_samples
+            ));
+        }
+        let max = crate::render::integrator::MAX_PATH_LENGTH;
+        if i.path_length > max {
+            return Err(format!(
+                "integrator.path_length must be in [0, {max}], got {}",
+                i.path_length
+            ));
+        }
+        if !(i.clamp.is_finite() && i.clamp >= 0.0) {
+            return Err(format!(
+                "integrator.clamp must be >= 0 (0 = off), got {}",
+                i.clamp
+            ));
+        }
+        lights::validate(self)?;
         Ok(())
     }
 

@@ -9,6 +9,8 @@
 //! generation and scene loading are not timed. Every throughput is printed beside a correctness figure (hit count,
 //! mean transmittance) so that runs doing different work are not compared.
 
+pub mod frame;
+
 use std::fmt;
 use std::time::Instant;
 
@@ -82,7 +84,8 @@ pub struct Timing {
 }
 
 impl Timing {
-    fn from_samples(mut seconds: Vec<f64>) -> Self {
+    /// Median, min and max of `seconds` (NaN if empty).
+    pub fn from_samples(mut seconds: Vec<f64>) -> Self {
         seconds.sort_by(f64::total_cmp);
         let n = seconds.len();
         if n == 0 {

@@ -1,0 +1,231 @@
+//! Non-hair geometry, only as much as the thesis' scenes need: quads (a ground plane, a wall) and boxes of quads
+//! (the Cornell box of §6.3, figure 22), all with a two-sided Lambert material.
+//!
+//! A scene holds a handful of these, so they are intersected by brute force in Rust, the same way whichever strand
+//! tracer runs (Embree or, later, the pure-Rust BVH) — nothing here depends on the hair backend.
+
+use glam::Vec3;
+
+use crate::ray::Ray;
+
+/// A parallelogram `corner + s·edge_u + t·edge_v`, s, t ∈ [0, 1], with a Lambert albedo.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Quad {
+    /// One corner.
+    pub corner: Vec3,
+    /// First edge from the corner.
+    pub edge_u: Vec3,
+    /// Second edge from the corner.
+    pub edge_v: Vec3,
+    /// Lambert albedo, linear RGB in [0, 1].
+    pub albedo: Vec3,
+    /// Unit normal, edge_u × edge_v normalised (the material is two-sided; this only fixes a convention).
+    normal: Vec3,
+}
+
+impl Quad {
+    /// A quad from a corner and two edges; `None` if the edges are parallel or not finite.
+    pub fn new(corner: Vec3, edge_u: Vec3, edge_v: Vec3, albedo: Vec3) -> Option<Quad> {
+        let normal = edge_u.cross(edge_v).try_normalize()?;
+        (corner.is_finite() && edge_u.is_finite() && edge_v.is_finite()).then_some(Quad {
+            corner,
+            edge_u,
+            edge_v,
+            albedo,
+            normal,
+        })
+    }
+
+    /// The unit normal edge_u × edge_v.
+    pub fn normal(&self) -> Vec3 {
+        self.normal
+    }
+
+    /// The ray parameter of the hit inside `(ray.tnear, tfar)`, if any.
+    #[inline]
+    pub fn intersect(&self, ray: &Ray, tfar: f32) -> Option<f32> {
+        let denom = self.normal.dot(ray.dir);
+        if denom == 0.0 {
+            return None;
+        }
+        let t = self.normal.dot(self.corner - ray.origin) / denom;
+        if !(t > ray.tnear && t < tfar) {
+            return None;
+        }
+        // Barycentric-like coordinates of the hit point in the (edge_u, edge_v) basis.
+        let d = ray.at(t) - self.corner;
+        let (uu, uv, vv) = (
+            self.edge_u.dot(self.edge_u),
+            self.edge_u.dot(self.edge_v),
+            self.edge_v.dot(self.edge_v),
+        );
+        let (du, dv) = (d.dot(self.edge_u), d.dot(self.edge_v));
+        let det = uu * vv - uv * uv;
+        let s = (du * vv - dv * uv) / det;
+        let r = (dv * uu - du * uv) / det;
+        ((0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&r)).then_some(t)
+    }
+}
+
+/// The closest hit of a ray with the scene's shapes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ShapeHit {
+    /// Ray parameter.
+    pub t: f32,
+    /// Unit normal of the quad hit (either side may face the ray).
+    pub normal: Vec3,
+    /// Lambert albedo.
+    pub albedo: Vec3,
+}
+
+/// Every non-hair shape of a scene.
+#[derive(Debug, Clone, Default)]
+pub struct Shapes {
+    quads: Vec<Quad>,
+}
+
+impl Shapes {
+    /// No shapes.
+    pub fn new() -> Shapes {
+        Shapes::default()
+    }
+
+    /// Adds a quad.
+    pub fn push(&mut self, quad: Quad) {
+        self.quads.push(quad);
+    }
+
+    /// Adds the six faces of the axis-aligned box [`min`, `max`], leaving out the faces named in `open`
+    /// (`"+x"`, `"-x"`, `"+y"`, `"-y"`, `"+z"`, `"-z"`: e.g. `["+z"]` opens a Cornell box towards a camera on +z).
+    pub fn push_box(&mut self, min: Vec3, max: Vec3, albedo: Vec3, open: &[&str]) {
+        let e = max - min;
+        let (x, y, z) = (Vec3::X * e.x, Vec3::Y * e.y, Vec3::Z * e.z);
+        let faces = [
+            ("-x", min, y, z),
+            ("+x", min + x, z, y),
+            ("-y", min, z, x),
+            ("+y", min + y, x, z),
+            ("-z", min, x, y),
+            ("+z", min + z, y, x),
+        ];
+        for (name, corner, a, b) in faces {
+            if !open.contains(&name) {
+                if let Some(q) = Quad::new(corner, a, b, albedo) {
+                    self.quads.push(q);
+                }
+            }
+        }
+    }
+
+    /// Whether there are no shapes.
+    pub fn is_empty(&self) -> bool {
+        self.quads.is_empty()
+    }
+
+    /// The quads, in the order added.
+    pub fn quads(&self) -> &[Quad] {
+        &self.quads
+    }
+
+    /// The closest hit with t in `(ray.tnear, tfar)`.
+    #[inline]
+    pub fn intersect(&self, ray: &Ray, tfar: f32) -> Option<ShapeHit> {
+        let mut best: Option<ShapeHit> = None;
+        let mut tmax = tfar;
+        for q in &self.quads {
+            if let Some(t) = q.intersect(ray, tmax) {
+                tmax = t;
+                best = Some(ShapeHit {
+                    t,
+                    normal: q.normal,
+                    albedo: q.albedo,
+                });
+            }
+        }
+        best
+    }
+
+    /// Whether any shape blocks the ray before `tfar`.
+    #[inline]
+    pub fn occluded(&self, ray: &Ray, tfar: f32) -> bool {
+        self.quads.iter().any(|q| q.intersect(ray, tfar).is_some())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn unit_floor() -> Quad {
+        // The square [0, 1]² in the plane y = 0, normal +y... edge_u × edge_v = z × x = +y.
+        Quad::new(Vec3::ZERO, Vec3::Z, Vec3::X, Vec3::splat(0.5)).unwrap()
+    }
+
+    #[test]
+    fn quad_hit_distance_and_bounds() {
+        let q = unit_floor();
+        assert_eq!(q.normal(), Vec3::Y);
+        let down = |x: f32, z: f32| Ray::new(Vec3::new(x, 2.0, z), Vec3::NEG_Y);
+        assert_eq!(q.intersect(&down(0.5, 0.5), f32::INFINITY), Some(2.0));
+        assert_eq!(q.intersect(&down(1.01, 0.5), f32::INFINITY), None);
+        assert_eq!(q.intersect(&down(0.5, -0.01), f32::INFINITY), None);
+        // From below too (two-sided), and not beyond tfar.
+        let up = Ray::new(Vec3::new(0.2, -1.0, 0.7), Vec3::Y);
+        assert_eq!(q.intersect(&up, f32::INFINITY), Some(1.0));
+        assert_eq!(q.intersect(&up, 0.99), None);
+        // Parallel rays miss.
+        assert_eq!(
+            q.intersect(&Ray::new(Vec3::new(0.5, 0.0, -1.0), Vec3::Z), f32::INFINITY),
+            None
+        );
+    }
+
+    #[test]
+    fn degenerate_quads_are_refused() {
+        assert!(Quad::new(Vec3::ZERO, Vec3::X, Vec3::X * 2.0, Vec3::ONE).is_none());
+        assert!(Quad::new(Vec3::NAN, Vec3::X, Vec3::Y, Vec3::ONE).is_none());
+    }
+
+    #[test]
+    fn a_box_is_closed_except_where_opened() {
+        let mut shapes = Shapes::new();
+        shapes.push_box(Vec3::splat(-1.0), Vec3::splat(1.0), Vec3::ONE, &["+z"]);
+        assert_eq!(shapes.quads().len(), 5);
+        // From the centre every direction except through the open +z face hits a wall at distance ≥ 1.
+        for dir in [Vec3::X, Vec3::NEG_X, Vec3::Y, Vec3::NEG_Y, Vec3::NEG_Z] {
+            let hit = shapes
+                .intersect(&Ray::new(Vec3::ZERO, dir), f32::INFINITY)
+                .unwrap();
+            assert!((hit.t - 1.0).abs() < 1e-6, "{dir}: {}", hit.t);
+            assert!(hit.normal.dot(dir).abs() > 0.999);
+        }
+        assert!(shapes
+            .intersect(&Ray::new(Vec3::ZERO, Vec3::Z), f32::INFINITY)
+            .is_none());
+        assert!(shapes.occluded(
+            &Ray::new(Vec3::ZERO, Vec3::new(0.3, 0.2, -1.0).normalize()),
+            10.0
+        ));
+        assert!(!shapes.occluded(&Ray::new(Vec3::ZERO, Vec3::X), 0.5));
+    }
+
+    #[test]
+    fn closest_of_several() {
+        let mut shapes = Shapes::new();
+        for y in [-3.0, -1.0, -2.0] {
+            shapes.push(
+                Quad::new(
+                    Vec3::new(-5.0, y, -5.0),
+                    Vec3::Z * 10.0,
+                    Vec3::X * 10.0,
+                    Vec3::ONE,
+                )
+                .unwrap(),
+            );
+        }
+        let hit = shapes
+            .intersect(&Ray::new(Vec3::ZERO, Vec3::NEG_Y), f32::INFINITY)
+            .unwrap();
+        assert_eq!(hit.t, 1.0);
+    }
+}

@@ -1,0 +1,347 @@
+//! Light transport measured as a whole: a white furnace, MIS against its two strategies alone, the AOV identities,
+//! and determinism with every feature on. Each test renders small frames (tens of pixels squared).
+
+use std::path::Path;
+
+use cuticle::accel::embree::EmbreeTracer;
+use cuticle::image::Image;
+use cuticle::render::{self, Options, CHANNELS};
+use cuticle::scene::{Scene, Strategy};
+
+fn render_scene(scene: &Scene, threads: usize) -> Image {
+    let strands = render::load_strands(scene).unwrap();
+    let tracer = EmbreeTracer::new(&strands, scene.hair.curves).unwrap();
+    let lights = scene.build_lights().unwrap();
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap();
+    let (image, stats) =
+        pool.install(|| render::render(scene, &strands, &tracer, &lights, Options::default()));
+    assert_eq!(stats.rays.rejected, 0);
+    image
+}
+
+fn parse(text: &str, base: &Path) -> Scene {
+    Scene::parse(text, Path::new("test scene"), base).unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn channel(image: &Image, name: &str) -> Vec<f32> {
+    let c = image
+        .channel_index(name)
+        .unwrap_or_else(|| panic!("no channel {name}"));
+    (0..image.height)
+        .flat_map(|y| (0..image.width).map(move |x| (x, y)))
+        .map(|(x, y)| image.get(x, y, c))
+        .collect()
+}
+
+/// Mean and standard error of the mean of `v`.
+fn mean_and_error(v: &[f64]) -> (f64, f64) {
+    let n = v.len() as f64;
+    let mean = v.iter().sum::<f64>() / n;
+    let var = v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    (mean, (var / n).sqrt())
+}
+
+/// A small fur ball (1500 strands), auto-framed, 40×40.
+const SMALL_FURBALL: &str = r#"
+[hair]
+procedural = { kind = "fur-ball", strands = 1500 }
+opacity = 0.5
+
+[camera]
+margin = 0.9
+
+[film]
+resolution = [40, 40]
+spp = 16
+"#;
+
+#[test]
+fn white_furnace_gives_the_albedo_everywhere() {
+    // Kajiya-Kay diffuse with k_d = 1 integrates to exactly 1 against cos θ (the bsdf furnace test measures
+    // 1.000), so under a white environment of radiance 1 with no shadows and no bounces every hair pixel — and
+    // every background pixel — has expectation 1.
+    let scene = parse(
+        &format!(
+            "{}
+[material]
+model = \"kajiya-kay\"
+color = [1.0, 1.0, 1.0]
+diffuse = 1.0
+specular = 0.0
+
+[environment]
+radiance = [1.0, 1.0, 1.0]
+
+[shadows]
+mode = \"none\"
+
+[integrator]
+path_length = 0
+",
+            // Thick, dense fur, so that most pixels show only hair.
+            SMALL_FURBALL.replace("strands = 1500 }", "strands = 6000 }\nradius_scale = 3.0")
+        ),
+        Path::new("."),
+    );
+    let image = render_scene(&scene, 2);
+    let alpha = channel(&image, "A");
+    for name in ["R", "G", "B"] {
+        // Pixels (almost) only covered by hair; the background would be 1 trivially.
+        let values: Vec<f64> = channel(&image, name)
+            .iter()
+            .zip(&alpha)
+            .filter(|(_, a)| **a >= 0.9)
+            .map(|(v, _)| f64::from(*v))
+            .collect();
+        assert!(
+            values.len() > 300,
+            "{} pixels covered by hair",
+            values.len()
+        );
+        let (mean, err) = mean_and_error(&values);
+        // 3 standard errors of the mean over pixels (each pixel is an independent 16-sample estimate).
+        assert!(
+            (mean - 1.0).abs() < 3.0 * err + 1e-4,
+            "{name}: furnace mean {mean:.5} ± {err:.5}, expected 1"
+        );
+        println!(
+            "furnace {name}: {mean:.5} ± {err:.5} over {} pixels",
+            values.len()
+        );
+    }
+}
+
+/// Asserts that the image means of `a` and `b` agree: the mean of their per-pixel difference is within 3 standard
+/// errors of 0 (the difference cancels the image content; what remains is the two estimators' noise).
+fn assert_same_expectation(what: &str, a: &Image, b: &Image) {
+    for name in ["R", "G", "B"] {
+        let (va, vb) = (channel(a, name), channel(b, name));
+        let diff: Vec<f64> = va
+            .iter()
+            .zip(&vb)
+            .map(|(x, y)| f64::from(*x) - f64::from(*y))
+            .collect();
+        let (mean, err) = mean_and_error(&diff);
+        let level = va.iter().map(|x| f64::from(*x)).sum::<f64>() / va.len() as f64;
+        println!("{what} {name}: mean difference {mean:.5} ± {err:.5} (image mean {level:.4})");
+        assert!(
+            err > 0.0,
+            "{what}: identical images; the strategies are not being exercised"
+        );
+        assert!(
+            mean.abs() < 3.0 * err,
+            "{what} {name}: means differ by {mean:.5}, 3σ = {:.5}",
+            3.0 * err
+        );
+    }
+}
+
+fn with_strategy(scene: &Scene, strategy: Strategy, seed: u32) -> Scene {
+    let mut s = scene.clone();
+    s.integrator.strategy = strategy;
+    s.film.seed = seed;
+    s
+}
+
+/// A tiny synthetic lat-long map: dim blue sky, bright warm patch (a "sun" a few texels wide), dark ground.
+fn write_test_map(dir: &Path) -> std::path::PathBuf {
+    let (w, h) = (64, 32);
+    let mut map = Image::new(w, h, vec!["R".into(), "G".into(), "B".into()]);
+    for y in 0..h {
+        for x in 0..w {
+            let rgb = if (20..24).contains(&x) && (8..11).contains(&y) {
+                [40.0, 30.0, 20.0]
+            } else if y < h / 2 {
+                [0.2, 0.3, 0.5]
+            } else {
+                [0.05, 0.04, 0.03]
+            };
+            for (c, v) in rgb.iter().enumerate() {
+                map.set(x, y, c, *v);
+            }
+        }
+    }
+    let path = dir.join("sky.exr");
+    cuticle::image::write(&path, &map).unwrap();
+    path
+}
+
+#[test]
+fn mis_agrees_with_light_and_material_sampling_under_an_environment_map() {
+    let dir = tempfile::tempdir().unwrap();
+    write_test_map(dir.path());
+    let scene = parse(
+        &format!(
+            "{SMALL_FURBALL}
+[material]
+model = \"marschner\"
+
+[environment]
+map = \"sky.exr\"
+visible = false
+
+[integrator]
+path_length = 0
+"
+        ),
+        dir.path(),
+    );
+    let mis = render_scene(&with_strategy(&scene, Strategy::Mis, 1), 2);
+    let light = render_scene(&with_strategy(&scene, Strategy::Light, 2), 2);
+    let material = render_scene(&with_strategy(&scene, Strategy::Material, 3), 2);
+    assert_same_expectation("env: MIS vs light", &mis, &light);
+    assert_same_expectation("env: MIS vs material", &mis, &material);
+}
+
+#[test]
+fn mis_agrees_with_light_and_material_sampling_under_an_area_light() {
+    let scene = parse(
+        &format!(
+            "{SMALL_FURBALL}
+[material]
+model = \"ishair\"
+
+[[light]]
+kind = \"quad\"
+corner = [-1.0, 2.5, -1.0]
+edge_u = [0.0, 0.0, 2.0]
+edge_v = [2.0, 0.0, 0.0]
+radiance = 4.0
+
+[[light]]
+kind = \"sphere\"
+center = [2.0, 0.5, 2.0]
+radius = 0.5
+radiance = 3.0
+
+[integrator]
+path_length = 1
+"
+        ),
+        Path::new("."),
+    );
+    let mis = render_scene(&with_strategy(&scene, Strategy::Mis, 1), 2);
+    let light = render_scene(&with_strategy(&scene, Strategy::Light, 2), 2);
+    let material = render_scene(&with_strategy(&scene, Strategy::Material, 3), 2);
+    assert_same_expectation("area: MIS vs light", &mis, &light);
+    assert_same_expectation("area: MIS vs material", &mis, &material);
+}
+
+/// Every feature at once: environment map, distant sun with a radius, an area light, a ground quad, ISHair, two
+/// light and material samples, two bounces, stochastic shadows.
+fn everything(dir: &Path) -> Scene {
+    write_test_map(dir);
+    parse(
+        &format!(
+            "{SMALL_FURBALL}
+[material]
+model = \"ishair\"
+selection = \"by-energy\"
+
+[[light]]
+kind = \"distant\"
+direction = [1.0, -1.0, 1.0]
+irradiance = 2.0
+angular_radius = 2.0
+
+[[light]]
+kind = \"disk\"
+center = [0.0, 3.0, 0.0]
+normal = [0.0, -1.0, 0.0]
+radius = 0.7
+radiance = 2.0
+
+[environment]
+map = \"sky.exr\"
+
+[[shape]]
+kind = \"quad\"
+corner = [-3.0, -1.6, -3.0]
+edge_u = [0.0, 0.0, 6.0]
+edge_v = [6.0, 0.0, 0.0]
+
+[integrator]
+light_samples = 2
+material_samples = 2
+path_length = 2
+"
+        ),
+        dir,
+    )
+}
+
+#[test]
+fn passes_add_up() {
+    let dir = tempfile::tempdir().unwrap();
+    let image = render_scene(&everything(dir.path()), 2);
+    let get = |n: &str| channel(&image, n);
+    for c in ["R", "G", "B"] {
+        let lobes: Vec<f32> = ["lobe_R", "lobe_TT", "lobe_TRT", "lobe_glint"]
+            .iter()
+            .map(|l| get(&format!("{l}.{c}")))
+            .fold(vec![0.0; image.width * image.height], |acc, v| {
+                acc.iter().zip(&v).map(|(a, b)| a + b).collect()
+            });
+        let specular = get(&format!("specular.{c}"));
+        let diffuse = get(&format!("diffuse.{c}"));
+        let direct = get(&format!("direct.{c}"));
+        let indirect = get(&format!("indirect.{c}"));
+        let mut indirect_total = 0.0;
+        for i in 0..lobes.len() {
+            let tol = 1e-4 * (1.0 + specular[i].abs() + diffuse[i].abs());
+            assert!(
+                (lobes[i] - specular[i]).abs() < tol,
+                "{c} px {i}: lobes {} vs specular {}",
+                lobes[i],
+                specular[i]
+            );
+            let a = diffuse[i] + specular[i];
+            let b = direct[i] + indirect[i];
+            assert!(
+                (a - b).abs() < tol,
+                "{c} px {i}: diffuse + specular {a} vs direct + indirect {b}"
+            );
+            indirect_total += indirect[i];
+        }
+        assert!(
+            indirect_total > 0.0,
+            "{c}: two bounces gave no indirect light"
+        );
+    }
+    // The shadow pass is a fraction, below 1 somewhere (the fur shadows itself).
+    let shadow = get("shadow.Y");
+    assert!(shadow.iter().all(|s| (0.0..=1.0).contains(s)));
+    assert!(shadow.iter().any(|s| *s < 0.9));
+}
+
+#[test]
+fn bit_identical_with_one_and_two_threads_with_every_feature_on() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = everything(dir.path());
+    let a = render_scene(&scene, 1);
+    let b = render_scene(&scene, 2);
+    let differing = a
+        .data
+        .iter()
+        .zip(&b.data)
+        .filter(|(x, y)| x.to_bits() != y.to_bits())
+        .count();
+    assert_eq!(
+        differing, 0,
+        "{differing} values differ between 1 and 2 threads"
+    );
+    assert!(CHANNELS.len() == a.channels.len());
+}
+
+#[test]
+fn a_missing_environment_map_is_an_error_naming_the_file() {
+    let scene = parse(
+        &format!("{SMALL_FURBALL}\n[environment]\nmap = \"no/such/sky.exr\"\n"),
+        Path::new("/nonexistent-dir"),
+    );
+    let err = scene.build_lights().unwrap_err().to_string();
+    assert!(err.contains("no/such/sky.exr"), "{err}");
+}
