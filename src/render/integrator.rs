@@ -9,7 +9,8 @@
 //! area light) is weighted against that light's strategy with the power heuristic over the *counts* times the
 //! densities, w = (n_m p_m)² / ((n_m p_m)² + (n_l p_l)²) (Veach 1997, §9.2.4). Deeper vertices take one light,
 //! chosen in proportion to power, and one material sample. The first material sample at each vertex also
-//! continues the path (`path_length` bounces; 0 = direct light only), with Russian roulette from the third vertex.
+//! continues the path (`path_length` bounces; 0 = direct light only), with Russian roulette before each vertex after
+//! the second; at the last vertex under MIS the light sample takes the whole weight and no material ray is traced.
 //!
 //! # Hair transparency
 //!
@@ -651,6 +652,10 @@ impl<'a> Integrator<'a> {
             let mut rest = Vec3::ONE;
             let mut indirect = LobeValues::default();
             for b in 1..=s.path_length {
+                // At the path's last vertex a material sample could only add MIS's share of light hits; under MIS
+                // the light sample takes the whole weight there instead and no material ray is traced (still
+                // unbiased; saves one ray per path).
+                let light_only = b == s.path_length && s.strategy == Strategy::Mis;
                 let mut radiance = Vec3::ZERO;
                 let select_u = sampler.get(index, dim(b, slot::SELECT));
                 if !self.lights.is_empty() {
@@ -664,7 +669,7 @@ impl<'a> Integrator<'a> {
                         let (fcos, pdf_m) = self.eval(&v, ls.wi);
                         let f = fcos.sum();
                         if f.max_element() > 0.0 {
-                            let w = if ls.delta {
+                            let w = if ls.delta || light_only {
                                 1.0
                             } else {
                                 self.light_weight(p_select * ls.pdf, pdf_m)
@@ -674,6 +679,10 @@ impl<'a> Integrator<'a> {
                             radiance += f * ls.radiance * (vis * w / (p_select * ls.pdf));
                         }
                     }
+                }
+                if light_only {
+                    self.add_indirect(&mut indirect, &first_weights, rest * radiance);
+                    break;
                 }
                 let d = dim(b, slot::MATERIAL);
                 let u = [
@@ -705,8 +714,9 @@ impl<'a> Integrator<'a> {
                     break;
                 }
                 rest *= weight;
-                // Russian roulette from the third vertex on, on the whole path throughput.
-                if b >= 2 {
+                // Russian roulette before every further vertex, on the whole path throughput (hair albedos of
+                // 0.3-0.7 end most paths early at no bias).
+                {
                     let q = luminance(first_weights.sum() * rest).clamp(0.05, 1.0);
                     if sampler.get(index, dim(b, slot::ROULETTE)) >= q {
                         break;
