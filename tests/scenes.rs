@@ -1,0 +1,50 @@
+//! Every scene shipped in `scenes/` parses, and — where `../shared/data` is present, as in CI — its hair file
+//! exists and its lights (environment maps included) build.
+
+use std::path::{Path, PathBuf};
+
+use cuticle::scene::{HairSource, Scene};
+
+fn scene_files(dir: &Path, out: &mut Vec<PathBuf>) {
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.is_dir() {
+            scene_files(&path, out);
+        } else if path.extension().is_some_and(|e| e == "toml") {
+            out.push(path);
+        }
+    }
+}
+
+#[test]
+fn every_shipped_scene_parses_and_its_data_resolves() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut files = Vec::new();
+    scene_files(&root.join("scenes"), &mut files);
+    files.sort();
+    assert!(files.len() >= 20, "{} scenes", files.len());
+    let data = root.join("../shared/data").exists();
+    for file in &files {
+        let scene = Scene::load(file).unwrap_or_else(|e| panic!("{e}"));
+        let needs_data =
+            matches!(scene.hair_source(), HairSource::File(_)) || scene.environment.map.is_some();
+        if needs_data && !data {
+            println!(
+                "{}: ../shared/data absent, not checking its files",
+                file.display()
+            );
+            continue;
+        }
+        if let HairSource::File(hair) = scene.hair_source() {
+            assert!(
+                hair.exists(),
+                "{}: hair file {} missing",
+                file.display(),
+                hair.display()
+            );
+        }
+        scene
+            .build_lights()
+            .unwrap_or_else(|e| panic!("{}: {e}", file.display()));
+    }
+}
