@@ -873,8 +873,22 @@ unsafe extern "C" fn transmittance_filter(args: *const RTCFilterFunctionNArgumen
     // `TransmittanceQuery` (repr(C), offset 0 asserted above), derived from a pointer to the whole struct; Embree
     // runs filters on the querying thread during the call, when nothing else touches the query.
     let query = unsafe { &mut *args.context.cast::<TransmittanceQuery>() };
-    // SAFETY: the geometry user data is null or `Arc::as_ptr` of the geometry's strand table, which the committed
-    // scene keeps alive.
+    // SAFETY: `args` is the argument struct of this filter call, on cuticle's curve geometries.
+    unsafe { filter_hits(args, |strand| query.on_hit(strand) == Verdict::Stop) };
+}
+
+/// The loop every filter function shares: for each valid lane of the hit packet, looks up the strand of its segment
+/// and passes it to `keep`; lanes for which `keep` returns `false` are rejected (`valid[i] = 0`), so traversal goes
+/// on past them.
+///
+/// # Safety
+/// `args` must be the argument struct Embree passed to the calling filter function, for a geometry whose user data
+/// is null or `Arc::as_ptr` of its [`StrandTable`], kept alive by the committed scene.
+unsafe fn filter_hits(
+    args: &RTCFilterFunctionNArguments,
+    mut keep: impl FnMut(Option<(u32, f32)>) -> bool,
+) {
+    // SAFETY: the caller guarantees the user data is null or a live strand table.
     let table = unsafe {
         args.geometryUserPtr
             .cast_const()
@@ -889,7 +903,7 @@ unsafe extern "C" fn transmittance_filter(args: *const RTCFilterFunctionNArgumen
         }
         // SAFETY: `hit` is a packet of width `N` and `i < N`.
         let segment = unsafe { hit_n_prim_id(args.hit, args.N, i) };
-        if query.on_hit(table.and_then(|t| t.lookup(segment))) == Verdict::Continue {
+        if !keep(table.and_then(|t| t.lookup(segment))) {
             *valid = 0;
         }
     }
@@ -949,25 +963,8 @@ unsafe extern "C" fn stochastic_filter(args: *const RTCFilterFunctionNArguments)
     // SAFETY: only the stochastic queries install this filter, and their context pointer is the first field of a
     // live `StochasticQuery` (repr(C), offset 0 asserted above); the filter only reads it.
     let query = unsafe { &*args.context.cast::<StochasticQuery>() };
-    // SAFETY: as in `transmittance_filter`: null or the geometry's strand table, kept alive by the scene.
-    let table = unsafe {
-        args.geometryUserPtr
-            .cast_const()
-            .cast::<StrandTable>()
-            .as_ref()
-    };
-    for i in 0..args.N {
-        // SAFETY: `valid` has `N` entries (the filter-function contract).
-        let valid = unsafe { &mut *args.valid.add(i as usize) };
-        if *valid == 0 {
-            continue;
-        }
-        // SAFETY: `hit` is a packet of width `N` and `i < N`.
-        let segment = unsafe { hit_n_prim_id(args.hit, args.N, i) };
-        if !query.accepts(table.and_then(|t| t.lookup(segment))) {
-            *valid = 0;
-        }
-    }
+    // SAFETY: `args` is the argument struct of this filter call, on cuticle's curve geometries.
+    unsafe { filter_hits(args, |strand| query.accepts(strand)) };
 }
 
 /// An Embree ray for a validated `ray`, and the factor by which its direction was scaled down.
