@@ -307,7 +307,18 @@ impl<'a> Integrator<'a> {
                 return Found::Escaped;
             }
         };
-        let mut tmax = hair.map_or(ray.tfar, |h| h.t);
+        if let Some(found) = self.find_non_hair(ray, hair.map_or(ray.tfar, |h| h.t)) {
+            return found;
+        }
+        match hair {
+            Some(h) => Found::Surface(self.hair_vertex(ray, &h)),
+            None => Found::Escaped,
+        }
+    }
+
+    /// The nearest area light or shape along `ray` before `tfar` (hair is the caller's business), if any.
+    fn find_non_hair(&self, ray: &Ray, tfar: f32) -> Option<Found> {
+        let mut tmax = tfar;
         let shape = self.shapes.intersect(ray, tmax);
         if let Some(s) = shape {
             tmax = s.t;
@@ -324,28 +335,24 @@ impl<'a> Integrator<'a> {
             }
         }
         if let Some((radiance, i)) = emitter {
-            return Found::Emitter(radiance, i);
+            return Some(Found::Emitter(radiance, i));
         }
-        if let Some(s) = shape {
+        shape.map(|s| {
             let wo = -ray.dir.normalize();
             let normal = if s.normal.dot(wo) >= 0.0 {
                 s.normal
             } else {
                 -s.normal
             };
-            return Found::Surface(Vertex {
+            Found::Surface(Vertex {
                 p: ray.at(s.t),
                 wo,
                 surface: Surface::Lambert {
                     normal,
                     albedo: s.albedo,
                 },
-            });
-        }
-        match hair {
-            Some(h) => Found::Surface(self.hair_vertex(ray, &h)),
-            None => Found::Escaped,
-        }
+            })
+        })
     }
 
     /// f · cos θi per lobe, and the material's sampling pdf, for light leaving `v` along ωo arriving from `wi`.
@@ -466,7 +473,7 @@ impl<'a> Integrator<'a> {
         if self.settings.shadows == ShadowMode::None {
             // No self-shadowing: the light a material sample sees ignores hair (shapes and emitters still count),
             // while the continuation still scatters at the hair it meets — a second ray, in this diagnostic mode.
-            let lit = self.find_without_hair(&ray);
+            let lit = self.find_non_hair(&ray, ray.tfar).unwrap_or(Found::Escaped);
             let le = self.emitted_along(&ray, &lit, pdf_m, light_density);
             counts.material += 1;
             return (le, self.find(&ray, Some((key, ignore)), counts));
@@ -476,35 +483,6 @@ impl<'a> Integrator<'a> {
             self.emitted_along(&ray, &found, pdf_m, light_density),
             found,
         )
-    }
-
-    /// The nearest shape or area light along `ray`, ignoring hair (for `shadows = "none"`).
-    fn find_without_hair(&self, ray: &Ray) -> Found {
-        let mut tmax = ray.tfar;
-        let shape = self.shapes.intersect(ray, tmax);
-        if let Some(s) = shape {
-            tmax = s.t;
-        }
-        for (i, light) in self.lights.iter().enumerate() {
-            if let Some((t, radiance)) =
-                light.intersect(&Ray::segment(ray.origin, ray.dir, ray.tnear, tmax))
-            {
-                if t < tmax {
-                    return Found::Emitter(radiance, i);
-                }
-            }
-        }
-        match shape {
-            Some(s) => Found::Surface(Vertex {
-                p: ray.at(s.t),
-                wo: -ray.dir,
-                surface: Surface::Lambert {
-                    normal: s.normal,
-                    albedo: s.albedo,
-                },
-            }),
-            None => Found::Escaped,
-        }
     }
 
     /// MIS-weighted emitted radiance for a material sample of density `pdf_m` (count-weighted) that found `found`.
