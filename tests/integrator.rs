@@ -3,24 +3,12 @@
 
 use std::path::Path;
 
-use cuticle::accel::embree::EmbreeTracer;
-use cuticle::image::Image;
-use cuticle::render::{self, Options, CHANNELS};
-use cuticle::scene::{Scene, Strategy};
+mod common;
 
-fn render_scene(scene: &Scene, threads: usize) -> Image {
-    let strands = render::load_strands(scene).unwrap();
-    let tracer = EmbreeTracer::new(&strands, scene.hair.curves).unwrap();
-    let lights = scene.build_lights().unwrap();
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .unwrap();
-    let (image, stats) =
-        pool.install(|| render::render(scene, &strands, &tracer, &lights, Options::default()));
-    assert_eq!(stats.rays.rejected, 0);
-    image
-}
+use common::render_scene;
+use cuticle::image::Image;
+use cuticle::render::CHANNELS;
+use cuticle::scene::{Scene, Strategy};
 
 fn parse(text: &str, base: &Path) -> Scene {
     Scene::parse(text, Path::new("test scene"), base).unwrap_or_else(|e| panic!("{e}"))

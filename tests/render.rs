@@ -1,21 +1,12 @@
 //! Whole-frame properties: determinism across thread counts, and that the default scene shows hair.
 
-use cuticle::accel::embree::EmbreeTracer;
-use cuticle::render::{self, Options};
+mod common;
+
+use cuticle::render;
 use cuticle::scene::Scene;
 
 fn render_with_threads(scene: &Scene, threads: usize) -> Vec<f32> {
-    let strands = render::load_strands(scene).unwrap();
-    let tracer = EmbreeTracer::new(&strands, scene.hair.curves).unwrap();
-    let lights = scene.build_lights().unwrap();
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .unwrap();
-    let (image, stats) =
-        pool.install(|| render::render(scene, &strands, &tracer, &lights, Options::default()));
-    assert_eq!(stats.rays.rejected, 0);
-    image.data
+    common::render_scene(scene, threads).data
 }
 
 /// The default scene, smaller so the test stays fast; everything else (model, lights, shadows) as shipped.
