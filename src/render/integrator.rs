@@ -355,16 +355,24 @@ impl<'a> Integrator<'a> {
         })
     }
 
+    /// f · cos θi per lobe of the hair material, in the local frame, the diffuse lobe tinted.
+    #[inline]
+    fn hair_fcos(&self, tint: Vec3, wo_l: Vec3, wi_l: Vec3) -> LobeValues {
+        let mut lobes = self.material.bsdf.eval_lobes(wo_l, wi_l);
+        lobes.diffuse *= tint;
+        lobes.scaled(sin_cos_theta(wi_l).1)
+    }
+
     /// f · cos θi per lobe, and the material's sampling pdf, for light leaving `v` along ωo arriving from `wi`.
     #[inline]
     fn eval(&self, v: &Vertex, wi: Vec3) -> (LobeValues, f32) {
         match v.surface {
             Surface::Hair { frame, tint, .. } => {
                 let (wo_l, wi_l) = (frame.to_local(v.wo), frame.to_local(wi));
-                let mut lobes = self.material.bsdf.eval_lobes(wo_l, wi_l);
-                lobes.diffuse *= tint;
-                let cos = sin_cos_theta(wi_l).1;
-                (lobes.scaled(cos), self.material.bsdf.pdf(wo_l, wi_l))
+                (
+                    self.hair_fcos(tint, wo_l, wi_l),
+                    self.material.bsdf.pdf(wo_l, wi_l),
+                )
             }
             Surface::Lambert { normal, albedo } => {
                 let cos = normal.dot(wi);
@@ -384,11 +392,12 @@ impl<'a> Integrator<'a> {
     #[inline]
     fn sample_material(&self, v: &Vertex, u: [f32; 3]) -> Option<(Vec3, LobeValues, f32)> {
         match v.surface {
-            Surface::Hair { frame, .. } => {
-                let s = self.material.bsdf.sample(frame.to_local(v.wo), u)?;
-                let wi = frame.to_world(s.wi).normalize();
-                let (lobes, _) = self.eval(v, wi);
-                Some((wi, lobes, s.pdf))
+            Surface::Hair { frame, tint, .. } => {
+                let wo_l = frame.to_local(v.wo);
+                let s = self.material.bsdf.sample(wo_l, u)?;
+                // The sample's pdf is the mixture pdf already; only the per-lobe split (and the tint) is new.
+                let lobes = self.hair_fcos(tint, wo_l, s.wi);
+                Some((frame.to_world(s.wi).normalize(), lobes, s.pdf))
             }
             Surface::Lambert { normal, .. } => {
                 // Cosine-weighted hemisphere about the facing normal.
