@@ -12,7 +12,7 @@ use cuticle::accel::embree::EmbreeTracer;
 use cuticle::accel::CurveKind;
 use cuticle::hair;
 use cuticle::render;
-use cuticle::scene::{Scene, ShadowMode, TransmittanceMode};
+use cuticle::scene::{LightSelection, Scene, ShadowMode, TransmittanceMode};
 
 /// cuticle: a physically based hair renderer (Embree curves, thesis hair BSDFs, OpenImageIO output).
 #[derive(Parser)]
@@ -75,6 +75,9 @@ struct RenderArgs {
     /// Indirect bounces, 0 = direct light only (overrides integrator.path_length).
     #[arg(long)]
     path_length: Option<u32>,
+    /// Light samples for every light, or each for one light chosen by power (overrides integrator.lights).
+    #[arg(long, value_enum)]
+    lights: Option<LightSelection>,
     /// No progress bar.
     #[arg(short, long)]
     quiet: bool,
@@ -200,6 +203,9 @@ fn render_command(args: RenderArgs) -> Result<()> {
     }
     if let Some(n) = args.light_samples {
         scene.integrator.light_samples = n;
+    }
+    if let Some(l) = args.lights {
+        scene.integrator.lights = l;
     }
     if let Some(n) = args.material_samples {
         scene.integrator.material_samples = n;

@@ -8,7 +8,7 @@ mod common;
 use common::render_scene;
 use cuticle::image::Image;
 use cuticle::render::CHANNELS;
-use cuticle::scene::{Scene, Strategy};
+use cuticle::scene::{LightSelection, Scene, Strategy};
 
 fn parse(text: &str, base: &Path) -> Scene {
     Scene::parse(text, Path::new("test scene"), base).unwrap_or_else(|e| panic!("{e}"))
@@ -216,6 +216,61 @@ path_length = 1
     let material = render_scene(&with_strategy(&scene, Strategy::Material, 3), 2);
     assert_same_expectation("area: MIS vs light", &mis, &light);
     assert_same_expectation("area: MIS vs material", &mis, &material);
+}
+
+#[test]
+fn one_light_per_sample_agrees_with_every_light() {
+    // Environment map, a distant sun and two area lights: `lights = "one"` picks one per light sample by power.
+    let dir = tempfile::tempdir().unwrap();
+    write_test_map(dir.path());
+    let scene = parse(
+        &format!(
+            "{SMALL_FURBALL}
+[material]
+model = \"marschner\"
+
+[environment]
+map = \"sky.exr\"
+visible = false
+
+[[light]]
+kind = \"distant\"
+direction = [1.0, -1.0, 1.0]
+irradiance = 2.0
+angular_radius = 2.0
+
+[[light]]
+kind = \"sphere\"
+center = [2.0, 0.5, 2.0]
+radius = 0.5
+radiance = 3.0
+
+[[light]]
+kind = \"quad\"
+corner = [-1.0, 2.5, -1.0]
+edge_u = [0.0, 0.0, 2.0]
+edge_v = [2.0, 0.0, 0.0]
+radiance = 4.0
+
+[integrator]
+path_length = 1
+light_samples = 2
+"
+        ),
+        dir.path(),
+    );
+    let all = render_scene(&with_strategy(&scene, Strategy::Mis, 1), 2);
+    let mut one_scene = with_strategy(&scene, Strategy::Mis, 2);
+    one_scene.integrator.lights = LightSelection::One;
+    let one = render_scene(&one_scene, 2);
+    assert_same_expectation("lights: all vs one", &all, &one);
+    one_scene.integrator.strategy = Strategy::Light;
+    let one_light_only = render_scene(&one_scene, 2);
+    assert_same_expectation(
+        "lights: all (MIS) vs one (light only)",
+        &all,
+        &one_light_only,
+    );
 }
 
 /// Every feature at once: environment map, distant sun with a radius, an area light, a ground quad, ISHair, two

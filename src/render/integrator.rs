@@ -4,8 +4,9 @@
 //!
 //! # Estimator
 //!
-//! At the **first** shading point every light gets `light_samples` samples and the material gets
-//! `material_samples` samples; a material sample that reaches a light (escapes to an infinite light, or hits an
+//! At the **first** shading point every light gets `light_samples` samples (`lights = "all"`, RenderMan's and the
+//! thesis' semantics; or, with `lights = "one"`, each of the `light_samples` samples goes to one light chosen in
+//! proportion to power, as pbrt-v4 and Cycles do) and the material gets `material_samples` samples; a material sample that reaches a light (escapes to an infinite light, or hits an
 //! area light) is weighted against that light's strategy with the power heuristic over the *counts* times the
 //! densities, w = (n_m p_m)² / ((n_m p_m)² + (n_l p_l)²) (Veach 1997, §9.2.4). Deeper vertices take one light,
 //! chosen in proportion to power, and one material sample. The first material sample at each vertex also
@@ -39,7 +40,7 @@ use crate::bsdf::{Lobe, LobeValues};
 use crate::hair::Strands;
 use crate::light::{Distribution1D, Light};
 use crate::ray::Ray;
-use crate::scene::{Material, ShadowMode, Strategy, TransmittanceMode};
+use crate::scene::{LightSelection, Material, ShadowMode, Strategy, TransmittanceMode};
 use crate::shape::Shapes;
 
 use super::sampler::PixelSampler;
@@ -51,7 +52,7 @@ const DIMS_PER_VERTEX: u32 = 8;
 const FIRST_VERTEX_DIM: u32 = 2;
 /// Offsets within a vertex's dimensions.
 mod slot {
-    /// Light selection (deeper vertices).
+    /// Light selection (deeper vertices, and the first under [`LightSelection::One`]).
     pub const SELECT: u32 = 0;
     /// Light sample (2 dimensions).
     pub const LIGHT: u32 = 1;
@@ -81,6 +82,8 @@ pub struct Settings {
     pub transmittance: TransmittanceMode,
     /// Which sampling strategies estimate direct light.
     pub strategy: Strategy,
+    /// Which lights the first vertex's light samples go to.
+    pub light_selection: LightSelection,
 }
 
 /// Counters of rays, kept per tile and summed.
@@ -546,46 +549,71 @@ impl<'a> Integrator<'a> {
         out.alpha = 1.0;
         let s = &self.settings;
 
-        // ---- First vertex: every light × light_samples, and material_samples material samples. ----
+        // ---- First vertex: light_samples light samples (for every light, or each for one light chosen ∝ power),
+        // and material_samples material samples. ----
         let (n_l, n_m) = (s.light_samples.max(1), s.material_samples.max(1));
         let dim = |b: u32, off: u32| FIRST_VERTEX_DIM + b * DIMS_PER_VERTEX + off;
         let mut direct = LobeValues::default();
-        for (j, light) in self.lights.iter().enumerate() {
-            let samples = if light.is_delta() {
-                1
-            } else if s.strategy == Strategy::Material {
-                continue; // every non-delta light is found by material samples only
-            } else {
-                n_l
-            };
-            for k in 0..samples {
-                let idx = index * samples + k;
+        let mut light_sample =
+            |j: usize, count: f32, idx: u32, salt: u32, counts: &mut RayCounts| {
+                // `count` = expected number of samples light j receives here (its samples, or n_l × its selection
+                // probability): the light strategy's density for MIS is count × pdf, its estimate Le f cos / (count pdf).
+                let light = &self.lights[j];
                 let u = [
-                    sampler.get_salted(idx, dim(0, slot::LIGHT), j as u32),
-                    sampler.get_salted(idx, dim(0, slot::LIGHT) + 1, j as u32),
+                    sampler.get_salted(idx, dim(0, slot::LIGHT), salt),
+                    sampler.get_salted(idx, dim(0, slot::LIGHT) + 1, salt),
                 ];
                 let Some(ls) = light.sample_li(first.p, u) else {
-                    continue;
+                    return;
                 };
                 let (fcos, pdf_m) = self.eval(&first, ls.wi);
                 let w = if ls.delta {
                     1.0
                 } else {
-                    self.light_weight(samples as f32 * ls.pdf, n_m as f32 * pdf_m)
+                    self.light_weight(count * ls.pdf, n_m as f32 * pdf_m)
                 };
-                let scale = ls.radiance * (w / (ls.pdf * samples as f32));
+                let scale = ls.radiance * (w / (ls.pdf * count));
                 let unshadowed = luminance(fcos.sum() * scale);
                 if unshadowed <= 0.0 {
-                    continue;
+                    return;
                 }
-                let key = sampler.key(idx, dim(0, slot::LIGHT), j as u32);
+                let key = sampler.key(idx, dim(0, slot::LIGHT), salt);
                 let vis = self.visibility(&first, ls.wi, ls.distance, key, counts);
                 out.unshadowed += unshadowed;
                 out.lit += unshadowed * vis;
                 if vis > 0.0 {
                     add_lobes(&mut direct, &fcos, scale * vis);
                 }
+            };
+        match s.light_selection {
+            LightSelection::All => {
+                for (j, light) in self.lights.iter().enumerate() {
+                    let samples = if light.is_delta() {
+                        1
+                    } else if s.strategy == Strategy::Material {
+                        continue; // every non-delta light is found by material samples only
+                    } else {
+                        n_l
+                    };
+                    for k in 0..samples {
+                        light_sample(j, samples as f32, index * samples + k, j as u32, counts);
+                    }
+                }
             }
+            LightSelection::One if !self.lights.is_empty() => {
+                for k in 0..n_l {
+                    let idx = index * n_l + k;
+                    let (j, p_select, _) = self
+                        .select
+                        .sample_discrete(sampler.get(idx, dim(0, slot::SELECT)));
+                    let light = &self.lights[j];
+                    if p_select <= 0.0 || (!light.is_delta() && s.strategy == Strategy::Material) {
+                        continue;
+                    }
+                    light_sample(j, n_l as f32 * p_select, idx, 0, counts);
+                }
+            }
+            LightSelection::One => {}
         }
         // Count-weighted light density of light j in direction wi, at the first vertex.
         let first_light_density = |j: usize, wi: Vec3| {
@@ -593,7 +621,11 @@ impl<'a> Integrator<'a> {
             if l.is_delta() {
                 0.0
             } else {
-                n_l as f32 * l.pdf_li(first.p, wi)
+                let count = match s.light_selection {
+                    LightSelection::All => n_l as f32,
+                    LightSelection::One => n_l as f32 * self.select.pmf(j),
+                };
+                count * l.pdf_li(first.p, wi)
             }
         };
         let mut next: Option<(Vertex, LobeValues)> = None;

@@ -173,6 +173,7 @@ pub fn settings(scene: &Scene) -> Settings {
         shadows: scene.shadows.mode,
         transmittance: scene.shadows.transmittance,
         strategy: i.strategy,
+        light_selection: i.lights,
     }
 }
 

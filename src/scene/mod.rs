@@ -228,6 +228,19 @@ pub enum Strategy {
     Material,
 }
 
+/// Which lights the first shading point's light samples go to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum LightSelection {
+    /// Every light gets `light_samples` samples (delta lights one): RenderMan's and the thesis' semantics. Costs
+    /// one shadow ray per light per sample.
+    #[default]
+    All,
+    /// Each of the `light_samples` samples first picks one light in proportion to its power (pbrt-v4's and
+    /// Cycles' way): one shadow ray per sample however many lights there are, more variance per sample.
+    One,
+}
+
 /// `[integrator]`: the thesis' sample counts (§6, table 3) and the path length.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -242,6 +255,8 @@ pub struct IntegratorConfig {
     pub clamp: f32,
     /// Direct-light strategy.
     pub strategy: Strategy,
+    /// Which lights the first vertex's light samples go to.
+    pub lights: LightSelection,
 }
 
 impl Default for IntegratorConfig {
@@ -252,6 +267,7 @@ impl Default for IntegratorConfig {
             path_length: 1,
             clamp: 0.0,
             strategy: Strategy::Mis,
+            lights: LightSelection::All,
         }
     }
 }
