@@ -16,6 +16,7 @@ pub mod light;
 pub mod ray;
 pub mod render;
 pub mod scene;
+pub mod shadow;
 pub mod shape;
 #[allow(unsafe_code)]
 pub mod sys;

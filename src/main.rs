@@ -267,6 +267,14 @@ fn render_command(args: RenderArgs) -> Result<()> {
         stats.rays.shadow,
         stats.rays.material,
     );
+    if scene.shadows.mode == ShadowMode::DeepOpacity {
+        eprintln!(
+            "deep opacity maps: built in {:.3} s, {:.1} MB, {} lookups",
+            stats.shadow_build_seconds,
+            stats.shadow_map_bytes as f64 / 1e6,
+            stats.rays.map_lookups
+        );
+    }
     if stats.rays.rejected > 0 {
         eprintln!(
             "warning: {} invalid rays were rejected before tracing (a bug: please report)",

@@ -45,7 +45,7 @@ pub struct CurvePoint {
 
 /// Uniform cubic B-spline basis at `u` ∈ [0, 1].
 #[inline]
-fn bspline_basis(u: f32) -> [f32; 4] {
+pub fn bspline_basis(u: f32) -> [f32; 4] {
     let t = 1.0 - u;
     [
         t * t * t / 6.0,

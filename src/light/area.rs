@@ -61,6 +61,20 @@ pub enum Shape {
     },
 }
 
+impl Shape {
+    /// The centre: of the parallelogram, the disk or the sphere.
+    pub fn center(&self) -> Vec3 {
+        match *self {
+            Shape::Quad {
+                corner,
+                edge_u,
+                edge_v,
+            } => corner + 0.5 * (edge_u + edge_v),
+            Shape::Disk { center, .. } | Shape::Sphere { center, .. } => center,
+        }
+    }
+}
+
 /// An emitter of uniform radiance (see the module docs).
 #[derive(Debug, Clone, PartialEq)]
 pub struct AreaLight {

@@ -41,6 +41,7 @@ use crate::hair::Strands;
 use crate::light::{Distribution1D, Light};
 use crate::ray::Ray;
 use crate::scene::{LightSelection, Material, ShadowMode, Strategy, TransmittanceMode};
+use crate::shadow::ShadowMaps;
 use crate::shape::Shapes;
 
 use super::sampler::PixelSampler;
@@ -97,6 +98,8 @@ pub struct RayCounts {
     pub material: u64,
     /// Rays refused by validation (never traced; should stay 0).
     pub rejected: u64,
+    /// Shadow-map lookups made instead of shadow rays (deep-opacity mode).
+    pub map_lookups: u64,
 }
 
 impl RayCounts {
@@ -106,6 +109,7 @@ impl RayCounts {
         self.shadow += o.shadow;
         self.material += o.material;
         self.rejected += o.rejected;
+        self.map_lookups += o.map_lookups;
     }
 
     /// Every ray traced.
@@ -184,6 +188,11 @@ pub struct Integrator<'a> {
     epsilon: f32,
     /// Whether camera rays that escape see the infinite lights.
     background_visible: bool,
+    /// Deep opacity maps, in `shadows = "deep-opacity"` mode.
+    maps: Option<&'a ShadowMaps>,
+    /// Whether a material sample can add direct light: false when the strategy is light-only or every light is a
+    /// delta light (then material samples are traced only to continue paths).
+    material_finds_light: bool,
 }
 
 /// Power heuristic with β = 2 for strategy densities already multiplied by their sample counts.
@@ -246,6 +255,7 @@ impl<'a> Integrator<'a> {
         settings: Settings,
         scene_radius: f32,
         background_visible: bool,
+        maps: Option<&'a ShadowMaps>,
     ) -> Self {
         let powers: Vec<f32> = lights.iter().map(|l| l.power(scene_radius)).collect();
         Integrator {
@@ -259,6 +269,9 @@ impl<'a> Integrator<'a> {
             select: Distribution1D::new(&powers),
             epsilon: 1e-4 * scene_radius.max(1e-3),
             background_visible,
+            maps,
+            material_finds_light: settings.strategy != Strategy::Light
+                && lights.iter().any(|l| !l.is_delta()),
         }
     }
 
@@ -434,6 +447,7 @@ impl<'a> Integrator<'a> {
     /// Visibility along a light sample's shadow ray, in [0, 1].
     fn visibility(
         &self,
+        light: usize,
         v: &Vertex,
         wi: Vec3,
         distance: f32,
@@ -448,13 +462,24 @@ impl<'a> Integrator<'a> {
             f32::INFINITY
         };
         let ray = Ray::segment(origin, wi, 0.0, tfar);
-        counts.shadow += 1;
         if self.shapes.occluded(&ray, tfar) {
+            counts.shadow += 1;
             return 0.0;
         }
-        if self.settings.shadows == ShadowMode::None {
-            return 1.0;
+        match self.settings.shadows {
+            ShadowMode::None => {
+                counts.shadow += 1;
+                return 1.0;
+            }
+            ShadowMode::DeepOpacity => {
+                if let Some(t) = self.maps.and_then(|m| m.transmittance(light, v.p, wi)) {
+                    counts.map_lookups += 1;
+                    return t;
+                }
+            }
+            ShadowMode::Raytraced => {}
         }
+        counts.shadow += 1;
         let result = match self.settings.transmittance {
             TransmittanceMode::Stochastic => self
                 .tracer
@@ -578,7 +603,7 @@ impl<'a> Integrator<'a> {
                     return;
                 }
                 let key = sampler.key(idx, dim(0, slot::LIGHT), salt);
-                let vis = self.visibility(&first, ls.wi, ls.distance, key, counts);
+                let vis = self.visibility(j, &first, ls.wi, ls.distance, key, counts);
                 out.unshadowed += unshadowed;
                 out.lit += unshadowed * vis;
                 if vis > 0.0 {
@@ -644,6 +669,10 @@ impl<'a> Integrator<'a> {
             if k == 0 {
                 out.albedo = weights.sum();
             }
+            let continues = k == 0 && s.path_length > 0;
+            if !self.material_finds_light && !continues {
+                continue; // no light to add and no path to continue: no ray
+            }
             let key = sampler.key(idx, d, 0);
             let (le, found) = self.trace_material_sample(
                 &first,
@@ -672,9 +701,9 @@ impl<'a> Integrator<'a> {
             let mut indirect = LobeValues::default();
             for b in 1..=s.path_length {
                 // At the path's last vertex a material sample could only add MIS's share of light hits; under MIS
-                // the light sample takes the whole weight there instead and no material ray is traced (still
-                // unbiased; saves one ray per path).
-                let light_only = b == s.path_length && s.strategy == Strategy::Mis;
+                // (and light-only sampling) the light sample takes the whole weight there instead and no material
+                // ray is traced (still unbiased; saves one ray per path).
+                let light_only = b == s.path_length && s.strategy != Strategy::Material;
                 let mut radiance = Vec3::ZERO;
                 let select_u = sampler.get(index, dim(b, slot::SELECT));
                 if !self.lights.is_empty() {
@@ -694,7 +723,7 @@ impl<'a> Integrator<'a> {
                                 self.light_weight(p_select * ls.pdf, pdf_m)
                             };
                             let key = sampler.key(index, dim(b, slot::LIGHT), 0);
-                            let vis = self.visibility(&v, ls.wi, ls.distance, key, counts);
+                            let vis = self.visibility(j, &v, ls.wi, ls.distance, key, counts);
                             radiance += f * ls.radiance * (vis * w / (p_select * ls.pdf));
                         }
                     }

@@ -20,7 +20,8 @@ use crate::bsdf::{Lobe, LobeValues};
 use crate::hair::Strands;
 use crate::image::Image;
 use crate::light::Light;
-use crate::scene::Scene;
+use crate::scene::{Scene, ShadowMode, Strategy};
+use crate::shadow::ShadowMaps;
 
 use camera::Camera;
 use filter::GaussianFilter;
@@ -89,6 +90,10 @@ pub struct RenderStats {
     pub seconds: f64,
     /// Rays traced, by kind.
     pub rays: RayCounts,
+    /// Wall time of building shadow maps (deep-opacity mode; 0 otherwise), seconds, not included in `seconds`.
+    pub shadow_build_seconds: f64,
+    /// Memory held by the shadow maps, bytes.
+    pub shadow_map_bytes: usize,
 }
 
 /// Overrides a renderer user may set on the command line, on top of the scene.
@@ -172,7 +177,13 @@ pub fn settings(scene: &Scene) -> Settings {
         clamp: i.clamp,
         shadows: scene.shadows.mode,
         transmittance: scene.shadows.transmittance,
-        strategy: i.strategy,
+        // Maps replace the shadow queries of light samples; a material sample's ray would see the hair itself, so
+        // in deep-opacity mode material samples only continue paths and light samples carry all direct light.
+        strategy: if scene.shadows.mode == ShadowMode::DeepOpacity {
+            Strategy::Light
+        } else {
+            i.strategy
+        },
         light_selection: i.lights,
     }
 }
@@ -196,6 +207,10 @@ pub fn render(
         .expect("Scene::parse validated the material");
     let shapes = scene.build_shapes();
     let scene_radius = scene_radius(bounds, &shapes);
+    let build_start = Instant::now();
+    let maps = (scene.shadows.mode == ShadowMode::DeepOpacity)
+        .then(|| ShadowMaps::build(strands, lights, &scene.shadows.deep_opacity));
+    let shadow_build_seconds = build_start.elapsed().as_secs_f64();
     let integrator = Integrator::new(
         strands,
         tracer,
@@ -206,6 +221,7 @@ pub fn render(
         settings(scene),
         scene_radius,
         scene.environment.visible,
+        maps.as_ref(),
     );
 
     let tiles_x = width.div_ceil(TILE);
@@ -288,6 +304,8 @@ pub fn render(
     let stats = RenderStats {
         seconds: start.elapsed().as_secs_f64(),
         rays,
+        shadow_build_seconds,
+        shadow_map_bytes: maps.as_ref().map_or(0, ShadowMaps::bytes),
     };
     (image, stats)
 }

@@ -190,6 +190,8 @@ pub enum ShadowMode {
     /// Shadow rays through semi-transparent strands (transmittance query).
     #[default]
     Raytraced,
+    /// Deep opacity maps (Yuksel & Keyser 2008), built per light before rendering ([`crate::shadow`]).
+    DeepOpacity,
     /// No self-shadowing.
     None,
 }
@@ -209,10 +211,12 @@ pub enum TransmittanceMode {
 #[derive(Debug, Clone, Deserialize, Default)]
 #[serde(deny_unknown_fields, default)]
 pub struct ShadowConfig {
-    /// Ray traced or none (deep opacity maps arrive with issue 6).
+    /// Ray traced, deep opacity maps, or none.
     pub mode: ShadowMode,
-    /// Stochastic or exact transparency for light samples.
+    /// Stochastic or exact transparency for light samples (ray-traced mode).
     pub transmittance: TransmittanceMode,
+    /// The maps of the deep-opacity mode.
+    pub deep_opacity: crate::shadow::DeepOpacityConfig,
 }
 
 /// Which strategies estimate direct light (MIS, or one alone for comparisons and tests).
@@ -392,6 +396,7 @@ impl Scene {
                 i.clamp
             ));
         }
+        self.shadows.deep_opacity.validate()?;
         lights::validate(self)?;
         Ok(())
     }
