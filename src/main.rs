@@ -131,6 +131,18 @@ enum BenchCommand {
         #[arg(long, default_value_t = 3)]
         repetitions: usize,
     },
+    /// Shadow cost of ray-traced shadows and of deep opacity maps on one scene (default: the built-in scene; the
+    /// issue-6 configuration is `scenes/furball-shadows.toml`), and the difference between their images.
+    Shadows {
+        /// Scene to render (default: the built-in default scene).
+        scene: Option<PathBuf>,
+        /// Worker threads.
+        #[arg(long, default_value_t = 2)]
+        threads: usize,
+        /// Timed renders per mode after one warm-up.
+        #[arg(long, default_value_t = 2)]
+        repetitions: usize,
+    },
     /// Primary- and shadow-ray throughput for round and flat curves, BVH build time, peak memory.
     Trace {
         /// Scene whose hair model is traced (default: the built-in default scene).
@@ -378,6 +390,20 @@ fn bench_command(command: BenchCommand) -> Result<()> {
             println!(
                 "{}",
                 cuticle::bench::frame::frame(&scene, threads, repetitions)?
+            );
+        }
+        BenchCommand::Shadows {
+            scene,
+            threads,
+            repetitions,
+        } => {
+            if threads == 0 {
+                bail!("--threads must be at least 1");
+            }
+            let scene = load_scene(scene.as_deref())?;
+            println!(
+                "{}",
+                cuticle::bench::shadows::shadows(&scene, threads, repetitions)?
             );
         }
         BenchCommand::Trace {

@@ -10,6 +10,7 @@
 //! mean transmittance) so that runs doing different work are not compared.
 
 pub mod frame;
+pub mod shadows;
 
 use std::fmt;
 use std::time::Instant;

@@ -148,6 +148,8 @@ enum Surface {
         /// Multiplies the diffuse lobe (the strand colour, or 1).
         tint: Vec3,
         strand: u32,
+        /// Fibre radius at the hit.
+        radius: f32,
     },
     Lambert {
         /// The normal on the side the light leaves towards (facing ωo).
@@ -300,6 +302,7 @@ impl<'a> Integrator<'a> {
                 frame,
                 tint,
                 strand: hit.strand,
+                radius: point.radius,
             },
         }
     }
@@ -467,12 +470,15 @@ impl<'a> Integrator<'a> {
             return 0.0;
         }
         match self.settings.shadows {
-            ShadowMode::None => {
-                counts.shadow += 1;
-                return 1.0;
-            }
+            ShadowMode::None => return 1.0,
             ShadowMode::DeepOpacity => {
-                if let Some(t) = self.maps.and_then(|m| m.transmittance(light, v.p, wi)) {
+                // A far-field fibre model treats the fibre's cross-section as one point: look the light up where it
+                // enters the fibre (the side facing the light), not at the hit on the viewer's side.
+                let p = match v.surface {
+                    Surface::Hair { radius, .. } => v.p + wi * radius,
+                    Surface::Lambert { .. } => v.p,
+                };
+                if let Some(t) = self.maps.and_then(|m| m.transmittance(light, p, wi)) {
                     counts.map_lookups += 1;
                     return t;
                 }

@@ -64,6 +64,9 @@ use crate::light::Light;
 const SIGMA_SCALE: f32 = 4096.0;
 /// The opacity above which a strand counts as fully opaque (σ = −ln(1 − a) stays finite: exp(−σ) = 1e-3).
 const MAX_OPACITY: f32 = 0.999;
+/// Length of the straight pieces a segment is cut into, texels: short enough that a strand's curvature within a
+/// piece stays far below a texel (sagitta L²/8ρ for curvature radius ρ texels).
+const PIECE_TEXELS: f32 = 4.0;
 /// Most pieces one segment is cut into (a segment longer than this many texels is drawn with longer pieces).
 const MAX_PIECES: usize = 256;
 
@@ -239,7 +242,7 @@ fn rasterise(
             if !visible {
                 continue;
             }
-            let n = (length.ceil() as usize).clamp(1, MAX_PIECES);
+            let n = (ceil_i(length / PIECE_TEXELS).max(1) as usize).min(MAX_PIECES);
             for (i, point) in points.iter_mut().enumerate().take(n + 1) {
                 let u = i as f32 / n as f32;
                 let b = crate::hair::strands::bspline_basis(u);
@@ -268,10 +271,11 @@ fn rasterise(
                 let half = 0.5 * drawn;
                 let (dx, dy) = (xb - xa, yb - ya);
                 let len2 = dx * dx + dy * dy;
-                let x0 = ((xa.min(xb) - half - 0.5).floor() as i64).max(0);
-                let x1 = ((xa.max(xb) + half - 0.5).ceil() as i64).min(res - 1);
-                let y0 = ((ya.min(yb) - half - 0.5).floor() as i64).max(0);
-                let y1 = ((ya.max(yb) + half - 0.5).ceil() as i64).min(res - 1);
+                // Texel centres (tx + 0.5) inside the piece's bounding box.
+                let x0 = ceil_i(xa.min(xb) - half - 0.5).max(0);
+                let x1 = floor_i(xa.max(xb) + half - 0.5).min(res - 1);
+                let y0 = ceil_i(ya.min(yb) - half - 0.5).max(0);
+                let y1 = floor_i(ya.max(yb) + half - 0.5).min(res - 1);
                 for ty in y0..=y1 {
                     for tx in x0..=x1 {
                         let (cx, cy) = (tx as f32 + 0.5, ty as f32 + 0.5);
@@ -294,6 +298,28 @@ fn rasterise(
                 }
             }
         }
+    }
+}
+
+/// ⌊v⌋ as an integer without a libm call (baseline x86-64 has no rounding instruction); saturates like `as`.
+#[inline]
+fn floor_i(v: f32) -> i64 {
+    let i = v as i64;
+    if (i as f32) > v {
+        i - 1
+    } else {
+        i
+    }
+}
+
+/// ⌈v⌉ as an integer (see [`floor_i`]).
+#[inline]
+fn ceil_i(v: f32) -> i64 {
+    let i = v as i64;
+    if (i as f32) < v {
+        i + 1
+    } else {
+        i
     }
 }
 
@@ -336,7 +362,7 @@ impl DeepOpacityMap {
         tasks.par_iter().for_each(|range| {
             rasterise(strands, &frame, raster, range.clone(), |texel, z, sigma| {
                 let layer = layer_of(&bounds, z - z0[texel]);
-                let add = (sigma * SIGMA_SCALE).round() as u32;
+                let add = (sigma * SIGMA_SCALE + 0.5) as u32; // σ ≥ 0: rounds to nearest
                 layers[texel * k + layer].fetch_add(add, Ordering::Relaxed);
             });
         });
@@ -395,8 +421,8 @@ impl DeepOpacityMap {
         let z = z - self.bias * self.frame.texel_size(z);
         let reach = self.filter as f32 + 1.0;
         let (cx, cy) = (x - 0.5, y - 0.5);
-        let (x0, x1) = ((cx - reach).ceil() as i64, (cx + reach).floor() as i64);
-        let (y0, y1) = ((cy - reach).ceil() as i64, (cy + reach).floor() as i64);
+        let (x0, x1) = (ceil_i(cx - reach), floor_i(cx + reach));
+        let (y0, y1) = (ceil_i(cy - reach), floor_i(cy + reach));
         if x1 < 0 || y1 < 0 || x0 >= res || y0 >= res {
             return 1.0; // outside the map: no strand between p and the light
         }
@@ -412,11 +438,12 @@ impl DeepOpacityMap {
                     continue;
                 }
                 let w = wx * wy;
-                let t = if (0..res).contains(&tx) && (0..res).contains(&ty) {
-                    (-self.optical_depth((ty * res + tx) as usize, z)).exp()
+                let od = if (0..res).contains(&tx) && (0..res).contains(&ty) {
+                    self.optical_depth((ty * res + tx) as usize, z)
                 } else {
-                    1.0
+                    0.0
                 };
+                let t = if od > 0.0 { (-od).exp() } else { 1.0 };
                 sum += w * t;
                 weights += w;
             }
@@ -608,4 +635,348 @@ fn environment_directions(light: &Light, centres: &[Vec3]) -> Vec<Vec3> {
         .zip(centres)
         .map(|(s, c)| s.try_normalize().unwrap_or(*c))
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    //! The method's failure modes, each shown with numbers on a synthetic strand field whose exact transmittance is
+    //! known in closed form: straight strands along x at (y_i, z_i), light travelling along +z, so a point
+    //! (x, y, z) is shadowed by every strand with |y − y_i| < r_i and z_i < z.
+
+    use super::*;
+    use crate::hair::HairModel;
+
+    /// One straight strand: y, z of its axis, radius, opacity.
+    #[derive(Clone, Copy)]
+    struct Line {
+        y: f32,
+        z: f32,
+        r: f32,
+        a: f32,
+    }
+
+    const HALF: f32 = 1.0; // the field spans x, y ∈ [−1, 1]
+
+    fn strands(lines: &[Line]) -> Strands {
+        let mut model = HairModel::default();
+        for l in lines {
+            model.strand_offsets.push(model.points.len() as u32);
+            for i in 0..5 {
+                let x = -1.2 * HALF + 2.4 * HALF * i as f32 / 4.0;
+                model.points.push(Vec3::new(x, l.y, l.z));
+                model.radius.push(l.r);
+                model.transparency.push(1.0 - l.a);
+                model.color.push([1.0; 3]);
+            }
+        }
+        model.strand_offsets.push(model.points.len() as u32);
+        model.radius_from_file = true;
+        Strands::from_model(&model)
+    }
+
+    fn exact(lines: &[Line], p: Vec3) -> f32 {
+        lines
+            .iter()
+            .filter(|l| (p.y - l.y).abs() < l.r && l.z < p.z)
+            .map(|l| 1.0 - l.a)
+            .product()
+    }
+
+    fn config(resolution: u32, layers: u32, spacing: LayerSpacing) -> DeepOpacityConfig {
+        DeepOpacityConfig {
+            resolution,
+            layers,
+            spacing,
+            ..DeepOpacityConfig::default()
+        }
+    }
+
+    /// A map looking along +z at the field, framing the square [−1, 1]² exactly (texel centres off the strands'
+    /// symmetry), with layers over `depth`.
+    fn map(
+        lines: &[Line],
+        config: &DeepOpacityConfig,
+        depth: f32,
+        raster: Raster,
+    ) -> DeepOpacityMap {
+        let frame = MapFrame {
+            origin: Vec3::new(0.0, 0.0, -1.0),
+            right: Vec3::X,
+            up: Vec3::Y,
+            forward: Vec3::Z,
+            projection: Projection::Orthographic { half_extent: HALF },
+            resolution: config.resolution,
+        };
+        DeepOpacityMap::build(&strands(lines), frame, config, depth, raster)
+    }
+
+    const RASTER: Raster = Raster {
+        min_width: 1.0,
+        keep_coverage: true,
+    };
+
+    /// Mean |T_map − T_exact| over a grid of points at the given depths.
+    fn mean_error(lines: &[Line], m: &DeepOpacityMap, depths: &[f32]) -> f32 {
+        let mut sum = 0.0;
+        let mut n = 0;
+        for &z in depths {
+            for i in 0..64 {
+                for j in 0..64 {
+                    let p = Vec3::new(
+                        -0.8 + 1.6 * (i as f32 + 0.37) / 64.0,
+                        -0.8 + 1.6 * (j as f32 + 0.61) / 64.0,
+                        z,
+                    );
+                    sum += (m.transmittance(p) - exact(lines, p)).abs();
+                    n += 1;
+                }
+            }
+        }
+        sum / n as f32
+    }
+
+    /// Sheets of strands that tile y completely (each sheet multiplies transmittance by 1 − a everywhere).
+    fn sheet(z: f32, spacing: f32, a: f32) -> Vec<Line> {
+        let n = (2.0 * HALF / spacing).ceil() as i32;
+        (0..=n)
+            .map(|i| Line {
+                y: -HALF + spacing * i as f32,
+                z,
+                r: 0.5 * spacing,
+                a,
+            })
+            .collect()
+    }
+
+    #[test]
+    fn integer_floor_and_ceil() {
+        for v in [-2.5f32, -2.0, -0.3, 0.0, 0.3, 1.0, 7.999, 1e6] {
+            assert_eq!(floor_i(v), v.floor() as i64, "floor {v}");
+            assert_eq!(ceil_i(v), v.ceil() as i64, "ceil {v}");
+        }
+    }
+
+    #[test]
+    fn layer_boundaries_grow_and_cover_the_depth() {
+        for spacing in [LayerSpacing::Uniform, LayerSpacing::Growing] {
+            let b = layer_bounds(8, 2.0, spacing);
+            assert_eq!(b.len(), 9);
+            assert_eq!(b[0], 0.0);
+            assert!((b[8] - 2.0).abs() < 1e-6);
+            assert!(b.windows(2).all(|w| w[1] > w[0]));
+        }
+        let g = layer_bounds(4, 1.0, LayerSpacing::Growing);
+        assert!(g[2] - g[1] > g[1] - g[0], "growing layers thicken: {g:?}");
+        assert_eq!(layer_of(&g, 0.0), 0);
+        assert_eq!(layer_of(&g, 10.0), 3);
+    }
+
+    #[test]
+    fn one_opaque_sheet_gives_its_transmittance_behind_and_none_in_front() {
+        let lines = sheet(0.0, 0.05, 0.6);
+        let m = map(&lines, &config(256, 8, LayerSpacing::Uniform), 0.5, RASTER);
+        for &(z, want) in &[(-0.2, 1.0), (0.3, 0.4), (2.0, 0.4)] {
+            let t = m.transmittance(Vec3::new(0.1, 0.2, z));
+            assert!((t - want).abs() < 0.01, "z = {z}: T = {t}, want {want}");
+        }
+        // Outside the map's footprint nothing shadows.
+        assert_eq!(m.transmittance(Vec3::new(5.0, 0.0, 1.0)), 1.0);
+    }
+
+    #[test]
+    fn too_few_layers_band_and_enough_layers_do_not() {
+        // One sheet at the front and a dense cluster of 8 sheets deeper, all inside the layer range D = 1: with 2
+        // layers the cluster's opacity is smeared forwards over the empty gap (linear interpolation inside a layer),
+        // with 32 the gap stays lit.
+        let mut lines = sheet(0.0, 0.05, 0.3);
+        for s in 0..8 {
+            lines.extend(sheet(0.40 + 0.01 * s as f32, 0.05, 0.3));
+        }
+        let depths = [0.2, 0.3, 0.6, 0.9];
+        let e2 = mean_error(
+            &lines,
+            &map(&lines, &config(256, 2, LayerSpacing::Uniform), 1.0, RASTER),
+            &depths,
+        );
+        let e32 = mean_error(
+            &lines,
+            &map(&lines, &config(256, 32, LayerSpacing::Uniform), 1.0, RASTER),
+            &depths,
+        );
+        println!("layer banding: mean |ΔT| = {e2:.4} with 2 layers, {e32:.4} with 32");
+        assert!(e2 > 0.15, "2 layers should band visibly, mean |ΔT| = {e2}");
+        assert!(e32 < 0.02, "32 layers should not, mean |ΔT| = {e32}");
+    }
+
+    #[test]
+    fn thin_strands_leak_without_min_width_and_over_darken_without_coverage() {
+        // Strands 0.3 texel wide, one per texel row, each 0.25 texel off the row's texel centre: point-sampled at
+        // their true width they cover no centre at all (light leaks through); drawn 1 texel wide at full opacity
+        // they cover every centre (over-darkening); drawn 1 texel wide with opacity scaled by 0.3 they are right
+        // on average.
+        let res = 128;
+        let texel = 2.0 * HALF / res as f32;
+        let a = 0.5;
+        let lines: Vec<Line> = (0..res)
+            .map(|i| Line {
+                y: -HALF + texel * (i as f32 + 0.75),
+                z: 0.0,
+                r: 0.15 * texel,
+                a,
+            })
+            .collect();
+        let cfg = DeepOpacityConfig {
+            filter: 2,
+            ..config(res, 4, LayerSpacing::Uniform)
+        };
+        let mean_t = |raster: Raster| {
+            let m = map(&lines, &cfg, 0.5, raster);
+            let mut sum = 0.0;
+            for i in 0..50 {
+                for j in 0..50 {
+                    sum += m.transmittance(Vec3::new(
+                        -0.5 + i as f32 / 50.0,
+                        -0.5 + j as f32 / 50.0,
+                        0.5,
+                    ));
+                }
+            }
+            sum / 2500.0
+        };
+        let want = 1.0 - a * 0.3; // the strands cover 30 % of the area
+        let leak = mean_t(Raster {
+            min_width: 0.0,
+            keep_coverage: true,
+        });
+        let dark = mean_t(Raster {
+            min_width: 1.0,
+            keep_coverage: false,
+        });
+        let right = mean_t(RASTER);
+        println!("thin strands: exact mean T {want:.3}; no min width {leak:.3}; widened at full opacity {dark:.3}; min width with coverage {right:.3}");
+        assert!(
+            leak > 0.99,
+            "thin strands should leak without min_width: T = {leak}"
+        );
+        assert!(
+            dark < 0.55,
+            "widening at full opacity should over-darken: T = {dark}"
+        );
+        assert!(
+            (right - want).abs() < 0.01,
+            "min_width should keep the mean: T = {right}, want {want}"
+        );
+    }
+
+    #[test]
+    fn depth_bias_removes_self_shadow_acne() {
+        // A single sheet of strands tilted 45° to the light: shading points on the strands' far halves (between the
+        // axis and the back surface) must see no strand in front of them — they are on it. Without bias the
+        // filter footprint reaches texels whose z0 lies in front of the point (acne); the default bias removes it.
+        let mut lines = Vec::new();
+        for i in 0..40 {
+            let y = -0.95 + 0.0475 * i as f32;
+            lines.push(Line {
+                y,
+                z: y, // 45°: depth grows with y along the tilted sheet
+                r: 0.008,
+                a: 0.8,
+            });
+        }
+        let lit_fraction = |bias: f32| {
+            let cfg = DeepOpacityConfig {
+                bias,
+                ..config(512, 16, LayerSpacing::Growing)
+            };
+            let m = map(&lines, &cfg, 0.5, RASTER);
+            let mut sum = 0.0;
+            let mut n = 0;
+            for l in &lines[2..38] {
+                for k in 0..20 {
+                    let x = -0.8 + 1.6 * k as f32 / 20.0;
+                    // A point on the strand's surface facing the viewer but not the light: on the axis, half a
+                    // radius deeper.
+                    sum += m.transmittance(Vec3::new(x, l.y, l.z + 0.5 * l.r));
+                    n += 1;
+                }
+            }
+            sum / n as f32
+        };
+        let no_bias = lit_fraction(0.0);
+        let one = lit_fraction(1.0);
+        let default = lit_fraction(DeepOpacityConfig::default().bias);
+        println!("acne on a 45° sheet: mean T = {no_bias:.3} without bias, {one:.3} at 1 texel, {default:.3} with the default bias");
+        assert!(no_bias < 0.9, "expected acne without bias, T = {no_bias}");
+        assert!(
+            default > 0.99,
+            "the default bias should remove the acne, T = {default}"
+        );
+    }
+
+    #[test]
+    fn a_map_too_coarse_for_the_strand_spacing_blurs_the_shadow() {
+        // Two sheets of thin, sparse strands (width 0.01, spacing 0.08, offset between sheets): the shadow behind
+        // them is a fine stripe pattern. A 32² map (texel 0.0625) cannot resolve it; a 1024² map can.
+        let mut lines = Vec::new();
+        for i in 0..25 {
+            let y = -0.96 + 0.08 * i as f32;
+            lines.push(Line {
+                y,
+                z: 0.0,
+                r: 0.01,
+                a: 0.9,
+            });
+            lines.push(Line {
+                y: y + 0.04,
+                z: 0.2,
+                r: 0.01,
+                a: 0.9,
+            });
+        }
+        let err = |res: u32| {
+            let cfg = DeepOpacityConfig {
+                filter: 0,
+                ..config(res, 8, LayerSpacing::Uniform)
+            };
+            mean_error(&lines, &map(&lines, &cfg, 0.5, RASTER), &[0.4])
+        };
+        let (coarse, fine) = (err(32), err(1024));
+        println!("stripes: mean |ΔT| = {coarse:.4} at 32², {fine:.4} at 1024²");
+        // The fine map's residue is the bilinear footprint at the stripes' 100 edges (≈1 texel each).
+        assert!(coarse > 0.3, "a 32² map should blur the stripes: {coarse}");
+        assert!(fine < 0.1, "a 1024² map should resolve them: {fine}");
+    }
+
+    #[test]
+    fn the_build_does_not_depend_on_the_thread_count() {
+        let mut lines = sheet(0.0, 0.05, 0.3);
+        lines.extend(sheet(0.3, 0.07, 0.6));
+        let cfg = config(128, 8, LayerSpacing::Growing);
+        let build = |threads| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| map(&lines, &cfg, 0.5, RASTER))
+        };
+        let (a, b) = (build(1), build(3));
+        assert_eq!(a.z0, b.z0);
+        assert_eq!(a.cumulative, b.cumulative);
+    }
+
+    #[test]
+    fn environment_cells_follow_the_light() {
+        let centres = fibonacci_sphere(16);
+        assert!(centres.iter().all(|c| (c.length() - 1.0).abs() < 1e-5));
+        // A constant environment: every cell's mean direction stays inside its own cell.
+        let env = Light::Environment(crate::light::Environment::constant(Vec3::ONE).unwrap());
+        let dirs = environment_directions(&env, &centres);
+        for (i, d) in dirs.iter().enumerate() {
+            assert_eq!(
+                nearest(&centres, *d),
+                i,
+                "cell {i}: mean direction {d} left its cell"
+            );
+        }
+    }
 }

@@ -40,11 +40,14 @@ pub struct DeepOpacityConfig {
     /// Strands thinner than this many texels are drawn this wide with their opacity scaled down by the same factor
     /// (RenderMan's `hair minwidth`, thesis §5.5), so coverage is kept and thin strands do not drop out of texels.
     pub min_width: f32,
-    /// Radius, in texels, of the percentage-closer filter: the lookup averages the transmittance of
-    /// (2r + 1)² texels, each against its own z0 (0 = the bilinear footprint only).
+    /// Radius, in texels, of the percentage-closer filter: the lookup averages the transmittance of the texels
+    /// in a tent of radius r + 1, each against its own z0. 0 (the default) is the bilinear 2 × 2 footprint: the
+    /// camera samples' jitter already averages lookups over a pixel, and each texel more costs an exp().
     pub filter: u32,
     /// Depth bias, in texels (a texel's world size at the lookup point): a lookup at depth z reads z − bias, so a
-    /// strand does not shadow itself.
+    /// strand does not shadow itself. The default, 2, removes the acne of a sheet of strands tilted 45° to the
+    /// light with margin (a test in `deep_opacity.rs`: mean T 0.20 without bias, 0.96 at 1 texel, 1.00 from 1.5
+    /// texels). A wider `filter` reaches further up a tilted strand and needs more.
     pub bias: f32,
     /// Maps for an environment light: one per cell of a Fibonacci partition of the sphere, looking along the
     /// cell's radiance-weighted mean direction.
@@ -59,8 +62,8 @@ impl Default for DeepOpacityConfig {
             spacing: LayerSpacing::Growing,
             depth: 0.25,
             min_width: 1.0,
-            filter: 1,
-            bias: 1.0,
+            filter: 0,
+            bias: 2.0,
             environment_directions: 16,
         }
     }

@@ -1,0 +1,177 @@
+//! Shadow-cost benchmark (`cuticle bench shadows SCENE`): what self-shadowing costs with ray-traced shadows and with
+//! deep opacity maps, measured in one run on the same scene, and how far the two images are apart.
+//!
+//! Method: the hair is loaded and its BVH built once; then the frame is rendered with `shadows = none`,
+//! `"raytraced"` and `"deep-opacity"`, each `repetitions` times after one untimed warm-up, on a local rayon pool.
+//! The **shadow cost** of a mode is its median render time minus the median of `none` (for deep opacity maps plus
+//! the median map-build time). The RMS difference of the deep-opacity beauty from the ray-traced one (both at the
+//! scene's spp) is printed beside it; `cuticle study shadows` measures both against a converged reference. The
+//! issue-6 configuration is `scenes/furball-shadows.toml` (the fur ball under one distant light, 512², 16 spp).
+
+use std::fmt;
+
+use super::frame::FrameBenchError;
+use super::{BenchError, Timing};
+use crate::accel::embree::EmbreeTracer;
+use crate::image::Image;
+use crate::render::{self, Options};
+use crate::scene::{Scene, ShadowMode};
+
+/// One shadow mode's timings.
+#[derive(Debug, Clone)]
+pub struct ModeTiming {
+    /// The mode.
+    pub mode: ShadowMode,
+    /// Pixel loop.
+    pub render: Timing,
+    /// Map build (0 unless deep opacity).
+    pub build: Timing,
+    /// Shadow rays traced per frame.
+    pub shadow_rays: u64,
+    /// Map memory, bytes.
+    pub map_bytes: usize,
+}
+
+/// The result of [`shadows`].
+#[derive(Debug, Clone)]
+pub struct ShadowReport {
+    /// Scene file.
+    pub scene: String,
+    /// Resolution and spp.
+    pub resolution: [u32; 2],
+    /// Camera samples per pixel.
+    pub spp: u32,
+    /// Worker threads.
+    pub threads: usize,
+    /// none, raytraced, deep-opacity.
+    pub modes: Vec<ModeTiming>,
+    /// RMS difference (RGB) between the deep-opacity and ray-traced beauty images.
+    pub rms_difference: f64,
+    /// Mean of the ray-traced beauty (RGB), to read the difference against.
+    pub mean_level: f64,
+}
+
+impl ShadowReport {
+    fn get(&self, mode: ShadowMode) -> &ModeTiming {
+        self.modes
+            .iter()
+            .find(|m| m.mode == mode)
+            .expect("every mode is measured")
+    }
+
+    /// Seconds that self-shadowing adds in `mode` (render − render without shadows, plus map build).
+    pub fn shadow_cost(&self, mode: ShadowMode) -> f64 {
+        let m = self.get(mode);
+        m.render.median + m.build.median - self.get(ShadowMode::None).render.median
+    }
+}
+
+impl fmt::Display for ShadowReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let [w, h] = self.resolution;
+        writeln!(
+            f,
+            "shadow benchmark: {} ({w}x{h}, {} spp); {} threads; medians after 1 warm-up",
+            self.scene, self.spp, self.threads
+        )?;
+        for m in &self.modes {
+            writeln!(
+                f,
+                "{:<13} render {:.3} s ({:.3}-{:.3}), map build {:.3} s, {} shadow rays, maps {:.1} MB, shadow cost {:.3} s",
+                format!("{:?}", m.mode),
+                m.render.median,
+                m.render.min,
+                m.render.max,
+                m.build.median,
+                m.shadow_rays,
+                m.map_bytes as f64 / 1e6,
+                self.shadow_cost(m.mode)
+            )?;
+        }
+        let (rt, dom) = (
+            self.shadow_cost(ShadowMode::Raytraced),
+            self.shadow_cost(ShadowMode::DeepOpacity),
+        );
+        write!(
+            f,
+            "deep-opacity shadow cost / ray-traced shadow cost = {:.3}; RMS difference of the images {:.4} (mean level {:.4})",
+            dom / rt,
+            self.rms_difference,
+            self.mean_level
+        )
+    }
+}
+
+/// RMS difference over R, G, B and the mean of `b`.
+fn rms_difference(a: &Image, b: &Image) -> (f64, f64) {
+    let (mut sum, mut level, mut n) = (0.0, 0.0, 0usize);
+    for c in ["R", "G", "B"] {
+        let (ca, cb) = (a.channel_index(c), b.channel_index(c));
+        let (Some(ca), Some(cb)) = (ca, cb) else {
+            continue;
+        };
+        for p in 0..a.width * a.height {
+            let (x, y) = (
+                a.data[p * a.channels.len() + ca],
+                b.data[p * b.channels.len() + cb],
+            );
+            sum += f64::from(x - y).powi(2);
+            level += f64::from(y);
+            n += 1;
+        }
+    }
+    let n = n.max(1) as f64;
+    ((sum / n).sqrt(), level / n)
+}
+
+/// Runs the benchmark (see the module docs).
+pub fn shadows(
+    scene: &Scene,
+    threads: usize,
+    repetitions: usize,
+) -> Result<ShadowReport, FrameBenchError> {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(|source| BenchError::ThreadPool { threads, source })?;
+    let strands = render::load_strands(scene)?;
+    let lights = scene.build_lights()?;
+    let tracer = EmbreeTracer::new(&strands, scene.hair.curves).map_err(BenchError::from)?;
+    let mut modes = Vec::new();
+    let mut images = Vec::new();
+    for mode in [
+        ShadowMode::None,
+        ShadowMode::Raytraced,
+        ShadowMode::DeepOpacity,
+    ] {
+        let mut s = scene.clone();
+        s.shadows.mode = mode;
+        let run =
+            || pool.install(|| render::render(&s, &strands, &tracer, &lights, Options::default()));
+        let (image, warm) = run();
+        let (mut render_s, mut build_s) = (Vec::new(), Vec::new());
+        for _ in 0..repetitions.max(1) {
+            let (_, stats) = run();
+            render_s.push(stats.seconds);
+            build_s.push(stats.shadow_build_seconds);
+        }
+        modes.push(ModeTiming {
+            mode,
+            render: Timing::from_samples(render_s),
+            build: Timing::from_samples(build_s),
+            shadow_rays: warm.rays.shadow,
+            map_bytes: warm.shadow_map_bytes,
+        });
+        images.push(image);
+    }
+    let (rms, level) = rms_difference(&images[2], &images[1]);
+    Ok(ShadowReport {
+        scene: scene.source.display().to_string(),
+        resolution: scene.film.resolution,
+        spp: scene.film.spp,
+        threads: pool.current_num_threads(),
+        modes,
+        rms_difference: rms,
+        mean_level: level,
+    })
+}
