@@ -8,7 +8,7 @@ mod common;
 use common::render_scene;
 use cuticle::image::Image;
 use cuticle::render::CHANNELS;
-use cuticle::scene::{LightSelection, Scene, Strategy};
+use cuticle::scene::{LightSelection, Scene, ShadowMode, Strategy};
 
 fn parse(text: &str, base: &Path) -> Scene {
     Scene::parse(text, Path::new("test scene"), base).unwrap_or_else(|e| panic!("{e}"))
@@ -387,4 +387,88 @@ fn a_missing_environment_map_is_an_error_naming_the_file() {
     );
     let err = scene.build_lights().unwrap_err().to_string();
     assert!(err.contains("no/such/sky.exr"), "{err}");
+}
+
+/// Mean of R, G, B over the image.
+fn image_mean(image: &Image) -> f64 {
+    ["R", "G", "B"]
+        .iter()
+        .flat_map(|c| channel(image, c))
+        .map(f64::from)
+        .sum::<f64>()
+        / (3 * image.width * image.height) as f64
+}
+
+/// Deep opacity maps recover most of the self-shadowing: the gap between the map render and a ray-traced one
+/// (exact transmittance) is a small part of the gap between no shadows and ray-traced shadows — under a sun and
+/// under an environment map (the Fibonacci-cell approximation).
+#[test]
+fn deep_opacity_maps_recover_most_of_the_ray_traced_shadow() {
+    let dir = tempfile::tempdir().unwrap();
+    write_test_map(dir.path());
+    for lighting in [
+        "[[light]]\nkind = \"distant\"\ndirection = [1.0, -1.0, 1.0]\nirradiance = 3.0\n",
+        "[environment]\nmap = \"sky.exr\"\nvisible = false\n",
+    ] {
+        let dense =
+            SMALL_FURBALL.replace("strands = 1500 }", "strands = 6000 }\nradius_scale = 2.0");
+        let mut scene = parse(
+            &format!(
+                "{dense}
+[material]
+model = \"kajiya-kay\"
+{lighting}
+[integrator]
+path_length = 0
+
+[shadows]
+transmittance = \"exact\"
+[shadows.deep_opacity]
+resolution = 512
+"
+            ),
+            dir.path(),
+        );
+        scene.film.spp = 64;
+        let render_with = |mode: ShadowMode| {
+            let mut s = scene.clone();
+            s.shadows.mode = mode;
+            image_mean(&render_scene(&s, 2))
+        };
+        let (rt, dom, none) = (
+            render_with(ShadowMode::Raytraced),
+            render_with(ShadowMode::DeepOpacity),
+            render_with(ShadowMode::None),
+        );
+        let kind = lighting.lines().next().unwrap();
+        println!(
+            "{kind}: image mean raytraced {rt:.4}, deep opacity {dom:.4}, no shadows {none:.4}; map error {:.1} % of the shadow",
+            100.0 * (dom - rt).abs() / (none - rt)
+        );
+        assert!(none > 1.2 * rt, "{kind}: the fur should shadow itself");
+        assert!(
+            (dom - rt).abs() < 0.1 * (none - rt),
+            "{kind}: maps {dom} vs ray traced {rt} (no shadows {none})"
+        );
+    }
+}
+
+#[test]
+fn deep_opacity_renders_are_bit_identical_with_one_and_two_threads() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut scene = everything(dir.path());
+    scene.shadows.mode = ShadowMode::DeepOpacity;
+    scene.shadows.deep_opacity.resolution = 256;
+    let (a, b) = (render_scene(&scene, 1), render_scene(&scene, 2));
+    assert!(a
+        .data
+        .iter()
+        .zip(&b.data)
+        .all(|(x, y)| x.to_bits() == y.to_bits()));
+    let shadow = channel(&a, "shadow.Y");
+    assert!(shadow.iter().all(|s| (0.0..=1.0).contains(s)));
+    assert!(
+        shadow.iter().any(|s| *s < 0.9),
+        "the maps should shadow something"
+    );
 }
