@@ -78,6 +78,9 @@ struct RenderArgs {
     /// Light samples for every light, or each for one light chosen by power (overrides integrator.lights).
     #[arg(long, value_enum)]
     lights: Option<LightSelection>,
+    /// Also write every deep opacity map (z0 and per-layer transmittance) as an EXR into this directory.
+    #[arg(long, value_name = "DIR")]
+    dump_shadow_maps: Option<PathBuf>,
     /// No progress bar.
     #[arg(short, long)]
     quiet: bool,
@@ -179,6 +182,27 @@ fn load_scene(path: Option<&Path>) -> Result<Scene> {
     })
 }
 
+/// Builds the scene's deep opacity maps (as a deep-opacity render would) and writes each as `DIR/NAME.exr`.
+fn dump_shadow_maps(
+    dir: &Path,
+    scene: &Scene,
+    strands: &cuticle::hair::Strands,
+    lights: &[cuticle::light::Light],
+    pool: &rayon::ThreadPool,
+) -> Result<()> {
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("cannot create the shadow-map directory {}", dir.display()))?;
+    let maps = pool.install(|| {
+        cuticle::shadow::ShadowMaps::build(strands, lights, &scene.shadows.deep_opacity)
+    });
+    for (name, map) in maps.maps() {
+        let path = dir.join(format!("{name}.exr"));
+        cuticle::image::write(&path, &map.to_image())?;
+        eprintln!("wrote {}", path.display());
+    }
+    Ok(())
+}
+
 fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
     let mut builder = rayon::ThreadPoolBuilder::new();
     if let Some(n) = threads {
@@ -241,6 +265,9 @@ fn render_command(args: RenderArgs) -> Result<()> {
     let strands = render::load_strands(&scene)?;
     let load_seconds = start.elapsed().as_secs_f64();
     let lights = scene.build_lights()?;
+    if let Some(dir) = &args.dump_shadow_maps {
+        dump_shadow_maps(dir, &scene, &strands, &lights, &pool)?;
+    }
     let tracer = EmbreeTracer::new(&strands, scene.hair.curves)?;
     let (image, stats) = pool.install(|| {
         render::render(

@@ -58,6 +58,7 @@ use rayon::prelude::*;
 
 use super::{DeepOpacityConfig, LayerSpacing};
 use crate::hair::Strands;
+use crate::image::Image;
 use crate::light::Light;
 
 /// Fixed-point scale of accumulated optical depth (σ = 1 ⇔ 4096).
@@ -105,6 +106,36 @@ impl MapFrame {
             projection: Projection::Orthographic {
                 half_extent: radius * 1.01,
             },
+            resolution,
+        }
+    }
+
+    /// An orthographic map looking along `forward`, framing the strands' control points (which bound the curves)
+    /// tightly: a square around their projection, depth 0 just in front of the nearest.
+    pub fn fit_orthographic(forward: Vec3, strands: &Strands, resolution: u32) -> MapFrame {
+        let forward = forward.normalize();
+        let (right, up) = forward.any_orthonormal_pair();
+        let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+        let mut r_max = 0.0f32;
+        for c in &strands.control_points {
+            let p = Vec3::new(c[0], c[1], c[2]);
+            let q = Vec3::new(p.dot(right), p.dot(up), p.dot(forward));
+            lo = lo.min(q);
+            hi = hi.max(q);
+            r_max = r_max.max(c[3]);
+        }
+        if !(lo.is_finite() && hi.is_finite()) {
+            return MapFrame::orthographic(forward, Vec3::ZERO, 1.0, resolution);
+        }
+        let mid = 0.5 * (lo + hi);
+        let half_extent = (0.5 * (hi.x - lo.x).max(hi.y - lo.y) + r_max).max(1e-6) * 1.01;
+        let margin = r_max + 1e-3 * half_extent;
+        MapFrame {
+            origin: right * mid.x + up * mid.y + forward * (lo.z - margin),
+            right,
+            up,
+            forward,
+            projection: Projection::Orthographic { half_extent },
             resolution,
         }
     }
@@ -464,6 +495,25 @@ impl DeepOpacityMap {
     pub fn resolution(&self) -> u32 {
         self.frame.resolution
     }
+
+    /// The map as a flat multi-channel image for inspection: `Z` = z0 (0 where no strand is), then `T.00`, `T.01`, …
+    /// = the transmittance at the back of each layer (row 0 = the map's bottom edge, as `up` points).
+    pub fn to_image(&self) -> Image {
+        let res = self.frame.resolution as usize;
+        let k = self.bounds.len() - 1;
+        let mut channels = vec!["Z".to_string()];
+        channels.extend((0..k).map(|i| format!("T.{i:02}")));
+        let mut image = Image::new(res, res, channels);
+        for texel in 0..res * res {
+            let (x, y) = (texel % res, res - 1 - texel / res);
+            let z0 = self.z0[texel];
+            image.set(x, y, 0, if z0.is_finite() { z0 } else { 0.0 });
+            for i in 0..k {
+                image.set(x, y, 1 + i, (-self.cumulative[texel * k + i]).exp());
+            }
+        }
+        image
+    }
 }
 
 /// The layer of a depth `delta` ≥ 0 behind z0: i with d_i ≤ delta < d_{i+1}, the last layer taking everything deeper.
@@ -534,10 +584,9 @@ impl ShadowMaps {
         let lights = lights
             .iter()
             .map(|light| match light {
-                Light::Distant(d) => LightMaps::One(Box::new(map(MapFrame::orthographic(
+                Light::Distant(d) => LightMaps::One(Box::new(map(MapFrame::fit_orthographic(
                     -d.to_sun(),
-                    center,
-                    radius,
+                    strands,
                     config.resolution,
                 )))),
                 Light::Area(a) => {
@@ -558,9 +607,7 @@ impl ShadowMaps {
                     let maps = directions
                         .iter()
                         .map(|&to_light| {
-                            map(MapFrame::orthographic(
-                                -to_light, center, radius, resolution,
-                            ))
+                            map(MapFrame::fit_orthographic(-to_light, strands, resolution))
                         })
                         .collect();
                     LightMaps::Cells { centres, maps }
