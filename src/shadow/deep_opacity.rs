@@ -60,6 +60,7 @@ use super::{DeepOpacityConfig, LayerSpacing};
 use crate::hair::Strands;
 use crate::image::Image;
 use crate::light::Light;
+use crate::ray::Ray;
 
 /// Fixed-point scale of accumulated optical depth (σ = 1 ⇔ 4096).
 const SIGMA_SCALE: f32 = 4096.0;
@@ -159,6 +160,26 @@ impl MapFrame {
             projection: Projection::Perspective { tan_half },
             resolution,
         })
+    }
+
+    /// The ray from the light through the centre of texel (`tx`, `ty`) (orthographic maps: from the depth-0 plane
+    /// along `forward`; perspective maps: from the eye). For measuring what a ray-traced build would cost.
+    pub fn texel_ray(&self, tx: u32, ty: u32) -> Ray {
+        let res = self.resolution as f32;
+        let (sx, sy) = (
+            2.0 * (tx as f32 + 0.5) / res - 1.0,
+            2.0 * (ty as f32 + 0.5) / res - 1.0,
+        );
+        match self.projection {
+            Projection::Orthographic { half_extent } => Ray::new(
+                self.origin + (self.right * sx + self.up * sy) * half_extent,
+                self.forward,
+            ),
+            Projection::Perspective { tan_half } => Ray::new(
+                self.origin,
+                (self.forward + (self.right * sx + self.up * sy) * tan_half).normalize(),
+            ),
+        }
     }
 
     /// Continuous texel coordinates (texel centres at i + 0.5) and depth of `p`; `None` behind a perspective eye.
@@ -793,6 +814,24 @@ mod tests {
                 a,
             })
             .collect()
+    }
+
+    #[test]
+    fn texel_rays_project_back_to_their_texels() {
+        let frames = [
+            MapFrame::orthographic(Vec3::new(1.0, -1.0, 1.0), Vec3::new(0.0, 0.5, 0.0), 2.0, 64),
+            MapFrame::perspective(Vec3::new(0.0, 5.0, 1.0), Vec3::ZERO, 1.5, 64).unwrap(),
+        ];
+        for frame in frames {
+            for (tx, ty) in [(0, 0), (17, 40), (63, 63)] {
+                let ray = frame.texel_ray(tx, ty);
+                let (x, y, _) = frame.project(ray.at(2.5)).unwrap();
+                assert!(
+                    (x - (tx as f32 + 0.5)).abs() < 1e-3 && (y - (ty as f32 + 0.5)).abs() < 1e-3
+                );
+            }
+        }
+        assert!(MapFrame::perspective(Vec3::ZERO, Vec3::ZERO, 1.0, 64).is_none());
     }
 
     #[test]
