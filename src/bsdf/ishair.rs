@@ -352,10 +352,10 @@ impl IsHair {
 
     /// The mixture pdf for the angles of a pair of directions, given [`IsHair::distributions`] at their θo.
     #[inline]
-    fn pdf_at(&self, a: &Angles, dists: &[TruncatedCauchy; 3]) -> f32 {
+    fn pdf_at(&self, a: &Angles, theta_o: f32, dists: &[TruncatedCauchy; 3]) -> f32 {
         let p_s = self.specular_probability(a.cos_theta_o);
         // θh is in range by construction; clamp away the rounding at θi = ±π/2.
-        let q = 0.5 * a.theta_o as f64;
+        let q = 0.5 * theta_o as f64;
         let theta_h = (a.theta_h as f64).clamp(
             q - std::f64::consts::FRAC_PI_4,
             q + std::f64::consts::FRAC_PI_4,
@@ -423,15 +423,21 @@ impl Bsdf for IsHair {
         };
         let a = Angles::new(wo, wi);
         let f = self.lobes_at(&a).sum();
-        super::make_sample(wi, f, self.pdf_at(&a, &dists), a.cos_theta_i, Some(lobe))
+        super::make_sample(
+            wi,
+            f,
+            self.pdf_at(&a, theta_o, &dists),
+            a.cos_theta_i,
+            Some(lobe),
+        )
     }
 
     fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
         if self.params.sampling == Sampling::Uniform {
             return UNIFORM_SPHERE_PDF;
         }
-        let a = Angles::new(wo, wi);
-        self.pdf_at(&a, &self.distributions(a.theta_o))
+        let theta_o = theta(wo);
+        self.pdf_at(&Angles::new(wo, wi), theta_o, &self.distributions(theta_o))
     }
 }
 

@@ -285,7 +285,7 @@ impl Marschner {
 
     /// The mixture pdf for the angles of a pair of directions, given [`Marschner::distributions`] at their θo.
     #[inline]
-    fn pdf_at(&self, a: &Angles, dists: Option<&[TruncatedGaussian; 2]>) -> f32 {
+    fn pdf_at(&self, a: &Angles, theta_o: f32, dists: Option<&[TruncatedGaussian; 2]>) -> f32 {
         if self.params.sampling == Sampling::Uniform {
             return UNIFORM_SPHERE_PDF;
         }
@@ -297,7 +297,7 @@ impl Marschner {
                 None => pdf_eq13(m_r(beta, alpha, a.theta_h), n, a.cos_theta_i),
                 Some(tg) => {
                     // θh is in range by construction; clamp away the rounding at θi = ±π/2.
-                    let q = 0.5 * a.theta_o as f64;
+                    let q = 0.5 * theta_o as f64;
                     let theta_h = (a.theta_h as f64).clamp(
                         q - std::f64::consts::FRAC_PI_4,
                         q + std::f64::consts::FRAC_PI_4,
@@ -359,15 +359,25 @@ impl Bsdf for Marschner {
         };
         let a = Angles::new(wo, wi);
         let f = self.lobes_at(&a).sum();
-        super::make_sample(wi, f, self.pdf_at(&a, dists.as_ref()), a.cos_theta_i, lobe)
+        super::make_sample(
+            wi,
+            f,
+            self.pdf_at(&a, theta_o, dists.as_ref()),
+            a.cos_theta_i,
+            lobe,
+        )
     }
 
     fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
         if self.params.sampling == Sampling::Uniform {
             return UNIFORM_SPHERE_PDF;
         }
-        let a = Angles::new(wo, wi);
-        self.pdf_at(&a, self.distributions(a.theta_o).as_ref())
+        let theta_o = theta(wo);
+        self.pdf_at(
+            &Angles::new(wo, wi),
+            theta_o,
+            self.distributions(theta_o).as_ref(),
+        )
     }
 }
 
@@ -566,7 +576,7 @@ mod tests {
         for _ in 0..n {
             let s = m.sample(wo, rng.next_u3()).unwrap();
             let a = Angles::new(wo, s.wi);
-            let want = weight_eq14(a.cos_theta_i, a.theta_d.cos());
+            let want = weight_eq14(a.cos_theta_i, a.theta_d().cos());
             assert!(
                 (s.weight.x - want).abs() < 1e-4 * want.max(1.0),
                 "{} vs {want}",
