@@ -27,8 +27,14 @@ pub fn gaussian(beta: f32, x: f32) -> f32 {
 /// Unit-height Gaussian (thesis eq. 16, Sadeghi et al. 2010): e^{−x²/2β²}. Peak 1 at x = 0; integral β√(2π).
 #[inline]
 pub fn gaussian_unit(beta: f32, x: f32) -> f32 {
+    gaussian_exponent(beta, x).exp()
+}
+
+/// The exponent −x²/2β² of [`gaussian_unit`], for products of Gaussians taken as one exponential.
+#[inline]
+pub fn gaussian_exponent(beta: f32, x: f32) -> f32 {
     let z = x / beta;
-    (-0.5 * z * z).exp()
+    -0.5 * z * z
 }
 
 /// ∫_lo^hi e^{−x²/2β²} dx = β √(π/2) (erf(hi/β√2) − erf(lo/β√2)).
