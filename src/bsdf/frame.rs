@@ -223,17 +223,18 @@ impl Angles {
     #[inline]
     pub fn new(wo: Vec3, wi: Vec3) -> Angles {
         let (rho_o, rho_i) = (rho(wo), rho(wi));
-        let (sin_theta_o, cos_theta_o) = sin_cos_from(wo.x, rho_o);
-        let (sin_theta_i, cos_theta_i) = sin_cos_from(wi.x, rho_i);
-        // θr + θi ∈ [−π, π] from its sine and cosine (angle-sum formulas), so θh costs one arctangent, not two.
+        // θr + θi ∈ [−π, π] from its sine and cosine (angle-sum formulas, each scaled by |ωo||ωi| > 0, which the
+        // arctangent ignores), so θh costs one arctangent, not two, and does not wait for the normalisation below.
         // Exactly at a pole the sine may be a zero of either sign; θr + θi = ±π then takes the sign of the poles.
-        let sin_sum = sin_theta_o * cos_theta_i + cos_theta_o * sin_theta_i;
-        let cos_sum = cos_theta_o * cos_theta_i - sin_theta_o * sin_theta_i;
+        let sin_sum = wo.x * rho_i + rho_o * wi.x;
+        let cos_sum = rho_o * rho_i - wo.x * wi.x;
         let theta_h = if sin_sum == 0.0 && cos_sum < 0.0 {
-            FRAC_PI_2.copysign(sin_theta_o + sin_theta_i)
+            FRAC_PI_2.copysign(wo.x + wi.x)
         } else {
             0.5 * atan2(sin_sum, cos_sum)
         };
+        let (sin_theta_o, cos_theta_o) = sin_cos_from(wo.x, rho_o);
+        let (sin_theta_i, cos_theta_i) = sin_cos_from(wi.x, rho_i);
         let (c, s) = (cos_theta_o + cos_theta_i, sin_theta_o + sin_theta_i);
         let cos_theta_d = (0.5 * (c * c + s * s).sqrt()).min(1.0);
         let cos_half_phi = if rho_o > 0.0 && rho_i > 0.0 {

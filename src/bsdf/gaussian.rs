@@ -16,18 +16,30 @@ use std::f64::consts::{FRAC_1_SQRT_2, SQRT_2};
 /// 1/√(2π).
 const INV_SQRT_TAU: f32 = 0.398_942_3;
 
+/// e^x for the (non-positive) exponents of Gaussian lobes: exactly `x.exp()`, but 0 below −104, where e^x is 0 in
+/// f32 anyway, without going through libm's underflow path (which sets errno and showed in the eval profiles:
+/// narrow lobes underflow for most directions).
+#[inline]
+pub fn exp_lobe(x: f32) -> f32 {
+    if x < -104.0 {
+        0.0
+    } else {
+        x.exp()
+    }
+}
+
 /// Normalised Gaussian with standard deviation `beta` (> 0) at `x` (thesis eq. 5's g): e^{−x²/2β²} / (β√(2π)).
 #[inline]
 pub fn gaussian(beta: f32, x: f32) -> f32 {
     // x/β first: β² would underflow long before x/β overflows.
     let z = x / beta;
-    (-0.5 * z * z).exp() * INV_SQRT_TAU / beta
+    exp_lobe(-0.5 * z * z) * INV_SQRT_TAU / beta
 }
 
 /// Unit-height Gaussian (thesis eq. 16, Sadeghi et al. 2010): e^{−x²/2β²}. Peak 1 at x = 0; integral β√(2π).
 #[inline]
 pub fn gaussian_unit(beta: f32, x: f32) -> f32 {
-    gaussian_exponent(beta, x).exp()
+    exp_lobe(gaussian_exponent(beta, x))
 }
 
 /// The exponent −x²/2β² of [`gaussian_unit`], for products of Gaussians taken as one exponential.

@@ -56,7 +56,7 @@
 
 use super::cauchy::TruncatedCauchy;
 use super::frame::{from_spherical, phi, sin_cos_theta, theta, wrap_phi, Angles, COS_THETA_MIN};
-use super::gaussian::{gaussian_exponent, gaussian_unit, gaussian_unit_integral};
+use super::gaussian::{exp_lobe, gaussian_exponent, gaussian_unit, gaussian_unit_integral};
 use super::kajiya_kay::{diffuse_f, diffuse_pdf, sample_diffuse, selection_probability};
 use super::marschner::phi_eq12;
 use super::sphere::{uniform_sphere, UNIFORM_SPHERE_PDF};
@@ -343,14 +343,14 @@ impl IsHair {
             .map(|(alpha, beta)| gaussian_exponent(beta, a.theta_h - alpha));
         let e_n_tt = gaussian_exponent(p.gamma_tt, PI - phi.abs());
         let e_n_g = gaussian_exponent(p.gamma_g, phi.abs() - p.phi_g);
-        let m_trt = e_trt.exp();
+        let m_trt = exp_lobe(e_trt);
         // N_R = N_TRT−g = cos(φ/2) from the half-angle vector (see `Angles`).
         let n_r = a.cos_half_phi;
         LobeValues {
-            r: p.color_r * (s * e_r.exp() * n_r),
-            tt: p.color_tt * (s * (e_tt + e_n_tt).exp()),
+            r: p.color_r * (s * exp_lobe(e_r) * n_r),
+            tt: p.color_tt * (s * exp_lobe(e_tt + e_n_tt)),
             trt: p.color_trt * (s * m_trt * n_r),
-            glint: p.color_trt * (s * p.glint * (e_trt + e_n_g).exp()),
+            glint: p.color_trt * (s * p.glint * exp_lobe(e_trt + e_n_g)),
             diffuse: diffuse_f(p.k_d) * w_d,
         }
     }
