@@ -124,14 +124,12 @@ pub fn atan2(y: f32, x: f32) -> f32 {
     } else {
         (t, 0.0)
     };
-    let u2 = u * u;
-    // atan u = u (1 − u²/3 + u⁴/5 − … − u¹⁴/15), Horner in u².
-    let poly = 1.0
-        + u2 * (-1.0 / 3.0
-            + u2 * (1.0 / 5.0
-                + u2 * (-1.0 / 7.0
-                    + u2 * (1.0 / 9.0
-                        + u2 * (-1.0 / 11.0 + u2 * (1.0 / 13.0 + u2 * (-1.0 / 15.0)))))));
+    let (v, v2) = (u * u, (u * u) * (u * u));
+    // atan u = u (1 − u²/3 + u⁴/5 − … − u¹⁴/15), by Estrin's scheme in v = u² (pairs, then v², v⁴): a dependency
+    // chain of three multiply-adds instead of Horner's seven.
+    let poly = (1.0 + v * (-1.0 / 3.0))
+        + v2 * (1.0 / 5.0 + v * (-1.0 / 7.0))
+        + (v2 * v2) * ((1.0 / 9.0 + v * (-1.0 / 11.0)) + v2 * (1.0 / 13.0 + v * (-1.0 / 15.0)));
     let mut a = base + u * poly;
     if ay > ax {
         a = FRAC_PI_2 - a;
@@ -194,14 +192,11 @@ pub fn wrap_phi(x: f32) -> f32 {
     y.clamp(-PI, PI)
 }
 
-/// The angles of a pair (ωo, ωi), thesis Table 1, with ωr = ωo. The relative azimuth φ costs an arctangent, so it
-/// is a method ([`Angles::phi`]); the half-angle cosines the models need are computed without trigonometry.
+/// The angles of a pair (ωo, ωi), thesis Table 1, with ωr = ωo. Arctangents are what cost here, so θh, which
+/// every model needs, is the only angle computed up front (one arctangent of θr + θi); θr, θi, θd and the
+/// relative azimuth φ are methods. The half-angle cosines the models need are computed without trigonometry.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Angles {
-    /// θr = θo, the view direction's longitudinal angle.
-    pub theta_o: f32,
-    /// θi.
-    pub theta_i: f32,
     /// sin θo.
     pub sin_theta_o: f32,
     /// sin θi.
@@ -212,8 +207,6 @@ pub struct Angles {
     pub cos_theta_i: f32,
     /// θh = (θr + θi)/2.
     pub theta_h: f32,
-    /// θd = (θr − θi)/2.
-    pub theta_d: f32,
     /// cos θd ≥ 0, as half the length of (cos θo + cos θi, sin θo + sin θi) (accurate also near θd = ±π/2).
     pub cos_theta_d: f32,
     /// cos(φ/2) ≥ 0 for φ ∈ [−π, π], as half the length of the sum of the two unit normal-plane projections
@@ -230,8 +223,16 @@ impl Angles {
     #[inline]
     pub fn new(wo: Vec3, wi: Vec3) -> Angles {
         let (rho_o, rho_i) = (rho(wo), rho(wi));
-        let theta_o = atan2(wo.x, rho_o);
-        let theta_i = atan2(wi.x, rho_i);
+        // θr + θi ∈ [−π, π] from its sine and cosine (angle-sum formulas, each scaled by |ωo||ωi| > 0, which the
+        // arctangent ignores), so θh costs one arctangent, not two, and does not wait for the normalisation below.
+        // Exactly at a pole the sine may be a zero of either sign; θr + θi = ±π then takes the sign of the poles.
+        let sin_sum = wo.x * rho_i + rho_o * wi.x;
+        let cos_sum = rho_o * rho_i - wo.x * wi.x;
+        let theta_h = if sin_sum == 0.0 && cos_sum < 0.0 {
+            FRAC_PI_2.copysign(wo.x + wi.x)
+        } else {
+            0.5 * atan2(sin_sum, cos_sum)
+        };
         let (sin_theta_o, cos_theta_o) = sin_cos_from(wo.x, rho_o);
         let (sin_theta_i, cos_theta_i) = sin_cos_from(wi.x, rho_i);
         let (c, s) = (cos_theta_o + cos_theta_i, sin_theta_o + sin_theta_i);
@@ -244,19 +245,35 @@ impl Angles {
             1.0
         };
         Angles {
-            theta_o,
-            theta_i,
             sin_theta_o,
             sin_theta_i,
             cos_theta_o,
             cos_theta_i,
-            theta_h: 0.5 * (theta_o + theta_i),
-            theta_d: 0.5 * (theta_o - theta_i),
+            theta_h,
             cos_theta_d,
             cos_half_phi,
             phi_sin: wo.z * wi.y - wo.y * wi.z,
             phi_cos: wo.y * wi.y + wo.z * wi.z,
         }
+    }
+
+    /// θr = θo, the view direction's longitudinal angle (one arctangent; [`theta`] of ωo gives the same to
+    /// rounding).
+    #[inline]
+    pub fn theta_o(&self) -> f32 {
+        atan2(self.sin_theta_o, self.cos_theta_o)
+    }
+
+    /// θi (one arctangent).
+    #[inline]
+    pub fn theta_i(&self) -> f32 {
+        atan2(self.sin_theta_i, self.cos_theta_i)
+    }
+
+    /// θd = (θr − θi)/2 (two arctangents).
+    #[inline]
+    pub fn theta_d(&self) -> f32 {
+        0.5 * (self.theta_o() - self.theta_i())
     }
 
     /// The relative azimuth φ = φr − φi ∈ [−π, π] (0 when either direction lies along ±u), in one arctangent of
@@ -349,10 +366,10 @@ mod tests {
         let wo = from_spherical(deg(40.0), deg(10.0));
         let wi = from_spherical(deg(-20.0), deg(70.0));
         let a = Angles::new(wo, wi);
-        assert!((a.theta_o - deg(40.0)).abs() < EPS);
-        assert!((a.theta_i - deg(-20.0)).abs() < EPS);
+        assert!((a.theta_o() - deg(40.0)).abs() < EPS);
+        assert!((a.theta_i() - deg(-20.0)).abs() < EPS);
         assert!((a.theta_h - deg(10.0)).abs() < EPS);
-        assert!((a.theta_d - deg(30.0)).abs() < EPS);
+        assert!((a.theta_d() - deg(30.0)).abs() < EPS);
         assert!(
             (a.phi() - deg(-60.0)).abs() < EPS,
             "{}",

@@ -56,7 +56,7 @@
 
 use super::cauchy::TruncatedCauchy;
 use super::frame::{from_spherical, phi, sin_cos_theta, theta, wrap_phi, Angles, COS_THETA_MIN};
-use super::gaussian::{gaussian_unit, gaussian_unit_integral};
+use super::gaussian::{exp_lobe, gaussian_exponent, gaussian_unit, gaussian_unit_integral};
 use super::kajiya_kay::{diffuse_f, diffuse_pdf, sample_diffuse, selection_probability};
 use super::marschner::phi_eq12;
 use super::sphere::{uniform_sphere, UNIFORM_SPHERE_PDF};
@@ -327,42 +327,46 @@ impl IsHair {
             .map(|(alpha, beta)| theta_h_distribution(alpha, beta, theta_o))
     }
 
-    /// Every lobe's f for the angles of a pair of directions.
+    /// Every lobe's f for the angles of a pair of directions and their relative azimuth `phi` (= `a.phi()`).
     #[inline]
-    fn lobes_at(&self, a: &Angles) -> LobeValues {
+    fn lobes_at(&self, a: &Angles, phi: f32) -> LobeValues {
         let p = &self.params;
         let (w_d, w_s) = p.balance.weights(a.cos_theta_o);
         // Guard: cos θd → 0 only for θr = −θi = ±π/2.
         let cos_d = a.cos_theta_d.max(COS_THETA_MIN);
         let s = w_s / (cos_d * cos_d);
-        let m = self
+        // Exponents of the unit-height Gaussians: M_X (eq. 15–16) in θh, N_TT and N_g (eq. 17) in φ. The products
+        // M_TT N_TT and M_TRT N_g are each one exponential of the summed exponents (what `m_x`, `n_tt` and `n_g`
+        // multiply out to), so f costs four exponentials, not five.
+        let [e_r, e_tt, e_trt] = self
             .longitudinal
-            .map(|(alpha, beta)| m_x(beta, alpha, a.theta_h));
+            .map(|(alpha, beta)| gaussian_exponent(beta, a.theta_h - alpha));
+        let e_n_tt = gaussian_exponent(p.gamma_tt, PI - phi.abs());
+        let e_n_g = gaussian_exponent(p.gamma_g, phi.abs() - p.phi_g);
+        let m_trt = exp_lobe(e_trt);
         // N_R = N_TRT−g = cos(φ/2) from the half-angle vector (see `Angles`).
         let n_r = a.cos_half_phi;
-        let phi = a.phi();
         LobeValues {
-            r: p.color_r * (s * m[0] * n_r),
-            tt: p.color_tt * (s * m[1] * n_tt(p.gamma_tt, phi)),
-            trt: p.color_trt * (s * m[2] * n_r),
-            glint: p.color_trt * (s * p.glint * m[2] * n_g(p.gamma_g, p.phi_g, phi)),
+            r: p.color_r * (s * exp_lobe(e_r) * n_r),
+            tt: p.color_tt * (s * exp_lobe(e_tt + e_n_tt)),
+            trt: p.color_trt * (s * m_trt * n_r),
+            glint: p.color_trt * (s * p.glint * exp_lobe(e_trt + e_n_g)),
             diffuse: diffuse_f(p.k_d) * w_d,
         }
     }
 
     /// The mixture pdf for the angles of a pair of directions, given [`IsHair::distributions`] at their θo.
     #[inline]
-    fn pdf_at(&self, a: &Angles, dists: &[TruncatedCauchy; 3]) -> f32 {
+    fn pdf_at(&self, a: &Angles, theta_o: f32, phi: f32, dists: &[TruncatedCauchy; 3]) -> f32 {
         let p_s = self.specular_probability(a.cos_theta_o);
         // θh is in range by construction; clamp away the rounding at θi = ±π/2.
-        let q = 0.5 * a.theta_o as f64;
+        let q = 0.5 * theta_o as f64;
         let theta_h = (a.theta_h as f64).clamp(
             q - std::f64::consts::FRAC_PI_4,
             q + std::f64::consts::FRAC_PI_4,
         );
         // p(θi) = p(θh)/2 (eq. 20 without its 1/cos θi, applied once below).
         let p_theta = dists.map(|d| 0.5 * d.pdf(theta_h) as f32);
-        let phi = a.phi();
         let p_r = 0.25 * a.cos_half_phi;
         let p_tt = self.tt.pdf(wrap_phi(phi - PI) as f64) as f32;
         let p_g = 0.5 * self.glint.pdf(phi.abs() as f64) as f32;
@@ -376,7 +380,8 @@ impl IsHair {
 
 impl Bsdf for IsHair {
     fn eval_lobes(&self, wo: Vec3, wi: Vec3) -> LobeValues {
-        self.lobes_at(&Angles::new(wo, wi))
+        let a = Angles::new(wo, wi);
+        self.lobes_at(&a, a.phi())
     }
 
     fn sample(&self, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
@@ -421,17 +426,26 @@ impl Bsdf for IsHair {
             // φ = φr − φi ⇒ φi = φr − φ.
             (from_spherical(theta_i, phi(wo) - phi_rel), LOBES[j])
         };
+        // One set of angles and one relative azimuth for f and for the mixture pdf.
         let a = Angles::new(wo, wi);
-        let f = self.lobes_at(&a).sum();
-        super::make_sample(wi, f, self.pdf_at(&a, &dists), a.cos_theta_i, Some(lobe))
+        let phi = a.phi();
+        let f = self.lobes_at(&a, phi).sum();
+        super::make_sample(
+            wi,
+            f,
+            self.pdf_at(&a, theta_o, phi, &dists),
+            a.cos_theta_i,
+            Some(lobe),
+        )
     }
 
     fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
         if self.params.sampling == Sampling::Uniform {
             return UNIFORM_SPHERE_PDF;
         }
+        let theta_o = theta(wo);
         let a = Angles::new(wo, wi);
-        self.pdf_at(&a, &self.distributions(a.theta_o))
+        self.pdf_at(&a, theta_o, a.phi(), &self.distributions(theta_o))
     }
 }
 

@@ -254,10 +254,14 @@ impl Marschner {
     /// The exact θh distributions of both lobes for a view at `theta_o` ([`Sampling::ExactPdf`] only).
     #[inline]
     fn distributions(&self, theta_o: f32) -> Option<[TruncatedGaussian; 2]> {
-        (self.params.sampling == Sampling::ExactPdf).then(|| {
-            self.lobes
-                .map(|(alpha, beta)| theta_h_distribution(alpha, beta, theta_o))
-        })
+        if self.params.sampling != Sampling::ExactPdf {
+            return None;
+        }
+        let [(alpha_1, beta_1), (alpha_2, beta_2)] = self.lobes;
+        Some([
+            theta_h_distribution(alpha_1, beta_1, theta_o),
+            theta_h_distribution(alpha_2, beta_2, theta_o),
+        ])
     }
 
     /// Every lobe's f for the angles of a pair of directions.
@@ -281,7 +285,7 @@ impl Marschner {
 
     /// The mixture pdf for the angles of a pair of directions, given [`Marschner::distributions`] at their θo.
     #[inline]
-    fn pdf_at(&self, a: &Angles, dists: &Option<[TruncatedGaussian; 2]>) -> f32 {
+    fn pdf_at(&self, a: &Angles, theta_o: f32, dists: Option<&[TruncatedGaussian; 2]>) -> f32 {
         if self.params.sampling == Sampling::Uniform {
             return UNIFORM_SPHERE_PDF;
         }
@@ -293,7 +297,7 @@ impl Marschner {
                 None => pdf_eq13(m_r(beta, alpha, a.theta_h), n, a.cos_theta_i),
                 Some(tg) => {
                     // θh is in range by construction; clamp away the rounding at θi = ±π/2.
-                    let q = 0.5 * a.theta_o as f64;
+                    let q = 0.5 * theta_o as f64;
                     let theta_h = (a.theta_h as f64).clamp(
                         q - std::f64::consts::FRAC_PI_4,
                         q + std::f64::consts::FRAC_PI_4,
@@ -331,7 +335,7 @@ impl Bsdf for Marschner {
             };
             let v = v.min(1.0);
             let (alpha, beta) = self.lobes[k];
-            let (theta_i, phi_rel) = match &dists {
+            let (theta_i, phi_rel) = match dists.as_ref() {
                 None => (
                     theta_i_clamp_and_flip(alpha, beta, theta_o, u[1], u[2]),
                     phi_eq12(v),
@@ -355,15 +359,25 @@ impl Bsdf for Marschner {
         };
         let a = Angles::new(wo, wi);
         let f = self.lobes_at(&a).sum();
-        super::make_sample(wi, f, self.pdf_at(&a, &dists), a.cos_theta_i, lobe)
+        super::make_sample(
+            wi,
+            f,
+            self.pdf_at(&a, theta_o, dists.as_ref()),
+            a.cos_theta_i,
+            lobe,
+        )
     }
 
     fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
         if self.params.sampling == Sampling::Uniform {
             return UNIFORM_SPHERE_PDF;
         }
-        let a = Angles::new(wo, wi);
-        self.pdf_at(&a, &self.distributions(a.theta_o))
+        let theta_o = theta(wo);
+        self.pdf_at(
+            &Angles::new(wo, wi),
+            theta_o,
+            self.distributions(theta_o).as_ref(),
+        )
     }
 }
 
@@ -562,7 +576,7 @@ mod tests {
         for _ in 0..n {
             let s = m.sample(wo, rng.next_u3()).unwrap();
             let a = Angles::new(wo, s.wi);
-            let want = weight_eq14(a.cos_theta_i, a.theta_d.cos());
+            let want = weight_eq14(a.cos_theta_i, a.theta_d().cos());
             assert!(
                 (s.weight.x - want).abs() < 1e-4 * want.max(1.0),
                 "{} vs {want}",
