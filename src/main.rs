@@ -124,28 +124,10 @@ enum MaterialName {
 #[derive(Subcommand)]
 enum BenchCommand {
     /// Wall time of a whole frame (default: furball-512, `scenes/furball.toml`), rays/s and peak memory.
-    Frame {
-        /// Scene to render (default: the built-in default scene).
-        scene: Option<PathBuf>,
-        /// Worker threads.
-        #[arg(long, default_value_t = 2)]
-        threads: usize,
-        /// Timed renders after one warm-up.
-        #[arg(long, default_value_t = 3)]
-        repetitions: usize,
-    },
+    Frame(TimedRenderArgs),
     /// Shadow cost of ray-traced shadows and of deep opacity maps on one scene (default: the built-in scene; the
     /// issue-6 configuration is `scenes/furball-shadows.toml`), and the difference between their images.
-    Shadows {
-        /// Scene to render (default: the built-in default scene).
-        scene: Option<PathBuf>,
-        /// Worker threads.
-        #[arg(long, default_value_t = 2)]
-        threads: usize,
-        /// Timed renders per mode after one warm-up.
-        #[arg(long, default_value_t = 2)]
-        repetitions: usize,
-    },
+    Shadows(TimedRenderArgs),
     /// Primary- and shadow-ray throughput for round and flat curves, BVH build time, peak memory.
     Trace {
         /// Scene whose hair model is traced (default: the built-in default scene).
@@ -157,6 +139,29 @@ enum BenchCommand {
         #[arg(long, value_parser = parse_resolution, default_value = "512x512")]
         res: [u32; 2],
     },
+}
+
+/// A benchmark that renders a scene several times.
+#[derive(clap::Args)]
+struct TimedRenderArgs {
+    /// Scene to render (default: the built-in default scene).
+    scene: Option<PathBuf>,
+    /// Worker threads.
+    #[arg(long, default_value_t = 2)]
+    threads: usize,
+    /// Timed renders (per variant) after one warm-up.
+    #[arg(long, default_value_t = 2)]
+    repetitions: usize,
+}
+
+impl TimedRenderArgs {
+    /// The scene, after checking the thread count.
+    fn scene(&self) -> Result<Scene> {
+        if self.threads == 0 {
+            bail!("--threads must be at least 1");
+        }
+        load_scene(self.scene.as_deref())
+    }
 }
 
 fn parse_resolution(s: &str) -> Result<[u32; 2], String> {
@@ -405,33 +410,15 @@ fn plot_command(args: PlotArgs) -> Result<()> {
 
 fn bench_command(command: BenchCommand) -> Result<()> {
     match command {
-        BenchCommand::Frame {
-            scene,
-            threads,
-            repetitions,
-        } => {
-            if threads == 0 {
-                bail!("--threads must be at least 1");
-            }
-            let scene = load_scene(scene.as_deref())?;
-            println!(
-                "{}",
-                cuticle::bench::frame::frame(&scene, threads, repetitions)?
-            );
+        BenchCommand::Frame(args) => {
+            let scene = args.scene()?;
+            let report = cuticle::bench::frame::frame(&scene, args.threads, args.repetitions)?;
+            println!("{report}");
         }
-        BenchCommand::Shadows {
-            scene,
-            threads,
-            repetitions,
-        } => {
-            if threads == 0 {
-                bail!("--threads must be at least 1");
-            }
-            let scene = load_scene(scene.as_deref())?;
-            println!(
-                "{}",
-                cuticle::bench::shadows::shadows(&scene, threads, repetitions)?
-            );
+        BenchCommand::Shadows(args) => {
+            let scene = args.scene()?;
+            let report = cuticle::bench::shadows::shadows(&scene, args.threads, args.repetitions)?;
+            println!("{report}");
         }
         BenchCommand::Trace {
             scene,
