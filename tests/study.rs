@@ -110,20 +110,32 @@ fn study_writes_its_files_and_reuses_the_cached_reference() {
         assert_eq!(a.errors, b.errors, "{:?}", a.variant);
     }
 
-    // A different reference spp is a different cache entry.
-    let third = run(
+    // Map settings in the scene do not touch the reference: still cached. A different reference spp is a
+    // different cache entry.
+    let quick = ShadowStudyConfig {
+        rt_spp: vec![1],
+        layers: vec![],
+        resolutions: vec![],
+        ..config
+    };
+    std::fs::write(
+        &scene,
+        format!("# a comment\n{TINY}\n[shadows.deep_opacity]\nbias = 2.0\n"),
+    )
+    .unwrap();
+    let third = run(&scene, &quick).unwrap();
+    assert!(third.reference_cached);
+    assert_eq!(third.reference_path, first.reference_path);
+    let fourth = run(
         &scene,
         &ShadowStudyConfig {
             reference_spp: 4,
-            rt_spp: vec![1],
-            layers: vec![],
-            resolutions: vec![],
-            ..config
+            ..quick
         },
     )
     .unwrap();
-    assert!(!third.reference_cached);
-    assert_ne!(third.reference_path, first.reference_path);
+    assert!(!fourth.reference_cached);
+    assert_ne!(fourth.reference_path, first.reference_path);
 }
 
 #[test]

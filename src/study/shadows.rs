@@ -10,9 +10,10 @@
 //!    than the stochastic mode and converging to the same value), at `reference_spp` samples per pixel, with a
 //!    seed different from the variants' (the scene's seed + [`REFERENCE_SEED_OFFSET`]), so a variant does not share
 //!    its first samples with the reference. Cached as `reference-<hash>.exr` in the cache directory (default: the
-//!    output directory), where the hash ([`super::cache::Fnv1a`]) covers the scene file's text, its directory, the
-//!    film resolution, spp and seed actually used and a format version. It does **not** cover the hair or map files
-//!    nor the renderer's code: delete the file after changing them.
+//!    output directory), where the hash ([`super::cache::Fnv1a`]) covers the scene file's text (parsed, without its
+//!    `[shadows]` table, which the reference overrides), its directory, the film resolution, spp and seed actually
+//!    used and a format version. It does **not** cover the hair or map files nor the renderer's code: delete the
+//!    file after changing them.
 //! 2. **No shadows** (`shadows = "none"`) at `dom_spp`: the time of shading without any visibility, and the error
 //!    of ignoring self-shadowing.
 //! 3. **Ray traced** (`shadows = "raytraced"`, the scene's own `transmittance`) at each of `rt_spp`.
@@ -256,13 +257,23 @@ pub fn variants(config: &ShadowStudyConfig) -> Vec<Variant> {
 }
 
 /// The cache key of the reference of `scene` (already carrying the reference's spp, seed and resolution), whose
-/// file held `text`.
+/// file held `text`. The scene's `[shadows]` table is left out (the reference sets its own mode and transmittance,
+/// and map settings do not affect it), so changing map settings in the scene keeps the cached reference; the rest
+/// of the text is hashed as parsed and re-serialised (sorted keys, no comments), so comments and layout do not
+/// matter either.
 fn reference_key(text: &str, scene: &Scene) -> u64 {
     let dir = std::fs::canonicalize(&scene.base_dir).unwrap_or_else(|_| scene.base_dir.clone());
+    let canonical = toml::from_str::<toml::Table>(text)
+        .ok()
+        .and_then(|mut table| {
+            table.remove("shadows");
+            toml::to_string(&table).ok()
+        })
+        .unwrap_or_else(|| text.to_owned());
     let mut h = Fnv1a::default();
     h.field(REFERENCE_FORMAT)
         .field(&dir.to_string_lossy())
-        .field(text)
+        .field(&canonical)
         .field(&format!(
             "resolution={:?};spp={};seed={};mode=raytraced;transmittance=exact",
             scene.film.resolution, scene.film.spp, scene.film.seed
