@@ -163,7 +163,6 @@ pub fn overview(image: &Image, x0: usize, y0: usize, window: usize, size: usize)
         (size as f32 - image.width as f32 / scale) * 0.5,
         (size as f32 - image.height as f32 / scale) * 0.5,
     );
-    let red = Vec3::new(1.0, 0.0, 0.0);
     for j in 0..size {
         for i in 0..size {
             let sx = ((i as f32 + 0.5 - ox) * scale).floor();
@@ -171,17 +170,29 @@ pub fn overview(image: &Image, x0: usize, y0: usize, window: usize, size: usize)
             if sx < 0.0 || sy < 0.0 || sx >= image.width as f32 || sy >= image.height as f32 {
                 continue;
             }
-            let (sx, sy) = (sx as usize, sy as usize);
-            let inside = |v: usize, lo: usize| v >= lo && v < lo + window;
-            let on_edge = (inside(sx, x0) && (sy == y0 || sy + 1 == y0 + window))
-                || (inside(sy, y0) && (sx == x0 || sx + 1 == x0 + window));
-            let p = image.pixel(sx, sy);
-            out[j * size + i] = if on_edge {
-                red
-            } else {
-                Vec3::new(p[r], p[g], p[b])
-            };
+            let p = image.pixel(sx as usize, sy as usize);
+            out[j * size + i] = Vec3::new(p[r], p[g], p[b]);
         }
+    }
+    // The outline, in panel pixels (so no edge falls between sampled source pixels).
+    let to_panel =
+        |v: usize, o: f32| ((v as f32 / scale + o).round().max(0.0) as usize).min(size - 1);
+    let (i0, i1) = (
+        to_panel(x0, ox),
+        to_panel(x0 + window, ox).saturating_sub(1),
+    );
+    let (j0, j1) = (
+        to_panel(y0, oy),
+        to_panel(y0 + window, oy).saturating_sub(1),
+    );
+    let red = Vec3::new(1.0, 0.0, 0.0);
+    for i in i0..=i1.max(i0) {
+        out[j0 * size + i] = red;
+        out[j1.max(j0) * size + i] = red;
+    }
+    for j in j0..=j1.max(j0) {
+        out[j * size + i0] = red;
+        out[j * size + i1.max(i0)] = red;
     }
     out
 }
