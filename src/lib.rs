@@ -18,5 +18,6 @@ pub mod render;
 pub mod scene;
 pub mod shadow;
 pub mod shape;
+pub mod study;
 #[allow(unsafe_code)]
 pub mod sys;

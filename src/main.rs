@@ -36,6 +36,9 @@ enum Command {
     /// Benchmarks (not tests): print throughput figures.
     #[command(subcommand)]
     Bench(BenchCommand),
+    /// Studies: measured comparisons written to a directory (CSV tables, charts, crops).
+    #[command(subcommand)]
+    Study(StudyCommand),
 }
 
 #[derive(clap::Args)]
@@ -447,6 +450,84 @@ fn bench_command(command: BenchCommand) -> Result<()> {
     Ok(())
 }
 
+// `cuticle study`: thin wrappers over `cuticle::study` (the logic and its docs live there).
+
+#[derive(Subcommand)]
+enum StudyCommand {
+    /// Shadow modes against a converged ray-traced reference: error vs time, map memory, crops (issue 6).
+    Shadows(StudyShadowsArgs),
+}
+
+#[derive(clap::Args)]
+struct StudyShadowsArgs {
+    /// Scene file (TOML).
+    scene: PathBuf,
+    /// Output directory: shadows.csv, shadows-error-time.png, shadows-crops.png, the cached reference.
+    #[arg(short, long, default_value = "study-shadows")]
+    out: PathBuf,
+    /// Where the reference EXR is cached (default: the output directory).
+    #[arg(long)]
+    cache_dir: Option<PathBuf>,
+    /// Samples per pixel of the ray-traced reference (exact transmittance).
+    #[arg(long, default_value_t = 256)]
+    reference_spp: u32,
+    /// Samples per pixel of the ray-traced variants.
+    #[arg(long, value_delimiter = ',', default_value = "1,4,16,64")]
+    rt_spp: Vec<u32>,
+    /// Layer counts of the deep-opacity series at --layer-resolution.
+    #[arg(long, value_delimiter = ',', default_value = "4,8,16,32,64")]
+    layers: Vec<u32>,
+    /// Map resolution of the layer series.
+    #[arg(long, default_value_t = 1024)]
+    layer_resolution: u32,
+    /// Map resolutions of the deep-opacity series at --resolution-layers.
+    #[arg(long, value_delimiter = ',', default_value = "256,512,1024,2048,4096")]
+    resolutions: Vec<u32>,
+    /// Layers of the resolution series.
+    #[arg(long, default_value_t = 16)]
+    resolution_layers: u32,
+    /// Samples per pixel of the deep-opacity and no-shadow variants.
+    #[arg(long, default_value_t = 16)]
+    dom_spp: u32,
+    /// Film resolution WxH (overrides film.resolution).
+    #[arg(long, value_parser = parse_resolution)]
+    res: Option<[u32; 2]>,
+    /// Worker threads.
+    #[arg(long, default_value_t = 2)]
+    threads: usize,
+    /// Side of the crop window, pixels.
+    #[arg(long, default_value_t = 128)]
+    crop: usize,
+    /// No progress lines.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+fn study_command(command: StudyCommand) -> Result<()> {
+    match command {
+        StudyCommand::Shadows(a) => {
+            use cuticle::study::shadows::{run, ShadowStudyConfig};
+            let config = ShadowStudyConfig {
+                cache_dir: a.cache_dir,
+                reference_spp: a.reference_spp,
+                rt_spp: a.rt_spp,
+                layers: a.layers,
+                layer_resolution: a.layer_resolution,
+                resolutions: a.resolutions,
+                resolution_layers: a.resolution_layers,
+                dom_spp: a.dom_spp,
+                film_resolution: a.res,
+                threads: a.threads,
+                crop: a.crop,
+                progress: !a.quiet,
+                ..ShadowStudyConfig::new(a.out)
+            };
+            run(&a.scene, &config)?;
+        }
+    }
+    Ok(())
+}
+
 fn run() -> Result<()> {
     let cli = Cli::parse();
     match cli.command {
@@ -454,6 +535,7 @@ fn run() -> Result<()> {
         Command::Info { file } => info_command(&file),
         Command::PlotBsdf(args) => plot_command(args),
         Command::Bench(b) => bench_command(b),
+        Command::Study(s) => study_command(s),
     }
 }
 

@@ -98,6 +98,15 @@ impl Canvas {
         Canvas { image }
     }
 
+    /// A canvas drawing on `image` (channels `R, G, B`, linear), e.g. to annotate a rendered chart.
+    ///
+    /// # Panics
+    /// If `image` does not have exactly three channels.
+    pub fn from_image(image: Image) -> Canvas {
+        assert_eq!(image.channels.len(), 3, "a canvas is RGB");
+        Canvas { image }
+    }
+
     /// The whole canvas as a rectangle.
     pub fn bounds(&self) -> Rect {
         Rect {

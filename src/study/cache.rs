@@ -1,0 +1,83 @@
+//! Naming and writing the files of a study.
+//!
+//! A converged reference render takes minutes, so studies keep it on disk under a name derived from everything that
+//! decides its pixels: [`Fnv1a`] (64-bit FNV-1a, Fowler–Noll–Vo) is stable across runs, platforms and Rust versions,
+//! unlike `std`'s `DefaultHasher`, whose algorithm is unspecified. What goes into the key is the caller's choice
+//! (see [`super::shadows`]); files the scene refers to (hair, environment maps) are *not* hashed, nor is the
+//! renderer's code: delete the cached file after changing either.
+//!
+//! Text outputs are written like images ([`crate::image`]): to a temporary file in the same directory, then renamed
+//! over the target, so a reader never sees half a table.
+
+use std::path::Path;
+
+use super::StudyError;
+
+/// 64-bit FNV-1a.
+#[derive(Debug, Clone, Copy)]
+pub struct Fnv1a(u64);
+
+impl Default for Fnv1a {
+    fn default() -> Self {
+        Fnv1a(0xcbf2_9ce4_8422_2325)
+    }
+}
+
+impl Fnv1a {
+    /// Mixes in `bytes`.
+    pub fn write(&mut self, bytes: &[u8]) -> &mut Self {
+        for &b in bytes {
+            self.0 ^= u64::from(b);
+            self.0 = self.0.wrapping_mul(0x0000_0100_0000_01b3);
+        }
+        self
+    }
+
+    /// Mixes in a string and a separator byte (0xff, which UTF-8 never contains), so ("ab", "c") ≠ ("a", "bc").
+    pub fn field(&mut self, text: &str) -> &mut Self {
+        self.write(text.as_bytes()).write(&[0xff])
+    }
+
+    /// The hash so far.
+    pub fn finish(&self) -> u64 {
+        self.0
+    }
+}
+
+/// Writes `text` to `path` atomically (temporary file in the same directory, then rename).
+pub fn write_text(path: &Path, text: &str) -> Result<(), StudyError> {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let temp = path.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
+    let io = |context, source| StudyError::Io {
+        path: path.to_path_buf(),
+        context,
+        source,
+    };
+    std::fs::write(&temp, text).map_err(|e| io("cannot write", e))?;
+    std::fs::rename(&temp, path).map_err(|e| {
+        let _ = std::fs::remove_file(&temp);
+        io("cannot rename the temporary file over it", e)
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The published FNV-1a 64 test vectors (draft-eastlake-fnv): "" and "a" and "foobar".
+    #[test]
+    fn fnv1a_matches_the_reference_vectors() {
+        assert_eq!(Fnv1a::default().finish(), 0xcbf2_9ce4_8422_2325);
+        assert_eq!(Fnv1a::default().write(b"a").finish(), 0xaf63_dc4c_8601_ec8c);
+        assert_eq!(
+            Fnv1a::default().write(b"foobar").finish(),
+            0x8594_4171_f739_67e8
+        );
+        let ab_c = Fnv1a::default().field("ab").field("c").finish();
+        let a_bc = Fnv1a::default().field("a").field("bc").finish();
+        assert_ne!(ab_c, a_bc);
+    }
+}

@@ -1,0 +1,63 @@
+//! Studies: measured comparisons that render a scene many ways and write what they measured into a directory
+//! (CSV tables, charts, image crops), for the documents in `docs/`. Offline tooling, not part of a render.
+//!
+//! - [`shadows`]: `cuticle study shadows SCENE` — ray-traced shadows at several sample counts and deep opacity maps
+//!   over layer counts and resolutions, against a converged ray-traced reference: error against time, map memory
+//!   (issue 6).
+//! - [`metrics`]: the image error measures (RMSE, relMSE, over the whole image and over shadowed pixels) and the
+//!   choice of the crop window.
+//! - [`cache`]: a stable hash (FNV-1a) naming cached reference renders, and atomic text-file writes.
+//! - [`figures`]: the error-against-time chart and the mosaic of crops.
+
+pub mod cache;
+pub mod figures;
+pub mod metrics;
+pub mod shadows;
+
+use std::path::PathBuf;
+
+/// Why a study could not run. Variants name the file involved where there is one.
+#[derive(Debug, thiserror::Error)]
+pub enum StudyError {
+    /// The scene file could not be read.
+    #[error("cannot read scene file {path}: {source}")]
+    SceneFile {
+        /// The scene file asked for.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// The scene (or a variant of it) is invalid, or its lights could not be built.
+    #[error(transparent)]
+    Scene(#[from] crate::scene::SceneError),
+    /// The hair model could not be loaded.
+    #[error(transparent)]
+    Hair(#[from] crate::hair::HairError),
+    /// Embree could not build the curves.
+    #[error(transparent)]
+    Embree(#[from] crate::sys::embree::EmbreeError),
+    /// An image (the cached reference, a chart, the crops) could not be read or written.
+    #[error(transparent)]
+    Image(#[from] crate::image::ImageError),
+    /// A file or directory could not be written.
+    #[error("{path}: {context}: {source}")]
+    Io {
+        /// The file or directory.
+        path: PathBuf,
+        /// What was being done.
+        context: &'static str,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// The worker threads could not be started.
+    #[error("cannot start {threads} worker threads: {source}")]
+    ThreadPool {
+        /// Threads asked for.
+        threads: usize,
+        /// Rayon's error.
+        source: rayon::ThreadPoolBuildError,
+    },
+    /// The study's own settings are unusable (an empty list, 0 samples, a cached reference of the wrong size).
+    #[error("{0}")]
+    Config(String),
+}

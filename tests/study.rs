@@ -1,0 +1,160 @@
+//! `cuticle study shadows` end to end on a tiny procedural scene (32×32, a few spp, maps of 16–32 texels): the files
+//! it writes, the reference cache, the error measures' sanity, and the error a user sees for a missing scene.
+
+use std::path::Path;
+use std::process::Command;
+
+use cuticle::scene::ShadowMode;
+use cuticle::study::metrics;
+use cuticle::study::shadows::{run, ShadowStudyConfig, CSV_HEADER};
+use cuticle::study::StudyError;
+
+/// A small fur ball under one distant light, direct light only (no environment: one map per variant).
+const TINY: &str = r#"
+[hair]
+procedural = { kind = "fur-ball", strands = 1500 }
+opacity = 0.5
+
+[camera]
+margin = 0.9
+
+[film]
+resolution = [32, 32]
+
+[material]
+model = "kajiya-kay"
+
+[[light]]
+kind = "distant"
+direction = [1.0, -1.0, 1.0]
+irradiance = 3.0
+
+[integrator]
+path_length = 0
+"#;
+
+fn tiny_config(out: &Path) -> ShadowStudyConfig {
+    ShadowStudyConfig {
+        reference_spp: 8,
+        rt_spp: vec![1, 4],
+        layers: vec![2, 4],
+        layer_resolution: 32,
+        resolutions: vec![16, 32],
+        resolution_layers: 4,
+        dom_spp: 2,
+        crop: 16,
+        ..ShadowStudyConfig::new(out)
+    }
+}
+
+#[test]
+fn study_writes_its_files_and_reuses_the_cached_reference() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("tiny.toml");
+    std::fs::write(&scene, TINY).unwrap();
+    let out = dir.path().join("out");
+    let config = tiny_config(&out);
+
+    let first = run(&scene, &config).unwrap();
+    assert!(!first.reference_cached);
+    assert!(first.reference_path.is_file());
+    // none, RT ×2, DOM 2L32, 4L32 (shared by both map series), 4L16.
+    let modes: Vec<_> = first.rows.iter().map(|r| r.variant.mode).collect();
+    use ShadowMode::*;
+    assert_eq!(
+        modes,
+        [
+            None,
+            Raytraced,
+            Raytraced,
+            DeepOpacity,
+            DeepOpacity,
+            DeepOpacity
+        ]
+    );
+
+    let csv = std::fs::read_to_string(&first.csv).unwrap();
+    let lines: Vec<&str> = csv.lines().collect();
+    assert_eq!(lines[0], CSV_HEADER);
+    assert_eq!(lines.len(), 1 + 6, "{csv}");
+    assert!(lines[1].starts_with("none,2,,,"), "{}", lines[1]);
+    assert!(lines[6].starts_with("deep-opacity,2,4,16,"), "{}", lines[6]);
+    for line in &lines[1..] {
+        assert_eq!(line.split(',').count(), CSV_HEADER.split(',').count());
+    }
+    let chart = cuticle::image::read(&first.chart).unwrap();
+    assert_eq!((chart.width, chart.height), (960, 640));
+    assert!(first.crops.is_file());
+
+    // Sanity of the measures: the reference against itself is exact, no shadows is not.
+    let mask = metrics::shadowed_mask(&first.reference).unwrap();
+    assert!(
+        first.shadowed_pixels > 0 && first.shadowed_pixels == mask.iter().filter(|&&m| m).count()
+    );
+    let zero = metrics::errors(&first.reference, &first.reference, &mask).unwrap();
+    assert_eq!((zero.rmse, zero.rmse_shadowed), (0.0, 0.0));
+    let none = &first.rows[0];
+    assert!(none.errors.rmse > 0.0 && none.errors.rmse_shadowed > none.errors.rmse);
+    for r in &first.rows {
+        assert!(r.errors.rmse.is_finite() && r.errors.relmse.is_finite());
+        let maps = r.variant.mode == DeepOpacity;
+        assert_eq!(r.map_bytes > 0, maps, "{r:?}");
+    }
+
+    // Second run: the reference comes from the cache, and (deterministic renders) every error is the same.
+    let second = run(&scene, &config).unwrap();
+    assert!(second.reference_cached);
+    assert_eq!(second.reference_path, first.reference_path);
+    assert_eq!(second.reference.data.len(), first.reference.data.len());
+    for (a, b) in first.rows.iter().zip(&second.rows) {
+        assert_eq!(a.errors, b.errors, "{:?}", a.variant);
+    }
+
+    // Map settings in the scene do not touch the reference: still cached. A different reference spp is a
+    // different cache entry.
+    let quick = ShadowStudyConfig {
+        rt_spp: vec![1],
+        layers: vec![],
+        resolutions: vec![],
+        ..config
+    };
+    std::fs::write(
+        &scene,
+        format!("# a comment\n{TINY}\n[shadows.deep_opacity]\nbias = 2.0\n"),
+    )
+    .unwrap();
+    let third = run(&scene, &quick).unwrap();
+    assert!(third.reference_cached);
+    assert_eq!(third.reference_path, first.reference_path);
+    let fourth = run(
+        &scene,
+        &ShadowStudyConfig {
+            reference_spp: 4,
+            ..quick
+        },
+    )
+    .unwrap();
+    assert!(!fourth.reference_cached);
+    assert_ne!(fourth.reference_path, first.reference_path);
+}
+
+#[test]
+fn missing_scene_is_an_error_naming_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let missing = dir.path().join("no-such-scene.toml");
+    let err = run(&missing, &tiny_config(dir.path())).unwrap_err();
+    assert!(matches!(err, StudyError::SceneFile { .. }), "{err:?}");
+    assert!(err.to_string().contains("no-such-scene.toml"), "{err}");
+
+    let out = Command::new(env!("CARGO_BIN_EXE_cuticle"))
+        .args(["study", "shadows", missing.to_str().unwrap(), "-q", "-o"])
+        .arg(dir.path().join("out"))
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("no-such-scene.toml") && stderr.contains("cuticle: error"),
+        "{stderr}"
+    );
+}
