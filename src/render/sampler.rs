@@ -19,7 +19,8 @@ impl PixelSampler {
     /// The sampler of pixel (`x`, `y`) for scene seed `seed`.
     #[inline]
     pub fn new(x: u32, y: u32, seed: u32) -> Self {
-        let key = (u64::from(seed) << 40) ^ (u64::from(y) << 20) ^ u64::from(x);
+        // x, y < 2¹⁶ (film.resolution ≤ 32768), so (seed, y, x) fill disjoint bits: every seed bit counts.
+        let key = (u64::from(seed) << 32) | (u64::from(y & 0xffff) << 16) | u64::from(x & 0xffff);
         PixelSampler { seed: hash(key) }
     }
 
@@ -106,6 +107,15 @@ mod tests {
         assert_ne!(s.get_salted(7, 3, 1), s.get(7, 3));
         assert_ne!(s.key(7, 3, 0), s.key(7, 3, 1));
         assert_ne!(s.key(7, 3, 0), s.key(8, 3, 0));
+    }
+
+    #[test]
+    fn every_seed_bit_changes_the_stream() {
+        let base = PixelSampler::new(4, 2, 0).get(0, 0);
+        for bit in 0..32 {
+            let other = PixelSampler::new(4, 2, 1 << bit).get(0, 0);
+            assert_ne!(base, other, "seed bit {bit} is ignored");
+        }
     }
 
     #[test]
