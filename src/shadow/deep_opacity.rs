@@ -323,29 +323,54 @@ fn rasterise(
                 let half = 0.5 * drawn;
                 let (dx, dy) = (xb - xa, yb - ya);
                 let len2 = dx * dx + dy * dy;
-                // Texel centres (tx + 0.5) inside the piece's bounding box.
+                // Texel centres (tx + 0.5) inside the piece's bounding box …
                 let x0 = ceil_i(xa.min(xb) - half - 0.5).max(0);
                 let x1 = floor_i(xa.max(xb) + half - 0.5).min(res - 1);
                 let y0 = ceil_i(ya.min(yb) - half - 0.5).max(0);
                 let y1 = floor_i(ya.max(yb) + half - 0.5).min(res - 1);
-                for ty in y0..=y1 {
+                let mut visit = |tx: i64, ty: i64| {
+                    let (cx, cy) = (tx as f32 + 0.5, ty as f32 + 0.5);
+                    // Parameter of the texel centre's projection onto the piece: half-open [0, 1) so a centre on
+                    // the joint of two pieces is drawn once.
+                    let t = if len2 > 0.0 {
+                        ((cx - xa) * dx + (cy - ya) * dy) / len2
+                    } else {
+                        0.0
+                    };
+                    if !(0.0..1.0).contains(&t) {
+                        return;
+                    }
+                    let (px, py) = (xa + t * dx - cx, ya + t * dy - cy);
+                    if px * px + py * py > half * half {
+                        return;
+                    }
+                    fragment((ty * res + tx) as usize, za + t * (zb - za), sigma);
+                };
+                // … visited along the piece's major axis, each column (row) only over the centres within `half` of
+                // the line (|Δminor| ≤ half · length / |Δmajor|, plus a rounding margin; `visit` decides exactly).
+                if len2 > 0.0 && dx.abs() >= dy.abs() {
+                    let (slope, reach) = (dy / dx, half * len2.sqrt() / dx.abs() + 1e-3);
                     for tx in x0..=x1 {
-                        let (cx, cy) = (tx as f32 + 0.5, ty as f32 + 0.5);
-                        // Parameter of the texel centre's projection onto the piece: half-open [0, 1) so a centre
-                        // on the joint of two pieces is drawn once.
-                        let t = if len2 > 0.0 {
-                            ((cx - xa) * dx + (cy - ya) * dy) / len2
-                        } else {
-                            0.0
-                        };
-                        if !(0.0..1.0).contains(&t) {
-                            continue;
+                        let y = ya + (tx as f32 + 0.5 - xa) * slope;
+                        for ty in ceil_i(y - reach - 0.5).max(y0)..=floor_i(y + reach - 0.5).min(y1)
+                        {
+                            visit(tx, ty);
                         }
-                        let (px, py) = (xa + t * dx - cx, ya + t * dy - cy);
-                        if px * px + py * py > half * half {
-                            continue;
+                    }
+                } else if len2 > 0.0 {
+                    let (slope, reach) = (dx / dy, half * len2.sqrt() / dy.abs() + 1e-3);
+                    for ty in y0..=y1 {
+                        let x = xa + (ty as f32 + 0.5 - ya) * slope;
+                        for tx in ceil_i(x - reach - 0.5).max(x0)..=floor_i(x + reach - 0.5).min(x1)
+                        {
+                            visit(tx, ty);
                         }
-                        fragment((ty * res + tx) as usize, za + t * (zb - za), sigma);
+                    }
+                } else {
+                    for ty in y0..=y1 {
+                        for tx in x0..=x1 {
+                            visit(tx, ty);
+                        }
                     }
                 }
             }
