@@ -426,7 +426,11 @@ impl DeepOpacityMap {
             .collect();
         tasks.par_iter().for_each(|range| {
             rasterise(strands, &frame, raster, range.clone(), |texel, z, _| {
-                z0_bits[texel].fetch_min(z.max(0.0).to_bits(), Ordering::Relaxed);
+                // Most fragments lie behind the texel's current front: a plain load spares them the atomic RMW.
+                let bits = z.max(0.0).to_bits();
+                if bits < z0_bits[texel].load(Ordering::Relaxed) {
+                    z0_bits[texel].fetch_min(bits, Ordering::Relaxed);
+                }
             });
         });
         let z0: Vec<f32> = z0_bits
