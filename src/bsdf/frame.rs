@@ -104,7 +104,8 @@ pub fn theta(local: Vec3) -> f32 {
 }
 
 /// atan2(y, x) ∈ [−π, π] (0 for x = y = 0), absolute error < 6e-7 rad (2 f32 ulps at π): reduction to
-/// t = min/max ∈ [0, 1], then to |u| ≤ tan(π/8) by atan t = π/4 + atan((t − 1)/(t + 1)), where the Maclaurin series
+/// t = min/max ∈ [0, 1], then to |u| ≤ tan(π/8) by atan t = π/4 + atan((t − 1)/(t + 1)) (one division from min and
+/// max directly), where the Maclaurin series
 /// of atan to u¹⁵ is off by less than tan(π/8)¹⁷/17 = 2e-8. Cheaper than libm's `atan2f`, which dominated
 /// [`Angles::new`] and so every eval (the angles of every model go through here).
 #[inline]
@@ -118,12 +119,11 @@ pub fn atan2(y: f32, x: f32) -> f32 {
         // Both zero: the direction is along ±u, where φ is undefined; 0 as `f32::atan2` gives.
         return 0.0;
     }
-    let t = num / den;
-    let (u, base) = if t > 0.414_213_57 {
-        ((t - 1.0) / (t + 1.0), FRAC_PI_4)
-    } else {
-        (t, 0.0)
-    };
+    // t = num/den; past tan(π/8), u = (t − 1)/(t + 1) = (num − den)/(num + den): one division either way, and
+    // written as (num − k den)/(den + k num) with k ∈ {0, 1} it needs no branch.
+    let k = if num > 0.414_213_57 * den { 1.0 } else { 0.0 };
+    let u = (num - k * den) / (den + k * num);
+    let base = k * FRAC_PI_4;
     let (v, v2) = (u * u, (u * u) * (u * u));
     // atan u = u (1 − u²/3 + u⁴/5 − … − u¹⁴/15), by Estrin's scheme in v = u² (pairs, then v², v⁴): a dependency
     // chain of three multiply-adds instead of Horner's seven.
