@@ -335,7 +335,7 @@ impl IsHair {
     }
 
     /// Every lobe's f for the angles of a pair of directions and their relative azimuth `phi` (= `a.phi()`).
-    #[inline]
+    #[inline(always)]
     fn lobes_at(&self, a: &Angles, phi: f32) -> LobeValues {
         let p = &self.params;
         let (w_d, w_s) = p.balance.weights(a.cos_theta_o);
@@ -402,6 +402,13 @@ impl Bsdf for IsHair {
     fn eval_lobes(&self, wo: Vec3, wi: Vec3) -> LobeValues {
         let a = Angles::new(wo, wi);
         self.lobes_at(&a, a.phi())
+    }
+
+    /// The sum of [`Bsdf::eval_lobes`], with the lobes summed where they are computed (the default method
+    /// received them through memory from a call).
+    fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        let a = Angles::new(wo, wi);
+        self.lobes_at(&a, a.phi()).sum()
     }
 
     fn sample(&self, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {

@@ -265,7 +265,7 @@ impl Marschner {
     }
 
     /// Every lobe's f for the angles of a pair of directions.
-    #[inline]
+    #[inline(always)]
     fn lobes_at(&self, a: &Angles) -> LobeValues {
         let (w_d, w_s) = self.params.balance.weights(a.cos_theta_o);
         // N = cos(φ/2) (eq. 6) and cos θd from the half-angle vectors (see `Angles`).
@@ -315,6 +315,12 @@ impl Marschner {
 impl Bsdf for Marschner {
     fn eval_lobes(&self, wo: Vec3, wi: Vec3) -> LobeValues {
         self.lobes_at(&Angles::new(wo, wi))
+    }
+
+    /// The sum of [`Bsdf::eval_lobes`], with the lobes summed where they are computed (the default method
+    /// received them through memory from a call).
+    fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        self.lobes_at(&Angles::new(wo, wi)).sum()
     }
 
     fn sample(&self, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
