@@ -84,10 +84,11 @@ impl TruncatedCauchy {
 /// small widths, where it is its unreduced series) instead of libm's f64 `atan2`, the cost of the constructor.
 /// Relative error < 1e-6 (tested): a sampler built by [`TruncatedCauchy::new`] draws the density that a pdf
 /// normalised with this width returns, to that. 0 (callers fall back to uniform) where it is not positive.
+/// Takes 1/γ (`inv_gamma`): callers keep it, and f64 divisions were most of what is left of the cost.
 #[inline]
-pub fn width_f32(c: f64, gamma: f64, lo: f64, hi: f64) -> f32 {
-    let x_lo = (lo - c) / gamma;
-    let x_hi = (hi - c) / gamma;
+pub fn width_f32(c: f64, inv_gamma: f64, lo: f64, hi: f64) -> f32 {
+    let x_lo = (lo - c) * inv_gamma;
+    let x_hi = (hi - c) * inv_gamma;
     let width = super::frame::atan2((x_hi - x_lo) as f32, (1.0 + x_lo * x_hi) as f32);
     if width > 0.0 && width.is_finite() {
         width
@@ -123,7 +124,7 @@ mod tests {
                     let lo = 0.5 * theta_r as f64 - std::f64::consts::FRAC_PI_4;
                     let hi = 0.5 * theta_r as f64 + std::f64::consts::FRAC_PI_4;
                     let exact = TruncatedCauchy::new(c, gamma, lo, hi).width();
-                    let got = width_f32(c, gamma, lo, hi) as f64;
+                    let got = width_f32(c, 1.0 / gamma, lo, hi) as f64;
                     worst = worst.max((got - exact).abs() / exact);
                 }
             }

@@ -150,6 +150,8 @@ pub struct IsHair {
     params: IsHairParams,
     /// (α, β) of the longitudinal terms: R, TT, TRT (the glint shares TRT's).
     longitudinal: [(f32, f32); 3],
+    /// 1/β of R, TT, TRT in f64, for the pdf's standardised θh (multiplications, not f64 divisions).
+    inv_beta: [f64; 3],
     /// Selection probabilities of R, TT, TRT − g, g among the specular lobes.
     probs: [f32; 4],
     /// Σ E_X, the estimated specular albedo (diffuse vs specular split).
@@ -290,6 +292,7 @@ impl IsHair {
         Ok(IsHair {
             params,
             longitudinal,
+            inv_beta: longitudinal.map(|(_, beta)| 1.0 / beta as f64),
             probs,
             e_spec,
             energies,
@@ -330,8 +333,7 @@ impl IsHair {
             q - std::f64::consts::FRAC_PI_4,
             q + std::f64::consts::FRAC_PI_4,
         );
-        self.longitudinal
-            .map(|(alpha, beta)| width_f32(alpha as f64, beta as f64, lo, hi))
+        [0, 1, 2].map(|k| width_f32(self.longitudinal[k].0 as f64, self.inv_beta[k], lo, hi))
     }
 
     /// Every lobe's f for the angles of a pair of directions and their relative azimuth `phi` (= `a.phi()`).
@@ -375,18 +377,15 @@ impl IsHair {
         // p(θi) = p(θh)/2 = β / (2 (A − B) ((θh − α)² + β²)) (eq. 20 without its 1/cos θi, applied once below),
         // written with z = (θh − α)/β (in f64: θh − α cancels for narrow lobes) as [`TruncatedCauchy::pdf`] is;
         // uniform on the range if A − B vanished.
-        let mut p_theta = [0.0f32; 3];
-        for (p, (&(alpha, beta), &w)) in p_theta
-            .iter_mut()
-            .zip(self.longitudinal.iter().zip(widths.iter()))
-        {
-            let z = ((theta_h - alpha as f64) / beta as f64) as f32;
-            *p = if w > 0.0 {
-                0.5 / (w * beta * (1.0 + z * z))
+        let p_theta = [0, 1, 2].map(|k| {
+            let (alpha, beta) = self.longitudinal[k];
+            let z = ((theta_h - alpha as f64) * self.inv_beta[k]) as f32;
+            if widths[k] > 0.0 {
+                0.5 / (widths[k] * beta * (1.0 + z * z))
             } else {
                 0.5 / FRAC_PI_2
-            };
-        }
+            }
+        });
         let p_r = 0.25 * a.cos_half_phi;
         let p_tt = self.tt.pdf(wrap_phi(phi - PI) as f64) as f32;
         let p_g = 0.5 * self.glint.pdf(phi.abs() as f64) as f32;
