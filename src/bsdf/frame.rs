@@ -185,6 +185,26 @@ pub fn from_spherical(theta: f32, phi: f32) -> Vec3 {
     Vec3::new(sin_t, cos_t * cos_p, cos_t * sin_p)
 }
 
+/// The unit local direction with longitudinal angle `theta_i` whose azimuth is φi = φr − φ, φr that of `wo` and
+/// φ given by its cosine and sine: (cos φi, sin φi) is (cos φr, sin φr) = (ωo·v, ωo·w)/ρo turned by −φ (the angle
+/// difference formulas), so neither φr (an arctangent) nor φi (a sine and cosine) is formed. φr = 0 for `wo`
+/// along ±u, as [`phi`] gives. Equals `from_spherical(theta_i, phi(wo) − φ)` to rounding.
+#[inline]
+pub fn from_theta_and_relative_azimuth(theta_i: f32, wo: Vec3, cos_phi: f32, sin_phi: f32) -> Vec3 {
+    let rho_o = rho(wo);
+    let (cos_r, sin_r) = if rho_o > 0.0 {
+        let inv = 1.0 / rho_o;
+        (wo.y * inv, wo.z * inv)
+    } else {
+        (1.0, 0.0)
+    };
+    let cos_i = cos_r * cos_phi + sin_r * sin_phi;
+    let sin_i = sin_r * cos_phi - cos_r * sin_phi;
+    let (sin_t, cos_t) = theta_i.sin_cos();
+    let cos_t = cos_t.max(0.0);
+    Vec3::new(sin_t, cos_t * cos_i, cos_t * sin_i)
+}
+
 /// An angle wrapped to [−π, π].
 #[inline]
 pub fn wrap_phi(x: f32) -> f32 {
@@ -322,6 +342,24 @@ mod tests {
         assert!(worst < 6e-7, "{worst}");
         assert_eq!(atan2(0.0, 0.0), 0.0);
         assert!(atan2(f32::NAN, 1.0).is_nan());
+    }
+
+    #[test]
+    fn relative_azimuth_direction_matches_from_spherical() {
+        let mut worst = 0.0f32;
+        for i in 0..=36 {
+            for j in 0..=36 {
+                let wo = from_spherical(deg(-90.0 + 5.0 * i as f32), deg(-180.0 + 10.0 * j as f32));
+                for k in 0..=24 {
+                    let (theta_i, phi_rel) =
+                        (deg(-90.0 + 7.5 * k as f32), deg(-180.0 + 15.0 * k as f32));
+                    let (s, c) = phi_rel.sin_cos();
+                    let got = from_theta_and_relative_azimuth(theta_i, wo, c, s);
+                    worst = worst.max((got - from_spherical(theta_i, phi(wo) - phi_rel)).length());
+                }
+            }
+        }
+        assert!(worst < 2e-6, "{worst}");
     }
 
     #[test]
