@@ -54,7 +54,7 @@
 //!
 //! The papers leave intensities to the artist; the defaults marked "chosen here" are not from them.
 
-use super::cauchy::TruncatedCauchy;
+use super::cauchy::{width_f32, TruncatedCauchy};
 use super::frame::{from_spherical, phi, sin_cos_theta, theta, wrap_phi, Angles, COS_THETA_MIN};
 use super::gaussian::{exp_lobe, gaussian_exponent, gaussian_unit, gaussian_unit_integral};
 use super::kajiya_kay::{diffuse_f, diffuse_pdf, sample_diffuse, selection_probability};
@@ -150,6 +150,8 @@ pub struct IsHair {
     params: IsHairParams,
     /// (α, β) of the longitudinal terms: R, TT, TRT (the glint shares TRT's).
     longitudinal: [(f32, f32); 3],
+    /// 1/β of R, TT, TRT in f64, for the pdf's standardised θh (multiplications, not f64 divisions).
+    inv_beta: [f64; 3],
     /// Selection probabilities of R, TT, TRT − g, g among the specular lobes.
     probs: [f32; 4],
     /// Σ E_X, the estimated specular albedo (diffuse vs specular split).
@@ -290,6 +292,7 @@ impl IsHair {
         Ok(IsHair {
             params,
             longitudinal,
+            inv_beta: longitudinal.map(|(_, beta)| 1.0 / beta as f64),
             probs,
             e_spec,
             energies,
@@ -320,15 +323,21 @@ impl IsHair {
         selection_probability(w_s * self.e_spec, w_d * luminance(self.params.k_d))
     }
 
-    /// The θh distributions of R, TT and TRT (eq. 18–19) for a view at `theta_o`.
+    /// The normalisations A − B (eq. 20) of the θh distributions of R, TT and TRT (eq. 18–19) for a view at
+    /// `theta_o`, in f32 ([`width_f32`]): what the pdf needs. Only the lobe actually sampled is built in f64
+    /// ([`theta_h_distribution`]), one libm arctangent per sample instead of three.
     #[inline]
-    fn distributions(&self, theta_o: f32) -> [TruncatedCauchy; 3] {
-        self.longitudinal
-            .map(|(alpha, beta)| theta_h_distribution(alpha, beta, theta_o))
+    fn theta_h_widths(&self, theta_o: f32) -> [f32; 3] {
+        let q = 0.5 * theta_o as f64;
+        let (lo, hi) = (
+            q - std::f64::consts::FRAC_PI_4,
+            q + std::f64::consts::FRAC_PI_4,
+        );
+        [0, 1, 2].map(|k| width_f32(self.longitudinal[k].0 as f64, self.inv_beta[k], lo, hi))
     }
 
     /// Every lobe's f for the angles of a pair of directions and their relative azimuth `phi` (= `a.phi()`).
-    #[inline]
+    #[inline(always)]
     fn lobes_at(&self, a: &Angles, phi: f32) -> LobeValues {
         let p = &self.params;
         let (w_d, w_s) = p.balance.weights(a.cos_theta_o);
@@ -355,9 +364,9 @@ impl IsHair {
         }
     }
 
-    /// The mixture pdf for the angles of a pair of directions, given [`IsHair::distributions`] at their θo.
+    /// The mixture pdf for the angles of a pair of directions, given [`IsHair::theta_h_widths`] at their θo.
     #[inline]
-    fn pdf_at(&self, a: &Angles, theta_o: f32, phi: f32, dists: &[TruncatedCauchy; 3]) -> f32 {
+    fn pdf_at(&self, a: &Angles, theta_o: f32, phi: f32, widths: &[f32; 3]) -> f32 {
         let p_s = self.specular_probability(a.cos_theta_o);
         // θh is in range by construction; clamp away the rounding at θi = ±π/2.
         let q = 0.5 * theta_o as f64;
@@ -365,8 +374,18 @@ impl IsHair {
             q - std::f64::consts::FRAC_PI_4,
             q + std::f64::consts::FRAC_PI_4,
         );
-        // p(θi) = p(θh)/2 (eq. 20 without its 1/cos θi, applied once below).
-        let p_theta = dists.map(|d| 0.5 * d.pdf(theta_h) as f32);
+        // p(θi) = p(θh)/2 = β / (2 (A − B) ((θh − α)² + β²)) (eq. 20 without its 1/cos θi, applied once below),
+        // written with z = (θh − α)/β (in f64: θh − α cancels for narrow lobes) as [`TruncatedCauchy::pdf`] is;
+        // uniform on the range if A − B vanished.
+        let p_theta = [0, 1, 2].map(|k| {
+            let (alpha, beta) = self.longitudinal[k];
+            let z = ((theta_h - alpha as f64) * self.inv_beta[k]) as f32;
+            if widths[k] > 0.0 {
+                0.5 / (widths[k] * beta * (1.0 + z * z))
+            } else {
+                0.5 / FRAC_PI_2
+            }
+        });
         let p_r = 0.25 * a.cos_half_phi;
         let p_tt = self.tt.pdf(wrap_phi(phi - PI) as f64) as f32;
         let p_g = 0.5 * self.glint.pdf(phi.abs() as f64) as f32;
@@ -384,13 +403,19 @@ impl Bsdf for IsHair {
         self.lobes_at(&a, a.phi())
     }
 
+    /// The sum of [`Bsdf::eval_lobes`], with the lobes summed where they are computed (the default method
+    /// received them through memory from a call).
+    fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        let a = Angles::new(wo, wi);
+        self.lobes_at(&a, a.phi()).sum()
+    }
+
     fn sample(&self, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
         if self.params.sampling == Sampling::Uniform {
             return super::finish_sample(self, wo, uniform_sphere(u[0], u[1]), None);
         }
         let theta_o = theta(wo);
-        // Built once for the sampled lobe and for the mixture pdf of the result.
-        let dists = self.distributions(theta_o);
+        let widths = self.theta_h_widths(theta_o);
         let p_s = self.specular_probability(sin_cos_theta(wo).1);
         let (wi, lobe) = if u[0] >= p_s {
             let c = ((u[0] - p_s) / (1.0 - p_s)).min(1.0);
@@ -408,7 +433,8 @@ impl Bsdf for IsHair {
                 v -= q;
             }
             // θ: eq. 18 (TRT's longitudinal term for the glint too).
-            let theta_h = dists[j.min(2)].sample(u[1] as f64) as f32;
+            let (alpha, beta) = self.longitudinal[j.min(2)];
+            let theta_h = theta_h_distribution(alpha, beta, theta_o).sample(u[1] as f64) as f32;
             let theta_i = (2.0 * theta_h - theta_o).clamp(-FRAC_PI_2, FRAC_PI_2);
             // φ: eq. 21a–d.
             let phi_rel = match LOBES[j] {
@@ -433,7 +459,7 @@ impl Bsdf for IsHair {
         super::make_sample(
             wi,
             f,
-            self.pdf_at(&a, theta_o, phi, &dists),
+            self.pdf_at(&a, theta_o, phi, &widths),
             a.cos_theta_i,
             Some(lobe),
         )
@@ -445,7 +471,7 @@ impl Bsdf for IsHair {
         }
         let theta_o = theta(wo);
         let a = Angles::new(wo, wi);
-        self.pdf_at(&a, theta_o, a.phi(), &self.distributions(theta_o))
+        self.pdf_at(&a, theta_o, a.phi(), &self.theta_h_widths(theta_o))
     }
 }
 

@@ -52,7 +52,7 @@
 //!
 //! Curve type: any (round or flat); the model depends on φr − φi only, so the frame's choice of v is immaterial.
 
-use super::frame::{from_spherical, phi, sin_cos_theta, theta, Angles, COS_THETA_MIN};
+use super::frame::{from_theta_and_relative_azimuth, sin_cos_theta, theta, Angles, COS_THETA_MIN};
 use super::gaussian::{gaussian, TruncatedGaussian};
 use super::kajiya_kay::{diffuse_f, diffuse_pdf, sample_diffuse, selection_probability};
 use super::sphere::{uniform_sphere, UNIFORM_SPHERE_PDF};
@@ -173,6 +173,16 @@ pub fn theta_i_clamp_and_flip(alpha: f32, beta: f32, theta_r: f32, xi1: f32, xi2
     theta_i.clamp(-FRAC_PI_2, FRAC_PI_2)
 }
 
+/// (cos φ, sin φ) of [`phi_eq12`]'s φ = 2 asin(s), s = 2ξ − 1, without the arcsine or a sine and cosine: by the
+/// double-angle formulas with sin(φ/2) = s and cos(φ/2) = √((1 − s)(1 + s)) ≥ 0 (factored: no cancellation
+/// near s = ±1), cos φ = 1 − 2s², sin φ = 2s cos(φ/2).
+#[inline]
+pub fn phi_eq12_cos_sin(xi: f32) -> (f32, f32) {
+    let s = (2.0 * xi - 1.0).clamp(-1.0, 1.0);
+    let c = ((1.0 - s) * (1.0 + s)).sqrt();
+    (1.0 - 2.0 * s * s, 2.0 * s * c)
+}
+
 /// The relative azimuth by inverting eq. 11's CDF (thesis eq. 12): φ = 2 asin(2ξ − 1), density cos(φ/2)/4.
 #[inline]
 pub fn phi_eq12(xi: f32) -> f32 {
@@ -265,7 +275,7 @@ impl Marschner {
     }
 
     /// Every lobe's f for the angles of a pair of directions.
-    #[inline]
+    #[inline(always)]
     fn lobes_at(&self, a: &Angles) -> LobeValues {
         let (w_d, w_s) = self.params.balance.weights(a.cos_theta_o);
         // N = cos(φ/2) (eq. 6) and cos θd from the half-angle vectors (see `Angles`).
@@ -317,6 +327,12 @@ impl Bsdf for Marschner {
         self.lobes_at(&Angles::new(wo, wi))
     }
 
+    /// The sum of [`Bsdf::eval_lobes`], with the lobes summed where they are computed (the default method
+    /// received them through memory from a call).
+    fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        self.lobes_at(&Angles::new(wo, wi)).sum()
+    }
+
     fn sample(&self, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
         if self.params.sampling == Sampling::Uniform {
             return super::finish_sample(self, wo, uniform_sphere(u[0], u[1]), None);
@@ -335,22 +351,22 @@ impl Bsdf for Marschner {
             };
             let v = v.min(1.0);
             let (alpha, beta) = self.lobes[k];
-            let (theta_i, phi_rel) = match dists.as_ref() {
+            let (theta_i, (cos_phi, sin_phi)) = match dists.as_ref() {
                 None => (
                     theta_i_clamp_and_flip(alpha, beta, theta_o, u[1], u[2]),
-                    phi_eq12(v),
+                    phi_eq12_cos_sin(v),
                 ),
                 Some(tg) => {
                     let theta_h = tg[k].sample(u[1] as f64) as f32;
                     (
                         (2.0 * theta_h - theta_o).clamp(-FRAC_PI_2, FRAC_PI_2),
-                        phi_eq12(u[2]),
+                        phi_eq12_cos_sin(u[2]),
                     )
                 }
             };
-            // φ = φr − φi ⇒ φi = φr − φ.
+            // φ = φr − φi ⇒ φi = φr − φ (eq. 12's φ by its cosine and sine).
             (
-                from_spherical(theta_i, phi(wo) - phi_rel),
+                from_theta_and_relative_azimuth(theta_i, wo, cos_phi, sin_phi),
                 Some(if k == 0 { Lobe::R } else { Lobe::Trt }),
             )
         } else {

@@ -127,6 +127,7 @@ pub struct LobeValues {
 
 impl LobeValues {
     /// The sum of all lobes: the model's f.
+    #[inline]
     pub fn sum(&self) -> Vec3 {
         self.r + self.tt + self.trt + self.glint + self.diffuse
     }
