@@ -233,7 +233,7 @@ pub struct DeepOpacityMap {
     bounds: Vec<f32>,
     /// Nearest strand depth per texel (`INFINITY` where no strand is).
     z0: Vec<f32>,
-    /// Optical depth up to the *end* of each layer, per texel (k values each; cumulative).
+    /// Optical depth up to the *end* of each layer: `cumulative[layer × texels + texel]` (layer-major).
     cumulative: Vec<f32>,
     /// Filter radius (texels) and depth bias (texels) of lookups.
     filter: u32,
@@ -444,18 +444,22 @@ impl DeepOpacityMap {
             rasterise(strands, &frame, raster, range.clone(), |texel, z, sigma| {
                 let layer = layer_of(&bounds, z - z0[texel]);
                 let add = (sigma * SIGMA_SCALE + 0.5) as u32; // σ ≥ 0: rounds to nearest
-                layers[texel * k + layer].fetch_add(add, Ordering::Relaxed);
+                layers[layer * texels + texel].fetch_add(add, Ordering::Relaxed);
             });
         });
         let mut cumulative: Vec<f32> = layers
             .into_iter()
             .map(|v| v.into_inner() as f32 / SIGMA_SCALE)
             .collect();
-        cumulative.par_chunks_mut(k).for_each(|texel| {
-            for i in 1..k {
-                texel[i] += texel[i - 1];
-            }
-        });
+        // Layer-major storage: one piece's fragments fall on neighbouring texels of mostly one layer, so they
+        // share cache lines; the running sum over layers is then a sum of whole rows.
+        for i in 1..k {
+            let (front, back) = cumulative.split_at_mut(i * texels);
+            back[..texels]
+                .par_iter_mut()
+                .zip(&front[(i - 1) * texels..])
+                .for_each(|(c, prev)| *c += *prev);
+        }
         DeepOpacityMap {
             frame,
             bounds,
@@ -480,10 +484,14 @@ impl DeepOpacityMap {
             return 0.0; // in front of the nearest strand, or an empty texel (z0 = ∞)
         }
         let k = self.bounds.len() - 1;
-        let cum = &self.cumulative[texel * k..texel * k + k];
+        let texels = self.z0.len();
         let i = layer_of(&self.bounds, delta);
-        let before = if i == 0 { 0.0 } else { cum[i - 1] };
-        let own = cum[i] - before;
+        let before = if i == 0 {
+            0.0
+        } else {
+            self.cumulative[(i - 1) * texels + texel]
+        };
+        let own = self.cumulative[i * texels + texel] - before;
         let (d0, d1) = (self.bounds[i], self.bounds[i + 1]);
         let fraction = if i == k - 1 && delta >= d1 {
             1.0
@@ -559,7 +567,7 @@ impl DeepOpacityMap {
             let z0 = self.z0[texel];
             image.set(x, y, 0, if z0.is_finite() { z0 } else { 0.0 });
             for i in 0..k {
-                image.set(x, y, 1 + i, (-self.cumulative[texel * k + i]).exp());
+                image.set(x, y, 1 + i, (-self.cumulative[i * res * res + texel]).exp());
             }
         }
         image
