@@ -14,7 +14,7 @@
 use std::f64::consts::{FRAC_1_SQRT_2, SQRT_2};
 
 /// 1/√(2π).
-const INV_SQRT_TAU: f32 = 0.398_942_3;
+pub const INV_SQRT_TAU: f32 = 0.398_942_3;
 
 /// e^x for the (non-positive) exponents of Gaussian lobes: exactly `x.exp()`, but 0 below −104, where e^x is 0 in
 /// f32 anyway, without going through libm's underflow path (which sets errno and showed in the eval profiles:

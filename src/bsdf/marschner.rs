@@ -53,7 +53,9 @@
 //! Curve type: any (round or flat); the model depends on φr − φi only, so the frame's choice of v is immaterial.
 
 use super::frame::{from_theta_and_relative_azimuth, sin_cos_theta, theta, Angles, COS_THETA_MIN};
-use super::gaussian::{gaussian, truncated_gaussian_pdf_f32, TruncatedGaussian};
+use super::gaussian::{
+    exp_lobe, gaussian, truncated_gaussian_pdf_f32, TruncatedGaussian, INV_SQRT_TAU,
+};
 use super::kajiya_kay::{diffuse_f, diffuse_pdf, sample_diffuse, selection_probability};
 use super::sphere::{uniform_sphere, UNIFORM_SPHERE_PDF};
 use super::{
@@ -117,6 +119,8 @@ pub struct Marschner {
     lobes: [(f32, f32); 2],
     /// 1/β_k in f64, the exact pdf's standardisation (a multiplication, not a double division per lobe).
     inv_beta: [f64; 2],
+    /// (1/β_k, 1/(β_k √(2π))) in f32: eq. 5's g without divisions.
+    gauss: [(f32, f32); 2],
     /// Probability of lobe 1 among the two R lobes.
     prob_1: f32,
     /// Estimated specular albedo, lum(c_1) + lum(c_2) (each lobe's albedo is ≈ its colour).
@@ -246,6 +250,7 @@ impl Marschner {
                 (params.alpha_2, params.beta_2),
             ],
             inv_beta: [1.0 / params.beta_1 as f64, 1.0 / params.beta_2 as f64],
+            gauss: [params.beta_1, params.beta_2].map(|b| (1.0 / b, INV_SQRT_TAU / b)),
             prob_1: selection_probability(luminance(c[0]), luminance(c[1])),
             e_spec: luminance(c[0]) + luminance(c[1]),
         })
@@ -269,11 +274,16 @@ impl Marschner {
     fn lobes_at(&self, a: &Angles) -> LobeValues {
         let (w_d, w_s) = self.params.balance.weights(a.cos_theta_o);
         // N = cos(φ/2) (eq. 6) and cos θd from the half-angle vectors (see `Angles`).
-        let n = a.cos_half_phi;
-        let cos_d = a.cos_theta_d;
+        // f_k = c_k M_k N / (8 cos²θd) (`f_lobe`), N = cos(φ/2) (eq. 6) and cos θd from the half-angle vectors (see
+        // `Angles`): the lobes share N / (8 cos²θd), one division; M_k = g(β_k, θh − α_k) (eq. 5) with 1/β_k and
+        // 1/(β_k √(2π)) taken once (`gaussian` divides by β twice).
+        let cos_d = a.cos_theta_d.max(COS_THETA_MIN);
+        let s = w_s * a.cos_half_phi / (8.0 * cos_d * cos_d);
         let f = |k: usize| {
-            let (alpha, beta) = self.lobes[k];
-            self.c[k] * (w_s * f_lobe(m_r(beta, alpha, a.theta_h), n, cos_d))
+            let (alpha, _) = self.lobes[k];
+            let (inv_beta, norm) = self.gauss[k];
+            let z = (a.theta_h - alpha) * inv_beta;
+            self.c[k] * (s * exp_lobe(-0.5 * z * z) * norm)
         };
         LobeValues {
             r: f(0),
