@@ -54,11 +54,13 @@
 //!
 //! The papers leave intensities to the artist; the defaults marked "chosen here" are not from them.
 
-use super::cauchy::{width_f32, TruncatedCauchy};
-use super::frame::{from_spherical, phi, sin_cos_theta, theta, wrap_phi, Angles, COS_THETA_MIN};
+use super::cauchy::{width_f32, CauchyPdfF32, TruncatedCauchy};
+use super::frame::{
+    from_theta_and_relative_azimuth, sin_cos_theta, theta, wrap_phi, Angles, COS_THETA_MIN,
+};
 use super::gaussian::{exp_lobe, gaussian_exponent, gaussian_unit, gaussian_unit_integral};
 use super::kajiya_kay::{diffuse_f, diffuse_pdf, sample_diffuse, selection_probability};
-use super::marschner::phi_eq12;
+use super::marschner::phi_eq12_cos_sin;
 use super::sphere::{uniform_sphere, UNIFORM_SPHERE_PDF};
 use super::{
     check, check_color, check_width, luminance, Balance, Bsdf, BsdfError, BsdfSample, Lobe,
@@ -162,6 +164,9 @@ pub struct IsHair {
     tt: TruncatedCauchy,
     /// The glint azimuth distribution (eq. 21d).
     glint: TruncatedCauchy,
+    /// Their pdfs in f32, constants taken once.
+    tt_pdf: CauchyPdfF32,
+    glint_pdf: CauchyPdfF32,
 }
 
 /// M_X = e^{−(θh − α)²/2β²} (thesis eq. 15–16), unit height.
@@ -298,6 +303,8 @@ impl IsHair {
             energies,
             tt: tt_distribution(p.gamma_tt),
             glint: glint_distribution(p.gamma_g, p.phi_g),
+            tt_pdf: tt_distribution(p.gamma_tt).pdf_f32(),
+            glint_pdf: glint_distribution(p.gamma_g, p.phi_g).pdf_f32(),
         })
     }
 
@@ -387,8 +394,9 @@ impl IsHair {
             }
         });
         let p_r = 0.25 * a.cos_half_phi;
-        let p_tt = self.tt.pdf(wrap_phi(phi - PI) as f64) as f32;
-        let p_g = 0.5 * self.glint.pdf(phi.abs() as f64) as f32;
+        // eq. 21b and 21d's densities (the glint's halved between ±φ_g).
+        let p_tt = self.tt_pdf.pdf(wrap_phi(phi - PI));
+        let p_g = 0.5 * self.glint_pdf.pdf(phi.abs());
         let spec = self.probs[0] * p_theta[0] * p_r
             + self.probs[1] * p_theta[1] * p_tt
             + self.probs[2] * p_theta[2] * p_r
@@ -436,21 +444,24 @@ impl Bsdf for IsHair {
             let (alpha, beta) = self.longitudinal[j.min(2)];
             let theta_h = theta_h_distribution(alpha, beta, theta_o).sample(u[1] as f64) as f32;
             let theta_i = (2.0 * theta_h - theta_o).clamp(-FRAC_PI_2, FRAC_PI_2);
-            // φ: eq. 21a–d.
-            let phi_rel = match LOBES[j] {
-                Lobe::Tt => wrap_phi(PI + self.tt.sample(u[2] as f64) as f32),
-                Lobe::Glint => {
-                    let mag = self.glint.sample(u[2] as f64) as f32;
-                    if v < 0.5 {
-                        mag
-                    } else {
-                        -mag
-                    }
+            // φ: eq. 21a–d, by its cosine and sine (φi = φr − φ is then turned from ωo's azimuth, no arctangent).
+            let (cos_phi, sin_phi) = match LOBES[j] {
+                Lobe::Tt => {
+                    // φ = π + δ: cos φ = −cos δ, sin φ = −sin δ.
+                    let (s, c) = (self.tt.sample(u[2] as f64) as f32).sin_cos();
+                    (-c, -s)
                 }
-                _ => phi_eq12(u[2]),
+                Lobe::Glint => {
+                    let (s, c) = (self.glint.sample(u[2] as f64) as f32).sin_cos();
+                    (c, if v < 0.5 { s } else { -s })
+                }
+                // eq. 12 by double angles (see `phi_eq12_cos_sin`).
+                _ => phi_eq12_cos_sin(u[2]),
             };
-            // φ = φr − φi ⇒ φi = φr − φ.
-            (from_spherical(theta_i, phi(wo) - phi_rel), LOBES[j])
+            (
+                from_theta_and_relative_azimuth(theta_i, wo, cos_phi, sin_phi),
+                LOBES[j],
+            )
         };
         // One set of angles and one relative azimuth for f and for the mixture pdf.
         let a = Angles::new(wo, wi);

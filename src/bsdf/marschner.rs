@@ -53,7 +53,9 @@
 //! Curve type: any (round or flat); the model depends on φr − φi only, so the frame's choice of v is immaterial.
 
 use super::frame::{from_theta_and_relative_azimuth, sin_cos_theta, theta, Angles, COS_THETA_MIN};
-use super::gaussian::{gaussian, TruncatedGaussian};
+use super::gaussian::{
+    exp_lobe, gaussian, truncated_gaussian_pdf_f32, TruncatedGaussian, INV_SQRT_TAU,
+};
 use super::kajiya_kay::{diffuse_f, diffuse_pdf, sample_diffuse, selection_probability};
 use super::sphere::{uniform_sphere, UNIFORM_SPHERE_PDF};
 use super::{
@@ -115,6 +117,10 @@ pub struct Marschner {
     c: [Vec3; 2],
     /// (α_k, β_k).
     lobes: [(f32, f32); 2],
+    /// 1/β_k in f64, the exact pdf's standardisation (a multiplication, not a double division per lobe).
+    inv_beta: [f64; 2],
+    /// (1/β_k, 1/(β_k √(2π))) in f32: eq. 5's g without divisions.
+    gauss: [(f32, f32); 2],
     /// Probability of lobe 1 among the two R lobes.
     prob_1: f32,
     /// Estimated specular albedo, lum(c_1) + lum(c_2) (each lobe's albedo is ≈ its colour).
@@ -243,6 +249,8 @@ impl Marschner {
                 (params.alpha_1, params.beta_1),
                 (params.alpha_2, params.beta_2),
             ],
+            inv_beta: [1.0 / params.beta_1 as f64, 1.0 / params.beta_2 as f64],
+            gauss: [params.beta_1, params.beta_2].map(|b| (1.0 / b, INV_SQRT_TAU / b)),
             prob_1: selection_probability(luminance(c[0]), luminance(c[1])),
             e_spec: luminance(c[0]) + luminance(c[1]),
         })
@@ -261,29 +269,21 @@ impl Marschner {
         (p_s, [self.prob_1, 1.0 - self.prob_1])
     }
 
-    /// The exact θh distributions of both lobes for a view at `theta_o` ([`Sampling::ExactPdf`] only).
-    #[inline]
-    fn distributions(&self, theta_o: f32) -> Option<[TruncatedGaussian; 2]> {
-        if self.params.sampling != Sampling::ExactPdf {
-            return None;
-        }
-        let [(alpha_1, beta_1), (alpha_2, beta_2)] = self.lobes;
-        Some([
-            theta_h_distribution(alpha_1, beta_1, theta_o),
-            theta_h_distribution(alpha_2, beta_2, theta_o),
-        ])
-    }
-
     /// Every lobe's f for the angles of a pair of directions.
     #[inline(always)]
     fn lobes_at(&self, a: &Angles) -> LobeValues {
         let (w_d, w_s) = self.params.balance.weights(a.cos_theta_o);
         // N = cos(φ/2) (eq. 6) and cos θd from the half-angle vectors (see `Angles`).
-        let n = a.cos_half_phi;
-        let cos_d = a.cos_theta_d;
+        // f_k = c_k M_k N / (8 cos²θd) (`f_lobe`), N = cos(φ/2) (eq. 6) and cos θd from the half-angle vectors (see
+        // `Angles`): the lobes share N / (8 cos²θd), one division; M_k = g(β_k, θh − α_k) (eq. 5) with 1/β_k and
+        // 1/(β_k √(2π)) taken once (`gaussian` divides by β twice).
+        let cos_d = a.cos_theta_d.max(COS_THETA_MIN);
+        let s = w_s * a.cos_half_phi / (8.0 * cos_d * cos_d);
         let f = |k: usize| {
-            let (alpha, beta) = self.lobes[k];
-            self.c[k] * (w_s * f_lobe(m_r(beta, alpha, a.theta_h), n, cos_d))
+            let (alpha, _) = self.lobes[k];
+            let (inv_beta, norm) = self.gauss[k];
+            let z = (a.theta_h - alpha) * inv_beta;
+            self.c[k] * (s * exp_lobe(-0.5 * z * z) * norm)
         };
         LobeValues {
             r: f(0),
@@ -293,28 +293,34 @@ impl Marschner {
         }
     }
 
-    /// The mixture pdf for the angles of a pair of directions, given [`Marschner::distributions`] at their θo.
+    /// The mixture pdf for the angles of a pair of directions at view elevation `theta_o`.
     #[inline]
-    fn pdf_at(&self, a: &Angles, theta_o: f32, dists: Option<&[TruncatedGaussian; 2]>) -> f32 {
+    fn pdf_at(&self, a: &Angles, theta_o: f32) -> f32 {
         if self.params.sampling == Sampling::Uniform {
             return UNIFORM_SPHERE_PDF;
         }
+        let exact = self.params.sampling == Sampling::ExactPdf;
         let (p_s, probs) = self.selection(a.cos_theta_o);
         let n = a.cos_half_phi;
+        // θh's range [θr/2 − π/4, θr/2 + π/4] (θi ∈ [−π/2, π/2]); θh is in it by construction, clamped away from
+        // the rounding at θi = ±π/2.
+        let q = 0.5 * theta_o as f64;
+        let (lo, hi) = (
+            q - std::f64::consts::FRAC_PI_4,
+            q + std::f64::consts::FRAC_PI_4,
+        );
+        let theta_h = (a.theta_h as f64).clamp(lo, hi);
         let mut p_spec = 0.0;
         for (k, &(alpha, beta)) in self.lobes.iter().enumerate() {
-            let p = match dists {
-                None => pdf_eq13(m_r(beta, alpha, a.theta_h), n, a.cos_theta_i),
-                Some(tg) => {
-                    // θh is in range by construction; clamp away the rounding at θi = ±π/2.
-                    let q = 0.5 * theta_o as f64;
-                    let theta_h = (a.theta_h as f64).clamp(
-                        q - std::f64::consts::FRAC_PI_4,
-                        q + std::f64::consts::FRAC_PI_4,
-                    );
-                    // p(θi) = p(θh)/2; p(φ) = cos(φ/2)/4 (eq. 10); per solid angle ÷ cos θi.
-                    tg[k].pdf(theta_h) as f32 * 0.5 * (0.25 * n) / a.cos_theta_i.max(COS_THETA_MIN)
-                }
+            let p = if exact {
+                // The truncated N(α, β²) of `theta_h_distribution` in f32 (the sampler draws from its f64 twin):
+                // p(θi) = p(θh)/2; p(φ) = cos(φ/2)/4 (eq. 10); per solid angle ÷ cos θi.
+                truncated_gaussian_pdf_f32(alpha as f64, self.inv_beta[k], lo, hi, theta_h)
+                    * 0.5
+                    * (0.25 * n)
+                    / a.cos_theta_i.max(COS_THETA_MIN)
+            } else {
+                pdf_eq13(m_r(beta, alpha, a.theta_h), n, a.cos_theta_i)
             };
             p_spec += probs[k] * p;
         }
@@ -338,8 +344,6 @@ impl Bsdf for Marschner {
             return super::finish_sample(self, wo, uniform_sphere(u[0], u[1]), None);
         }
         let theta_o = theta(wo);
-        // Built once for the sampled lobe and for the mixture pdf of the result.
-        let dists = self.distributions(theta_o);
         let (p_s, probs) = self.selection(sin_cos_theta(wo).1);
         let (wi, lobe) = if u[0] < p_s {
             // Which R lobe, then u[0] rescaled to [0, 1) once more for the published sampler's third number.
@@ -351,13 +355,15 @@ impl Bsdf for Marschner {
             };
             let v = v.min(1.0);
             let (alpha, beta) = self.lobes[k];
-            let (theta_i, (cos_phi, sin_phi)) = match dists.as_ref() {
-                None => (
+            let (theta_i, (cos_phi, sin_phi)) = match self.params.sampling {
+                Sampling::ClampAndFlip => (
                     theta_i_clamp_and_flip(alpha, beta, theta_o, u[1], u[2]),
                     phi_eq12_cos_sin(v),
                 ),
-                Some(tg) => {
-                    let theta_h = tg[k].sample(u[1] as f64) as f32;
+                _ => {
+                    // The f64 distribution only for the lobe drawn from; the pdf takes both in f32.
+                    let theta_h =
+                        theta_h_distribution(alpha, beta, theta_o).sample(u[1] as f64) as f32;
                     (
                         (2.0 * theta_h - theta_o).clamp(-FRAC_PI_2, FRAC_PI_2),
                         phi_eq12_cos_sin(u[2]),
@@ -375,25 +381,14 @@ impl Bsdf for Marschner {
         };
         let a = Angles::new(wo, wi);
         let f = self.lobes_at(&a).sum();
-        super::make_sample(
-            wi,
-            f,
-            self.pdf_at(&a, theta_o, dists.as_ref()),
-            a.cos_theta_i,
-            lobe,
-        )
+        super::make_sample(wi, f, self.pdf_at(&a, theta_o), a.cos_theta_i, lobe)
     }
 
     fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
         if self.params.sampling == Sampling::Uniform {
             return UNIFORM_SPHERE_PDF;
         }
-        let theta_o = theta(wo);
-        self.pdf_at(
-            &Angles::new(wo, wi),
-            theta_o,
-            self.distributions(theta_o).as_ref(),
-        )
+        self.pdf_at(&Angles::new(wo, wi), theta(wo))
     }
 }
 
