@@ -56,6 +56,21 @@ pub fn gaussian_unit_integral(beta: f32, lo: f32, hi: f32) -> f32 {
         as f32
 }
 
+/// The coefficients of P in Press et al.'s erfc fit (Numerical Recipes in C 2nd ed. §6.2, `erfcc`), shared by
+/// [`erfc_nonneg`] (f64) and [`erfc_parts_f32`] (f32).
+const ERFCC: [f64; 10] = [
+    -1.265_512_23,
+    1.000_023_68,
+    0.374_091_96,
+    0.096_784_18,
+    -0.186_288_06,
+    0.278_868_07,
+    -1.135_203_98,
+    1.488_515_87,
+    -0.822_152_23,
+    0.170_872_77,
+];
+
 /// erfc(z) for z ≥ 0: the Chebyshev-derived fit of Press et al., Numerical Recipes in C 2nd ed. §6.2 (`erfcc`),
 /// erfc z = t·exp(−z² + P(t)) with t = 1/(1 + z/2) and P of degree 9; fractional error < 1.2e-7 for every z ≥ 0,
 /// tails included. That matches the f32 pdfs the models return, and a degree-9 polynomial is three times cheaper
@@ -64,18 +79,7 @@ pub fn gaussian_unit_integral(beta: f32, lo: f32, hi: f32) -> f32 {
 /// multiply-adds instead of nine, which is what the samplers wait on.
 #[inline]
 fn erfc_nonneg(z: f64) -> f64 {
-    const C: [f64; 10] = [
-        -1.265_512_23,
-        1.000_023_68,
-        0.374_091_96,
-        0.096_784_18,
-        -0.186_288_06,
-        0.278_868_07,
-        -1.135_203_98,
-        1.488_515_87,
-        -0.822_152_23,
-        0.170_872_77,
-    ];
+    const C: [f64; 10] = ERFCC;
     let t = 1.0 / (1.0 + 0.5 * z);
     let (t2, t4) = (t * t, (t * t) * (t * t));
     let p01 = C[0] + C[1] * t;
@@ -257,18 +261,16 @@ pub fn normal_quantile(p: f64) -> f64 {
 /// e^{−z²} into a ratio of tails that would each underflow f32.
 #[inline]
 fn erfc_parts_f32(z: f32) -> (f32, f32) {
-    const C: [f32; 10] = [
-        -1.265_512_2,
-        1.000_023_7,
-        0.374_091_96,
-        0.096_784_18,
-        -0.186_288_06,
-        0.278_868_07,
-        -1.135_204,
-        1.488_515_9,
-        -0.822_152_2,
-        0.170_872_77,
-    ];
+    // The same coefficients, each rounded to the nearest f32.
+    const C: [f32; 10] = {
+        let mut c = [0.0f32; 10];
+        let mut i = 0;
+        while i < 10 {
+            c[i] = ERFCC[i] as f32;
+            i += 1;
+        }
+        c
+    };
     let t = 1.0 / (1.0 + 0.5 * z);
     let (t2, t4) = (t * t, (t * t) * (t * t));
     let p01 = C[0] + C[1] * t;
