@@ -36,7 +36,7 @@ use glam::Vec3;
 
 use crate::accel::{CurveKind, Tracer};
 use crate::bsdf::frame::{sin_cos_theta, strand_noise, HairFrame};
-use crate::bsdf::{Lobe, LobeValues};
+use crate::bsdf::{luminance, Lobe, LobeValues};
 use crate::hair::Strands;
 use crate::light::{Distribution1D, Light};
 use crate::ray::Ray;
@@ -208,11 +208,6 @@ fn power_heuristic(a: f32, b: f32) -> f32 {
     } else {
         0.0
     }
-}
-
-#[inline]
-fn luminance(c: Vec3) -> f32 {
-    c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
 }
 
 /// Adds `weights ⊙ scale` lobe by lobe.

@@ -57,6 +57,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::{DeepOpacityConfig, LayerSpacing};
+use crate::bsdf::luminance;
 use crate::hair::Strands;
 use crate::image::Image;
 use crate::light::Light;
@@ -730,7 +731,7 @@ fn environment_directions(light: &Light, centres: &[Vec3]) -> Vec<Vec3> {
             let Some(ls) = light.sample_li(Vec3::ZERO, u) else {
                 continue;
             };
-            let weight = ls.radiance.dot(Vec3::new(0.2126, 0.7152, 0.0722)) / ls.pdf;
+            let weight = luminance(ls.radiance) / ls.pdf;
             if weight.is_finite() && weight > 0.0 {
                 sums[nearest(centres, ls.wi)] += weight * ls.wi;
             }
