@@ -7,7 +7,8 @@
 //!   out to the underflow of e^{−x²}: the truncated Gaussian needs relative accuracy in its tails.
 //! - [`normal_quantile`]: Φ⁻¹ by Wichura's AS 241, relative accuracy ~1e-16 with no exponential (at most one
 //!   logarithm): the inverse CDF of the samplers.
-//! - [`TruncatedGaussian`]: sampling by inverse CDF and the matching pdf, the sampler of
+//! - [`TruncatedGaussian`]: sampling by inverse CDF and the matching pdf, in f64 (Kajiya-Kay's cone sampler).
+//! - [`TruncatedGaussianF32`]: the same distribution with its normalisation in f32, the sampler and pdf of
 //!   [`super::Sampling::ExactPdf`] for the Marschner lobes (Ou et al. 2012, appendix A: the Box-Muller sampler
 //!   with clamping has no consistent pdf; truncating and renormalising the Gaussian does).
 
@@ -281,7 +282,7 @@ fn erfc_parts_f32(z: f32) -> (f32, f32) {
     (t, (p01 + t2 * p23) + t4 * ((p45 + t2 * p67) + t4 * p89))
 }
 
-/// ½ erfc(z/√2) = Φ(−z) for z ≥ 0 in f32, 0 beyond [`NEGLIGIBLE_TAIL`] (as [`TruncatedGaussian::new`] drops it).
+/// ½ erfc(z/√2) = Φ(−z) for z ≥ 0 in f32, 0 beyond `NEGLIGIBLE_TAIL` (as [`TruncatedGaussian::new`] drops it).
 #[inline]
 fn upper_tail_f32(z: f64) -> f32 {
     if z > NEGLIGIBLE_TAIL {
@@ -292,52 +293,163 @@ fn upper_tail_f32(z: f64) -> f32 {
     0.5 * t * (-z * z + p).exp()
 }
 
-/// [`TruncatedGaussian::pdf`] of N(`mu`, σ²) on [`lo`, `hi`] at `y`, `inv_sigma` = 1/σ, for pdfs that are f32
-/// anyway: no double exponential. The standardised ends and point are formed in f64 as
-/// [`TruncatedGaussian::new`] forms them (they cancel for narrow lobes; f64 subtraction and multiplication cost
-/// nothing), the error functions in f32 ([`erfc_parts_f32`], the same fit). When the interval lies below the mean
-/// (after mirroring, b ≤ 0), the mass Φ(b) − Φ(a) = ½ e^{−b²/2} [T(|b|/√2) − T(|a|/√2) e^{−(a² − b²)/2}], with
-/// T(z) = e^{z²} erfc z = t e^{P(t)}, and the density's e^{−x²/2} are taken as one exponential of
-/// −(x² − b²)/2 ≥ 0: nothing underflows however far the interval is from the mean. The uniform fallback of
-/// [`TruncatedGaussian::new`] (mass ≤ 1e-300) is reproduced from ln of the same mass. Relative error
-/// < 1e-6 against the f64 pdf (tested), up to the f32 rounding of the exponent where the density is e^{−20}
-/// below its maximum. The interval must be at least σ wide (Marschner's θh ranges are π/2 wide, β ≤ π/2): the
-/// mass 1 − Φ(a) − Φ(−b) around the mean is then ≥ 0.38 and its f32 difference does not cancel.
-#[inline]
-pub fn truncated_gaussian_pdf_f32(mu: f64, inv_sigma: f64, lo: f64, hi: f64, y: f64) -> f32 {
-    if !(lo..=hi).contains(&y) {
-        return 0.0;
-    }
-    let (mut a, mut b, mut x) = (
-        (lo - mu) * inv_sigma,
-        (hi - mu) * inv_sigma,
-        (y - mu) * inv_sigma,
-    );
-    if a > 0.0 {
-        (a, b, x) = (-b, -a, -x);
-    }
-    // 1/(σ√(2π)).
-    let norm = INV_SQRT_TAU * inv_sigma as f32;
-    if b <= 0.0 {
-        let (tb, pb) = erfc_parts_f32((-b * FRAC_1_SQRT_2) as f32);
-        // (a² − b²)/2 ≥ 0: the lower end's tail relative to the upper end's; e^{−40} is below f32's resolution.
-        let d = (0.5 * (a - b) * (a + b)) as f32;
-        let ratio = if d > 40.0 {
-            0.0
-        } else {
-            let (ta, pa) = erfc_parts_f32((-a * FRAC_1_SQRT_2) as f32);
-            ta / tb * (pa - pb - d).exp()
-        };
-        let scaled = 0.5 * tb * (1.0 - ratio);
-        // Mass = scaled · e^{−b²/2 + P(t_b)}: below 1e-300 (ln = −690.8) the f64 sampler is uniform.
-        if b < -36.0 && (-0.5 * b * b) as f32 + pb + scaled.ln() <= -690.775_5 {
-            return (1.0 / (hi - lo)) as f32;
+/// A [`TruncatedGaussian`] whose normalisation is taken in f32, for densities that are f32 anyway: the θh
+/// distributions of Marschner's lobes, built afresh for every view direction (the interval moves with θr), where
+/// the f64 constructor's two double exponentials were the largest single cost of a sample.
+///
+/// The standardised ends and points are formed in f64 as [`TruncatedGaussian::new`] forms them (they cancel for
+/// narrow lobes; f64 subtraction and multiplication cost nothing), the error functions in f32 (`erfc_parts_f32`,
+/// the same fit). Three cases:
+///
+/// - **Central** (the interval contains the mean; after mirroring so that a ≤ 0, b > 0): tails Φ(a) and 1 − Φ(b)
+///   (0 beyond `NEGLIGIBLE_TAIL`, as the f64 type), Z = 1 − Φ(a) − (1 − Φ(b)). The interval is at least σ wide
+///   for the models' ranges (π/2 wide, β ≤ π/2), so Z ≥ 0.38 and does not cancel. pdf = e^{−x²/2}/(σ√(2π) Z);
+///   [`TruncatedGaussianF32::sample`] inverts the CDF with these same f32 tails and Z, so it draws exactly the
+///   density `pdf` returns (up to the rounding of its arguments), and within ~1e-6 of the f64 type's (tested).
+/// - **Tail** (b ≤ 0: the whole interval on one side of the mean): Z = ½ e^{−b²/2} [T(|b|/√2) − T(|a|/√2)
+///   e^{−(a² − b²)/2}], with T(z) = e^{z²} erfc z = t e^{P(t)}, and the density's e^{−x²/2} taken as one
+///   exponential of −(x² − b²)/2 ≥ 0: nothing underflows however far the interval is from the mean. Sampling
+///   builds the f64 [`TruncatedGaussian`] (rare: a lobe whose shift puts it outside the view's θh range).
+/// - **Uniform**: the f64 type's fallback (mass ≤ 1e-300), reproduced from ln of the same mass.
+///
+/// Relative error of the pdf < 1e-6 against the f64 type (tested), up to the f32 rounding of the exponent where
+/// the density is e^{−20} below its maximum.
+#[derive(Debug, Clone, Copy)]
+pub struct TruncatedGaussianF32 {
+    mu: f64,
+    sigma: f64,
+    inv_sigma: f64,
+    lo: f64,
+    hi: f64,
+    /// Standardised and, if `flip`, mirrored ends: the variable s·(y − μ)/σ ∈ [a, b] with a ≤ 0.
+    a: f64,
+    b: f64,
+    flip: bool,
+    /// 1/(σ√(2π)).
+    norm: f32,
+    mass: Mass,
+}
+
+/// The normalisation of a [`TruncatedGaussianF32`] (see its docs for the three cases).
+#[derive(Debug, Clone, Copy)]
+enum Mass {
+    /// Φ(a), 1 − Φ(b) and Z.
+    Central { p_a: f32, p_b: f32, z: f64 },
+    /// P(t_b) and the scaled mass Z e^{b²/2 − P(t_b)}.
+    Tail { p_b: f32, scaled: f32 },
+    /// 1/(hi − lo).
+    Uniform(f32),
+}
+
+impl TruncatedGaussianF32 {
+    /// N(`mu`, `sigma`²) on [`lo`, `hi`]; `inv_sigma` = 1/`sigma` (callers keep both: no division here).
+    #[inline(always)]
+    pub fn new(mu: f64, sigma: f64, inv_sigma: f64, lo: f64, hi: f64) -> TruncatedGaussianF32 {
+        let (mut a, mut b) = ((lo - mu) * inv_sigma, (hi - mu) * inv_sigma);
+        let flip = a > 0.0;
+        if flip {
+            (a, b) = (-b, -a);
         }
-        let e = (0.5 * (x - b) * (x + b)) as f32;
-        norm * (-e - pb).exp() / scaled
-    } else {
-        let z = 1.0 - upper_tail_f32(-a) - upper_tail_f32(b);
-        norm * (-0.5 * (x * x) as f32).exp() / z
+        let mass = if b > 0.0 {
+            let (p_a, p_b) = (upper_tail_f32(-a), upper_tail_f32(b));
+            // In f64, so that p_a + Z + p_b = 1 to rounding: the sampler's two halves then meet at the median.
+            let z = 1.0 - p_a as f64 - p_b as f64;
+            Mass::Central { p_a, p_b, z }
+        } else {
+            let (tb, pb) = erfc_parts_f32((-b * FRAC_1_SQRT_2) as f32);
+            // (a² − b²)/2 ≥ 0: the lower end's tail relative to the upper end's; e^{−40} is below f32's resolution.
+            let d = (0.5 * (a - b) * (a + b)) as f32;
+            let ratio = if d > 40.0 {
+                0.0
+            } else {
+                let (ta, pa) = erfc_parts_f32((-a * FRAC_1_SQRT_2) as f32);
+                ta / tb * (pa - pb - d).exp()
+            };
+            let scaled = 0.5 * tb * (1.0 - ratio);
+            // Mass = scaled · e^{−b²/2 + P(t_b)}: below 1e-300 (ln = −690.8) the f64 type is uniform.
+            if b < -36.0 && (-0.5 * b * b) as f32 + pb + scaled.ln() <= -690.775_5 {
+                Mass::Uniform((1.0 / (hi - lo)) as f32)
+            } else {
+                Mass::Tail { p_b: pb, scaled }
+            }
+        };
+        TruncatedGaussianF32 {
+            mu,
+            sigma,
+            inv_sigma,
+            lo,
+            hi,
+            a,
+            b,
+            flip,
+            norm: INV_SQRT_TAU * inv_sigma as f32,
+            mass,
+        }
+    }
+
+    /// The standardised point x = (y − μ)/σ (unmirrored).
+    #[inline]
+    pub fn standardise(&self, y: f64) -> f64 {
+        (y - self.mu) * self.inv_sigma
+    }
+
+    /// The untruncated normal density at standardised `x`, e^{−x²/2}/(σ√(2π)) in f32: for callers that need the
+    /// Gaussian itself (Marschner's M is exactly this) and then the truncated density by
+    /// [`TruncatedGaussianF32::pdf_given`] without a second exponential.
+    #[inline]
+    pub fn gaussian(&self, x: f64) -> f32 {
+        self.norm * exp_lobe(-0.5 * (x * x) as f32)
+    }
+
+    /// The density at `y` (0 outside [lo, hi]), given `g` = [`TruncatedGaussianF32::gaussian`] of its
+    /// standardised point `x`: g/Z in the central case; the tail case recomputes its own exponential (g would
+    /// underflow there).
+    #[inline]
+    pub fn pdf_given(&self, y: f64, x: f64, g: f32) -> f32 {
+        if !(self.lo..=self.hi).contains(&y) {
+            return 0.0;
+        }
+        match self.mass {
+            Mass::Central { z, .. } => g / z as f32,
+            Mass::Tail { p_b, scaled } => {
+                let x = if self.flip { -x } else { x };
+                let e = (0.5 * (x - self.b) * (x + self.b)) as f32;
+                self.norm * (-e - p_b).exp() / scaled
+            }
+            Mass::Uniform(density) => density,
+        }
+    }
+
+    /// The density at `y` (0 outside [lo, hi]).
+    #[inline]
+    pub fn pdf(&self, y: f64) -> f32 {
+        let x = self.standardise(y);
+        let g = match self.mass {
+            Mass::Central { .. } => self.gaussian(x),
+            _ => 0.0,
+        };
+        self.pdf_given(y, x, g)
+    }
+
+    /// The value at CDF level `u` ∈ [0, 1]. Central case: as [`TruncatedGaussian::sample`], Φ⁻¹ of the lower-tail
+    /// level p_a + uZ below the median and −Φ⁻¹ of the upper-tail level p_b + (1 − u)Z above it, with this
+    /// type's own f32 tails and Z, so that the density drawn is the one [`TruncatedGaussianF32::pdf`] returns.
+    /// Otherwise the f64 [`TruncatedGaussian`] draws (the two agree to ~1e-6).
+    #[inline]
+    pub fn sample(&self, u: f64) -> f64 {
+        let Mass::Central { p_a, p_b, z, .. } = self.mass else {
+            return TruncatedGaussian::new(self.mu, self.sigma, self.lo, self.hi).sample(u);
+        };
+        let u = if self.flip { 1.0 - u } else { u };
+        let t = p_a as f64 + u * z;
+        let x = if t <= 0.5 {
+            normal_quantile(t)
+        } else {
+            -normal_quantile(p_b as f64 + (1.0 - u) * z)
+        };
+        let x = x.clamp(self.a, self.b);
+        let x = if self.flip { -x } else { x };
+        (self.mu + self.sigma * x).clamp(self.lo, self.hi)
     }
 }
 
@@ -352,7 +464,7 @@ const NEGLIGIBLE_TAIL: f64 = 6.0;
 /// in the tails (the interval may lie tens of σ from μ): tail probabilities are carried as erfc of the nearer
 /// side, never as 1 − Φ. If the interval's mass underflows a double (more than ~37σ from μ), the distribution
 /// falls back to uniform on [lo, hi], in both methods alike. When the interval contains μ, a tail beyond
-/// [`NEGLIGIBLE_TAIL`] σ is taken as 0 by both methods alike: the interval is then in effect extended to ±∞ on
+/// `NEGLIGIBLE_TAIL` σ is taken as 0 by both methods alike: the interval is then in effect extended to ±∞ on
 /// that side, a change of < 1e-9 in probability, far below the f32 pdfs' resolution.
 #[derive(Debug, Clone, Copy)]
 pub struct TruncatedGaussian {
@@ -364,9 +476,9 @@ pub struct TruncatedGaussian {
     a: f64,
     b: f64,
     flip: bool,
-    /// Φ(a) (0 if a < −[`NEGLIGIBLE_TAIL`] < 0 < b).
+    /// Φ(a) (0 if a < −`NEGLIGIBLE_TAIL` < 0 < b).
     p_a: f64,
-    /// Φ(b) if b ≤ 0, else 1 − Φ(b) (0 if b > [`NEGLIGIBLE_TAIL`]).
+    /// Φ(b) if b ≤ 0, else 1 − Φ(b) (0 if b > `NEGLIGIBLE_TAIL`).
     p_b: f64,
     /// The mass of [a, b]; 0 selects the uniform fallback.
     z: f64,
@@ -497,6 +609,7 @@ mod tests {
                     let theta_r = (-2.0 * q + k as f64 * 4.0 * q / 60.0) as f32 as f64;
                     let (lo, hi) = (0.5 * theta_r - q, 0.5 * theta_r + q);
                     let tg = TruncatedGaussian::new(mu, sigma, lo, hi);
+                    let tg32 = TruncatedGaussianF32::new(mu, sigma, 1.0 / sigma, lo, hi);
                     fallbacks += (tg.mass() == 0.0) as u32;
                     let peak = tg.pdf(mu.clamp(lo, hi));
                     for j in 0..=200 {
@@ -505,7 +618,7 @@ mod tests {
                         if exact == 0.0 || (peak / exact).ln() > 20.0 {
                             continue;
                         }
-                        let got = truncated_gaussian_pdf_f32(mu, 1.0 / sigma, lo, hi, y) as f64;
+                        let got = tg32.pdf(y) as f64;
                         // Allowance: 1e-7 per unit of the exponent (f32 rounding of −(x² − b²)/2, 6e-8 per unit).
                         let e = 0.5
                             * (((y - mu) / sigma).powi(2)
@@ -520,6 +633,44 @@ mod tests {
             fallbacks > 0 && worst < 1e-6,
             "worst relative error {worst:e}"
         );
+    }
+
+    #[test]
+    fn f32_sampler_matches_f64() {
+        // The grid of `f32_pdf_matches_f64`. For each u, the f32 sampler's value y32 and the f64 one's y64 differ
+        // in CDF level by ≈ pdf · |y32 − y64| (the density is smooth on that scale): bounded like the pdfs' own
+        // relative error, which the tails and Z carry. Central case only: the others call the f64 sampler.
+        let q = std::f64::consts::FRAC_PI_4;
+        let (mut worst, mut central) = (0.0f64, 0);
+        for i in 0..=40 {
+            let mu = (-q + i as f64 * 2.0 * q / 40.0) as f32 as f64;
+            for sigma in [
+                1e-4f32,
+                1e-3,
+                0.01,
+                0.1,
+                0.3,
+                1.0,
+                std::f32::consts::FRAC_PI_2,
+            ] {
+                let sigma = sigma as f64;
+                for k in 0..=60 {
+                    let theta_r = (-2.0 * q + k as f64 * 4.0 * q / 60.0) as f32 as f64;
+                    let (lo, hi) = (0.5 * theta_r - q, 0.5 * theta_r + q);
+                    let tg = TruncatedGaussian::new(mu, sigma, lo, hi);
+                    let tg32 = TruncatedGaussianF32::new(mu, sigma, 1.0 / sigma, lo, hi);
+                    central += matches!(tg32.mass, Mass::Central { .. }) as u32;
+                    for j in 0..=100 {
+                        let u = j as f64 / 100.0;
+                        let (y64, y32) = (tg.sample(u), tg32.sample(u));
+                        let level = (y32 - y64).abs() * tg.pdf(0.5 * (y32 + y64));
+                        worst = worst.max(level);
+                    }
+                }
+            }
+        }
+        println!("f32 truncated-Gaussian sampler: worst CDF-level difference {worst:.2e} ({central} central)");
+        assert!(central > 1000 && worst < 1e-6, "worst {worst:e}");
     }
 
     /// Independent erfc: the Taylor series e^{−x²}·Σ 2ⁿx^{2n+1}/(1·3···(2n+1)) (all terms positive) for x < 3,

@@ -55,9 +55,7 @@
 //! The papers leave intensities to the artist; the defaults marked "chosen here" are not from them.
 
 use super::cauchy::{width_f32, CauchyPdfF32, TruncatedCauchy};
-use super::frame::{
-    from_theta_and_relative_azimuth, sin_cos_theta, theta, wrap_phi, Angles, COS_THETA_MIN,
-};
+use super::frame::{from_theta_and_relative_azimuth, sin_cos_theta, theta, Angles, COS_THETA_MIN};
 use super::gaussian::{exp_lobe, gaussian_exponent, gaussian_unit, gaussian_unit_integral};
 use super::kajiya_kay::{diffuse_f, diffuse_pdf, sample_diffuse, selection_probability};
 use super::marschner::phi_eq12_cos_sin;
@@ -193,12 +191,12 @@ pub fn n_g(gamma_g: f32, phi_g: f32, phi: f32) -> f32 {
     gaussian_unit(gamma_g, phi.abs() - phi_g)
 }
 
-/// The θh distribution of a lobe (eq. 18–19): Cauchy(α, β) on [θr/2 − π/4, θr/2 + π/4].
+/// The θh range [θr/2 − π/4, θr/2 + π/4] (θi = 2θh − θr ∈ [−π/2, π/2]) of a view at `theta_r`, in f64.
 #[inline]
-fn theta_h_distribution(alpha: f32, beta: f32, theta_r: f32) -> TruncatedCauchy {
+fn theta_h_range(theta_r: f32) -> (f64, f64) {
     let c = 0.5 * theta_r as f64;
     let q = std::f64::consts::FRAC_PI_4;
-    TruncatedCauchy::new(alpha as f64, beta as f64, c - q, c + q)
+    (c - q, c + q)
 }
 
 /// The TT azimuth distribution (eq. 21b) in δ = φ − π wrapped: Cauchy(0, γ_TT) on [−π, π].
@@ -331,16 +329,26 @@ impl IsHair {
     }
 
     /// The normalisations A − B (eq. 20) of the θh distributions of R, TT and TRT (eq. 18–19) for a view at
-    /// `theta_o`, in f32 ([`width_f32`]): what the pdf needs. Only the lobe actually sampled is built in f64
-    /// ([`theta_h_distribution`]), one libm arctangent per sample instead of three.
+    /// `theta_o`, in f32 ([`width_f32`]): what the pdf needs, and what the sampler of the lobe drawn from is built
+    /// with ([`IsHair::theta_h_distribution`]), so neither needs a libm arctangent.
     #[inline]
     fn theta_h_widths(&self, theta_o: f32) -> [f32; 3] {
-        let q = 0.5 * theta_o as f64;
-        let (lo, hi) = (
-            q - std::f64::consts::FRAC_PI_4,
-            q + std::f64::consts::FRAC_PI_4,
-        );
+        let (lo, hi) = theta_h_range(theta_o);
         [0, 1, 2].map(|k| width_f32(self.longitudinal[k].0 as f64, self.inv_beta[k], lo, hi))
+    }
+
+    /// The θh distribution of longitudinal term `k` (R, TT, TRT) for a view at `theta_o` (eq. 18–19): Cauchy(α, β)
+    /// on [`theta_h_range`], normalised with `width` from [`IsHair::theta_h_widths`].
+    #[inline]
+    fn theta_h_distribution(&self, k: usize, theta_o: f32, width: f32) -> TruncatedCauchy {
+        let (lo, hi) = theta_h_range(theta_o);
+        TruncatedCauchy::with_width(
+            self.longitudinal[k].0 as f64,
+            self.inv_beta[k],
+            lo,
+            hi,
+            width as f64,
+        )
     }
 
     /// Every lobe's f for the angles of a pair of directions and their relative azimuth `phi` (= `a.phi()`).
@@ -376,11 +384,8 @@ impl IsHair {
     fn pdf_at(&self, a: &Angles, theta_o: f32, phi: f32, widths: &[f32; 3]) -> f32 {
         let p_s = self.specular_probability(a.cos_theta_o);
         // θh is in range by construction; clamp away the rounding at θi = ±π/2.
-        let q = 0.5 * theta_o as f64;
-        let theta_h = (a.theta_h as f64).clamp(
-            q - std::f64::consts::FRAC_PI_4,
-            q + std::f64::consts::FRAC_PI_4,
-        );
+        let (lo, hi) = theta_h_range(theta_o);
+        let theta_h = (a.theta_h as f64).clamp(lo, hi);
         // p(θi) = p(θh)/2 = β / (2 (A − B) ((θh − α)² + β²)) (eq. 20 without its 1/cos θi, applied once below),
         // written with z = (θh − α)/β (in f64: θh − α cancels for narrow lobes) as [`TruncatedCauchy::pdf`] is;
         // uniform on the range if A − B vanished.
@@ -394,8 +399,10 @@ impl IsHair {
             }
         });
         let p_r = 0.25 * a.cos_half_phi;
-        // eq. 21b and 21d's densities (the glint's halved between ±φ_g).
-        let p_tt = self.tt_pdf.pdf(wrap_phi(phi - PI));
+        // eq. 21b and 21d's densities (the glint's halved between ±φ_g). TT's is in δ = φ − π wrapped to [−π, π],
+        // a Cauchy centred on 0 there, so even: its value at |δ| = π − |φ| (no wrapping, which cost a division and
+        // a rounding call).
+        let p_tt = self.tt_pdf.pdf(PI - phi.abs());
         let p_g = 0.5 * self.glint_pdf.pdf(phi.abs());
         let spec = self.probs[0] * p_theta[0] * p_r
             + self.probs[1] * p_theta[1] * p_tt
@@ -441,18 +448,20 @@ impl Bsdf for IsHair {
                 v -= q;
             }
             // θ: eq. 18 (TRT's longitudinal term for the glint too).
-            let (alpha, beta) = self.longitudinal[j.min(2)];
-            let theta_h = theta_h_distribution(alpha, beta, theta_o).sample(u[1] as f64) as f32;
+            let k = j.min(2);
+            let theta_h = self
+                .theta_h_distribution(k, theta_o, widths[k])
+                .sample_f32(u[1]) as f32;
             let theta_i = (2.0 * theta_h - theta_o).clamp(-FRAC_PI_2, FRAC_PI_2);
             // φ: eq. 21a–d, by its cosine and sine (φi = φr − φ is then turned from ωo's azimuth, no arctangent).
             let (cos_phi, sin_phi) = match LOBES[j] {
                 Lobe::Tt => {
                     // φ = π + δ: cos φ = −cos δ, sin φ = −sin δ.
-                    let (s, c) = (self.tt.sample(u[2] as f64) as f32).sin_cos();
+                    let (s, c) = (self.tt.sample_f32(u[2]) as f32).sin_cos();
                     (-c, -s)
                 }
                 Lobe::Glint => {
-                    let (s, c) = (self.glint.sample(u[2] as f64) as f32).sin_cos();
+                    let (s, c) = (self.glint.sample_f32(u[2]) as f32).sin_cos();
                     (c, if v < 0.5 { s } else { -s })
                 }
                 // eq. 12 by double angles (see `phi_eq12_cos_sin`).

@@ -33,7 +33,7 @@
 //!   M N / (8 cos θi). The claim ignores the Gaussian mass cut off by the range and the flipped samples (Ou et al.
 //!   2012, appendices A–B), so sample() does not draw from pdf(): estimates are biased. The tests measure it.
 //! - [`Sampling::ExactPdf`] — θh from N(α, β²) truncated to the valid range [θr/2 − π/4, θr/2 + π/4] by inverse
-//!   CDF ([`TruncatedGaussian`]), θi = 2θh − θr, φ by eq. 12. pdf = p_θh(θh) · ½ (dθi = 2 dθh) · cos(φ/2)/4
+//!   CDF ([`TruncatedGaussianF32`]), θi = 2θh − θr, φ by eq. 12. pdf = p_θh(θh) · ½ (dθi = 2 dθh) · cos(φ/2)/4
 //!   (eq. 10) / cos θi (solid angle: dω = cos θi dθi dφ). Exactly the density drawn.
 //! - [`Sampling::Uniform`] — the sphere.
 //!
@@ -53,9 +53,7 @@
 //! Curve type: any (round or flat); the model depends on φr − φi only, so the frame's choice of v is immaterial.
 
 use super::frame::{from_theta_and_relative_azimuth, sin_cos_theta, theta, Angles, COS_THETA_MIN};
-use super::gaussian::{
-    exp_lobe, gaussian, truncated_gaussian_pdf_f32, TruncatedGaussian, INV_SQRT_TAU,
-};
+use super::gaussian::{exp_lobe, gaussian, TruncatedGaussianF32, INV_SQRT_TAU};
 use super::kajiya_kay::{diffuse_f, diffuse_pdf, sample_diffuse, selection_probability};
 use super::sphere::{uniform_sphere, UNIFORM_SPHERE_PDF};
 use super::{
@@ -195,14 +193,6 @@ pub fn phi_eq12(xi: f32) -> f32 {
     2.0 * (2.0 * xi - 1.0).clamp(-1.0, 1.0).asin()
 }
 
-/// The exact θh distribution of a lobe: N(α, β²) on [θr/2 − π/4, θr/2 + π/4] (θi ∈ [−π/2, π/2]).
-#[inline]
-fn theta_h_distribution(alpha: f32, beta: f32, theta_r: f32) -> TruncatedGaussian {
-    let centre = 0.5 * theta_r as f64;
-    let q = std::f64::consts::FRAC_PI_4;
-    TruncatedGaussian::new(alpha as f64, beta as f64, centre - q, centre + q)
-}
-
 impl Marschner {
     /// A checked model.
     pub fn new(params: MarschnerParams) -> Result<Marschner, BsdfError> {
@@ -269,74 +259,107 @@ impl Marschner {
         (p_s, [self.prob_1, 1.0 - self.prob_1])
     }
 
-    /// Every lobe's f for the angles of a pair of directions.
+    /// The exact θh distribution of lobe `k` for a view at `theta_r`: N(α_k, β_k²) truncated to
+    /// [θr/2 − π/4, θr/2 + π/4] (θi ∈ [−π/2, π/2]), its normalisation in f32.
     #[inline(always)]
-    fn lobes_at(&self, a: &Angles) -> LobeValues {
+    fn theta_h_distribution(&self, k: usize, theta_r: f32) -> TruncatedGaussianF32 {
+        let centre = 0.5 * theta_r as f64;
+        let q = std::f64::consts::FRAC_PI_4;
+        let (alpha, beta) = self.lobes[k];
+        TruncatedGaussianF32::new(
+            alpha as f64,
+            beta as f64,
+            self.inv_beta[k],
+            centre - q,
+            centre + q,
+        )
+    }
+
+    /// Both lobes' exact θh distributions for a view at `theta_r` ([`Sampling::ExactPdf`]; `None` otherwise).
+    #[inline(always)]
+    fn theta_h_distributions(&self, theta_r: f32) -> Option<[TruncatedGaussianF32; 2]> {
+        if self.params.sampling == Sampling::ExactPdf {
+            Some([
+                self.theta_h_distribution(0, theta_r),
+                self.theta_h_distribution(1, theta_r),
+            ])
+        } else {
+            None
+        }
+    }
+
+    /// M_k = g(β_k, θh − α_k) (eq. 5) of both lobes, with their standardised x_k = (θh − α_k)/β_k formed in f64
+    /// (θh − α cancels for narrow lobes; 1/β_k and 1/(β_k √(2π)) are taken at construction). The exact pdf's
+    /// Gaussian is the same e^{−x²/2}: [`Marschner::eval_pdf_at`] shares it.
+    #[inline(always)]
+    fn m_lobes(&self, theta_h: f32) -> ([f64; 2], [f32; 2]) {
+        let x = [0, 1].map(|k| (theta_h as f64 - self.lobes[k].0 as f64) * self.inv_beta[k]);
+        let m = [0, 1].map(|k| self.gauss[k].1 * exp_lobe(-0.5 * (x[k] * x[k]) as f32));
+        (x, m)
+    }
+
+    /// Every lobe's f for the angles of a pair of directions, given both lobes' M (see [`Marschner::m_lobes`]).
+    #[inline(always)]
+    fn lobes_at(&self, a: &Angles, m: [f32; 2]) -> LobeValues {
         let (w_d, w_s) = self.params.balance.weights(a.cos_theta_o);
-        // N = cos(φ/2) (eq. 6) and cos θd from the half-angle vectors (see `Angles`).
         // f_k = c_k M_k N / (8 cos²θd) (`f_lobe`), N = cos(φ/2) (eq. 6) and cos θd from the half-angle vectors (see
-        // `Angles`): the lobes share N / (8 cos²θd), one division; M_k = g(β_k, θh − α_k) (eq. 5) with 1/β_k and
-        // 1/(β_k √(2π)) taken once (`gaussian` divides by β twice).
+        // `Angles`): the lobes share N / (8 cos²θd), one division.
         let cos_d = a.cos_theta_d.max(COS_THETA_MIN);
         let s = w_s * a.cos_half_phi / (8.0 * cos_d * cos_d);
-        let f = |k: usize| {
-            let (alpha, _) = self.lobes[k];
-            let (inv_beta, norm) = self.gauss[k];
-            let z = (a.theta_h - alpha) * inv_beta;
-            self.c[k] * (s * exp_lobe(-0.5 * z * z) * norm)
-        };
         LobeValues {
-            r: f(0),
-            trt: f(1),
+            r: self.c[0] * (s * m[0]),
+            trt: self.c[1] * (s * m[1]),
             diffuse: diffuse_f(self.params.k_d) * w_d,
             ..LobeValues::default()
         }
     }
 
-    /// The mixture pdf for the angles of a pair of directions at view elevation `theta_o`.
-    #[inline]
-    fn pdf_at(&self, a: &Angles, theta_o: f32) -> f32 {
+    /// f and the mixture pdf for the angles of a pair of directions at view elevation `theta_o`; `dists` are
+    /// [`Marschner::theta_h_distributions`] at that view. Each lobe's Gaussian is one exponential for both.
+    #[inline(always)]
+    fn eval_pdf_at(
+        &self,
+        a: &Angles,
+        theta_o: f32,
+        dists: &Option<[TruncatedGaussianF32; 2]>,
+    ) -> (LobeValues, f32) {
+        let (x, m) = self.m_lobes(a.theta_h);
+        let f = self.lobes_at(a, m);
         if self.params.sampling == Sampling::Uniform {
-            return UNIFORM_SPHERE_PDF;
+            return (f, UNIFORM_SPHERE_PDF);
         }
-        let exact = self.params.sampling == Sampling::ExactPdf;
         let (p_s, probs) = self.selection(a.cos_theta_o);
         let n = a.cos_half_phi;
-        // θh's range [θr/2 − π/4, θr/2 + π/4] (θi ∈ [−π/2, π/2]); θh is in it by construction, clamped away from
-        // the rounding at θi = ±π/2.
-        let q = 0.5 * theta_o as f64;
-        let (lo, hi) = (
-            q - std::f64::consts::FRAC_PI_4,
-            q + std::f64::consts::FRAC_PI_4,
-        );
-        let theta_h = (a.theta_h as f64).clamp(lo, hi);
-        let mut p_spec = 0.0;
-        for (k, &(alpha, beta)) in self.lobes.iter().enumerate() {
-            let p = if exact {
-                // The truncated N(α, β²) of `theta_h_distribution` in f32 (the sampler draws from its f64 twin):
+        let cos_i = a.cos_theta_i.max(COS_THETA_MIN);
+        let p_spec = match dists {
+            Some(d) => {
+                // θh is in the range by construction; clamped away from the rounding at θi = ±π/2.
+                let q = 0.5 * theta_o as f64;
+                let theta_h = (a.theta_h as f64).clamp(
+                    q - std::f64::consts::FRAC_PI_4,
+                    q + std::f64::consts::FRAC_PI_4,
+                );
                 // p(θi) = p(θh)/2; p(φ) = cos(φ/2)/4 (eq. 10); per solid angle ÷ cos θi.
-                truncated_gaussian_pdf_f32(alpha as f64, self.inv_beta[k], lo, hi, theta_h)
-                    * 0.5
-                    * (0.25 * n)
-                    / a.cos_theta_i.max(COS_THETA_MIN)
-            } else {
-                pdf_eq13(m_r(beta, alpha, a.theta_h), n, a.cos_theta_i)
-            };
-            p_spec += probs[k] * p;
-        }
-        p_s * p_spec + (1.0 - p_s) * diffuse_pdf(a.cos_theta_i)
+                let p = |k: usize| d[k].pdf_given(theta_h, x[k], m[k]);
+                (probs[0] * p(0) + probs[1] * p(1)) * 0.5 * (0.25 * n) / cos_i
+            }
+            None => probs[0] * pdf_eq13(m[0], n, cos_i) + probs[1] * pdf_eq13(m[1], n, cos_i),
+        };
+        (f, p_s * p_spec + (1.0 - p_s) * diffuse_pdf(a.cos_theta_i))
     }
 }
 
 impl Bsdf for Marschner {
     fn eval_lobes(&self, wo: Vec3, wi: Vec3) -> LobeValues {
-        self.lobes_at(&Angles::new(wo, wi))
+        let a = Angles::new(wo, wi);
+        self.lobes_at(&a, self.m_lobes(a.theta_h).1)
     }
 
     /// The sum of [`Bsdf::eval_lobes`], with the lobes summed where they are computed (the default method
     /// received them through memory from a call).
     fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
-        self.lobes_at(&Angles::new(wo, wi)).sum()
+        let a = Angles::new(wo, wi);
+        self.lobes_at(&a, self.m_lobes(a.theta_h).1).sum()
     }
 
     fn sample(&self, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
@@ -344,8 +367,10 @@ impl Bsdf for Marschner {
             return super::finish_sample(self, wo, uniform_sphere(u[0], u[1]), None);
         }
         let theta_o = theta(wo);
+        // Both lobes' θh distributions: the drawn one samples, both normalise the pdf.
+        let dists = self.theta_h_distributions(theta_o);
         let (p_s, probs) = self.selection(sin_cos_theta(wo).1);
-        let (wi, lobe) = if u[0] < p_s {
+        let (a, wi, lobe) = if u[0] < p_s {
             // Which R lobe, then u[0] rescaled to [0, 1) once more for the published sampler's third number.
             let v = u[0] / p_s;
             let (k, v) = if v < probs[0] {
@@ -354,41 +379,48 @@ impl Bsdf for Marschner {
                 (1, (v - probs[0]) / probs[1])
             };
             let v = v.min(1.0);
-            let (alpha, beta) = self.lobes[k];
-            let (theta_i, (cos_phi, sin_phi)) = match self.params.sampling {
-                Sampling::ClampAndFlip => (
-                    theta_i_clamp_and_flip(alpha, beta, theta_o, u[1], u[2]),
-                    phi_eq12_cos_sin(v),
-                ),
-                _ => {
-                    // The f64 distribution only for the lobe drawn from; the pdf takes both in f32.
-                    let theta_h =
-                        theta_h_distribution(alpha, beta, theta_o).sample(u[1] as f64) as f32;
-                    (
-                        (2.0 * theta_h - theta_o).clamp(-FRAC_PI_2, FRAC_PI_2),
-                        phi_eq12_cos_sin(u[2]),
-                    )
+            let lobe = Some(if k == 0 { Lobe::R } else { Lobe::Trt });
+            match &dists {
+                Some(d) => {
+                    let theta_h = d[k].sample(u[1] as f64) as f32;
+                    let theta_i = (2.0 * theta_h - theta_o).clamp(-FRAC_PI_2, FRAC_PI_2);
+                    // φ = φr − φi ⇒ φi = φr − φ (eq. 12's φ by its cosine and sine).
+                    let (cos_phi, sin_phi) = phi_eq12_cos_sin(u[2]);
+                    let wi = from_theta_and_relative_azimuth(theta_i, wo, cos_phi, sin_phi);
+                    // The angles of the f32 direction returned, not of the one drawn: f and the pdf are then those
+                    // eval() and pdf() give for it (to the last bit; with the narrowest lobes the two differ in the
+                    // 4th digit).
+                    (Angles::new(wo, wi), wi, lobe)
                 }
-            };
-            // φ = φr − φi ⇒ φi = φr − φ (eq. 12's φ by its cosine and sine).
-            (
-                from_theta_and_relative_azimuth(theta_i, wo, cos_phi, sin_phi),
-                Some(if k == 0 { Lobe::R } else { Lobe::Trt }),
-            )
+                None => {
+                    let theta_i = theta_i_clamp_and_flip(
+                        self.lobes[k].0,
+                        self.lobes[k].1,
+                        theta_o,
+                        u[1],
+                        u[2],
+                    );
+                    let (cos_phi, sin_phi) = phi_eq12_cos_sin(v);
+                    let wi = from_theta_and_relative_azimuth(theta_i, wo, cos_phi, sin_phi);
+                    (Angles::new(wo, wi), wi, lobe)
+                }
+            }
         } else {
             let c = ((u[0] - p_s) / (1.0 - p_s)).min(1.0);
-            (sample_diffuse(u[1], u[2], c), Some(Lobe::Diffuse))
+            let wi = sample_diffuse(u[1], u[2], c);
+            (Angles::new(wo, wi), wi, Some(Lobe::Diffuse))
         };
-        let a = Angles::new(wo, wi);
-        let f = self.lobes_at(&a).sum();
-        super::make_sample(wi, f, self.pdf_at(&a, theta_o), a.cos_theta_i, lobe)
+        let (f, pdf) = self.eval_pdf_at(&a, theta_o, &dists);
+        super::make_sample(wi, f.sum(), pdf, a.cos_theta_i, lobe)
     }
 
     fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
         if self.params.sampling == Sampling::Uniform {
             return UNIFORM_SPHERE_PDF;
         }
-        self.pdf_at(&Angles::new(wo, wi), theta(wo))
+        let theta_o = theta(wo);
+        let dists = self.theta_h_distributions(theta_o);
+        self.eval_pdf_at(&Angles::new(wo, wi), theta_o, &dists).1
     }
 }
 
