@@ -539,7 +539,36 @@ fn run() -> Result<()> {
     }
 }
 
+/// The CPU features of the build target (`.cargo/config.toml`: x86-64-v3) that this CPU lacks; empty elsewhere.
+fn missing_cpu_features() -> Vec<&'static str> {
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+    {
+        let mut missing = Vec::new();
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            missing.push("avx2");
+        }
+        if !std::arch::is_x86_feature_detected!("fma") {
+            missing.push("fma");
+        }
+        if !std::arch::is_x86_feature_detected!("bmi2") {
+            missing.push("bmi2");
+        }
+        missing
+    }
+    #[cfg(not(all(target_arch = "x86_64", target_feature = "avx2")))]
+    Vec::new()
+}
+
 fn main() -> ExitCode {
+    let missing = missing_cpu_features();
+    if !missing.is_empty() {
+        eprintln!(
+            "cuticle: error: this build targets x86-64-v3 and this CPU lacks {}; rebuild for it with \
+             RUSTFLAGS=\"-C target-cpu=x86-64\" cargo build --release",
+            missing.join(", ")
+        );
+        return ExitCode::from(2);
+    }
     match run() {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
