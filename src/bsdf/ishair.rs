@@ -55,10 +55,11 @@
 //! The papers leave intensities to the artist; the defaults marked "chosen here" are not from them.
 
 use super::cauchy::{width_f32, CauchyPdfF32, TruncatedCauchy};
-use super::frame::{from_theta_and_relative_azimuth, sin_cos_theta, theta, Angles, COS_THETA_MIN};
+use super::frame::{
+    atan2, from_sin_cos_theta_and_relative_azimuth, sin_cos_theta, theta, Angles, COS_THETA_MIN,
+};
 use super::gaussian::{exp_lobe, gaussian_exponent, gaussian_unit, gaussian_unit_integral};
 use super::kajiya_kay::{diffuse_f, diffuse_pdf, sample_diffuse, selection_probability};
-use super::marschner::phi_eq12_cos_sin;
 use super::sphere::{uniform_sphere, UNIFORM_SPHERE_PDF};
 use super::{
     check, check_color, check_width, luminance, Balance, Bsdf, BsdfError, BsdfSample, Lobe,
@@ -334,7 +335,8 @@ impl IsHair {
     #[inline]
     fn theta_h_widths(&self, theta_o: f32) -> [f32; 3] {
         let (lo, hi) = theta_h_range(theta_o);
-        [0, 1, 2].map(|k| width_f32(self.longitudinal[k].0 as f64, self.inv_beta[k], lo, hi))
+        let w = |k: usize| width_f32(self.longitudinal[k].0 as f64, self.inv_beta[k], lo, hi);
+        [w(0), w(1), w(2)]
     }
 
     /// The θh distribution of longitudinal term `k` (R, TT, TRT) for a view at `theta_o` (eq. 18–19): Cauchy(α, β)
@@ -351,7 +353,8 @@ impl IsHair {
         )
     }
 
-    /// Every lobe's f for the angles of a pair of directions and their relative azimuth `phi` (= `a.phi()`).
+    /// Every lobe's f for the angles of a pair of directions and their relative azimuth `phi` (`a.phi()`; only |φ|
+    /// matters, so samplers pass the |φ| they drew).
     #[inline(always)]
     fn lobes_at(&self, a: &Angles, phi: f32) -> LobeValues {
         let p = &self.params;
@@ -430,11 +433,15 @@ impl Bsdf for IsHair {
             return super::finish_sample(self, wo, uniform_sphere(u[0], u[1]), None);
         }
         let theta_o = theta(wo);
+        let sc_o = sin_cos_theta(wo);
         let widths = self.theta_h_widths(theta_o);
-        let p_s = self.specular_probability(sin_cos_theta(wo).1);
-        let (wi, lobe) = if u[0] >= p_s {
+        let p_s = self.specular_probability(sc_o.1);
+        // The angles of the pair and |φ| (all the lobes need of φ), from what the sampler drew where it can.
+        let (a, abs_phi, wi, lobe) = if u[0] >= p_s {
             let c = ((u[0] - p_s) / (1.0 - p_s)).min(1.0);
-            (sample_diffuse(u[1], u[2], c), Lobe::Diffuse)
+            let wi = sample_diffuse(u[1], u[2], c);
+            let a = Angles::new(wo, wi);
+            (a, a.phi().abs(), wi, Lobe::Diffuse)
         } else {
             // Which specular lobe (u[0] rescaled; the remainder decides the glint's sign).
             let mut v = u[0] / p_s;
@@ -453,33 +460,45 @@ impl Bsdf for IsHair {
                 .theta_h_distribution(k, theta_o, widths[k])
                 .sample_f32(u[1]) as f32;
             let theta_i = (2.0 * theta_h - theta_o).clamp(-FRAC_PI_2, FRAC_PI_2);
-            // φ: eq. 21a–d, by its cosine and sine (φi = φr − φ is then turned from ωo's azimuth, no arctangent).
-            let (cos_phi, sin_phi) = match LOBES[j] {
+            let sc_i = theta_i.sin_cos();
+            // φ: eq. 21a–d, as cos(φ/2), cos φ, sin φ (φi = φr − φ is then turned from ωo's azimuth, no
+            // arctangent) and |φ|, each from the half angle: cos(φ/2) stays accurate where it vanishes (φ → ±π).
+            let (cos_half, cos_phi, sin_phi, abs_phi) = match LOBES[j] {
                 Lobe::Tt => {
-                    // φ = π + δ: cos φ = −cos δ, sin φ = −sin δ.
-                    let (s, c) = (self.tt.sample_f32(u[2]) as f32).sin_cos();
-                    (-c, -s)
+                    // φ = π + δ: cos(φ/2) = |sin(δ/2)|, cos φ = −cos δ, sin φ = −sin δ, |φ| = π − |δ|.
+                    let delta = self.tt.sample_f32(u[2]) as f32;
+                    let (s, c) = (0.5 * delta).sin_cos();
+                    (s.abs(), 2.0 * s * s - 1.0, -2.0 * s * c, PI - delta.abs())
                 }
                 Lobe::Glint => {
-                    let (s, c) = (self.glint.sample_f32(u[2]) as f32).sin_cos();
-                    (c, if v < 0.5 { s } else { -s })
+                    // |φ| = ψ ∈ [0, π/2], the sign by the remainder of the lobe choice.
+                    let psi = self.glint.sample_f32(u[2]) as f32;
+                    let (s, c) = (0.5 * psi).sin_cos();
+                    let sin_psi = 2.0 * s * c;
+                    (
+                        c,
+                        1.0 - 2.0 * s * s,
+                        if v < 0.5 { sin_psi } else { -sin_psi },
+                        psi,
+                    )
                 }
-                // eq. 12 by double angles (see `phi_eq12_cos_sin`).
-                _ => phi_eq12_cos_sin(u[2]),
+                _ => {
+                    // eq. 12 by double angles (see `phi_eq12_cos_sin`): sin(φ/2) = 2ξ − 1.
+                    let s = (2.0 * u[2] - 1.0).clamp(-1.0, 1.0);
+                    let c = ((1.0 - s) * (1.0 + s)).sqrt();
+                    (c, 1.0 - 2.0 * s * s, 2.0 * s * c, 2.0 * atan2(s.abs(), c))
+                }
             };
-            (
-                from_theta_and_relative_azimuth(theta_i, wo, cos_phi, sin_phi),
-                LOBES[j],
-            )
+            let wi = from_sin_cos_theta_and_relative_azimuth(sc_i.0, sc_i.1, wo, cos_phi, sin_phi);
+            let a = Angles::from_sampled(theta_o, sc_o, theta_i, sc_i, cos_half, cos_phi, sin_phi);
+            (a, abs_phi, wi, LOBES[j])
         };
-        // One set of angles and one relative azimuth for f and for the mixture pdf.
-        let a = Angles::new(wo, wi);
-        let phi = a.phi();
-        let f = self.lobes_at(&a, phi).sum();
+        // One set of angles and one |φ| for f and for the mixture pdf.
+        let f = self.lobes_at(&a, abs_phi).sum();
         super::make_sample(
             wi,
             f,
-            self.pdf_at(&a, theta_o, phi, &widths),
+            self.pdf_at(&a, theta_o, abs_phi, &widths),
             a.cos_theta_i,
             Some(lobe),
         )

@@ -52,7 +52,9 @@
 //!
 //! Curve type: any (round or flat); the model depends on φr − φi only, so the frame's choice of v is immaterial.
 
-use super::frame::{from_theta_and_relative_azimuth, sin_cos_theta, theta, Angles, COS_THETA_MIN};
+use super::frame::{
+    from_sin_cos_theta_and_relative_azimuth, sin_cos_theta, theta, Angles, COS_THETA_MIN,
+};
 use super::gaussian::{exp_lobe, gaussian, TruncatedGaussianF32, INV_SQRT_TAU};
 use super::kajiya_kay::{diffuse_f, diffuse_pdf, sample_diffuse, selection_probability};
 use super::sphere::{uniform_sphere, UNIFORM_SPHERE_PDF};
@@ -182,9 +184,16 @@ pub fn theta_i_clamp_and_flip(alpha: f32, beta: f32, theta_r: f32, xi1: f32, xi2
 /// near s = ±1), cos φ = 1 − 2s², sin φ = 2s cos(φ/2).
 #[inline]
 pub fn phi_eq12_cos_sin(xi: f32) -> (f32, f32) {
+    let (_, cos_phi, sin_phi) = phi_eq12_parts(xi);
+    (cos_phi, sin_phi)
+}
+
+/// (cos(φ/2), cos φ, sin φ) of [`phi_eq12`]'s φ, as [`phi_eq12_cos_sin`]: cos(φ/2) is N (eq. 6) at the sample.
+#[inline]
+pub fn phi_eq12_parts(xi: f32) -> (f32, f32, f32) {
     let s = (2.0 * xi - 1.0).clamp(-1.0, 1.0);
     let c = ((1.0 - s) * (1.0 + s)).sqrt();
-    (1.0 - 2.0 * s * s, 2.0 * s * c)
+    (c, 1.0 - 2.0 * s * s, 2.0 * s * c)
 }
 
 /// The relative azimuth by inverting eq. 11's CDF (thesis eq. 12): φ = 2 asin(2ξ − 1), density cos(φ/2)/4.
@@ -367,9 +376,10 @@ impl Bsdf for Marschner {
             return super::finish_sample(self, wo, uniform_sphere(u[0], u[1]), None);
         }
         let theta_o = theta(wo);
+        let sc_o = sin_cos_theta(wo);
         // Both lobes' θh distributions: the drawn one samples, both normalise the pdf.
         let dists = self.theta_h_distributions(theta_o);
-        let (p_s, probs) = self.selection(sin_cos_theta(wo).1);
+        let (p_s, probs) = self.selection(sc_o.1);
         let (a, wi, lobe) = if u[0] < p_s {
             // Which R lobe, then u[0] rescaled to [0, 1) once more for the published sampler's third number.
             let v = u[0] / p_s;
@@ -380,31 +390,20 @@ impl Bsdf for Marschner {
             };
             let v = v.min(1.0);
             let lobe = Some(if k == 0 { Lobe::R } else { Lobe::Trt });
-            match &dists {
+            let (alpha, beta) = self.lobes[k];
+            let (theta_i, xi_phi) = match &dists {
                 Some(d) => {
                     let theta_h = d[k].sample(u[1] as f64) as f32;
-                    let theta_i = (2.0 * theta_h - theta_o).clamp(-FRAC_PI_2, FRAC_PI_2);
-                    // φ = φr − φi ⇒ φi = φr − φ (eq. 12's φ by its cosine and sine).
-                    let (cos_phi, sin_phi) = phi_eq12_cos_sin(u[2]);
-                    let wi = from_theta_and_relative_azimuth(theta_i, wo, cos_phi, sin_phi);
-                    // The angles of the f32 direction returned, not of the one drawn: f and the pdf are then those
-                    // eval() and pdf() give for it (to the last bit; with the narrowest lobes the two differ in the
-                    // 4th digit).
-                    (Angles::new(wo, wi), wi, lobe)
+                    ((2.0 * theta_h - theta_o).clamp(-FRAC_PI_2, FRAC_PI_2), u[2])
                 }
-                None => {
-                    let theta_i = theta_i_clamp_and_flip(
-                        self.lobes[k].0,
-                        self.lobes[k].1,
-                        theta_o,
-                        u[1],
-                        u[2],
-                    );
-                    let (cos_phi, sin_phi) = phi_eq12_cos_sin(v);
-                    let wi = from_theta_and_relative_azimuth(theta_i, wo, cos_phi, sin_phi);
-                    (Angles::new(wo, wi), wi, lobe)
-                }
-            }
+                None => (theta_i_clamp_and_flip(alpha, beta, theta_o, u[1], u[2]), v),
+            };
+            let sc_i = theta_i.sin_cos();
+            // φ = φr − φi ⇒ φi = φr − φ (eq. 12's φ by cos(φ/2) = N, cos φ and sin φ).
+            let (n, cos_phi, sin_phi) = phi_eq12_parts(xi_phi);
+            let wi = from_sin_cos_theta_and_relative_azimuth(sc_i.0, sc_i.1, wo, cos_phi, sin_phi);
+            let a = Angles::from_sampled(theta_o, sc_o, theta_i, sc_i, n, cos_phi, sin_phi);
+            (a, wi, lobe)
         } else {
             let c = ((u[0] - p_s) / (1.0 - p_s)).min(1.0);
             let wi = sample_diffuse(u[1], u[2], c);

@@ -287,7 +287,13 @@ pub(crate) fn make_sample(
     if !(pdf > 0.0 && pdf.is_finite()) {
         return None;
     }
-    let weight = f * (cos_theta_i / pdf);
+    // One division for the three channels; but for a subnormal pdf (a sample far in a lobe's tail, where f is as
+    // tiny) cos θi / pdf alone would overflow, so f cos θi comes first there.
+    let weight = if pdf >= f32::MIN_POSITIVE {
+        f * (cos_theta_i / pdf)
+    } else {
+        (f * cos_theta_i) / pdf
+    };
     debug_assert!(
         weight.is_finite(),
         "weight {weight} for wi {wi}, f {f}, pdf {pdf}"

@@ -240,32 +240,66 @@ fn sweep_angles() -> (Vec<f32>, Vec<f32>) {
     (thetas, phis)
 }
 
-/// Asserts that what `sample` returns agrees with `eval` and `pdf` at the sampled direction (the samplers compute
-/// f and the pdf along their own path, reusing the distributions they drew from).
+/// Asserts that what `sample` returns agrees with `eval` and `pdf` at the sampled direction. The samplers compute
+/// f and the pdf along their own path, at the angles they drew ([`super::frame::Angles::from_sampled`]), while
+/// `eval`/`pdf` see the returned direction: that one rounded to f32 (≈ 1e-7 rad away) and then measured with
+/// [`super::frame::atan2`] (error < 6e-7 rad). So the sample's values must lie within the range `eval`/`pdf` take
+/// over a 3 × 3 grid of directions spanning ±[`SAMPLE_NEIGHBOURHOOD`] rad around the returned one (which
+/// contains the drawn direction as seen through that arctangent), widened by 1e-5 relative for the arithmetic.
+/// For a smooth lobe of width β the range is ~1e-6/β relative: a wrong formula on the sampler's path shows far
+/// beyond it.
 pub fn assert_sample_consistent<B: Bsdf + ?Sized>(name: &str, model: &B) {
     let mut rng = Pcg32::new(77, 1);
     for _ in 0..2000 {
         let wo = super::sphere::uniform_sphere(rng.next_f32(), rng.next_f32());
-        if let Some(s) = model.sample(wo, rng.next_u3()) {
-            let (f, p) = (model.eval(wo, s.wi), model.pdf(wo, s.wi));
-            let close = |a: f32, b: f32| (a - b).abs() <= 1e-5 * a.abs().max(b.abs()) + 1e-30;
+        let Some(s) = model.sample(wo, rng.next_u3()) else {
+            continue;
+        };
+        // An orthonormal pair perpendicular to wi.
+        let a = if s.wi.x.abs() < 0.9 { Vec3::X } else { Vec3::Y };
+        let a = a.reject_from(s.wi).normalize();
+        let b = s.wi.cross(a);
+        let (mut p_lo, mut p_hi) = (f32::INFINITY, 0.0f32);
+        let (mut f_lo, mut f_hi) = (Vec3::INFINITY, Vec3::ZERO);
+        for i in -1..=1 {
+            for j in -1..=1 {
+                let d = SAMPLE_NEIGHBOURHOOD;
+                // The centre is the returned direction itself, not renormalised (a sharp lobe, Kajiya-Kay at
+                // p = 10⁴, moves by 1e-3 relative with the rounding of a normalisation).
+                let w = if i == 0 && j == 0 {
+                    s.wi
+                } else {
+                    (s.wi + (i as f32 * d) * a + (j as f32 * d) * b).normalize()
+                };
+                let (f, p) = (model.eval(wo, w), model.pdf(wo, w));
+                (p_lo, p_hi) = (p_lo.min(p), p_hi.max(p));
+                (f_lo, f_hi) = (f_lo.min(f), f_hi.max(f));
+            }
+        }
+        let within = |x: f32, lo: f32, hi: f32| {
+            let tol = 1e-5 * hi.abs() + 1e-30;
+            x >= lo - tol && x <= hi + tol
+        };
+        assert!(
+            within(s.pdf, p_lo, p_hi),
+            "{name}: sample pdf {} outside pdf()'s [{p_lo}, {p_hi}] near wi (wo {wo}, wi {})",
+            s.pdf,
+            s.wi
+        );
+        for c in 0..3 {
             assert!(
-                close(s.pdf, p),
-                "{name}: sample pdf {} vs pdf() {p} (wo {wo}, wi {})",
-                s.pdf,
+                within(s.f[c], f_lo[c], f_hi[c]),
+                "{name}: sample f {} outside eval()'s [{f_lo}, {f_hi}] near wi (wo {wo}, wi {})",
+                s.f,
                 s.wi
             );
-            for c in 0..3 {
-                assert!(
-                    close(s.f[c], f[c]),
-                    "{name}: sample f {} vs eval() {f} (wo {wo}, wi {})",
-                    s.f,
-                    s.wi
-                );
-            }
         }
     }
 }
+
+/// The half-width, in radians, of the neighbourhood of [`assert_sample_consistent`]: the rounding of the returned
+/// direction (≈ 1e-7) plus [`super::frame::atan2`]'s error (< 6e-7), with margin.
+pub const SAMPLE_NEIGHBOURHOOD: f32 = 2e-6;
 
 /// Asserts eval, eval_lobes, pdf and sample are finite (pdf ≥ 0, f ≥ 0, sample pdf > 0) for directions at and
 /// near θ = ±π/2 and φ = ±π, and for random numbers at 0 and just below 1.
