@@ -48,12 +48,20 @@ impl TruncatedCauchy {
     /// anyway), so sampler and pdf share one A − B and the constructor's f64 arctangent is saved. A width within
     /// 1e-6 (relative) of the exact one moves the drawn distribution by as little: the top 1e-6 of the CDF is cut
     /// off, or piles up at `hi` by the clamp in [`TruncatedCauchy::sample`]. `width` ≤ 0 selects the uniform
-    /// fallback, as [`width_f32`]'s 0 does.
+    /// fallback, as [`width_f32`]'s 0 does. `inv_gamma` = 1/`gamma` (callers keep both: no division on the
+    /// sampling path).
     #[inline]
-    pub fn with_width(c: f64, inv_gamma: f64, lo: f64, hi: f64, width: f64) -> TruncatedCauchy {
+    pub fn with_width(
+        c: f64,
+        gamma: f64,
+        inv_gamma: f64,
+        lo: f64,
+        hi: f64,
+        width: f64,
+    ) -> TruncatedCauchy {
         TruncatedCauchy {
             c,
-            gamma: 1.0 / inv_gamma,
+            gamma,
             lo,
             hi,
             x_lo: (lo - c) * inv_gamma,
@@ -205,31 +213,12 @@ mod tests {
 
     #[test]
     fn f32_width_matches_f64() {
-        // The θh distributions of ISHair: c = α ∈ [−π/4, π/4], γ = β ∈ [1e-4, π/2], [θr/2 − π/4, θr/2 + π/4].
+        // The θh distributions of ISHair: c = α, γ = β, [θr/2 − π/4, θr/2 + π/4] (`theta_h_grid`).
         let mut worst = 0.0f64;
-        for i in 0..=40 {
-            let c = -std::f32::consts::FRAC_PI_4 + i as f32 * std::f32::consts::FRAC_PI_2 / 40.0;
-            for gamma in [
-                1e-4f32,
-                1e-3,
-                0.01,
-                0.1,
-                0.3,
-                1.0,
-                std::f32::consts::FRAC_PI_2,
-            ] {
-                for k in 0..=60 {
-                    let theta_r =
-                        -std::f32::consts::FRAC_PI_2 + k as f32 * std::f32::consts::PI / 60.0;
-                    // As ISHair forms them: in f64 from the f32 angles.
-                    let (c, gamma) = (c as f64, gamma as f64);
-                    let lo = 0.5 * theta_r as f64 - std::f64::consts::FRAC_PI_4;
-                    let hi = 0.5 * theta_r as f64 + std::f64::consts::FRAC_PI_4;
-                    let exact = TruncatedCauchy::new(c, gamma, lo, hi).width();
-                    let got = width_f32(c, 1.0 / gamma, lo, hi) as f64;
-                    worst = worst.max((got - exact).abs() / exact);
-                }
-            }
+        for (c, gamma, lo, hi) in super::super::testing::theta_h_grid() {
+            let exact = TruncatedCauchy::new(c, gamma, lo, hi).width();
+            let got = width_f32(c, 1.0 / gamma, lo, hi) as f64;
+            worst = worst.max((got - exact).abs() / exact);
         }
         // The f32 rounding of the arctangent's arguments (6e-8 each) and its 6e-7 absolute error.
         assert!(worst < 1e-6, "worst relative error {worst:e}");
@@ -239,7 +228,7 @@ mod tests {
     fn with_width_is_the_same_distribution() {
         for (c, gamma, lo, hi) in [(0.2, 0.1, -1.0, 1.0), (3.0, 1e-3, 0.0, 1.0)] {
             let tc = TruncatedCauchy::new(c, gamma, lo, hi);
-            let given = TruncatedCauchy::with_width(c, 1.0 / gamma, lo, hi, tc.width());
+            let given = TruncatedCauchy::with_width(c, gamma, 1.0 / gamma, lo, hi, tc.width());
             for k in 0..=20 {
                 let u = k as f64 / 20.0;
                 assert!((tc.sample(u) - given.sample(u)).abs() < 1e-12);
@@ -248,7 +237,7 @@ mod tests {
             }
         }
         // A width of 0 is the uniform fallback, as `width_f32`'s 0 means.
-        let flat = TruncatedCauchy::with_width(0.0, 1.0, 2.0, 4.0, 0.0);
+        let flat = TruncatedCauchy::with_width(0.0, 1.0, 1.0, 2.0, 4.0, 0.0);
         assert_eq!(flat.sample(0.25), 2.5);
         assert_eq!(flat.pdf(3.0), 0.5);
     }

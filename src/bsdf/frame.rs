@@ -30,6 +30,15 @@ use std::f32::consts::{FRAC_PI_2, FRAC_PI_4, PI, TAU};
 /// finite while changing the integrals by a solid angle of about π·1e-8 sr.
 pub const COS_THETA_MIN: f32 = 1e-4;
 
+/// The θh range [θr/2 − π/4, θr/2 + π/4] of a view at `theta_r` (θi = 2θh − θr ∈ [−π/2, π/2]), in f64: the
+/// interval every model's θh distribution is truncated to.
+#[inline]
+pub fn theta_h_range(theta_r: f32) -> (f64, f64) {
+    let c = 0.5 * theta_r as f64;
+    let q = std::f64::consts::FRAC_PI_4;
+    (c - q, c + q)
+}
+
 /// An orthonormal hair frame (u, v, w) in world space.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct HairFrame {
@@ -185,18 +194,11 @@ pub fn from_spherical(theta: f32, phi: f32) -> Vec3 {
     Vec3::new(sin_t, cos_t * cos_p, cos_t * sin_p)
 }
 
-/// The unit local direction with longitudinal angle `theta_i` whose azimuth is φi = φr − φ, φr that of `wo` and
+/// The unit local direction with longitudinal angle θi, given by `sin_t` and `cos_t` (a sampler keeps them for
+/// [`Angles::from_sampled`]), whose azimuth is φi = φr − φ, φr that of `wo` and
 /// φ given by its cosine and sine: (cos φi, sin φi) is (cos φr, sin φr) = (ωo·v, ωo·w)/ρo turned by −φ (the angle
 /// difference formulas), so neither φr (an arctangent) nor φi (a sine and cosine) is formed. φr = 0 for `wo`
-/// along ±u, as [`phi`] gives. Equals `from_spherical(theta_i, phi(wo) − φ)` to rounding.
-#[inline]
-pub fn from_theta_and_relative_azimuth(theta_i: f32, wo: Vec3, cos_phi: f32, sin_phi: f32) -> Vec3 {
-    let (sin_t, cos_t) = theta_i.sin_cos();
-    from_sin_cos_theta_and_relative_azimuth(sin_t, cos_t, wo, cos_phi, sin_phi)
-}
-
-/// [`from_theta_and_relative_azimuth`] with θi given by its sine and cosine (a sampler keeps them for
-/// [`Angles::from_sampled`]).
+/// along ±u, as [`phi`] gives. Equals `from_spherical(θi, phi(wo) − φ)` to rounding.
 #[inline]
 pub fn from_sin_cos_theta_and_relative_azimuth(
     sin_t: f32,
@@ -402,7 +404,8 @@ mod tests {
                     let (theta_i, phi_rel) =
                         (deg(-90.0 + 7.5 * k as f32), deg(-180.0 + 15.0 * k as f32));
                     let (s, c) = phi_rel.sin_cos();
-                    let got = from_theta_and_relative_azimuth(theta_i, wo, c, s);
+                    let (sin_t, cos_t) = theta_i.sin_cos();
+                    let got = from_sin_cos_theta_and_relative_azimuth(sin_t, cos_t, wo, c, s);
                     worst = worst.max((got - from_spherical(theta_i, phi(wo) - phi_rel)).length());
                 }
             }

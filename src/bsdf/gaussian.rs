@@ -389,19 +389,19 @@ impl TruncatedGaussianF32 {
 
     /// The standardised point x = (y − μ)/σ (unmirrored).
     #[inline]
-    pub fn standardise(&self, y: f64) -> f64 {
+    fn standardise(&self, y: f64) -> f64 {
         (y - self.mu) * self.inv_sigma
     }
 
-    /// The untruncated normal density at standardised `x`, e^{−x²/2}/(σ√(2π)) in f32: for callers that need the
-    /// Gaussian itself (Marschner's M is exactly this) and then the truncated density by
-    /// [`TruncatedGaussianF32::pdf_given`] without a second exponential.
+    /// The untruncated normal density at standardised `x`, e^{−x²/2}/(σ√(2π)) in f32, which
+    /// [`TruncatedGaussianF32::pdf`] hands to [`TruncatedGaussianF32::pdf_given`]. (A caller that has it already,
+    /// Marschner's M with its own 1/(β√(2π)), calls `pdf_given` directly: one exponential for both.)
     #[inline]
-    pub fn gaussian(&self, x: f64) -> f32 {
+    fn gaussian(&self, x: f64) -> f32 {
         self.norm * exp_lobe(-0.5 * (x * x) as f32)
     }
 
-    /// The density at `y` (0 outside [lo, hi]), given `g` = [`TruncatedGaussianF32::gaussian`] of its
+    /// The density at `y` (0 outside [lo, hi]), given `g` = e^{−x²/2}/(σ√(2π)) at its
     /// standardised point `x`: g/Z in the central case; the tail case recomputes its own exponential (g would
     /// underflow there).
     #[inline]
@@ -440,16 +440,33 @@ impl TruncatedGaussianF32 {
         let Mass::Central { p_a, p_b, z, .. } = self.mass else {
             return TruncatedGaussian::new(self.mu, self.sigma, self.lo, self.hi).sample(u);
         };
-        let u = if self.flip { 1.0 - u } else { u };
-        let t = p_a as f64 + u * z;
-        let x = if t <= 0.5 {
-            normal_quantile(t)
-        } else {
-            -normal_quantile(p_b as f64 + (1.0 - u) * z)
-        };
-        let x = x.clamp(self.a, self.b);
-        let x = if self.flip { -x } else { x };
+        let x = standardised_inverse_cdf(u, self.flip, p_a as f64, z, p_b as f64, self.a, self.b);
         (self.mu + self.sigma * x).clamp(self.lo, self.hi)
+    }
+}
+
+/// The inverse CDF both truncated Gaussians share, in standardised units: the normal restricted to [a, b] (a ≤ 0;
+/// mirrored from [−b, −a] if `flip`), with lower tail `p_a` = Φ(a), mass `z`, and `p_b` = 1 − Φ(b) if b > 0
+/// (Φ(b) otherwise, unused), at CDF level `u`. Returns the unmirrored standardised value.
+#[inline]
+fn standardised_inverse_cdf(u: f64, flip: bool, p_a: f64, z: f64, p_b: f64, a: f64, b: f64) -> f64 {
+    // Mirrored: the CDF runs the other way, so the value stays increasing in u.
+    let u = if flip { 1.0 - u } else { u };
+    let t = p_a + u * z;
+    let x = if b <= 0.0 || t <= 0.5 {
+        // Lower half: Φ⁻¹(t), accurate for tiny t. (Φ⁻¹ is exact to ~1e-16 while p_a and Z carry erfc's
+        // 1.2e-7: the drawn density is φ/Z, what pdf() returns, inside (a, b); only an atom of relative size
+        // ~1e-7 · p_a/Z can pile up at an end, from the clamp below.)
+        normal_quantile(t)
+    } else {
+        // Upper half: work with the upper tail 1 − t = (1 − Φ(b)) + (1 − u) Z.
+        -normal_quantile(p_b + (1.0 - u) * z)
+    };
+    let x = x.clamp(a, b);
+    if flip {
+        -x
+    } else {
+        x
     }
 }
 
@@ -549,21 +566,7 @@ impl TruncatedGaussian {
         if self.z == 0.0 {
             return self.lo + u * (self.hi - self.lo);
         }
-        // Mirrored: the CDF runs the other way, so sample(u) stays increasing in u.
-        let u = if self.flip { 1.0 - u } else { u };
-        let t = self.p_a + u * self.z;
-        let x = if self.b <= 0.0 || t <= 0.5 {
-            // Lower half: Φ⁻¹(t), accurate for tiny t. (Φ⁻¹ is exact to ~1e-16 while p_a and Z carry erfc's
-            // 1.2e-7: the drawn density is φ/Z, what pdf() returns, inside (a, b); only an atom of relative size
-            // ~1e-7 · p_a/Z can pile up at an end, from the clamp below.)
-            normal_quantile(t)
-        } else {
-            // Upper half: work with the upper tail 1 − t = (1 − Φ(b)) + (1 − u) Z.
-            let q = self.p_b + (1.0 - u) * self.z;
-            -normal_quantile(q)
-        };
-        let x = x.clamp(self.a, self.b);
-        let x = if self.flip { -x } else { x };
+        let x = standardised_inverse_cdf(u, self.flip, self.p_a, self.z, self.p_b, self.a, self.b);
         (self.mu + self.sigma * x).clamp(self.lo, self.hi)
     }
 
@@ -591,41 +594,23 @@ mod tests {
         // at points across the interval. Relative error where the density is within e^{−20} of the interval's
         // largest, compared in log form so far tails count too, less the f32 rounding of the exponent (6e-8 per
         // unit of it; the error allowed grows by 1e-7 per unit).
-        let q = std::f64::consts::FRAC_PI_4;
         let (mut worst, mut fallbacks) = (0.0f64, 0);
-        for i in 0..=40 {
-            let mu = (-q + i as f64 * 2.0 * q / 40.0) as f32 as f64;
-            for sigma in [
-                1e-4f32,
-                1e-3,
-                0.01,
-                0.1,
-                0.3,
-                1.0,
-                std::f32::consts::FRAC_PI_2,
-            ] {
-                let sigma = sigma as f64;
-                for k in 0..=60 {
-                    let theta_r = (-2.0 * q + k as f64 * 4.0 * q / 60.0) as f32 as f64;
-                    let (lo, hi) = (0.5 * theta_r - q, 0.5 * theta_r + q);
-                    let tg = TruncatedGaussian::new(mu, sigma, lo, hi);
-                    let tg32 = TruncatedGaussianF32::new(mu, sigma, 1.0 / sigma, lo, hi);
-                    fallbacks += (tg.mass() == 0.0) as u32;
-                    let peak = tg.pdf(mu.clamp(lo, hi));
-                    for j in 0..=200 {
-                        let y = lo + (hi - lo) * j as f64 / 200.0;
-                        let exact = tg.pdf(y);
-                        if exact == 0.0 || (peak / exact).ln() > 20.0 {
-                            continue;
-                        }
-                        let got = tg32.pdf(y) as f64;
-                        // Allowance: 1e-7 per unit of the exponent (f32 rounding of −(x² − b²)/2, 6e-8 per unit).
-                        let e = 0.5
-                            * (((y - mu) / sigma).powi(2)
-                                - (((mu.clamp(lo, hi)) - mu) / sigma).powi(2));
-                        worst = worst.max((got / exact).ln().abs() / (1.0 + 0.1 * e));
-                    }
+        for (mu, sigma, lo, hi) in super::super::testing::theta_h_grid() {
+            let tg = TruncatedGaussian::new(mu, sigma, lo, hi);
+            let tg32 = TruncatedGaussianF32::new(mu, sigma, 1.0 / sigma, lo, hi);
+            fallbacks += (tg.mass() == 0.0) as u32;
+            let peak = tg.pdf(mu.clamp(lo, hi));
+            for j in 0..=200 {
+                let y = lo + (hi - lo) * j as f64 / 200.0;
+                let exact = tg.pdf(y);
+                if exact == 0.0 || (peak / exact).ln() > 20.0 {
+                    continue;
                 }
+                let got = tg32.pdf(y) as f64;
+                // Allowance: 1e-7 per unit of the exponent (f32 rounding of −(x² − b²)/2, 6e-8 per unit).
+                let e = 0.5
+                    * (((y - mu) / sigma).powi(2) - (((mu.clamp(lo, hi)) - mu) / sigma).powi(2));
+                worst = worst.max((got / exact).ln().abs() / (1.0 + 0.1 * e));
             }
         }
         println!("f32 truncated-Gaussian pdf: worst relative error {worst:.2e}; {fallbacks} uniform fallbacks");
@@ -640,33 +625,16 @@ mod tests {
         // The grid of `f32_pdf_matches_f64`. For each u, the f32 sampler's value y32 and the f64 one's y64 differ
         // in CDF level by ≈ pdf · |y32 − y64| (the density is smooth on that scale): bounded like the pdfs' own
         // relative error, which the tails and Z carry. Central case only: the others call the f64 sampler.
-        let q = std::f64::consts::FRAC_PI_4;
         let (mut worst, mut central) = (0.0f64, 0);
-        for i in 0..=40 {
-            let mu = (-q + i as f64 * 2.0 * q / 40.0) as f32 as f64;
-            for sigma in [
-                1e-4f32,
-                1e-3,
-                0.01,
-                0.1,
-                0.3,
-                1.0,
-                std::f32::consts::FRAC_PI_2,
-            ] {
-                let sigma = sigma as f64;
-                for k in 0..=60 {
-                    let theta_r = (-2.0 * q + k as f64 * 4.0 * q / 60.0) as f32 as f64;
-                    let (lo, hi) = (0.5 * theta_r - q, 0.5 * theta_r + q);
-                    let tg = TruncatedGaussian::new(mu, sigma, lo, hi);
-                    let tg32 = TruncatedGaussianF32::new(mu, sigma, 1.0 / sigma, lo, hi);
-                    central += matches!(tg32.mass, Mass::Central { .. }) as u32;
-                    for j in 0..=100 {
-                        let u = j as f64 / 100.0;
-                        let (y64, y32) = (tg.sample(u), tg32.sample(u));
-                        let level = (y32 - y64).abs() * tg.pdf(0.5 * (y32 + y64));
-                        worst = worst.max(level);
-                    }
-                }
+        for (mu, sigma, lo, hi) in super::super::testing::theta_h_grid() {
+            let tg = TruncatedGaussian::new(mu, sigma, lo, hi);
+            let tg32 = TruncatedGaussianF32::new(mu, sigma, 1.0 / sigma, lo, hi);
+            central += matches!(tg32.mass, Mass::Central { .. }) as u32;
+            for j in 0..=100 {
+                let u = j as f64 / 100.0;
+                let (y64, y32) = (tg.sample(u), tg32.sample(u));
+                let level = (y32 - y64).abs() * tg.pdf(0.5 * (y32 + y64));
+                worst = worst.max(level);
             }
         }
         println!("f32 truncated-Gaussian sampler: worst CDF-level difference {worst:.2e} ({central} central)");

@@ -56,10 +56,12 @@
 
 use super::cauchy::{width_f32, CauchyPdfF32, TruncatedCauchy};
 use super::frame::{
-    atan2, from_sin_cos_theta_and_relative_azimuth, sin_cos_theta, theta, Angles, COS_THETA_MIN,
+    atan2, from_sin_cos_theta_and_relative_azimuth, sin_cos_theta, theta, theta_h_range, Angles,
+    COS_THETA_MIN,
 };
 use super::gaussian::{exp_lobe, gaussian_exponent, gaussian_unit, gaussian_unit_integral};
 use super::kajiya_kay::{diffuse_f, diffuse_pdf, sample_diffuse, selection_probability};
+use super::marschner::phi_eq12_parts;
 use super::sphere::{uniform_sphere, UNIFORM_SPHERE_PDF};
 use super::{
     check, check_color, check_width, luminance, Balance, Bsdf, BsdfError, BsdfSample, Lobe,
@@ -190,14 +192,6 @@ pub fn n_tt(gamma_tt: f32, phi: f32) -> f32 {
 #[inline]
 pub fn n_g(gamma_g: f32, phi_g: f32, phi: f32) -> f32 {
     gaussian_unit(gamma_g, phi.abs() - phi_g)
-}
-
-/// The θh range [θr/2 − π/4, θr/2 + π/4] (θi = 2θh − θr ∈ [−π/2, π/2]) of a view at `theta_r`, in f64.
-#[inline]
-fn theta_h_range(theta_r: f32) -> (f64, f64) {
-    let c = 0.5 * theta_r as f64;
-    let q = std::f64::consts::FRAC_PI_4;
-    (c - q, c + q)
 }
 
 /// The TT azimuth distribution (eq. 21b) in δ = φ − π wrapped: Cauchy(0, γ_TT) on [−π, π].
@@ -344,8 +338,10 @@ impl IsHair {
     #[inline]
     fn theta_h_distribution(&self, k: usize, theta_o: f32, width: f32) -> TruncatedCauchy {
         let (lo, hi) = theta_h_range(theta_o);
+        let (alpha, beta) = self.longitudinal[k];
         TruncatedCauchy::with_width(
-            self.longitudinal[k].0 as f64,
+            alpha as f64,
+            beta as f64,
             self.inv_beta[k],
             lo,
             hi,
@@ -483,10 +479,9 @@ impl Bsdf for IsHair {
                     )
                 }
                 _ => {
-                    // eq. 12 by double angles (see `phi_eq12_cos_sin`): sin(φ/2) = 2ξ − 1.
-                    let s = (2.0 * u[2] - 1.0).clamp(-1.0, 1.0);
-                    let c = ((1.0 - s) * (1.0 + s)).sqrt();
-                    (c, 1.0 - 2.0 * s * s, 2.0 * s * c, 2.0 * atan2(s.abs(), c))
+                    // eq. 12 by double angles (`phi_eq12_parts`); |φ| ∈ [0, π] from its cosine and |sine|.
+                    let (c, cos_phi, sin_phi) = phi_eq12_parts(u[2]);
+                    (c, cos_phi, sin_phi, atan2(sin_phi.abs(), cos_phi))
                 }
             };
             let wi = from_sin_cos_theta_and_relative_azimuth(sc_i.0, sc_i.1, wo, cos_phi, sin_phi);

@@ -53,7 +53,8 @@
 //! Curve type: any (round or flat); the model depends on φr − φi only, so the frame's choice of v is immaterial.
 
 use super::frame::{
-    from_sin_cos_theta_and_relative_azimuth, sin_cos_theta, theta, Angles, COS_THETA_MIN,
+    from_sin_cos_theta_and_relative_azimuth, sin_cos_theta, theta, theta_h_range, Angles,
+    COS_THETA_MIN,
 };
 use super::gaussian::{exp_lobe, gaussian, TruncatedGaussianF32, INV_SQRT_TAU};
 use super::kajiya_kay::{diffuse_f, diffuse_pdf, sample_diffuse, selection_probability};
@@ -119,8 +120,8 @@ pub struct Marschner {
     lobes: [(f32, f32); 2],
     /// 1/β_k in f64, the exact pdf's standardisation (a multiplication, not a double division per lobe).
     inv_beta: [f64; 2],
-    /// (1/β_k, 1/(β_k √(2π))) in f32: eq. 5's g without divisions.
-    gauss: [(f32, f32); 2],
+    /// 1/(β_k √(2π)) in f32: eq. 5's normalisation without a division.
+    norm: [f32; 2],
     /// Probability of lobe 1 among the two R lobes.
     prob_1: f32,
     /// Estimated specular albedo, lum(c_1) + lum(c_2) (each lobe's albedo is ≈ its colour).
@@ -179,16 +180,9 @@ pub fn theta_i_clamp_and_flip(alpha: f32, beta: f32, theta_r: f32, xi1: f32, xi2
     theta_i.clamp(-FRAC_PI_2, FRAC_PI_2)
 }
 
-/// (cos φ, sin φ) of [`phi_eq12`]'s φ = 2 asin(s), s = 2ξ − 1, without the arcsine or a sine and cosine: by the
-/// double-angle formulas with sin(φ/2) = s and cos(φ/2) = √((1 − s)(1 + s)) ≥ 0 (factored: no cancellation
-/// near s = ±1), cos φ = 1 − 2s², sin φ = 2s cos(φ/2).
-#[inline]
-pub fn phi_eq12_cos_sin(xi: f32) -> (f32, f32) {
-    let (_, cos_phi, sin_phi) = phi_eq12_parts(xi);
-    (cos_phi, sin_phi)
-}
-
-/// (cos(φ/2), cos φ, sin φ) of [`phi_eq12`]'s φ, as [`phi_eq12_cos_sin`]: cos(φ/2) is N (eq. 6) at the sample.
+/// (cos(φ/2), cos φ, sin φ) of [`phi_eq12`]'s φ = 2 asin(s), s = 2ξ − 1, without the arcsine or a sine and
+/// cosine: by the double-angle formulas with sin(φ/2) = s and cos(φ/2) = √((1 − s)(1 + s)) ≥ 0 (factored: no
+/// cancellation near s = ±1), cos φ = 1 − 2s², sin φ = 2s cos(φ/2). cos(φ/2) is N (eq. 6) at the sample.
 #[inline]
 pub fn phi_eq12_parts(xi: f32) -> (f32, f32, f32) {
     let s = (2.0 * xi - 1.0).clamp(-1.0, 1.0);
@@ -249,7 +243,7 @@ impl Marschner {
                 (params.alpha_2, params.beta_2),
             ],
             inv_beta: [1.0 / params.beta_1 as f64, 1.0 / params.beta_2 as f64],
-            gauss: [params.beta_1, params.beta_2].map(|b| (1.0 / b, INV_SQRT_TAU / b)),
+            norm: [params.beta_1, params.beta_2].map(|b| INV_SQRT_TAU / b),
             prob_1: selection_probability(luminance(c[0]), luminance(c[1])),
             e_spec: luminance(c[0]) + luminance(c[1]),
         })
@@ -272,16 +266,9 @@ impl Marschner {
     /// [θr/2 − π/4, θr/2 + π/4] (θi ∈ [−π/2, π/2]), its normalisation in f32.
     #[inline(always)]
     fn theta_h_distribution(&self, k: usize, theta_r: f32) -> TruncatedGaussianF32 {
-        let centre = 0.5 * theta_r as f64;
-        let q = std::f64::consts::FRAC_PI_4;
+        let (lo, hi) = theta_h_range(theta_r);
         let (alpha, beta) = self.lobes[k];
-        TruncatedGaussianF32::new(
-            alpha as f64,
-            beta as f64,
-            self.inv_beta[k],
-            centre - q,
-            centre + q,
-        )
+        TruncatedGaussianF32::new(alpha as f64, beta as f64, self.inv_beta[k], lo, hi)
     }
 
     /// Both lobes' exact θh distributions for a view at `theta_r` ([`Sampling::ExactPdf`]; `None` otherwise).
@@ -303,7 +290,7 @@ impl Marschner {
     #[inline(always)]
     fn m_lobes(&self, theta_h: f32) -> ([f64; 2], [f32; 2]) {
         let x = [0, 1].map(|k| (theta_h as f64 - self.lobes[k].0 as f64) * self.inv_beta[k]);
-        let m = [0, 1].map(|k| self.gauss[k].1 * exp_lobe(-0.5 * (x[k] * x[k]) as f32));
+        let m = [0, 1].map(|k| self.norm[k] * exp_lobe(-0.5 * (x[k] * x[k]) as f32));
         (x, m)
     }
 
@@ -343,11 +330,8 @@ impl Marschner {
         let p_spec = match dists {
             Some(d) => {
                 // θh is in the range by construction; clamped away from the rounding at θi = ±π/2.
-                let q = 0.5 * theta_o as f64;
-                let theta_h = (a.theta_h as f64).clamp(
-                    q - std::f64::consts::FRAC_PI_4,
-                    q + std::f64::consts::FRAC_PI_4,
-                );
+                let (lo, hi) = theta_h_range(theta_o);
+                let theta_h = (a.theta_h as f64).clamp(lo, hi);
                 // p(θi) = p(θh)/2; p(φ) = cos(φ/2)/4 (eq. 10); per solid angle ÷ cos θi.
                 let p = |k: usize| d[k].pdf_given(theta_h, x[k], m[k]);
                 (probs[0] * p(0) + probs[1] * p(1)) * 0.5 * (0.25 * n) / cos_i

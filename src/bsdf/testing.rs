@@ -2,13 +2,13 @@
 //! pdf normalisation, sampled furnace, chi-square of sampled directions against the integrated pdf, reciprocity
 //! and a finiteness sweep. Each model's tests call these with its own parameters.
 
-use super::frame::{from_spherical, sin_cos_theta};
+use super::frame::{from_spherical, sin_cos_theta, theta_h_range};
 use super::pcg::Pcg32;
 use super::plot::sampled_vs_analytic;
 use super::stats::{chi_square, sidak};
 use super::{Bsdf, LobeValues};
 use glam::Vec3;
-use std::f32::consts::{FRAC_PI_2, PI};
+use std::f32::consts::{FRAC_PI_2, FRAC_PI_4, PI};
 
 /// θ cells of the furnace quadrature: midpoint rule in θi, 0.25° apart, ≥ 4 nodes per σ of the narrowest lobe
 /// tested (β = 0.5° ⇒ σ(θi) = 1°); the midpoint rule is spectrally accurate on Gaussians at that spacing.
@@ -25,6 +25,22 @@ const CHI2_MIN_EXPECTED: f64 = 5.0;
 pub const CHI2_ALPHA: f64 = 0.01;
 /// Samples of a sampled-furnace estimate: with weights of relative spread ≤ 3 the standard error is ≤ 0.3%.
 pub const FURNACE_SAMPLES: usize = 1_000_000;
+
+/// The grid of the θh-distribution tests (Marschner's truncated Gaussians, ISHair's truncated Cauchys), as the
+/// models form their arguments, in f64 from f32 angles: (centre α, width β, lo, hi) for 41 centres across
+/// [−π/4, π/4], widths 1e-4 … π/2, and 61 views θr across [−π/2, π/2] with [lo, hi] = [`theta_h_range`]`(θr)`.
+pub fn theta_h_grid() -> impl Iterator<Item = (f64, f64, f64, f64)> {
+    const WIDTHS: [f32; 7] = [1e-4, 1e-3, 0.01, 0.1, 0.3, 1.0, FRAC_PI_2];
+    (0..=40).flat_map(|i| {
+        let centre = -FRAC_PI_4 + i as f32 * FRAC_PI_2 / 40.0;
+        WIDTHS.into_iter().flat_map(move |width| {
+            (0..=60).map(move |k| {
+                let (lo, hi) = theta_h_range(-FRAC_PI_2 + k as f32 * PI / 60.0);
+                (centre as f64, width as f64, lo, hi)
+            })
+        })
+    })
+}
 
 /// The view direction of the chi-square tests: azimuth 18°, eight φ cells of 2.25°, so that the glint's support
 /// edges (φr − φi = ±90°) fall on cell edges. Per-cell Gauss-Legendre integration is exact for smooth pdfs but
