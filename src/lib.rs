@@ -13,6 +13,7 @@ pub mod bsdf;
 pub mod hair;
 pub mod image;
 pub mod light;
+pub mod measure;
 pub mod ray;
 pub mod render;
 pub mod scene;

@@ -6,13 +6,12 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
-use serde::Deserialize;
+use serde::de::DeserializeOwned;
 
-use cuticle::accel::embree::EmbreeTracer;
 use cuticle::accel::CurveKind;
 use cuticle::hair;
-use cuticle::render;
-use cuticle::scene::{LightSelection, Scene, ShadowMode, TransmittanceMode};
+use cuticle::render::{self, thread_pool, Frame, LightSelection, ShadowMode, TransmittanceMode};
+use cuticle::scene::{Overrides, Scene};
 
 /// cuticle: a physically based hair renderer (Embree curves, thesis hair BSDFs, OpenImageIO output).
 #[derive(Parser)]
@@ -57,17 +56,17 @@ struct RenderArgs {
     /// Worker threads (default: all cores). The image does not depend on it.
     #[arg(long)]
     threads: Option<usize>,
-    /// Strand geometry (overrides hair.curves).
-    #[arg(long, value_enum)]
+    /// Strand geometry, round or flat (overrides hair.curves).
+    #[arg(long, value_parser = scene_name::<CurveKind>)]
     curves: Option<CurveKind>,
     /// Seed of the sample streams (overrides film.seed).
     #[arg(long)]
     seed: Option<u32>,
-    /// Self-shadowing (overrides shadows.mode).
-    #[arg(long, value_enum)]
+    /// Self-shadowing: raytraced, deep-opacity or none (overrides shadows.mode).
+    #[arg(long, value_parser = scene_name::<ShadowMode>)]
     shadows: Option<ShadowMode>,
-    /// How light samples see semi-transparent strands (overrides shadows.transmittance).
-    #[arg(long, value_enum)]
+    /// How light samples see semi-transparent strands: stochastic or exact (overrides shadows.transmittance).
+    #[arg(long, value_parser = scene_name::<TransmittanceMode>)]
     transmittance: Option<TransmittanceMode>,
     /// Light samples per light at the first shading point (overrides integrator.light_samples).
     #[arg(long)]
@@ -78,8 +77,9 @@ struct RenderArgs {
     /// Indirect bounces, 0 = direct light only (overrides integrator.path_length).
     #[arg(long)]
     path_length: Option<u32>,
-    /// Light samples for every light, or each for one light chosen by power (overrides integrator.lights).
-    #[arg(long, value_enum)]
+    /// Light samples for every light (all), or each for one light chosen by power (one) (overrides
+    /// integrator.lights).
+    #[arg(long, value_parser = scene_name::<LightSelection>)]
     lights: Option<LightSelection>,
     /// Also write every deep opacity map (z0 and per-layer transmittance) as an EXR into this directory.
     #[arg(long, value_name = "DIR")]
@@ -183,6 +183,13 @@ fn parse_resolution(s: &str) -> Result<[u32; 2], String> {
     Ok([w, h])
 }
 
+/// Parses a value the way the scene file spells it (`deep-opacity`, `flat`, ...), so the command line and the
+/// TOML accept the same names and the library's types need no command-line derive.
+fn scene_name<T: DeserializeOwned>(s: &str) -> Result<T, String> {
+    T::deserialize(serde::de::value::StrDeserializer::<serde::de::value::Error>::new(s))
+        .map_err(|e| e.to_string())
+}
+
 fn load_scene(path: Option<&Path>) -> Result<Scene> {
     Ok(match path {
         Some(p) => Scene::load(p)?,
@@ -190,75 +197,23 @@ fn load_scene(path: Option<&Path>) -> Result<Scene> {
     })
 }
 
-/// Builds the scene's deep opacity maps (as a deep-opacity render would) and writes each as `DIR/NAME.exr`.
-fn dump_shadow_maps(
-    dir: &Path,
-    scene: &Scene,
-    strands: &cuticle::hair::Strands,
-    lights: &[cuticle::light::Light],
-    pool: &rayon::ThreadPool,
-) -> Result<()> {
-    std::fs::create_dir_all(dir)
-        .with_context(|| format!("cannot create the shadow-map directory {}", dir.display()))?;
-    let maps = pool.install(|| {
-        cuticle::shadow::ShadowMaps::build(strands, lights, &scene.shadows.deep_opacity)
-    });
-    for (name, map) in maps.maps() {
-        let path = dir.join(format!("{name}.exr"));
-        cuticle::image::write(&path, &map.to_image())?;
-        eprintln!("wrote {}", path.display());
-    }
-    Ok(())
-}
-
-fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
-    let mut builder = rayon::ThreadPoolBuilder::new();
-    if let Some(n) = threads {
-        if n == 0 {
-            bail!("--threads must be at least 1");
-        }
-        builder = builder.num_threads(n);
-    }
-    builder.build().context("cannot start worker threads")
-}
-
 fn render_command(args: RenderArgs) -> Result<()> {
-    let mut scene = load_scene(args.scene.as_deref())?;
-    if let Some(spp) = args.spp {
-        if spp == 0 {
-            bail!("--spp must be at least 1");
-        }
-        scene.film.spp = spp;
+    if args.spp == Some(0) {
+        bail!("--spp must be at least 1");
     }
-    if let Some(res) = args.res {
-        scene.film.resolution = res;
-    }
-    if let Some(curves) = args.curves {
-        scene.hair.curves = curves;
-    }
-    if let Some(seed) = args.seed {
-        scene.film.seed = seed;
-    }
-    if let Some(shadows) = args.shadows {
-        scene.shadows.mode = shadows;
-    }
-    if let Some(t) = args.transmittance {
-        scene.shadows.transmittance = t;
-    }
-    if let Some(n) = args.light_samples {
-        scene.integrator.light_samples = n;
-    }
-    if let Some(l) = args.lights {
-        scene.integrator.lights = l;
-    }
-    if let Some(n) = args.material_samples {
-        scene.integrator.material_samples = n;
-    }
-    if let Some(n) = args.path_length {
-        scene.integrator.path_length = n;
-    }
-    // The overrides go through the scene's own checks, so a bad value is reported like a bad scene key.
-    let scene = scene.revalidate()?;
+    let overrides = Overrides {
+        spp: args.spp,
+        resolution: args.res,
+        seed: args.seed,
+        curves: args.curves,
+        shadows: args.shadows,
+        transmittance: args.transmittance,
+        light_samples: args.light_samples,
+        material_samples: args.material_samples,
+        path_length: args.path_length,
+        lights: args.lights,
+    };
+    let scene = load_scene(args.scene.as_deref())?.apply(&overrides)?;
     let extension = args
         .output
         .extension()
@@ -269,25 +224,28 @@ fn render_command(args: RenderArgs) -> Result<()> {
     }
 
     let pool = thread_pool(args.threads)?;
+    let frame = Frame::load(scene.resolve()?)?;
+    let settings = &frame.settings;
+    // Deep opacity maps are built once: for the render (in deep-opacity mode) and for --dump-shadow-maps alike.
+    let deep_opacity = settings.shadows.mode == ShadowMode::DeepOpacity;
     let start = Instant::now();
-    let strands = render::load_strands(&scene)?;
-    let load_seconds = start.elapsed().as_secs_f64();
-    let lights = scene.build_lights()?;
-    if let Some(dir) = &args.dump_shadow_maps {
-        dump_shadow_maps(dir, &scene, &strands, &lights, &pool)?;
+    let maps = (deep_opacity || args.dump_shadow_maps.is_some())
+        .then(|| pool.install(|| frame.shadow_maps(settings)));
+    let maps_seconds = start.elapsed().as_secs_f64();
+    if let (Some(dir), Some(maps)) = (&args.dump_shadow_maps, &maps) {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("cannot create the shadow-map directory {}", dir.display()))?;
+        for (name, map) in maps.maps() {
+            let path = dir.join(format!("{name}.exr"));
+            cuticle::image::write(&path, &map.to_image())?;
+            eprintln!("wrote {}", path.display());
+        }
     }
-    let tracer = EmbreeTracer::new(&strands, scene.hair.curves)?;
-    let (image, stats) = pool.install(|| {
-        render::render(
-            &scene,
-            &strands,
-            &tracer,
-            &lights,
-            render::Options {
-                progress: !args.quiet,
-            },
-        )
-    });
+    let options = render::Options {
+        progress: !args.quiet,
+    };
+    let (image, stats) =
+        pool.install(|| frame.render_with_maps(settings, maps.as_ref(), maps_seconds, options));
 
     if extension.as_deref() == Some("exr") {
         cuticle::image::write(&args.output, &image)?;
@@ -298,23 +256,23 @@ fn render_command(args: RenderArgs) -> Result<()> {
         cuticle::image::write_png_preview(&args.output, &image)?;
         eprintln!("wrote {}", args.output.display());
     }
-    let [w, h] = scene.film.resolution;
+    let [w, h] = settings.film.resolution;
     eprintln!(
         "{} strands ({:?} curves), {w}x{h}, {} spp, {} threads: load {:.2} s, build {:.2} s, render {:.2} s \
          ({:.2} Mrays/s: {} camera, {} shadow, {} material rays)",
-        strands.strand_count(),
-        scene.hair.curves,
-        scene.film.spp,
+        frame.strands.strand_count(),
+        frame.curves,
+        settings.film.spp,
         pool.current_num_threads(),
-        load_seconds,
-        tracer.build_seconds(),
+        frame.load_seconds,
+        frame.build_seconds(),
         stats.seconds,
         stats.rays.total() as f64 / stats.seconds / 1e6,
         stats.rays.camera,
         stats.rays.shadow,
         stats.rays.material,
     );
-    if scene.shadows.mode == ShadowMode::DeepOpacity {
+    if deep_opacity {
         eprintln!(
             "deep opacity maps: built in {:.3} s, {:.1} MB, {} lookups",
             stats.shadow_build_seconds,
@@ -333,45 +291,8 @@ fn render_command(args: RenderArgs) -> Result<()> {
 
 fn info_command(file: &Path) -> Result<()> {
     let model = hair::load(file)?;
-    let strands = model.strand_count();
-    let points = model.points.len();
-    let lengths: Vec<usize> = (0..strands).map(|s| model.strand_range(s).len()).collect();
-    let (lo, hi) = model.bounds();
-    let thickness: Vec<f32> = model.radius.iter().map(|r| 2.0 * r).collect();
-    let (tmin, tmax) = thickness
-        .iter()
-        .fold((f32::INFINITY, 0.0f32), |(a, b), &t| (a.min(t), b.max(t)));
-    let tmean = thickness.iter().map(|&t| f64::from(t)).sum::<f64>() / points as f64;
     println!("file:         {}", file.display());
-    println!("format:       {}", model.format);
-    if !model.info.is_empty() {
-        println!("info:         {}", model.info);
-    }
-    println!("strands:      {strands}");
-    println!("points:       {points}");
-    println!(
-        "per strand:   min {} / mean {:.1} / max {} points",
-        lengths.iter().min().unwrap_or(&0),
-        points as f64 / strands.max(1) as f64,
-        lengths.iter().max().unwrap_or(&0)
-    );
-    println!(
-        "bounds:       [{:.4}, {:.4}, {:.4}] .. [{:.4}, {:.4}, {:.4}]",
-        lo.x, lo.y, lo.z, hi.x, hi.y, hi.z
-    );
-    println!(
-        "thickness:    min {tmin:.6} / mean {tmean:.6} / max {tmax:.6} ({})",
-        if model.radius_from_file {
-            "per point, from the file"
-        } else {
-            "file default; tapered to half at the tip"
-        }
-    );
-    let (t0, t1) = model
-        .transparency
-        .iter()
-        .fold((f32::INFINITY, 0.0f32), |(a, b), &t| (a.min(t), b.max(t)));
-    println!("transparency: min {t0:.4} / max {t1:.4}");
+    println!("{}", model.summary());
     Ok(())
 }
 
@@ -385,10 +306,7 @@ fn plot_command(args: PlotArgs) -> Result<()> {
                 MaterialName::Marschner => "marschner",
                 MaterialName::Ishair => "ishair",
             };
-            toml::from_str::<toml::Table>(&format!("model = \"{name}\""))
-                .ok()
-                .and_then(|t| MaterialConfig::deserialize(t).ok())
-                .context("building the default material")?
+            MaterialConfig::named(name).context("building the default material")?
         }
     };
     let material = config.build().map_err(anyhow::Error::msg)?;
@@ -429,7 +347,7 @@ fn bench_command(command: BenchCommand) -> Result<()> {
             res,
         } => {
             let scene = load_scene(scene.as_deref())?;
-            let strands = render::load_strands(&scene)?;
+            let strands = scene.hair_spec().load()?;
             let camera = render::camera::Camera::from_config(
                 &scene.camera,
                 strands.bounds(),

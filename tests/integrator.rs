@@ -7,7 +7,6 @@ mod common;
 
 use common::render_scene;
 use cuticle::image::Image;
-use cuticle::render::CHANNELS;
 use cuticle::scene::{LightSelection, Scene, ShadowMode, Strategy};
 
 fn parse(text: &str, base: &Path) -> Scene {
@@ -366,6 +365,11 @@ fn bit_identical_with_one_and_two_threads_with_every_feature_on() {
     let scene = everything(dir.path());
     let a = render_scene(&scene, 1);
     let b = render_scene(&scene, 2);
+    assert_eq!(
+        (a.width, a.height, &a.channels),
+        (b.width, b.height, &b.channels)
+    );
+    assert_eq!(a.data.len(), b.data.len());
     let differing = a
         .data
         .iter()
@@ -376,7 +380,28 @@ fn bit_identical_with_one_and_two_threads_with_every_feature_on() {
         differing, 0,
         "{differing} values differ between 1 and 2 threads"
     );
-    assert!(CHANNELS.len() == a.channels.len());
+    // Identical images prove nothing if the features under test left no trace in them: the frame must hold
+    // indirect light, shadowed and lit pixels, several strands and several lobes.
+    let positive = |name: &str| channel(&a, name).iter().filter(|v| **v > 0.0).count();
+    for name in [
+        "R",
+        "indirect.G",
+        "lobe_R.G",
+        "lobe_TT.G",
+        "lobe_TRT.G",
+        "diffuse.G",
+    ] {
+        assert!(positive(name) > 0, "{name} is zero everywhere");
+    }
+    assert!(channel(&a, "shadow.Y").iter().any(|s| *s < 0.9));
+    let mut strands: Vec<i64> = channel(&a, "strand.id").iter().map(|s| *s as i64).collect();
+    strands.sort_unstable();
+    strands.dedup();
+    assert!(
+        strands.len() > 10,
+        "{} distinct strands seen",
+        strands.len()
+    );
 }
 
 #[test]

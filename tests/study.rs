@@ -4,8 +4,8 @@
 use std::path::Path;
 use std::process::Command;
 
+use cuticle::measure::metrics;
 use cuticle::scene::ShadowMode;
-use cuticle::study::metrics;
 use cuticle::study::shadows::{run, ShadowStudyConfig, CSV_HEADER};
 use cuticle::study::StudyError;
 

@@ -8,7 +8,7 @@ use glam::Vec3;
 use crate::ray::{InvalidRay, Ray};
 
 /// How strands are intersected.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum CurveKind {
     /// Round tubes (Embree `ROUND_BSPLINE`): exact swept spheres, both for camera and shadow rays.

@@ -9,10 +9,9 @@
 use std::fmt;
 use std::time::Instant;
 
-use super::{peak_rss_bytes, BenchError, Timing};
-use crate::accel::embree::EmbreeTracer;
+use crate::measure::{peak_rss_bytes, Timing};
 use crate::render::integrator::RayCounts;
-use crate::render::{self, Options};
+use crate::render::{thread_pool, Frame, FrameError, Options, ThreadPoolError};
 use crate::scene::Scene;
 
 /// The result of [`frame`].
@@ -80,18 +79,18 @@ impl fmt::Display for FrameReport {
     }
 }
 
-/// Why the frame benchmark could not run.
+/// Why a whole-frame benchmark could not run.
 #[derive(Debug, thiserror::Error)]
 pub enum FrameBenchError {
-    /// The hair model could not be loaded.
-    #[error(transparent)]
-    Hair(#[from] crate::hair::HairError),
-    /// The lights could not be built (e.g. a missing environment map).
+    /// The scene is invalid or its lights could not be built (e.g. a missing environment map).
     #[error(transparent)]
     Scene(#[from] crate::scene::SceneError),
-    /// Embree or the thread pool failed.
+    /// The hair could not be loaded or Embree refused it.
     #[error(transparent)]
-    Bench(#[from] BenchError),
+    Frame(#[from] FrameError),
+    /// The worker threads could not be started.
+    #[error(transparent)]
+    ThreadPool(#[from] ThreadPoolError),
 }
 
 /// Renders `scene` as described in the module docs.
@@ -100,17 +99,9 @@ pub fn frame(
     threads: usize,
     repetitions: usize,
 ) -> Result<FrameReport, FrameBenchError> {
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .map_err(|source| BenchError::ThreadPool { threads, source })?;
-    let start = Instant::now();
-    let strands = render::load_strands(scene)?;
-    let load_seconds = start.elapsed().as_secs_f64();
-    let lights = scene.build_lights()?;
-    let tracer = EmbreeTracer::new(&strands, scene.hair.curves).map_err(BenchError::from)?;
-    let run =
-        || pool.install(|| render::render(scene, &strands, &tracer, &lights, Options::default()));
+    let pool = thread_pool(Some(threads))?;
+    let frame = Frame::load(scene.resolve()?)?;
+    let run = || pool.install(|| frame.render(Options::default()));
     let (_, warm) = run();
     let seconds: Vec<f64> = (0..repetitions.max(1))
         .map(|_| {
@@ -121,14 +112,14 @@ pub fn frame(
         .collect();
     Ok(FrameReport {
         scene: scene.source.display().to_string(),
-        strands: strands.strand_count(),
+        strands: frame.strands.strand_count(),
         resolution: scene.film.resolution,
         spp: scene.film.spp,
         path_length: scene.integrator.path_length,
-        material: scene.material.name(),
+        material: frame.material.name,
         threads: pool.current_num_threads(),
-        load_seconds,
-        build_seconds: tracer.build_seconds(),
+        load_seconds: frame.load_seconds,
+        build_seconds: frame.build_seconds(),
         render: Timing::from_samples(seconds),
         rays: warm.rays,
         repetitions: repetitions.max(1),

@@ -21,6 +21,7 @@ use rayon::prelude::*;
 use crate::accel::embree::EmbreeTracer;
 use crate::accel::{CurveKind, Hit, Tracer};
 use crate::hair::Strands;
+use crate::measure::{peak_rss_bytes, Timing};
 use crate::ray::Ray;
 use crate::render::camera::Camera;
 use crate::sys::embree::{Cutoff, Device, EmbreeError};
@@ -69,42 +70,6 @@ impl TraceConfig {
             repetitions: 3,
             kinds: vec![CurveKind::Round, CurveKind::Flat],
             opacity: None,
-        }
-    }
-}
-
-/// Median and spread of repeated timings, in seconds.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Timing {
-    /// Median.
-    pub median: f64,
-    /// Fastest.
-    pub min: f64,
-    /// Slowest.
-    pub max: f64,
-}
-
-impl Timing {
-    /// Median, min and max of `seconds` (NaN if empty).
-    pub fn from_samples(mut seconds: Vec<f64>) -> Self {
-        seconds.sort_by(f64::total_cmp);
-        let n = seconds.len();
-        if n == 0 {
-            return Timing {
-                median: f64::NAN,
-                min: f64::NAN,
-                max: f64::NAN,
-            };
-        }
-        let median = if n % 2 == 1 {
-            seconds[n / 2]
-        } else {
-            0.5 * (seconds[n / 2 - 1] + seconds[n / 2])
-        };
-        Timing {
-            median,
-            min: seconds[0],
-            max: seconds[n - 1],
         }
     }
 }
@@ -255,14 +220,6 @@ impl fmt::Display for TraceReport {
     }
 }
 
-/// Peak resident set size of this process (`VmHWM` in `/proc/self/status`), in bytes.
-pub fn peak_rss_bytes() -> Option<u64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
-    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb * 1024)
-}
-
 /// Sums over shadow-ray results.
 #[derive(Debug, Clone, Copy, Default)]
 struct ShadowTally {
@@ -410,23 +367,4 @@ fn time<R: Send>(
         })
         .collect();
     Timing::from_samples(seconds)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn median_and_spread() {
-        let t = Timing::from_samples(vec![3.0, 1.0, 2.0]);
-        assert_eq!((t.median, t.min, t.max), (2.0, 1.0, 3.0));
-        assert_eq!(Timing::from_samples(vec![1.0, 2.0]).median, 1.5);
-    }
-
-    #[test]
-    fn reads_peak_memory() {
-        if cfg!(target_os = "linux") {
-            assert!(peak_rss_bytes().is_some_and(|b| b > 0));
-        }
-    }
 }

@@ -15,12 +15,11 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 use super::frame::FrameBenchError;
-use super::{BenchError, Timing};
-use crate::accel::embree::EmbreeTracer;
 use crate::accel::Tracer;
 use crate::image::Image;
-use crate::render::{self, Options};
-use crate::scene::{Scene, ShadowMode};
+use crate::measure::Timing;
+use crate::render::{thread_pool, Frame, Options, ShadowMode};
+use crate::scene::Scene;
 use crate::shadow::deep_opacity::MapFrame;
 
 /// One shadow mode's timings.
@@ -138,13 +137,8 @@ pub fn shadows(
     threads: usize,
     repetitions: usize,
 ) -> Result<ShadowReport, FrameBenchError> {
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .map_err(|source| BenchError::ThreadPool { threads, source })?;
-    let strands = render::load_strands(scene)?;
-    let lights = scene.build_lights()?;
-    let tracer = EmbreeTracer::new(&strands, scene.hair.curves).map_err(BenchError::from)?;
+    let pool = thread_pool(Some(threads))?;
+    let frame = Frame::load(scene.resolve()?)?;
     let mut modes = Vec::new();
     let mut images = Vec::new();
     for mode in [
@@ -152,10 +146,9 @@ pub fn shadows(
         ShadowMode::Raytraced,
         ShadowMode::DeepOpacity,
     ] {
-        let mut s = scene.clone();
-        s.shadows.mode = mode;
-        let run =
-            || pool.install(|| render::render(&s, &strands, &tracer, &lights, Options::default()));
+        let mut settings = frame.settings.clone();
+        settings.shadows.mode = mode;
+        let run = || pool.install(|| frame.render_with(&settings, Options::default()));
         let (image, warm) = run();
         let (mut render_s, mut build_s) = (Vec::new(), Vec::new());
         for _ in 0..repetitions.max(1) {
@@ -174,22 +167,22 @@ pub fn shadows(
     }
     // The study's RMSE over R, G, B (no pixel mask needed: only the whole-image figure is printed).
     let mask = vec![false; images[1].width * images[1].height];
-    let rms = crate::study::metrics::errors(&images[2], &images[1], &mask)
+    let rms = crate::measure::metrics::errors(&images[2], &images[1], &mask)
         .expect("renders of one scene share their size and carry R, G, B")
         .rmse;
     let level = mean_rgb(&images[1]);
-    let traced_build = lights.iter().find_map(|l| match l {
+    let traced_build = frame.lights.iter().find_map(|l| match l {
         crate::light::Light::Distant(d) => Some(d.to_sun()),
         _ => None,
     });
     let traced_build = traced_build.map(|to_sun| {
         let res = scene.shadows.deep_opacity.resolution;
-        let frame = MapFrame::fit_orthographic(-to_sun, &strands, res);
+        let map = MapFrame::fit_orthographic(-to_sun, &frame.strands, res);
         let start = Instant::now();
         pool.install(|| {
             (0..res).into_par_iter().for_each(|ty| {
                 for tx in 0..res {
-                    let _ = tracer.transmittance(&frame.texel_ray(tx, ty), None);
+                    let _ = frame.tracer.transmittance(&map.texel_ray(tx, ty), None);
                 }
             })
         });

@@ -33,6 +33,7 @@ pub mod gaussian;
 pub mod ishair;
 pub mod kajiya_kay;
 pub mod marschner;
+pub mod material;
 pub mod pcg;
 pub mod plot;
 pub mod sphere;
@@ -41,6 +42,8 @@ pub mod stats;
 mod testing;
 
 use glam::Vec3;
+
+pub use material::Material;
 
 /// A fibre scattering model in the local hair frame (see the module docs for axes and conventions).
 ///

@@ -5,7 +5,9 @@
 //! colour, exactly what the file says), then [`Strands::from_model`] turns it into B-spline control points.
 
 pub mod procedural;
+pub mod source;
 pub mod strands;
+pub mod summary;
 pub mod tfx;
 pub mod yuksel;
 
@@ -13,7 +15,9 @@ use std::path::{Path, PathBuf};
 
 use glam::Vec3;
 
+pub use source::{HairSource, HairSpec};
 pub use strands::Strands;
+pub use summary::Summary;
 
 /// Everything that can go wrong while reading or building a hair model. Every variant names the file.
 #[derive(Debug, thiserror::Error)]

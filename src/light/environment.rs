@@ -372,7 +372,8 @@ mod tests {
     use crate::light::Light;
     use std::sync::OnceLock;
 
-    /// The shared maps, beside the repository (CI has them; a checkout without them skips the map tests).
+    /// The shared maps, beside the repository. CI has them; without them the map tests fail, naming the directory
+    /// (they never pass without testing).
     const ENVMAP_DIR: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/envmaps");
     /// Samples of the map chi-square test: ≈ 120 per cell of the 64 × 128 grid.
     const MAP_CHI2_SAMPLES: usize = 1_000_000;
@@ -390,19 +391,16 @@ mod tests {
     /// Tolerance of ∫ pdf dω = 1.
     const PDF_TOLERANCE: f64 = 0.01;
 
-    /// The smallest map in [`ENVMAP_DIR`] and its image, read once for all tests; `None` (with a note) if absent.
-    fn smallest_map() -> Option<&'static (PathBuf, Image)> {
-        static MAP: OnceLock<Option<(PathBuf, Image)>> = OnceLock::new();
+    /// The smallest map in [`ENVMAP_DIR`] and its image, read once for all tests. Panics, naming the directory,
+    /// when it is missing or holds no map.
+    fn smallest_map() -> &'static (PathBuf, Image) {
+        static MAP: OnceLock<(PathBuf, Image)> = OnceLock::new();
         MAP.get_or_init(|| {
-            let entries = match std::fs::read_dir(ENVMAP_DIR) {
-                Ok(entries) => entries,
-                Err(e) => {
-                    eprintln!(
-                        "note: {ENVMAP_DIR} unreadable ({e}): skipping the environment map test"
-                    );
-                    return None;
-                }
-            };
+            let entries = std::fs::read_dir(ENVMAP_DIR).unwrap_or_else(|e| {
+                panic!(
+                    "the environment map tests need {ENVMAP_DIR} (../shared/data beside the repository): {e}"
+                )
+            });
             let smallest = entries
                 .filter_map(|e| e.ok())
                 .map(|e| e.path())
@@ -410,8 +408,7 @@ mod tests {
                 .filter_map(|p| Some((std::fs::metadata(&p).ok()?.len(), p)))
                 .min();
             let Some((_, path)) = smallest else {
-                eprintln!("note: no .exr/.hdr in {ENVMAP_DIR}: skipping the environment map test");
-                return None;
+                panic!("no .exr/.hdr in {ENVMAP_DIR}: the environment map tests need one");
             };
             let image = read(&path).unwrap_or_else(|e| panic!("{e}"));
             eprintln!(
@@ -420,9 +417,8 @@ mod tests {
                 image.width,
                 image.height
             );
-            Some((path, image))
+            (path, image)
         })
-        .as_ref()
     }
 
     /// A `width × height` RGB image from a function of (column, row).
@@ -791,9 +787,7 @@ mod tests {
 
     #[test]
     fn map_pdf_integrates_to_one() {
-        let Some((path, img)) = smallest_map() else {
-            return;
-        };
+        let (path, img) = smallest_map();
         let env = Environment::from_image(img, 1.0, 0.0, Vec3::Y).unwrap();
         let integral = pdf_integral(&env);
         eprintln!(
@@ -810,9 +804,7 @@ mod tests {
 
     #[test]
     fn map_chi_square_and_le_at_samples() {
-        let Some((path, img)) = smallest_map() else {
-            return;
-        };
+        let (path, img) = smallest_map();
         let env = Environment::from_image(img, 1.0, 0.0, Vec3::Y).unwrap();
         let (observed, mismatches) = sample_histogram(&env, img, MAP_CHI2_SAMPLES, 1);
         let expected = expected_histogram(&env, MAP_CHI2_SAMPLES);
@@ -839,9 +831,7 @@ mod tests {
 
     #[test]
     fn map_rotation_moves_the_brightest_direction() {
-        let Some((path, img)) = smallest_map() else {
-            return;
-        };
+        let (path, img) = smallest_map();
         let (w, h) = (img.width, img.height);
         let base = Environment::from_image(img, 1.0, 0.0, Vec3::Y).unwrap();
         let turned = Environment::from_image(img, 1.0, 90.0, Vec3::Y).unwrap();
@@ -872,9 +862,8 @@ mod tests {
         let e = Environment::load(&path, 1.0, 0.0, Vec3::Y).unwrap_err();
         assert!(matches!(e, LightError::EnvironmentMap { .. }));
         assert!(e.to_string().contains(&path), "{e}");
-        if let Some((path, _)) = smallest_map() {
-            let env = Environment::load(path, 1.0, 0.0, Vec3::Y).unwrap();
-            assert!(env.average_radiance().min_element() > 0.0);
-        }
+        let (path, _) = smallest_map();
+        let env = Environment::load(path, 1.0, 0.0, Vec3::Y).unwrap();
+        assert!(env.average_radiance().min_element() > 0.0);
     }
 }

@@ -2,8 +2,62 @@
 
 use glam::Vec3;
 
+use serde::Deserialize;
+
 use crate::ray::Ray;
-use crate::scene::CameraConfig;
+
+/// `[camera]`: a pinhole camera. Without `position` the camera is placed automatically so the model's bounding
+/// sphere fills the frame, looking along `view` at the model's centre.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CameraConfig {
+    /// Vertical field of view, degrees, in (0, 180).
+    pub fov: f32,
+    /// Eye position, world space.
+    pub position: Option<[f32; 3]>,
+    /// Point looked at (default: the model's bounding-box centre).
+    pub look_at: Option<[f32; 3]>,
+    /// Up vector.
+    pub up: [f32; 3],
+    /// Viewing direction used by auto-framing (from the eye towards the model).
+    pub view: [f32; 3],
+    /// Auto-framing margin: 1 fits the bounding sphere exactly, larger zooms out.
+    pub margin: f32,
+}
+
+impl Default for CameraConfig {
+    fn default() -> Self {
+        CameraConfig {
+            fov: 40.0,
+            position: None,
+            look_at: None,
+            up: [0.0, 1.0, 0.0],
+            view: [0.0, 0.0, -1.0],
+            margin: 1.05,
+        }
+    }
+}
+
+impl CameraConfig {
+    /// Range checks; messages name the `camera.*` key.
+    pub fn validate(&self) -> Result<(), String> {
+        if !(self.fov > 0.0 && self.fov < 180.0) {
+            return Err(format!(
+                "camera.fov must be in (0, 180) degrees, got {}",
+                self.fov
+            ));
+        }
+        if !(self.margin.is_finite() && self.margin > 0.0) {
+            return Err(format!("camera.margin must be > 0, got {}", self.margin));
+        }
+        for (key, v) in [("camera.up", self.up), ("camera.view", self.view)] {
+            if !Vec3::from(v).is_finite() || Vec3::from(v).length_squared() == 0.0 {
+                return Err(format!("{key} must be a non-zero finite vector, got {v:?}"));
+            }
+        }
+        Ok(())
+    }
+}
 
 /// A pinhole camera. Pixel (0, 0) is the top-left corner of the image.
 #[derive(Debug, Clone, Copy, PartialEq)]

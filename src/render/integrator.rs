@@ -36,15 +36,15 @@ use glam::Vec3;
 
 use crate::accel::{CurveKind, Tracer};
 use crate::bsdf::frame::{sin_cos_theta, strand_noise, HairFrame};
-use crate::bsdf::{luminance, Lobe, LobeValues};
+use crate::bsdf::{luminance, Lobe, LobeValues, Material};
 use crate::hair::Strands;
 use crate::light::{Distribution1D, Light};
 use crate::ray::Ray;
-use crate::scene::{LightSelection, Material, ShadowMode, Strategy, TransmittanceMode};
 use crate::shadow::ShadowMaps;
 use crate::shape::Shapes;
 
 use super::sampler::PixelSampler;
+use super::settings::{LightSelection, ShadowMode, Strategy, TransmittanceMode};
 
 /// Sample dimensions used per path vertex (see [`Integrator::sample`]); vertex b uses
 /// `FIRST_VERTEX_DIM + b * DIMS_PER_VERTEX ..`.

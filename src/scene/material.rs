@@ -24,7 +24,7 @@ use serde::Deserialize;
 use crate::bsdf::ishair::{IsHair, IsHairParams, LobeSelection};
 use crate::bsdf::kajiya_kay::{KajiyaKay, KajiyaKayParams};
 use crate::bsdf::marschner::{Marschner, MarschnerParams};
-use crate::bsdf::{Balance, Bsdf, Sampling};
+use crate::bsdf::{Balance, Bsdf, Material, Sampling};
 
 /// `[material]`, tagged by `model`.
 #[derive(Debug, Clone, Deserialize)]
@@ -41,6 +41,19 @@ pub enum MaterialConfig {
 impl Default for MaterialConfig {
     fn default() -> Self {
         MaterialConfig::KajiyaKay(KajiyaKayConfig::default())
+    }
+}
+
+impl MaterialConfig {
+    /// The model called `name` in a scene (`"kajiya-kay"`, `"marschner"`, `"ishair"`) with its paper's defaults,
+    /// as `model = "name"` alone would give.
+    pub fn named(name: &str) -> Option<MaterialConfig> {
+        Some(match name {
+            "kajiya-kay" => MaterialConfig::KajiyaKay(KajiyaKayConfig::default()),
+            "marschner" => MaterialConfig::Marschner(MarschnerConfig::default()),
+            "ishair" => MaterialConfig::Ishair(IsHairConfig::default()),
+            _ => return None,
+        })
     }
 }
 
@@ -246,25 +259,6 @@ impl Default for IsHairConfig {
     }
 }
 
-/// A material ready to shade: the model and whether the strand colour tints its diffuse lobe.
-pub struct Material {
-    /// The scattering model, in the local hair frame.
-    pub bsdf: Box<dyn Bsdf + Send + Sync>,
-    /// `true` when the scene gave no diffuse `color`: the diffuse lobe is multiplied by each strand's colour.
-    pub tint_diffuse_by_strand: bool,
-    /// The model's scene name, for messages and summaries.
-    pub name: &'static str,
-}
-
-impl std::fmt::Debug for Material {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Material")
-            .field("name", &self.name)
-            .field("tint_diffuse_by_strand", &self.tint_diffuse_by_strand)
-            .finish()
-    }
-}
-
 /// Checks that the widths in degrees are positive and finite, naming the key (`material.beta_1 must be > 0
 /// degrees, got 0`): the models' own checks speak radians, which is not what the user wrote.
 fn check_widths(widths: &[(&str, f32)]) -> Result<(), String> {
@@ -374,6 +368,17 @@ impl MaterialConfig {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn named_defaults_are_what_the_model_key_alone_gives() {
+        for name in ["kajiya-kay", "marschner", "ishair"] {
+            let parsed: MaterialConfig = toml::from_str(&format!("model = \"{name}\"")).unwrap();
+            let named = MaterialConfig::named(name).unwrap();
+            assert_eq!(format!("{named:?}"), format!("{parsed:?}"));
+            assert_eq!(named.name(), name);
+        }
+        assert!(MaterialConfig::named("chiang").is_none());
+    }
 
     fn parse(text: &str) -> Result<MaterialConfig, String> {
         #[derive(Deserialize)]

@@ -22,16 +22,23 @@
 
 use std::path::{Path, PathBuf};
 
-use glam::Vec3;
 use serde::Deserialize;
 
 use crate::accel::CurveKind;
 use crate::hair::procedural::Procedural;
+use crate::hair::{HairSource, HairSpec};
+use crate::render::{FrameSpec, RenderSettings};
+
+pub use crate::render::camera::CameraConfig;
+pub use crate::render::settings::{
+    FilmConfig, IntegratorConfig, LightSelection, ShadowConfig, ShadowMode, Strategy,
+    TransmittanceMode,
+};
 
 pub mod lights;
 pub mod material;
 pub use lights::{EnvironmentConfig, LightConfig, ShapeConfig};
-pub use material::{Material, MaterialConfig};
+pub use material::MaterialConfig;
 
 /// The default scene, compiled in so `cuticle render` works from any directory with no downloaded data.
 pub const DEFAULT_SCENE: &str = include_str!("../../scenes/default.toml");
@@ -117,165 +124,6 @@ fn one() -> f32 {
     1.0
 }
 
-/// Where the hair comes from, after checking `[hair]`.
-#[derive(Debug, Clone)]
-pub enum HairSource {
-    /// A file path, already resolved against the scene directory.
-    File(PathBuf),
-    /// A generated model.
-    Procedural(Procedural),
-}
-
-/// `[camera]`: a pinhole camera. Without `position` the camera is placed automatically so the model's bounding
-/// sphere fills the frame, looking along `view` at the model's centre.
-#[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct CameraConfig {
-    /// Vertical field of view, degrees, in (0, 180).
-    pub fov: f32,
-    /// Eye position, world space.
-    pub position: Option<[f32; 3]>,
-    /// Point looked at (default: the model's bounding-box centre).
-    pub look_at: Option<[f32; 3]>,
-    /// Up vector.
-    pub up: [f32; 3],
-    /// Viewing direction used by auto-framing (from the eye towards the model).
-    pub view: [f32; 3],
-    /// Auto-framing margin: 1 fits the bounding sphere exactly, larger zooms out.
-    pub margin: f32,
-}
-
-impl Default for CameraConfig {
-    fn default() -> Self {
-        CameraConfig {
-            fov: 40.0,
-            position: None,
-            look_at: None,
-            up: [0.0, 1.0, 0.0],
-            view: [0.0, 0.0, -1.0],
-            margin: 1.05,
-        }
-    }
-}
-
-/// `[film]`: image size and sampling.
-#[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct FilmConfig {
-    /// Width and height in pixels.
-    pub resolution: [u32; 2],
-    /// Camera samples per pixel.
-    pub spp: u32,
-    /// Seed of the sample streams: same scene + seed ⇒ same image.
-    pub seed: u32,
-    /// Width of the Gaussian pixel filter in pixels (thesis §5.5 used a 3×3 Gaussian).
-    pub filter_width: f32,
-}
-
-impl Default for FilmConfig {
-    fn default() -> Self {
-        FilmConfig {
-            resolution: [640, 480],
-            spp: 16,
-            seed: 0,
-            filter_width: 3.0,
-        }
-    }
-}
-
-/// How strands shadow each other.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, clap::ValueEnum)]
-#[serde(rename_all = "kebab-case")]
-pub enum ShadowMode {
-    /// Shadow rays through semi-transparent strands (transmittance query).
-    #[default]
-    Raytraced,
-    /// Deep opacity maps (Yuksel & Keyser 2008), built per light before rendering ([`crate::shadow`]).
-    DeepOpacity,
-    /// No self-shadowing.
-    None,
-}
-
-/// How light samples' shadow rays account for semi-transparent strands (see [`crate::render::integrator`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, clap::ValueEnum)]
-#[serde(rename_all = "kebab-case")]
-pub enum TransmittanceMode {
-    /// Each strand present with probability = opacity: one any-hit query per shadow ray, visibility 0 or 1.
-    #[default]
-    Stochastic,
-    /// ∏ (1 − opacity) over every strand crossed: smooth, but a full traversal per shadow ray.
-    Exact,
-}
-
-/// `[shadows]`.
-#[derive(Debug, Clone, Deserialize, Default)]
-#[serde(deny_unknown_fields, default)]
-pub struct ShadowConfig {
-    /// Ray traced, deep opacity maps, or none.
-    pub mode: ShadowMode,
-    /// Stochastic or exact transparency for light samples (ray-traced mode).
-    pub transmittance: TransmittanceMode,
-    /// The maps of the deep-opacity mode.
-    pub deep_opacity: crate::shadow::DeepOpacityConfig,
-}
-
-/// Which strategies estimate direct light (MIS, or one alone for comparisons and tests).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, clap::ValueEnum)]
-#[serde(rename_all = "kebab-case")]
-pub enum Strategy {
-    /// Light and material samples combined by the power heuristic.
-    #[default]
-    Mis,
-    /// Light samples only (material samples still continue paths).
-    Light,
-    /// Material samples only (delta lights, which no material sample can hit, are still light-sampled).
-    Material,
-}
-
-/// Which lights the first shading point's light samples go to.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, clap::ValueEnum)]
-#[serde(rename_all = "kebab-case")]
-pub enum LightSelection {
-    /// Every light gets `light_samples` samples (delta lights one): RenderMan's and the thesis' semantics. Costs
-    /// one shadow ray per light per sample.
-    #[default]
-    All,
-    /// Each of the `light_samples` samples first picks one light in proportion to its power (pbrt-v4's and
-    /// Cycles' way): one shadow ray per sample however many lights there are, more variance per sample.
-    One,
-}
-
-/// `[integrator]`: the thesis' sample counts (§6, table 3) and the path length.
-#[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct IntegratorConfig {
-    /// Light samples per light at the first shading point (RenderMan's light samples).
-    pub light_samples: u32,
-    /// Material (BSDF) samples at the first shading point.
-    pub material_samples: u32,
-    /// Indirect bounces: 0 = direct light only.
-    pub path_length: u32,
-    /// Clamp each indirect contribution to this value per channel; 0 = off (the default; clamping is biased).
-    pub clamp: f32,
-    /// Direct-light strategy.
-    pub strategy: Strategy,
-    /// Which lights the first vertex's light samples go to.
-    pub lights: LightSelection,
-}
-
-impl Default for IntegratorConfig {
-    fn default() -> Self {
-        IntegratorConfig {
-            light_samples: 1,
-            material_samples: 1,
-            path_length: 1,
-            clamp: 0.0,
-            strategy: Strategy::Mis,
-            lights: LightSelection::All,
-        }
-    }
-}
-
 impl Scene {
     /// Reads and checks a scene file.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
@@ -334,68 +182,10 @@ impl Scene {
                 h.radius_scale
             ));
         }
-        let c = &self.camera;
-        if !(c.fov > 0.0 && c.fov < 180.0) {
-            return Err(format!(
-                "camera.fov must be in (0, 180) degrees, got {}",
-                c.fov
-            ));
-        }
-        if !(c.margin.is_finite() && c.margin > 0.0) {
-            return Err(format!("camera.margin must be > 0, got {}", c.margin));
-        }
-        for (key, v) in [("camera.up", c.up), ("camera.view", c.view)] {
-            if !Vec3::from(v).is_finite() || Vec3::from(v).length_squared() == 0.0 {
-                return Err(format!("{key} must be a non-zero finite vector, got {v:?}"));
-            }
-        }
-        let f = &self.film;
-        if f.resolution[0] == 0
-            || f.resolution[1] == 0
-            || f.resolution[0] > 32768
-            || f.resolution[1] > 32768
-        {
-            return Err(format!(
-                "film.resolution must be in [1, 32768]², got {:?}",
-                f.resolution
-            ));
-        }
-        if f.spp == 0 || f.spp > 65536 {
-            return Err(format!("film.spp must be in [1, 65536], got {}", f.spp));
-        }
-        if !(f.filter_width.is_finite() && f.filter_width > 0.0 && f.filter_width <= 16.0) {
-            return Err(format!(
-                "film.filter_width must be in (0, 16] pixels, got {}",
-                f.filter_width
-            ));
-        }
+        self.camera.validate()?;
+        self.film.validate()?;
         self.material.build()?;
-        let i = &self.integrator;
-        if !(1..=1024).contains(&i.light_samples) {
-            return Err(format!(
-                "integrator.light_samples must be in [1, 1024], got {}",
-                i.light_samples
-            ));
-        }
-        if !(1..=1024).contains(&i.material_samples) {
-            return Err(format!(
-                "integrator.material_samples must be in [1, 1024], got {}",
-                i.material_samples
-            ));
-        }
-        let max = crate::render::integrator::MAX_PATH_LENGTH;
-        if i.path_length > max {
-            return Err(format!(
-                "integrator.path_length must be in [0, {max}], got {}",
-                i.path_length
-            ));
-        }
-        if !(i.clamp.is_finite() && i.clamp >= 0.0) {
-            return Err(format!(
-                "integrator.clamp must be >= 0 (0 = off), got {}",
-                i.clamp
-            ));
-        }
+        self.integrator.validate()?;
         self.shadows.deep_opacity.validate()?;
         lights::validate(self)?;
         Ok(())
@@ -409,4 +199,105 @@ impl Scene {
             (None, None) => unreachable!("validate() requires a hair source"),
         }
     }
+
+    /// The hair source with the scene's radius scale and opacity override.
+    pub fn hair_spec(&self) -> HairSpec {
+        HairSpec {
+            source: self.hair_source(),
+            radius_scale: self.hair.radius_scale,
+            opacity: self.hair.opacity,
+        }
+    }
+
+    /// The settings a render of this scene runs with.
+    pub fn render_settings(&self) -> RenderSettings {
+        RenderSettings {
+            camera: self.camera.clone(),
+            film: self.film.clone(),
+            integrator: self.integrator.clone(),
+            shadows: self.shadows.clone(),
+            background_visible: self.environment.visible,
+        }
+    }
+
+    /// Everything a frame of this scene is made of: the material, lights and shapes built (the environment map
+    /// read), the hair not yet loaded. Errors name the scene and, for a map, the file.
+    pub fn resolve(&self) -> Result<FrameSpec, SceneError> {
+        let material = self
+            .material
+            .build()
+            .map_err(|message| SceneError::Invalid {
+                path: self.source.clone(),
+                message,
+            })?;
+        Ok(FrameSpec {
+            hair: self.hair_spec(),
+            curves: self.hair.curves,
+            material,
+            lights: self.build_lights()?,
+            shapes: self.build_shapes(),
+            settings: self.render_settings(),
+        })
+    }
+
+    /// Applies command-line overrides and checks the result like a scene file (a bad value is reported like a bad
+    /// scene key).
+    pub fn apply(mut self, o: &Overrides) -> Result<Scene, SceneError> {
+        if let Some(spp) = o.spp {
+            self.film.spp = spp;
+        }
+        if let Some(res) = o.resolution {
+            self.film.resolution = res;
+        }
+        if let Some(seed) = o.seed {
+            self.film.seed = seed;
+        }
+        if let Some(curves) = o.curves {
+            self.hair.curves = curves;
+        }
+        if let Some(mode) = o.shadows {
+            self.shadows.mode = mode;
+        }
+        if let Some(t) = o.transmittance {
+            self.shadows.transmittance = t;
+        }
+        if let Some(n) = o.light_samples {
+            self.integrator.light_samples = n;
+        }
+        if let Some(n) = o.material_samples {
+            self.integrator.material_samples = n;
+        }
+        if let Some(n) = o.path_length {
+            self.integrator.path_length = n;
+        }
+        if let Some(l) = o.lights {
+            self.integrator.lights = l;
+        }
+        self.revalidate()
+    }
+}
+
+/// Values a user overrides on the command line, each replacing one scene key.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Overrides {
+    /// `film.spp`.
+    pub spp: Option<u32>,
+    /// `film.resolution`.
+    pub resolution: Option<[u32; 2]>,
+    /// `film.seed`.
+    pub seed: Option<u32>,
+    /// `hair.curves`.
+    pub curves: Option<CurveKind>,
+    /// `shadows.mode`.
+    pub shadows: Option<ShadowMode>,
+    /// `shadows.transmittance`.
+    pub transmittance: Option<TransmittanceMode>,
+    /// `integrator.light_samples`.
+    pub light_samples: Option<u32>,
+    /// `integrator.material_samples`.
+    pub material_samples: Option<u32>,
+    /// `integrator.path_length`.
+    pub path_length: Option<u32>,
+    /// `integrator.lights`.
+    pub lights: Option<LightSelection>,
 }

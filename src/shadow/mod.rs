@@ -13,7 +13,7 @@ use serde::Deserialize;
 pub use deep_opacity::{DeepOpacityMap, ShadowMaps};
 
 /// How the layers of a deep opacity map are spaced behind the nearest strand z0.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum LayerSpacing {
     /// Layers of equal thickness (Yuksel & Keyser's default).

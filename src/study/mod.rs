@@ -4,14 +4,14 @@
 //! - [`shadows`]: `cuticle study shadows SCENE` — ray-traced shadows at several sample counts and deep opacity maps
 //!   over layer counts and resolutions, against a converged ray-traced reference: error against time, map memory
 //!   (issue 6).
-//! - [`metrics`]: the image error measures (RMSE, relMSE, over the whole image and over shadowed pixels) and the
-//!   choice of the crop window.
+//!
+//! Image error measures (RMSE, relMSE, shadowed pixels, the crop window) are [`crate::measure::metrics`], shared
+//! with the benchmarks.
 //! - [`cache`]: a stable hash (FNV-1a) naming cached reference renders, and atomic text-file writes.
 //! - [`figures`]: the error-against-time chart and the mosaic of crops.
 
 pub mod cache;
 pub mod figures;
-pub mod metrics;
 pub mod shadows;
 
 use std::path::PathBuf;
@@ -30,12 +30,9 @@ pub enum StudyError {
     /// The scene (or a variant of it) is invalid, or its lights could not be built.
     #[error(transparent)]
     Scene(#[from] crate::scene::SceneError),
-    /// The hair model could not be loaded.
+    /// The hair could not be loaded or Embree refused it.
     #[error(transparent)]
-    Hair(#[from] crate::hair::HairError),
-    /// Embree could not build the curves.
-    #[error(transparent)]
-    Embree(#[from] crate::sys::embree::EmbreeError),
+    Frame(#[from] crate::render::FrameError),
     /// An image (the cached reference, a chart, the crops) could not be read or written.
     #[error(transparent)]
     Image(#[from] crate::image::ImageError),
@@ -50,13 +47,8 @@ pub enum StudyError {
         source: std::io::Error,
     },
     /// The worker threads could not be started.
-    #[error("cannot start {threads} worker threads: {source}")]
-    ThreadPool {
-        /// Threads asked for.
-        threads: usize,
-        /// Rayon's error.
-        source: rayon::ThreadPoolBuildError,
-    },
+    #[error(transparent)]
+    ThreadPool(#[from] crate::render::ThreadPoolError),
     /// The study's own settings are unusable (an empty list, 0 samples, a cached reference of the wrong size).
     #[error("{0}")]
     Config(String),

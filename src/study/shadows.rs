@@ -54,13 +54,12 @@ use glam::Vec3;
 
 use super::cache::{write_text, Fnv1a};
 use super::figures::{self, ChartSeries, Panel, Point};
-use super::metrics::{self, Errors};
 use super::StudyError;
-use crate::accel::embree::EmbreeTracer;
-use crate::bench::peak_rss_bytes;
 use crate::bsdf::chart::srgb;
 use crate::image::{self, Image};
-use crate::render::{self, Options, RenderStats};
+use crate::measure::metrics::{self, Errors};
+use crate::measure::peak_rss_bytes;
+use crate::render::{thread_pool, Frame, Options, RenderStats};
 use crate::scene::{Scene, ShadowMode, TransmittanceMode};
 
 /// Added to the scene's seed for the reference render.
@@ -349,18 +348,10 @@ pub fn run(scene_path: &Path, config: &ShadowStudyConfig) -> Result<ShadowStudyR
             eprintln!("{line}");
         }
     };
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(config.threads)
-        .build()
-        .map_err(|source| StudyError::ThreadPool {
-            threads: config.threads,
-            source,
-        })?;
-    let strands = render::load_strands(&scene)?;
-    let lights = scene.build_lights()?;
-    let tracer = EmbreeTracer::new(&strands, scene.hair.curves)?;
+    let pool = thread_pool(Some(config.threads))?;
+    let frame = Frame::load(scene.resolve()?)?;
     let render_scene = |s: &Scene, progress: bool| -> (Image, RenderStats) {
-        pool.install(|| render::render(s, &strands, &tracer, &lights, Options { progress }))
+        pool.install(|| frame.render_with(&s.render_settings(), Options { progress }))
     };
 
     // The reference.

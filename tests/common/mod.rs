@@ -1,21 +1,15 @@
 //! Helpers shared by the integration tests that render whole frames.
 
-use cuticle::accel::embree::EmbreeTracer;
 use cuticle::image::Image;
-use cuticle::render::{self, Options};
+use cuticle::render::{thread_pool, Frame, Options};
 use cuticle::scene::Scene;
 
-/// Renders `scene` (hair, lights and all) on a pool of `threads` threads, asserting no ray was refused.
+/// Renders `scene` (hair, lights and all) on a pool of `threads` threads, through the same frame set-up as the
+/// `render` command, asserting no ray was refused.
 pub fn render_scene(scene: &Scene, threads: usize) -> Image {
-    let strands = render::load_strands(scene).unwrap();
-    let tracer = EmbreeTracer::new(&strands, scene.hair.curves).unwrap();
-    let lights = scene.build_lights().unwrap();
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .unwrap();
-    let (image, stats) =
-        pool.install(|| render::render(scene, &strands, &tracer, &lights, Options::default()));
+    let frame = Frame::load(scene.resolve().unwrap()).unwrap();
+    let pool = thread_pool(Some(threads)).unwrap();
+    let (image, stats) = pool.install(|| frame.render(Options::default()));
     assert_eq!(stats.rays.rejected, 0);
     image
 }

@@ -1,0 +1,54 @@
+//! Where a frame's hair comes from and how it is adjusted before tracing: a file or a generator, then the scene's
+//! radius scale and opacity override.
+
+use std::path::PathBuf;
+
+use super::procedural::Procedural;
+use super::{HairError, HairModel, Strands};
+
+/// Where the hair comes from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum HairSource {
+    /// A `.hair` or `.tfx` file (a path already resolved against the scene's directory).
+    File(PathBuf),
+    /// A generated model.
+    Procedural(Procedural),
+}
+
+impl HairSource {
+    /// Reads or generates the model.
+    pub fn model(&self) -> Result<HairModel, HairError> {
+        match self {
+            HairSource::File(path) => super::load(path),
+            HairSource::Procedural(p) => p.generate(),
+        }
+    }
+}
+
+/// A hair model with the adjustments a scene applies to it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HairSpec {
+    /// The model.
+    pub source: HairSource,
+    /// Multiplies every strand radius.
+    pub radius_scale: f32,
+    /// Replaces every strand's opacity for light-carrying rays.
+    pub opacity: Option<f32>,
+}
+
+impl HairSpec {
+    /// Loads the model and converts it to B-spline strands with the radius scale and opacity applied.
+    pub fn load(&self) -> Result<Strands, HairError> {
+        let mut strands = Strands::from_model(&self.source.model()?);
+        if self.radius_scale != 1.0 {
+            strands
+                .control_points
+                .iter_mut()
+                .for_each(|c| c[3] *= self.radius_scale);
+        }
+        if let Some(o) = self.opacity {
+            strands.set_opacity(o);
+        }
+        Ok(strands)
+    }
+}

@@ -1,0 +1,291 @@
+//! The film: the channels of a rendered frame (beauty and AOVs), the per-pixel sums of camera samples, and the
+//! assembly of rendered tiles into one [`Image`].
+//!
+//! Channels are found by name ([`channel`], evaluated at compile time), never by a hand-kept index, so adding or
+//! reordering a channel in [`CHANNELS`] cannot silently write one pass into another.
+
+use glam::Vec3;
+
+use crate::bsdf::{Lobe, LobeValues};
+use crate::image::Image;
+
+use super::integrator::PathSample;
+
+/// Channels of the film, in order: beauty RGBA, then AOVs as `layer.channel` (EXR naming).
+///
+/// - `diffuse`, `specular` and the lobe layers `lobe_R`, `lobe_TT`, `lobe_TRT`, `lobe_glint` split the light
+///   leaving the first shading point by the lobe it went through (Lambert shapes count as diffuse):
+///   R + TT + TRT + glint = specular, and diffuse + specular = direct + indirect.
+/// - `direct` (light scattered once) and `indirect` (more than once); beauty = direct + indirect + what the camera
+///   sees of emitters and the background.
+/// - `shadow.Y`: the fraction of the first shading point's light-sample contributions that its shadow rays let
+///   through (1 where nothing was lit or nothing was hit).
+/// - `albedo`: a one-sample estimate of the first shading point's directional albedo (f cos θ / pdf).
+/// - `depth.Z`, `tangent`, `strand.id`: from one unfiltered ray through the pixel centre (a depth or id averaged
+///   across an edge would name no real surface); depth is +∞, tangent 0 and id −1 where it misses.
+pub const CHANNELS: [&str; 37] = [
+    "R",
+    "G",
+    "B",
+    "A",
+    "diffuse.R",
+    "diffuse.G",
+    "diffuse.B",
+    "specular.R",
+    "specular.G",
+    "specular.B",
+    "lobe_R.R",
+    "lobe_R.G",
+    "lobe_R.B",
+    "lobe_TT.R",
+    "lobe_TT.G",
+    "lobe_TT.B",
+    "lobe_TRT.R",
+    "lobe_TRT.G",
+    "lobe_TRT.B",
+    "lobe_glint.R",
+    "lobe_glint.G",
+    "lobe_glint.B",
+    "direct.R",
+    "direct.G",
+    "direct.B",
+    "indirect.R",
+    "indirect.G",
+    "indirect.B",
+    "shadow.Y",
+    "albedo.R",
+    "albedo.G",
+    "albedo.B",
+    "depth.Z",
+    "tangent.X",
+    "tangent.Y",
+    "tangent.Z",
+    "strand.id",
+];
+
+/// Index of channel `name` in [`CHANNELS`]. In a `const` it fails the build when the name is not a channel.
+pub const fn channel(name: &str) -> usize {
+    let mut i = 0;
+    while i < CHANNELS.len() {
+        if str_eq(CHANNELS[i], name) {
+            return i;
+        }
+        i += 1;
+    }
+    panic!("no such film channel");
+}
+
+const fn str_eq(a: &str, b: &str) -> bool {
+    let (a, b) = (a.as_bytes(), b.as_bytes());
+    if a.len() != b.len() {
+        return false;
+    }
+    let mut i = 0;
+    while i < a.len() {
+        if a[i] != b[i] {
+            return false;
+        }
+        i += 1;
+    }
+    true
+}
+
+/// Channels written from the camera samples' sums ([`PixelSums::write`]): each layer's first channel.
+mod at {
+    use super::channel;
+    pub const BEAUTY: usize = channel("R");
+    pub const ALPHA: usize = channel("A");
+    pub const DIFFUSE: usize = channel("diffuse.R");
+    pub const SPECULAR: usize = channel("specular.R");
+    pub const LOBE_R: usize = channel("lobe_R.R");
+    pub const LOBE_TT: usize = channel("lobe_TT.R");
+    pub const LOBE_TRT: usize = channel("lobe_TRT.R");
+    pub const LOBE_GLINT: usize = channel("lobe_glint.R");
+    pub const DIRECT: usize = channel("direct.R");
+    pub const INDIRECT: usize = channel("indirect.R");
+    pub const SHADOW: usize = channel("shadow.Y");
+    pub const ALBEDO: usize = channel("albedo.R");
+    pub const DEPTH: usize = channel("depth.Z");
+    pub const TANGENT: usize = channel("tangent.X");
+    pub const STRAND: usize = channel("strand.id");
+}
+
+/// The film accumulators of one pixel (sums over its camera samples).
+#[derive(Default)]
+pub(super) struct PixelSums {
+    beauty: Vec3,
+    alpha: f32,
+    lobes: LobeValues,
+    direct: Vec3,
+    indirect: Vec3,
+    lit: f32,
+    unshadowed: f32,
+    albedo: Vec3,
+}
+
+impl PixelSums {
+    /// Adds one camera sample.
+    pub(super) fn add(&mut self, s: &PathSample) {
+        self.beauty += s.beauty;
+        self.alpha += s.alpha;
+        for lobe in Lobe::ALL {
+            *self.lobes.get_mut(lobe) += s.lobes.get(lobe);
+        }
+        self.direct += s.direct;
+        self.indirect += s.indirect;
+        self.lit += s.lit;
+        self.unshadowed += s.unshadowed;
+        self.albedo += s.albedo;
+    }
+
+    /// Writes the averaged pixel into `pixel` (all of [`CHANNELS`]; the pixel-centre channels are
+    /// [`write_centre`]'s).
+    pub(super) fn write(&self, spp: u32, pixel: &mut [f32]) {
+        let k = 1.0 / spp as f32;
+        let l = self.lobes.scaled(k);
+        let specular = l.r + l.tt + l.trt + l.glint;
+        let shadow = if self.unshadowed > 0.0 {
+            self.lit / self.unshadowed
+        } else {
+            1.0
+        };
+        let mut put = |at: usize, v: &[f32]| pixel[at..at + v.len()].copy_from_slice(v);
+        put(at::BEAUTY, &(self.beauty * k).to_array());
+        put(at::ALPHA, &[self.alpha * k]);
+        for (at, v) in [
+            (at::DIFFUSE, l.diffuse),
+            (at::SPECULAR, specular),
+            (at::LOBE_R, l.r),
+            (at::LOBE_TT, l.tt),
+            (at::LOBE_TRT, l.trt),
+            (at::LOBE_GLINT, l.glint),
+            (at::DIRECT, self.direct * k),
+            (at::INDIRECT, self.indirect * k),
+            (at::ALBEDO, self.albedo * k),
+        ] {
+            put(at, &v.to_array());
+        }
+        put(at::SHADOW, &[shadow]);
+    }
+}
+
+/// Writes what one unfiltered ray through the pixel centre found: camera depth, unit tangent and strand id
+/// (+∞, 0 and −1 where it missed).
+pub(super) fn write_centre(depth: f32, tangent: Vec3, strand: f32, pixel: &mut [f32]) {
+    pixel[at::DEPTH] = depth;
+    pixel[at::TANGENT..at::TANGENT + 3].copy_from_slice(&tangent.to_array());
+    pixel[at::STRAND] = strand;
+}
+
+/// A rectangle of pixels rendered as one unit of parallel work: `x0..x1` × `y0..y1`, all channels interleaved.
+pub(super) struct Tile {
+    pub x0: u32,
+    pub y0: u32,
+    pub x1: u32,
+    pub y1: u32,
+    pub pixels: Vec<f32>,
+}
+
+impl Tile {
+    /// A zeroed tile.
+    pub(super) fn new(x0: u32, y0: u32, x1: u32, y1: u32) -> Tile {
+        let n = ((x1 - x0) * (y1 - y0)) as usize * CHANNELS.len();
+        Tile {
+            x0,
+            y0,
+            x1,
+            y1,
+            pixels: vec![0.0; n],
+        }
+    }
+
+    /// The channels of pixel (`x`, `y`) (image coordinates inside the tile).
+    pub(super) fn pixel_mut(&mut self, x: u32, y: u32) -> &mut [f32] {
+        let nc = CHANNELS.len();
+        let o = (((y - self.y0) * (self.x1 - self.x0) + (x - self.x0)) as usize) * nc;
+        &mut self.pixels[o..o + nc]
+    }
+}
+
+/// The frame of `width` × `height` pixels assembled from its tiles.
+pub(super) fn assemble(width: u32, height: u32, tiles: &[Tile]) -> Image {
+    let nc = CHANNELS.len();
+    let mut image = Image::new(
+        width as usize,
+        height as usize,
+        CHANNELS.iter().map(|c| c.to_string()).collect(),
+    );
+    for tile in tiles {
+        let tw = (tile.x1 - tile.x0) as usize;
+        for (row, chunk) in tile.pixels.chunks(tw * nc).enumerate() {
+            let o = ((tile.y0 as usize + row) * width as usize + tile.x0 as usize) * nc;
+            image.data[o..o + chunk.len()].copy_from_slice(chunk);
+        }
+    }
+    image
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn channels_are_found_by_name_and_unique() {
+        for (i, name) in CHANNELS.iter().enumerate() {
+            assert_eq!(channel(name), i, "{name}");
+        }
+        assert_eq!(CHANNELS[at::DEPTH], "depth.Z");
+        assert_eq!(CHANNELS[at::SHADOW], "shadow.Y");
+    }
+
+    #[test]
+    fn every_channel_is_written_exactly_once() {
+        // Fill the sums with distinct values, write a pixel over NaNs, and check no channel is left unwritten.
+        let s = PathSample {
+            beauty: Vec3::new(1.0, 2.0, 3.0),
+            alpha: 1.0,
+            direct: Vec3::splat(4.0),
+            indirect: Vec3::splat(5.0),
+            lit: 0.5,
+            unshadowed: 1.0,
+            albedo: Vec3::splat(0.25),
+            ..Default::default()
+        };
+        let mut sums = PixelSums::default();
+        sums.add(&s);
+        sums.add(&s);
+        let mut pixel = vec![f32::NAN; CHANNELS.len()];
+        sums.write(2, &mut pixel);
+        write_centre(7.0, Vec3::X, 3.0, &mut pixel);
+        let unwritten: Vec<_> = CHANNELS
+            .iter()
+            .zip(&pixel)
+            .filter(|(_, v)| v.is_nan())
+            .map(|(c, _)| *c)
+            .collect();
+        assert!(unwritten.is_empty(), "{unwritten:?}");
+        let get = |name: &str| pixel[channel(name)];
+        assert_eq!(
+            (get("R"), get("G"), get("B"), get("A")),
+            (1.0, 2.0, 3.0, 1.0)
+        );
+        assert_eq!((get("direct.G"), get("indirect.B")), (4.0, 5.0));
+        assert_eq!((get("shadow.Y"), get("albedo.R")), (0.5, 0.25));
+        assert_eq!(
+            (get("depth.Z"), get("tangent.X"), get("strand.id")),
+            (7.0, 1.0, 3.0)
+        );
+    }
+
+    #[test]
+    fn tiles_land_where_they_belong() {
+        let nc = CHANNELS.len();
+        let mut a = Tile::new(0, 0, 2, 1);
+        let mut b = Tile::new(2, 0, 3, 1);
+        a.pixel_mut(1, 0)[0] = 1.0;
+        b.pixel_mut(2, 0)[0] = 2.0;
+        let image = assemble(3, 1, &[a, b]);
+        assert_eq!(image.data[nc], 1.0);
+        assert_eq!(image.data[2 * nc], 2.0);
+    }
+}

@@ -1,0 +1,171 @@
+//! One frame set up for rendering, the same way for every caller (the `render` command, every benchmark, every
+//! study, the tests): the hair loaded and converted to strands, its acceleration structure built, the material,
+//! lights and shapes built — each exactly once — and the [`RenderSettings`] a render runs with.
+//!
+//! A [`FrameSpec`] says what to build (a scene resolves into one: [`crate::scene::Scene::resolve`]);
+//! [`Frame::load`] builds it. One frame can then be rendered under several settings (a benchmark's repetitions, a
+//! study's variants) without reloading anything.
+
+use std::time::Instant;
+
+use crate::accel::embree::EmbreeError;
+use crate::accel::embree::EmbreeTracer;
+use crate::accel::CurveKind;
+use crate::bsdf::Material;
+use crate::hair::{HairError, HairSpec, Strands};
+use crate::image::Image;
+use crate::light::Light;
+use crate::shadow::ShadowMaps;
+use crate::shape::Shapes;
+
+use super::settings::{RenderSettings, ShadowMode};
+use super::{render_tiles, Options, RenderStats};
+
+/// What a frame is made of, before anything heavy is built.
+#[derive(Debug)]
+pub struct FrameSpec {
+    /// The hair model and its adjustments.
+    pub hair: HairSpec,
+    /// Round tubes or flat ribbons.
+    pub curves: CurveKind,
+    /// The fibre material.
+    pub material: Material,
+    /// Every light, environment last.
+    pub lights: Vec<Light>,
+    /// Non-hair geometry.
+    pub shapes: Shapes,
+    /// The settings [`Frame::render`] uses.
+    pub settings: RenderSettings,
+}
+
+/// Why a frame could not be set up.
+#[derive(Debug, thiserror::Error)]
+pub enum FrameError {
+    /// The hair model could not be read or generated.
+    #[error(transparent)]
+    Hair(#[from] HairError),
+    /// Embree refused the strands.
+    #[error(transparent)]
+    Tracer(#[from] EmbreeError),
+}
+
+/// A frame ready to render.
+pub struct Frame {
+    /// The strands, as every tracer and the shadow maps see them.
+    pub strands: Strands,
+    /// The hair's acceleration structure.
+    pub tracer: EmbreeTracer,
+    /// Round tubes or flat ribbons.
+    pub curves: CurveKind,
+    /// The fibre material.
+    pub material: Material,
+    /// Every light, environment last.
+    pub lights: Vec<Light>,
+    /// Non-hair geometry.
+    pub shapes: Shapes,
+    /// The settings of [`Frame::render`]; [`Frame::render_with`] takes others.
+    pub settings: RenderSettings,
+    /// Wall time of reading or generating the hair and converting it to strands, seconds.
+    pub load_seconds: f64,
+}
+
+impl Frame {
+    /// Loads the hair of `spec` and builds the frame.
+    pub fn load(spec: FrameSpec) -> Result<Frame, FrameError> {
+        let start = Instant::now();
+        let strands = spec.hair.load()?;
+        let load_seconds = start.elapsed().as_secs_f64();
+        let mut frame = Frame::build(strands, spec)?;
+        frame.load_seconds = load_seconds;
+        Ok(frame)
+    }
+
+    /// Builds the frame around strands already in memory (`spec.hair` is not read).
+    pub fn build(strands: Strands, spec: FrameSpec) -> Result<Frame, FrameError> {
+        let tracer = EmbreeTracer::new(&strands, spec.curves)?;
+        Ok(Frame {
+            strands,
+            tracer,
+            curves: spec.curves,
+            material: spec.material,
+            lights: spec.lights,
+            shapes: spec.shapes,
+            settings: spec.settings,
+            load_seconds: 0.0,
+        })
+    }
+
+    /// Wall time of building the acceleration structure, seconds.
+    pub fn build_seconds(&self) -> f64 {
+        self.tracer.build_seconds()
+    }
+
+    /// Builds the deep opacity maps of every light with `settings.shadows.deep_opacity`, on the current rayon pool.
+    pub fn shadow_maps(&self, settings: &RenderSettings) -> ShadowMaps {
+        ShadowMaps::build(&self.strands, &self.lights, &settings.shadows.deep_opacity)
+    }
+
+    /// Renders the frame with its own settings on the current rayon pool.
+    pub fn render(&self, options: Options) -> (Image, RenderStats) {
+        self.render_with(&self.settings, options)
+    }
+
+    /// Renders the frame with `settings` on the current rayon pool, building the shadow maps first in
+    /// deep-opacity mode (their build time is reported apart from the pixel loop's).
+    pub fn render_with(&self, settings: &RenderSettings, options: Options) -> (Image, RenderStats) {
+        let start = Instant::now();
+        let maps =
+            (settings.shadows.mode == ShadowMode::DeepOpacity).then(|| self.shadow_maps(settings));
+        let build_seconds = start.elapsed().as_secs_f64();
+        self.render_with_maps(settings, maps.as_ref(), build_seconds, options)
+    }
+
+    /// Renders with maps built beforehand (e.g. also written to disk), whose build took `maps_seconds`.
+    /// `maps` is used only in deep-opacity mode.
+    pub fn render_with_maps(
+        &self,
+        settings: &RenderSettings,
+        maps: Option<&ShadowMaps>,
+        maps_seconds: f64,
+        options: Options,
+    ) -> (Image, RenderStats) {
+        let maps = maps.filter(|_| settings.shadows.mode == ShadowMode::DeepOpacity);
+        let (image, mut stats) = render_tiles(self, settings, maps, options);
+        if let Some(m) = maps {
+            stats.shadow_build_seconds = maps_seconds;
+            stats.shadow_map_bytes = m.bytes();
+        }
+        (image, stats)
+    }
+}
+
+/// Why a worker pool could not be started.
+#[derive(Debug, thiserror::Error)]
+pub enum ThreadPoolError {
+    /// Zero threads were asked for.
+    #[error("--threads must be at least 1")]
+    Zero,
+    /// The operating system refused.
+    #[error("cannot start {threads} worker threads: {source}")]
+    Build {
+        /// Threads asked for.
+        threads: usize,
+        /// Rayon's error.
+        source: rayon::ThreadPoolBuildError,
+    },
+}
+
+/// A rayon pool of `threads` workers (`None`: one per core). Every render runs inside one (`pool.install`).
+pub fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool, ThreadPoolError> {
+    let mut builder = rayon::ThreadPoolBuilder::new();
+    if let Some(n) = threads {
+        if n == 0 {
+            return Err(ThreadPoolError::Zero);
+        }
+        builder = builder.num_threads(n);
+    }
+    builder.build().map_err(|source| ThreadPoolError::Build {
+        threads: threads.unwrap_or(0),
+        source,
+    })
+}

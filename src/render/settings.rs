@@ -1,0 +1,229 @@
+//! The settings one render runs with, owned by the renderer: film, sample counts, light transport, self-shadowing.
+//!
+//! These are the types a scene's `[film]`, `[integrator]` and `[shadows]` tables deserialize into
+//! ([`crate::scene`] reads the TOML and calls each type's `validate`); a program that renders without a scene file
+//! (a test, a benchmark variant) fills them in directly. Every check names the scene key it is about, so a bad
+//! command-line override reads like a bad scene key.
+
+use serde::Deserialize;
+
+use crate::shadow::DeepOpacityConfig;
+
+use super::camera::CameraConfig;
+use super::integrator::{Settings, MAX_PATH_LENGTH};
+
+/// `[film]`: image size and sampling.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct FilmConfig {
+    /// Width and height in pixels.
+    pub resolution: [u32; 2],
+    /// Camera samples per pixel.
+    pub spp: u32,
+    /// Seed of the sample streams: same scene + seed ⇒ same image.
+    pub seed: u32,
+    /// Width of the Gaussian pixel filter in pixels (thesis §5.5 used a 3×3 Gaussian).
+    pub filter_width: f32,
+}
+
+impl Default for FilmConfig {
+    fn default() -> Self {
+        FilmConfig {
+            resolution: [640, 480],
+            spp: 16,
+            seed: 0,
+            filter_width: 3.0,
+        }
+    }
+}
+
+impl FilmConfig {
+    /// Range checks; messages name the `film.*` key.
+    pub fn validate(&self) -> Result<(), String> {
+        let [w, h] = self.resolution;
+        if w == 0 || h == 0 || w > 32768 || h > 32768 {
+            return Err(format!(
+                "film.resolution must be in [1, 32768]², got {:?}",
+                self.resolution
+            ));
+        }
+        if self.spp == 0 || self.spp > 65536 {
+            return Err(format!("film.spp must be in [1, 65536], got {}", self.spp));
+        }
+        let fw = self.filter_width;
+        if !(fw.is_finite() && fw > 0.0 && fw <= 16.0) {
+            return Err(format!(
+                "film.filter_width must be in (0, 16] pixels, got {fw}"
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// How strands shadow each other.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ShadowMode {
+    /// Shadow rays through semi-transparent strands (transmittance query).
+    #[default]
+    Raytraced,
+    /// Deep opacity maps (Yuksel & Keyser 2008), built per light before rendering ([`crate::shadow`]).
+    DeepOpacity,
+    /// No self-shadowing.
+    None,
+}
+
+/// How light samples' shadow rays account for semi-transparent strands (see [`super::integrator`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum TransmittanceMode {
+    /// Each strand present with probability = opacity: one any-hit query per shadow ray, visibility 0 or 1.
+    #[default]
+    Stochastic,
+    /// ∏ (1 − opacity) over every strand crossed: smooth, but a full traversal per shadow ray.
+    Exact,
+}
+
+/// `[shadows]`.
+#[derive(Debug, Clone, PartialEq, Deserialize, Default)]
+#[serde(deny_unknown_fields, default)]
+pub struct ShadowConfig {
+    /// Ray traced, deep opacity maps, or none.
+    pub mode: ShadowMode,
+    /// Stochastic or exact transparency for light samples (ray-traced mode).
+    pub transmittance: TransmittanceMode,
+    /// The maps of the deep-opacity mode.
+    pub deep_opacity: DeepOpacityConfig,
+}
+
+/// Which strategies estimate direct light (MIS, or one alone for comparisons and tests).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Strategy {
+    /// Light and material samples combined by the power heuristic.
+    #[default]
+    Mis,
+    /// Light samples only (material samples still continue paths).
+    Light,
+    /// Material samples only (delta lights, which no material sample can hit, are still light-sampled).
+    Material,
+}
+
+/// Which lights the first shading point's light samples go to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum LightSelection {
+    /// Every light gets `light_samples` samples (delta lights one): RenderMan's and the thesis' semantics. Costs
+    /// one shadow ray per light per sample.
+    #[default]
+    All,
+    /// Each of the `light_samples` samples first picks one light in proportion to its power (pbrt-v4's and
+    /// Cycles' way): one shadow ray per sample however many lights there are, more variance per sample.
+    One,
+}
+
+/// `[integrator]`: the thesis' sample counts (§6, table 3) and the path length.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct IntegratorConfig {
+    /// Light samples per light at the first shading point (RenderMan's light samples).
+    pub light_samples: u32,
+    /// Material (BSDF) samples at the first shading point.
+    pub material_samples: u32,
+    /// Indirect bounces: 0 = direct light only.
+    pub path_length: u32,
+    /// Clamp each indirect contribution to this value per channel; 0 = off (the default; clamping is biased).
+    pub clamp: f32,
+    /// Direct-light strategy.
+    pub strategy: Strategy,
+    /// Which lights the first vertex's light samples go to.
+    pub lights: LightSelection,
+}
+
+impl Default for IntegratorConfig {
+    fn default() -> Self {
+        IntegratorConfig {
+            light_samples: 1,
+            material_samples: 1,
+            path_length: 1,
+            clamp: 0.0,
+            strategy: Strategy::Mis,
+            lights: LightSelection::All,
+        }
+    }
+}
+
+impl IntegratorConfig {
+    /// Range checks; messages name the `integrator.*` key.
+    pub fn validate(&self) -> Result<(), String> {
+        for (key, n) in [
+            ("light_samples", self.light_samples),
+            ("material_samples", self.material_samples),
+        ] {
+            if !(1..=1024).contains(&n) {
+                return Err(format!("integrator.{key} must be in [1, 1024], got {n}"));
+            }
+        }
+        if self.path_length > MAX_PATH_LENGTH {
+            return Err(format!(
+                "integrator.path_length must be in [0, {MAX_PATH_LENGTH}], got {}",
+                self.path_length
+            ));
+        }
+        if !(self.clamp.is_finite() && self.clamp >= 0.0) {
+            return Err(format!(
+                "integrator.clamp must be >= 0 (0 = off), got {}",
+                self.clamp
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Everything one render of a prepared [`super::Frame`] can vary without reloading the hair: a benchmark or a
+/// study renders one frame under several of these.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RenderSettings {
+    /// The camera (auto-framed from the hair's bounds unless placed).
+    pub camera: CameraConfig,
+    /// Resolution, samples, seed, pixel filter.
+    pub film: FilmConfig,
+    /// Sample counts, path length, strategy.
+    pub integrator: IntegratorConfig,
+    /// Self-shadowing.
+    pub shadows: ShadowConfig,
+    /// Whether camera rays that escape see the infinite lights.
+    pub background_visible: bool,
+}
+
+impl RenderSettings {
+    /// Range checks of every part; messages name the scene key.
+    pub fn validate(&self) -> Result<(), String> {
+        self.camera.validate()?;
+        self.film.validate()?;
+        self.integrator.validate()?;
+        self.shadows.deep_opacity.validate()
+    }
+
+    /// The light-transport settings of the integrator.
+    pub fn transport(&self) -> Settings {
+        let i = &self.integrator;
+        Settings {
+            light_samples: i.light_samples,
+            material_samples: i.material_samples,
+            path_length: i.path_length,
+            clamp: i.clamp,
+            shadows: self.shadows.mode,
+            transmittance: self.shadows.transmittance,
+            // Maps replace the shadow queries of light samples; a material sample's ray would see the hair the
+            // maps stand in for, so in deep-opacity mode material samples only continue paths and light samples
+            // carry all direct light.
+            strategy: if self.shadows.mode == ShadowMode::DeepOpacity {
+                Strategy::Light
+            } else {
+                i.strategy
+            },
+            light_selection: i.lights,
+        }
+    }
+}
