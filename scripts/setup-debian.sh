@@ -1,0 +1,27 @@
+#!/bin/sh
+# Installs what cuticle needs on a fresh Debian 12 (or Ubuntu 22.04+) machine or container:
+#   - the native libraries: Embree 3 (curves), OpenImageIO (images), clang/libclang (bindgen), pkg-config, a C++
+#     compiler, and openimageio-tools (oiiotool/idiff, used by the tests);
+#   - a Rust toolchain >= the crate's rust-version (1.80) through rustup, unless one is already on PATH or in
+#     ~/.cargo/bin (Debian 12's own rustc is 1.63, too old).
+# Works as root without sudo (a container) or as a user with sudo. Safe to run again.
+set -eu
+
+if [ "$(id -u)" -eq 0 ]; then SUDO=""; else SUDO="sudo"; fi
+export DEBIAN_FRONTEND=noninteractive
+# A fresh machine or container has no package lists yet.
+$SUDO apt-get update -qq
+$SUDO apt-get install -y -qq --no-install-recommends \
+    ca-certificates curl git build-essential pkg-config clang libclang-dev \
+    libembree-dev libopenimageio-dev openimageio-tools >/dev/null
+
+need="1.80"
+PATH="$HOME/.cargo/bin:$PATH"
+have=$(cargo --version 2>/dev/null | sed -n 's/^cargo \([0-9]*\.[0-9]*\).*/\1/p')
+if [ -n "$have" ] && [ "$(printf '%s\n%s\n' "$need" "$have" | sort -V | head -n1)" = "$need" ]; then
+    echo "setup: using cargo $have"
+else
+    echo "setup: installing Rust with rustup (found: ${have:-none}, need >= $need)"
+    curl --proto '=https' --tlsv1.2 -sSf https://sh.rustup.rs | sh -s -- -y --profile minimal
+fi
+echo "setup: done (cargo is in ~/.cargo/bin if rustup installed it)"
