@@ -347,21 +347,7 @@ fn bench_command(command: BenchCommand) -> Result<()> {
             res,
         } => {
             let scene = load_scene(scene.as_deref())?;
-            let strands = scene.hair_spec().load()?;
-            let camera = render::camera::Camera::from_config(
-                &scene.camera,
-                strands.bounds(),
-                res[0],
-                res[1],
-            );
-            let mut config = cuticle::bench::TraceConfig::new(camera, threads);
-            if let Some(cuticle::scene::LightConfig::Distant { direction, .. }) =
-                scene.lights.first()
-            {
-                config.to_light = -glam::Vec3::from(*direction);
-            }
-            config.opacity = scene.hair.opacity;
-            let report = cuticle::bench::trace(&strands, &config)?;
+            let report = cuticle::bench::trace_scene(&scene, threads, res)?;
             println!("{report}");
         }
     }

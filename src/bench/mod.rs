@@ -24,6 +24,7 @@ use crate::hair::Strands;
 use crate::measure::{peak_rss_bytes, Timing};
 use crate::ray::Ray;
 use crate::render::camera::Camera;
+use crate::scene::{LightConfig, Scene};
 use crate::sys::embree::{Cutoff, Device, EmbreeError};
 
 /// Why a benchmark could not run.
@@ -235,6 +236,35 @@ impl ShadowTally {
         self.seen_list_full += other.seen_list_full;
         self
     }
+}
+
+/// Runs the trace benchmark on the hair of `scene`, seen by its camera at `resolution`, with shadow rays towards its
+/// first distant light (if it has one) through strands of the scene's opacity.
+pub fn trace_scene(
+    scene: &Scene,
+    threads: usize,
+    resolution: [u32; 2],
+) -> Result<TraceReport, TraceSceneError> {
+    let strands = scene.hair_spec().load()?;
+    let [w, h] = resolution;
+    let camera = Camera::from_config(&scene.camera, strands.bounds(), w, h);
+    let mut config = TraceConfig::new(camera, threads);
+    if let Some(LightConfig::Distant { direction, .. }) = scene.lights.first() {
+        config.to_light = -Vec3::from(*direction);
+    }
+    config.opacity = scene.hair.opacity;
+    Ok(trace(&strands, &config)?)
+}
+
+/// Why [`trace_scene`] could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum TraceSceneError {
+    /// The hair could not be loaded.
+    #[error(transparent)]
+    Hair(#[from] crate::hair::HairError),
+    /// Embree or the thread pool failed.
+    #[error(transparent)]
+    Bench(#[from] BenchError),
 }
 
 /// Runs the trace benchmark on `strands` (see the module docs for the method).
