@@ -67,22 +67,7 @@ fn render_and_check(scene: Option<&Path>, extra: &[&str]) {
         )),
         "{text}"
     );
-    for channel in [
-        "R",
-        "G",
-        "B",
-        "A",
-        "depth.Z",
-        "tangent.X",
-        "tangent.Y",
-        "tangent.Z",
-        "strand.id",
-        "diffuse.R",
-        "lobe_R.G",
-        "lobe_TT.B",
-        "lobe_TRT.R",
-        "lobe_glint.G",
-    ] {
+    for channel in cuticle::render::CHANNELS {
         assert!(
             text.contains(channel),
             "channel {channel} missing from:\n{text}"

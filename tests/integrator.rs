@@ -156,6 +156,15 @@ fn write_test_map(dir: &Path) -> std::path::PathBuf {
     path
 }
 
+/// MIS, light-only and material-only renders of `scene` (independent seeds) have the same expectation.
+fn assert_strategies_agree(label: &str, scene: &Scene) {
+    let mis = render_scene(&with_strategy(scene, Strategy::Mis, 1), 2);
+    let light = render_scene(&with_strategy(scene, Strategy::Light, 2), 2);
+    let material = render_scene(&with_strategy(scene, Strategy::Material, 3), 2);
+    assert_same_expectation(&format!("{label}: MIS vs light"), &mis, &light);
+    assert_same_expectation(&format!("{label}: MIS vs material"), &mis, &material);
+}
+
 #[test]
 fn mis_agrees_with_light_and_material_sampling_under_an_environment_map() {
     let dir = tempfile::tempdir().unwrap();
@@ -176,11 +185,7 @@ path_length = 0
         ),
         dir.path(),
     );
-    let mis = render_scene(&with_strategy(&scene, Strategy::Mis, 1), 2);
-    let light = render_scene(&with_strategy(&scene, Strategy::Light, 2), 2);
-    let material = render_scene(&with_strategy(&scene, Strategy::Material, 3), 2);
-    assert_same_expectation("env: MIS vs light", &mis, &light);
-    assert_same_expectation("env: MIS vs material", &mis, &material);
+    assert_strategies_agree("env", &scene);
 }
 
 #[test]
@@ -210,11 +215,7 @@ path_length = 1
         ),
         Path::new("."),
     );
-    let mis = render_scene(&with_strategy(&scene, Strategy::Mis, 1), 2);
-    let light = render_scene(&with_strategy(&scene, Strategy::Light, 2), 2);
-    let material = render_scene(&with_strategy(&scene, Strategy::Material, 3), 2);
-    assert_same_expectation("area: MIS vs light", &mis, &light);
-    assert_same_expectation("area: MIS vs material", &mis, &material);
+    assert_strategies_agree("area", &scene);
 }
 
 #[test]
