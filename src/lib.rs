@@ -10,6 +10,7 @@
 pub mod accel;
 pub mod bench;
 pub mod bsdf;
+pub mod geometry;
 pub mod hair;
 pub mod image;
 pub mod light;

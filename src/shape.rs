@@ -6,6 +6,7 @@
 
 use glam::Vec3;
 
+use crate::geometry::{self, Parallelogram};
 use crate::ray::Ray;
 
 /// A parallelogram `corner + s·edge_u + t·edge_v`, s, t ∈ [0, 1], with a Lambert albedo.
@@ -19,51 +20,34 @@ pub struct Quad {
     pub edge_v: Vec3,
     /// Lambert albedo, linear RGB in [0, 1].
     pub albedo: Vec3,
-    /// Unit normal, edge_u × edge_v normalised (the material is two-sided; this only fixes a convention).
-    normal: Vec3,
+    /// The surface built by [`Quad::new`], which the hits use (not the fields above); its unit normal lies along
+    /// edge_u × edge_v (the material is two-sided; the normal only fixes a convention).
+    surface: Parallelogram,
 }
 
 impl Quad {
-    /// A quad from a corner and two edges; `None` if the edges are parallel or not finite.
+    /// A quad from a corner and two edges; `None` if the edges are parallel or not finite (see
+    /// [`Parallelogram::new`]).
     pub fn new(corner: Vec3, edge_u: Vec3, edge_v: Vec3, albedo: Vec3) -> Option<Quad> {
-        let normal = edge_u.cross(edge_v).try_normalize()?;
-        (corner.is_finite() && edge_u.is_finite() && edge_v.is_finite()).then_some(Quad {
+        Some(Quad {
             corner,
             edge_u,
             edge_v,
             albedo,
-            normal,
+            surface: Parallelogram::new(corner, edge_u, edge_v)?,
         })
     }
 
-    /// The unit normal edge_u × edge_v.
+    /// The unit normal along edge_u × edge_v.
     pub fn normal(&self) -> Vec3 {
-        self.normal
+        self.surface.normal()
     }
 
     /// The ray parameter of the hit inside `(ray.tnear, tfar)`, if any.
     #[inline]
     pub fn intersect(&self, ray: &Ray, tfar: f32) -> Option<f32> {
-        let denom = self.normal.dot(ray.dir);
-        if denom == 0.0 {
-            return None;
-        }
-        let t = self.normal.dot(self.corner - ray.origin) / denom;
-        if !(t > ray.tnear && t < tfar) {
-            return None;
-        }
-        // Barycentric-like coordinates of the hit point in the (edge_u, edge_v) basis.
-        let d = ray.at(t) - self.corner;
-        let (uu, uv, vv) = (
-            self.edge_u.dot(self.edge_u),
-            self.edge_u.dot(self.edge_v),
-            self.edge_v.dot(self.edge_v),
-        );
-        let (du, dv) = (d.dot(self.edge_u), d.dot(self.edge_v));
-        let det = uu * vv - uv * uv;
-        let s = (du * vv - dv * uv) / det;
-        let r = (dv * uu - du * uv) / det;
-        ((0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&r)).then_some(t)
+        self.surface
+            .hit(ray.origin, ray.dir, geometry::open(ray.tnear, tfar))
     }
 }
 
@@ -137,7 +121,7 @@ impl Shapes {
                 tmax = t;
                 best = Some(ShapeHit {
                     t,
-                    normal: q.normal,
+                    normal: q.normal(),
                     albedo: q.albedo,
                 });
             }

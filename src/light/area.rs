@@ -19,7 +19,7 @@
 //! variance than area sampling; from inside (or on) the sphere every surface point is visible, so it falls back
 //! to uniform area sampling. [`AreaLight::pdf_li`] is the exact density of [`AreaLight::sample_li`] for the
 //! direction given (found by intersecting the ray from p along it with the light), and 0 where the sampler cannot
-//! produce the direction.
+//! produce the direction. The ray–surface hits themselves are [`crate::geometry`]'s, shared with the shapes.
 
 use std::f32::consts::PI;
 
@@ -30,6 +30,8 @@ use super::{check, check_color, check_direction, clamp_u, unit, LightError, Ligh
 use crate::bsdf::luminance;
 use crate::bsdf::sphere::uniform_sphere;
 use crate::ray::Ray;
+
+use crate::geometry::{Disk, Parallelogram, Sphere};
 
 /// The geometry of an [`AreaLight`] (world space).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -89,28 +91,14 @@ pub struct AreaLight {
 /// Derived geometry, computed once in [`AreaLight::new`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Geometry {
-    Quad {
-        corner: Vec3,
-        edge_u: Vec3,
-        edge_v: Vec3,
-        /// Unit normal.
-        n: Vec3,
-        /// Dual basis: a = (q − corner)·dual_u, b = (q − corner)·dual_v for q in the plane.
-        dual_u: Vec3,
-        dual_v: Vec3,
-    },
+    Quad(Parallelogram),
     Disk {
-        center: Vec3,
-        /// Unit normal and two unit tangents.
-        n: Vec3,
+        disk: Disk,
+        /// Two unit tangents completing the disk's normal to an orthonormal frame.
         t: Vec3,
         b: Vec3,
-        radius: f32,
     },
-    Sphere {
-        center: Vec3,
-        radius: f32,
-    },
+    Sphere(Sphere),
 }
 
 /// Checks a position: every component finite.
@@ -146,25 +134,16 @@ impl AreaLight {
                 check_point("quad", "corner", corner)?;
                 check_point("quad", "edge_u", edge_u)?;
                 check_point("quad", "edge_v", edge_v)?;
-                let cross = edge_u.cross(edge_v);
-                let area = cross.length();
+                let quad = Parallelogram::new(corner, edge_u, edge_v);
                 check(
                     "quad",
                     "|edge_u x edge_v|",
-                    area,
+                    edge_u.cross(edge_v).length(),
                     "> 0 and finite (edges not parallel)",
-                    area > 0.0 && area.is_finite() && (cross / area).is_finite(),
+                    quad.is_some(),
                 )?;
-                let inv_area2 = 1.0 / (area * area);
-                let geometry = Geometry::Quad {
-                    corner,
-                    edge_u,
-                    edge_v,
-                    n: cross / area,
-                    dual_u: edge_v.cross(cross) * inv_area2,
-                    dual_v: cross.cross(edge_u) * inv_area2,
-                };
-                ("quad", geometry, area)
+                let quad = quad.expect("checked just above");
+                ("quad", Geometry::Quad(quad), quad.area())
             }
             Shape::Disk {
                 center,
@@ -176,11 +155,13 @@ impl AreaLight {
                 check_radius("disk", radius)?;
                 let (t, b) = n.any_orthonormal_pair();
                 let geometry = Geometry::Disk {
-                    center,
-                    n,
+                    disk: Disk {
+                        center,
+                        normal: n,
+                        radius,
+                    },
                     t,
                     b,
-                    radius,
                 };
                 ("disk", geometry, PI * radius * radius)
             }
@@ -189,7 +170,7 @@ impl AreaLight {
                 check_radius("sphere", radius)?;
                 (
                     "sphere",
-                    Geometry::Sphere { center, radius },
+                    Geometry::Sphere(Sphere { center, radius }),
                     4.0 * PI * radius * radius,
                 )
             }
@@ -235,7 +216,7 @@ impl AreaLight {
     /// inside emission never leaves it).
     pub fn power(&self) -> f32 {
         let sides = match self.geometry {
-            Geometry::Sphere { .. } => 1.0,
+            Geometry::Sphere(_) => 1.0,
             _ if self.two_sided => 2.0,
             _ => 1.0,
         };
@@ -252,25 +233,14 @@ impl AreaLight {
         }
         let u = clamp_u(u);
         let q = match self.geometry {
-            Geometry::Quad {
-                corner,
-                edge_u,
-                edge_v,
-                ..
-            } => corner + u[0] * edge_u + u[1] * edge_v,
-            Geometry::Disk {
-                center,
-                t,
-                b,
-                radius,
-                ..
-            } => {
+            Geometry::Quad(quad) => quad.point(u[0], u[1]),
+            Geometry::Disk { disk, t, b } => {
                 // Uniform by area: r = R √u₀.
-                let r = radius * u[0].sqrt();
+                let r = disk.radius * u[0].sqrt();
                 let (sin_phi, cos_phi) = (std::f32::consts::TAU * u[1]).sin_cos();
-                center + r * (cos_phi * t + sin_phi * b)
+                disk.center + r * (cos_phi * t + sin_phi * b)
             }
-            Geometry::Sphere { center, radius } => {
+            Geometry::Sphere(Sphere { center, radius }) => {
                 let oc = center - p;
                 let d2 = oc.length_squared();
                 let r2 = radius * radius;
@@ -345,7 +315,7 @@ impl AreaLight {
         if !p.is_finite() {
             return 0.0;
         }
-        if let Geometry::Sphere { center, radius } = self.geometry {
+        if let Geometry::Sphere(Sphere { center, radius }) = self.geometry {
             let oc = center - p;
             let (d2, r2) = (oc.length_squared(), radius * radius);
             if d2 > r2 {
@@ -402,69 +372,21 @@ impl AreaLight {
     #[inline]
     fn normal_at(&self, q: Vec3) -> Vec3 {
         match self.geometry {
-            Geometry::Quad { n, .. } | Geometry::Disk { n, .. } => n,
-            Geometry::Sphere { center, .. } => (q - center).normalize_or_zero(),
+            Geometry::Quad(quad) => quad.normal(),
+            Geometry::Disk { disk, .. } => disk.normal,
+            Geometry::Sphere(sphere) => sphere.normal_at(q),
         }
     }
 
     /// The nearest t ∈ [t_min, t_max] at which o + t·w (w unit) meets the light's surface.
     #[inline]
     fn hit(&self, o: Vec3, w: Vec3, t_min: f32, t_max: f32) -> Option<f32> {
-        let in_range = |t: f32| t >= t_min && t <= t_max;
         match self.geometry {
-            Geometry::Quad {
-                corner,
-                n,
-                dual_u,
-                dual_v,
-                ..
-            } => {
-                let t = plane_hit(o, w, corner, n)?;
-                let rel = o + t * w - corner;
-                let (a, b) = (rel.dot(dual_u), rel.dot(dual_v));
-                ((0.0..=1.0).contains(&a) && (0.0..=1.0).contains(&b) && in_range(t)).then_some(t)
-            }
-            Geometry::Disk {
-                center, n, radius, ..
-            } => {
-                let t = plane_hit(o, w, center, n)?;
-                let inside = (o + t * w - center).length_squared() <= radius * radius;
-                (inside && in_range(t)).then_some(t)
-            }
-            Geometry::Sphere { center, radius } => {
-                let (t0, t1) = sphere_hits(o, w, center, radius)?;
-                [t0, t1].into_iter().find(|&t| in_range(t))
-            }
+            Geometry::Quad(quad) => quad.hit(o, w, t_min..=t_max),
+            Geometry::Disk { disk, .. } => disk.hit(o, w, t_min..=t_max),
+            Geometry::Sphere(sphere) => sphere.hit(o, w, t_min..=t_max),
         }
     }
-}
-
-/// The t at which o + t·w meets the plane through `point` with unit normal `n` (`None` if parallel).
-#[inline]
-fn plane_hit(o: Vec3, w: Vec3, point: Vec3, n: Vec3) -> Option<f32> {
-    let denom = n.dot(w);
-    let t = n.dot(point - o) / denom;
-    (denom != 0.0 && t.is_finite()).then_some(t)
-}
-
-/// Both roots t₀ ≤ t₁ of |o + t·w − c|² = r² for unit w, or `None` if the line misses. The discriminant is
-/// computed from the perpendicular distance (r² − |f − (f·w)w|², f = o − c) and the roots in the stable form
-/// q = −b − sign(b)√Δ, t = q and c/q (Haines et al., Ray Tracing Gems ch. 7).
-#[inline]
-fn sphere_hits(o: Vec3, w: Vec3, center: Vec3, radius: f32) -> Option<(f32, f32)> {
-    let f = o - center;
-    let b = f.dot(w);
-    let perp = f - b * w;
-    let disc = radius * radius - perp.length_squared();
-    // Also rejects NaN.
-    if disc.is_nan() || disc < 0.0 {
-        return None;
-    }
-    let c = (f.length() - radius) * (f.length() + radius);
-    let q = -b - disc.sqrt().copysign(b);
-    let (t0, t1) = if q != 0.0 { (q, c / q) } else { (0.0, 0.0) };
-    let (t0, t1) = if t0 <= t1 { (t0, t1) } else { (t1, t0) };
-    (t0.is_finite() && t1.is_finite()).then_some((t0, t1))
 }
 
 #[cfg(test)]
