@@ -22,6 +22,11 @@ if [ -n "$have" ] && [ "$(printf '%s\n%s\n' "$need" "$have" | sort -V | head -n1
     echo "setup: using cargo $have"
 else
     echo "setup: installing Rust with rustup (found: ${have:-none}, need >= $need)"
-    curl --proto '=https' --tlsv1.2 -sSf https://sh.rustup.rs | sh -s -- -y --profile minimal
+    installer=$(mktemp)
+    # Downloaded first, so a network failure stops here instead of piping nothing into sh.
+    curl --proto '=https' --tlsv1.2 -sSf -o "$installer" https://sh.rustup.rs
+    sh "$installer" -y --profile minimal
+    rm -f "$installer"
 fi
-echo "setup: done (cargo is in ~/.cargo/bin if rustup installed it)"
+cargo --version >/dev/null 2>&1 || { echo "setup: no cargo on PATH or in ~/.cargo/bin" >&2; exit 1; }
+echo "setup: done ($(cargo --version); rustup installs into ~/.cargo/bin)"
