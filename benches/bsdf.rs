@@ -10,8 +10,8 @@ use cuticle::bsdf::ishair::{IsHair, IsHairParams, LobeSelection};
 use cuticle::bsdf::kajiya_kay::{KajiyaKay, KajiyaKayParams};
 use cuticle::bsdf::marschner::{Marschner, MarschnerParams};
 use cuticle::bsdf::pcg::Pcg32;
-use cuticle::bsdf::sphere::uniform_sphere;
 use cuticle::bsdf::{Bsdf, Sampling};
+use cuticle::util::sampling::uniform_sphere;
 use glam::Vec3;
 
 /// Calls per measured iteration.

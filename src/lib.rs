@@ -21,3 +21,4 @@ pub mod shape;
 pub mod study;
 #[allow(unsafe_code)]
 pub mod sys;
+pub mod util;

@@ -30,8 +30,9 @@ use super::chart::{
 use super::frame::{from_spherical, phi};
 use super::pcg::Pcg32;
 use super::stats::chi_square;
-use super::{luminance, Bsdf, Lobe, LobeValues};
+use super::{Bsdf, Lobe, LobeValues};
 use crate::image::{self, Image, ImageError};
+use crate::util::color::luminance;
 use glam::Vec3;
 use std::f32::consts::{FRAC_PI_2, PI};
 use std::path::{Path, PathBuf};

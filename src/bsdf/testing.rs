@@ -267,7 +267,7 @@ fn sweep_angles() -> (Vec<f32>, Vec<f32>) {
 pub fn assert_sample_consistent<B: Bsdf + ?Sized>(name: &str, model: &B) {
     let mut rng = Pcg32::new(77, 1);
     for _ in 0..2000 {
-        let wo = super::sphere::uniform_sphere(rng.next_f32(), rng.next_f32());
+        let wo = crate::util::sampling::uniform_sphere(rng.next_f32(), rng.next_f32());
         let Some(s) = model.sample(wo, rng.next_u3()) else {
             continue;
         };

@@ -27,9 +27,9 @@ use glam::Vec3;
 
 use super::cone::Cone;
 use super::{check, check_color, check_direction, clamp_u, unit, LightError, LightSample};
-use crate::bsdf::luminance;
-use crate::bsdf::sphere::uniform_sphere;
 use crate::ray::Ray;
+use crate::util::color::luminance;
+use crate::util::sampling::uniform_sphere;
 
 /// The geometry of an [`AreaLight`] (world space).
 #[derive(Debug, Clone, Copy, PartialEq)]

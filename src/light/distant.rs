@@ -19,7 +19,7 @@ use glam::Vec3;
 
 use super::cone::Cone;
 use super::{check, check_color, check_direction, clamp_u, unit, LightError, LightSample};
-use crate::bsdf::luminance;
+use crate::util::color::luminance;
 
 /// A directional light (see the module docs).
 #[derive(Debug, Clone, PartialEq)]

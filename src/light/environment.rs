@@ -41,9 +41,9 @@ use glam::{Mat3, Quat, Vec3};
 
 use super::distribution::Distribution2D;
 use super::{check, check_color, check_direction, clamp_u, unit, LightError, LightSample};
-use crate::bsdf::luminance;
-use crate::bsdf::sphere::{uniform_sphere, UNIFORM_SPHERE_PDF};
 use crate::image::{read, Image};
+use crate::util::color::luminance;
+use crate::util::sampling::{uniform_sphere, UNIFORM_SPHERE_PDF};
 
 /// Light from infinitely far away: a lat-long map or a constant (see the module docs for the conventions).
 #[derive(Debug, Clone)]

@@ -36,13 +36,14 @@ use glam::Vec3;
 
 use crate::accel::{CurveKind, Tracer};
 use crate::bsdf::frame::{sin_cos_theta, strand_noise, HairFrame};
-use crate::bsdf::{luminance, Lobe, LobeValues};
+use crate::bsdf::{Lobe, LobeValues};
 use crate::hair::Strands;
 use crate::light::{Distribution1D, Light};
 use crate::ray::Ray;
 use crate::scene::{LightSelection, Material, ShadowMode, Strategy, TransmittanceMode};
 use crate::shadow::ShadowMaps;
 use crate::shape::Shapes;
+use crate::util::color::luminance;
 
 use super::sampler::PixelSampler;
 
