@@ -413,6 +413,8 @@ mod tests {
     use super::super::plot::sampled_vs_analytic;
     use super::super::testing::{self, mean, wo_at, CHI2_BINS, CHI2_SAMPLES};
     use super::*;
+    use rand::Rng;
+    use rand_pcg::Pcg32;
 
     /// θo of the furnace grid, degrees.
     const THETA_O_DEG: [f32; 5] = [-80.0, -40.0, 0.0, 30.0, 75.0];
@@ -596,12 +598,12 @@ mod tests {
         // One lobe, published mode: the weight f cos θi / pdf_eq13 is exactly k_s cos²θi / cos²θd (eq. 14), and
         // ≈ 1 on average (Hery & Ramamoorthi's approximation) for a sharp lobe at normal view with α = 0.
         let m = single_lobe(0.0, 2.0, Sampling::ClampAndFlip);
-        let mut rng = super::super::pcg::Pcg32::new(3, 3);
+        let mut rng = Pcg32::new(3, 3);
         let wo = wo_at(0.0);
         let n = 10_000;
         let mut sum = 0.0;
         for _ in 0..n {
-            let s = m.sample(wo, rng.next_u3()).unwrap();
+            let s = m.sample(wo, rng.random()).unwrap();
             let a = Angles::new(wo, s.wi);
             let want = weight_eq14(a.cos_theta_i, a.theta_d().cos());
             assert!(

@@ -22,9 +22,9 @@
 //!
 //! Shared pieces sit in their own files: [`frame`] (hair frame, θ/φ conversions), [`gaussian`] (Gaussians, erf,
 //! truncated Gaussian sampling), [`cauchy`] (truncated Cauchy sampling), [`fresnel`] (dielectric Fresnel, for
-//! [`Balance::Fresnel`]), [`stats`] (chi-square test), [`pcg`] (a small deterministic RNG) and [`plot`] (plain data
-//! for `cuticle plot-bsdf`). Tools that are not physics sit below, in [`crate::util`]: uniform sphere sampling
-//! ([`crate::util::sampling`]) and luminance ([`crate::util::color`]).
+//! [`Balance::Fresnel`]), [`stats`] (chi-square test) and [`plot`] (plain data for `cuticle plot-bsdf`). Tools that
+//! are not physics sit below, in [`crate::util`]: uniform sphere sampling ([`crate::util::sampling`]) and
+//! luminance ([`crate::util::color`]); tests and plots draw their random numbers from `rand_pcg`'s PCG32.
 
 pub mod cauchy;
 pub mod chart;
@@ -34,7 +34,6 @@ pub mod gaussian;
 pub mod ishair;
 pub mod kajiya_kay;
 pub mod marschner;
-pub mod pcg;
 pub mod plot;
 pub mod stats;
 #[cfg(test)]

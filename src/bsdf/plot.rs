@@ -28,12 +28,13 @@ use super::chart::{
     self, color_bar, srgb, Axis, Canvas, Colormap, HeatMap, LineChart, PolarChart, Rect, Series,
 };
 use super::frame::{from_spherical, phi};
-use super::pcg::Pcg32;
 use super::stats::chi_square;
 use super::{Bsdf, Lobe, LobeValues};
 use crate::image::{self, Image, ImageError};
 use crate::util::color::luminance;
 use glam::Vec3;
+use rand::Rng;
+use rand_pcg::Pcg32;
 use std::f32::consts::{FRAC_PI_2, PI};
 use std::path::{Path, PathBuf};
 
@@ -97,7 +98,7 @@ pub fn sampled_vs_analytic<B: Bsdf + ?Sized>(
     let mut sampled = vec![0.0; rows * cols];
     let mut rng = Pcg32::new(seed, 0x5eed);
     for _ in 0..n_samples {
-        if let Some(s) = model.sample(wo, rng.next_u3()) {
+        if let Some(s) = model.sample(wo, rng.random()) {
             let x = s.wi.x.clamp(-1.0, 1.0);
             let i = (((x + 1.0) * 0.5 * rows as f32) as usize).min(rows - 1);
             let j = (((phi(s.wi) + PI) / (2.0 * PI) * cols as f32) as usize).min(cols - 1);

@@ -470,9 +470,10 @@ fn sphere_hits(o: Vec3, w: Vec3, center: Vec3, radius: f32) -> Option<(f32, f32)
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bsdf::pcg::Pcg32;
     use crate::light::Light;
     use glam::DVec3;
+    use rand::Rng;
+    use rand_pcg::Pcg32;
 
     /// Samples of each irradiance estimate: the area-sampled quad has a relative standard deviation per sample
     /// of ≈ 0.5, so 200 000 give a standard error ≈ 0.1 %, well inside the 1 % tolerance.
@@ -494,7 +495,7 @@ mod tests {
         let mut rng = Pcg32::new(seed, 17);
         let (mut sum, mut sum2) = (0.0f64, 0.0f64);
         for _ in 0..IRRADIANCE_SAMPLES {
-            let x = match l.sample_li(p, [rng.next_f32(), rng.next_f32()]) {
+            let x = match l.sample_li(p, rng.random()) {
                 Some(s) => {
                     assert!(
                         (s.pdf - l.pdf_li(p, s.wi)).abs() <= 1e-3 * s.pdf,
@@ -761,7 +762,7 @@ mod tests {
             );
             assert_eq!(rest, 0.0, "{name}: pdf outside the light's cap");
             for _ in 0..10_000 {
-                let s = l.sample_li(p, [rng.next_f32(), rng.next_f32()]).unwrap();
+                let s = l.sample_li(p, rng.random()).unwrap();
                 let pdf = l.pdf_li(p, s.wi);
                 assert!(
                     (s.pdf - pdf).abs() <= 1e-3 * s.pdf,

@@ -367,9 +367,10 @@ pub fn uv_to_direction(uv: [f32; 2]) -> (Vec3, f32) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bsdf::pcg::Pcg32;
     use crate::bsdf::stats::chi_square;
     use crate::light::Light;
+    use rand::Rng;
+    use rand_pcg::Pcg32;
     use std::sync::OnceLock;
 
     /// The shared maps, beside the repository (CI has them; a checkout without them skips the map tests).
@@ -494,7 +495,7 @@ mod tests {
         let mut hist = vec![0.0; CHI2_COS_ROWS * CHI2_PHI_COLUMNS];
         let mut mismatches = 0;
         for _ in 0..n {
-            let u = [rng.next_f32(), rng.next_f32()];
+            let u = rng.random();
             let s = env.sample_li(u).expect("a map with light");
             assert!((s.wi.length() - 1.0).abs() < 1e-5 && s.distance == f32::INFINITY && !s.delta);
             assert_eq!(s.pdf, env.pdf_li(s.wi), "sample pdf vs pdf_li at {}", s.wi);
@@ -595,7 +596,7 @@ mod tests {
         );
         let mut rng = Pcg32::new(2, 2);
         for _ in 0..1000 {
-            let uv = [rng.next_f32(), rng.next_f32()];
+            let uv = rng.random();
             let back = direction_to_uv(uv_to_direction(uv).0);
             assert!(
                 (back[0] - uv[0]).abs() < 1e-5 && (back[1] - uv[1]).abs() < 1e-5,
@@ -636,7 +637,7 @@ mod tests {
         let mut rng = Pcg32::new(4, 4);
         let mut observed = vec![0.0; 16 * 8];
         for _ in 0..n {
-            let s = env.sample_li([rng.next_f32(), rng.next_f32()]).unwrap();
+            let s = env.sample_li(rng.random()).unwrap();
             assert_eq!(
                 env.le(s.wi),
                 s.radiance,
@@ -772,9 +773,7 @@ mod tests {
         let mut rng = Pcg32::new(8, 8);
         let (mut sum, mut sum2) = (0.0f64, 0.0f64);
         for _ in 0..samples {
-            let s = env
-                .sample_li(Vec3::ZERO, [rng.next_f32(), rng.next_f32()])
-                .unwrap();
+            let s = env.sample_li(Vec3::ZERO, rng.random()).unwrap();
             assert_eq!(s.pdf, env.pdf_li(Vec3::ZERO, s.wi));
             assert_eq!(s.radiance, env.le(s.wi));
             let x = (s.radiance.y * n.dot(s.wi).max(0.0) / s.pdf) as f64;
