@@ -537,7 +537,7 @@ mod tests {
             let n = CHI2_SAMPLES as f64;
             let l1: f64 = obs.iter().zip(&exp).map(|(o, e)| (o - e).abs() / n).sum();
             let claimed_mass: f64 = exp.iter().sum::<f64>() / n;
-            let chi = super::super::stats::chi_square(&obs, &exp, 5.0);
+            let chi = crate::util::stats::chi_square(&obs, &exp, 5.0);
             println!("marschner published β 15° α −7.5° θo {t}°: ∫|p_sampled − p_claimed| = {l1:.4}, ∫p_claimed = {claimed_mass:.4}, χ² p = {:.3e}", chi.p_value);
             worst = worst.max(l1);
             if t == -70.0 || t == 60.0 {

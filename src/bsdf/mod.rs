@@ -22,9 +22,9 @@
 //!
 //! Shared pieces sit in their own files: [`frame`] (hair frame, θ/φ conversions), [`gaussian`] (Gaussians, erf,
 //! truncated Gaussian sampling), [`cauchy`] (truncated Cauchy sampling), [`fresnel`] (dielectric Fresnel, for
-//! [`Balance::Fresnel`]), [`stats`] (chi-square test) and [`plot`] (plain data for `cuticle plot-bsdf`). Tools that
-//! are not physics sit below, in [`crate::util`]: uniform sphere sampling ([`crate::util::sampling`]) and
-//! luminance ([`crate::util::color`]); tests and plots draw their random numbers from `rand_pcg`'s PCG32.
+//! [`Balance::Fresnel`]) and [`plot`] (plain data for `cuticle plot-bsdf`). Tools that are not physics sit below,
+//! in [`crate::util`]: uniform sphere sampling ([`crate::util::sampling`]), luminance ([`crate::util::color`]),
+//! the chi-square test ([`crate::util::stats`]); tests and plots draw their random numbers from `rand_pcg`'s PCG32.
 
 pub mod cauchy;
 pub mod chart;
@@ -35,7 +35,6 @@ pub mod ishair;
 pub mod kajiya_kay;
 pub mod marschner;
 pub mod plot;
-pub mod stats;
 #[cfg(test)]
 mod testing;
 

@@ -15,7 +15,7 @@
 //!   the left), radius on the same log scale.
 //! - **histogram**: where `model.sample` sends 10⁶ directions against what [`Bsdf::pdf`] predicts (cells equal in
 //!   solid angle, x = φi, y = sin θi), on a shared log colour scale, and their Pearson residual
-//!   (sampled − analytic)/√analytic, with Pearson's χ² of the two ([`super::stats::chi_square`]).
+//!   (sampled − analytic)/√analytic, with Pearson's χ² of the two ([`crate::util::stats::chi_square`]).
 //!
 //! **The f axis is logarithmic** (base 10, [`DECADES`] decades down from the power of ten above the curve's
 //! maximum): the lobes of one model differ by orders of magnitude (ISHair's R against its glints, Marschner's
@@ -28,10 +28,10 @@ use super::chart::{
     self, color_bar, srgb, Axis, Canvas, Colormap, HeatMap, LineChart, PolarChart, Rect, Series,
 };
 use super::frame::{from_spherical, phi};
-use super::stats::chi_square;
 use super::{Bsdf, Lobe, LobeValues};
 use crate::image::{self, Image, ImageError};
 use crate::util::color::luminance;
+use crate::util::stats::chi_square;
 use glam::Vec3;
 use rand::Rng;
 use rand_pcg::Pcg32;

@@ -4,8 +4,8 @@
 
 use super::frame::{from_spherical, sin_cos_theta, theta_h_range};
 use super::plot::sampled_vs_analytic;
-use super::stats::{chi_square, sidak};
 use super::{Bsdf, LobeValues};
+use crate::util::stats::{chi_square, sidak};
 use glam::Vec3;
 use rand::Rng;
 use rand_pcg::Pcg32;

@@ -214,7 +214,7 @@ fn clamp_unit(u: f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bsdf::stats::chi_square;
+    use crate::util::stats::chi_square;
     use rand::Rng;
     use rand_pcg::Pcg32;
 

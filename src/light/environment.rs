@@ -367,8 +367,8 @@ pub fn uv_to_direction(uv: [f32; 2]) -> (Vec3, f32) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bsdf::stats::chi_square;
     use crate::light::Light;
+    use crate::util::stats::chi_square;
     use rand::Rng;
     use rand_pcg::Pcg32;
     use std::sync::OnceLock;

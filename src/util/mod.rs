@@ -5,7 +5,10 @@
 //!   seeds, per-strand noise, procedural hair).
 //! - [`color`]: Rec. 709 luminance.
 //! - [`sampling`]: uniform sampling of the sphere.
+//! - [`stats`]: Pearson's χ² test with pbrt-v4's pooling, and Šidák's correction (BSDF and light tests,
+//!   `plot-bsdf`).
 
 pub mod color;
 pub mod hash;
 pub mod sampling;
+pub mod stats;
