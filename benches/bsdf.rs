@@ -9,10 +9,11 @@ use criterion::{black_box, criterion_group, criterion_main, Criterion, Throughpu
 use cuticle::bsdf::ishair::{IsHair, IsHairParams, LobeSelection};
 use cuticle::bsdf::kajiya_kay::{KajiyaKay, KajiyaKayParams};
 use cuticle::bsdf::marschner::{Marschner, MarschnerParams};
-use cuticle::bsdf::pcg::Pcg32;
-use cuticle::bsdf::sphere::uniform_sphere;
 use cuticle::bsdf::{Bsdf, Sampling};
+use cuticle::util::sampling::uniform_sphere;
 use glam::Vec3;
+use rand::Rng;
+use rand_pcg::Pcg32;
 
 /// Calls per measured iteration.
 const BATCH: usize = 1024;
@@ -25,10 +26,10 @@ struct Inputs {
 
 fn inputs() -> Inputs {
     let mut rng = Pcg32::new(2024, 1);
-    let dir = |rng: &mut Pcg32| uniform_sphere(rng.next_f32(), rng.next_f32());
+    let dir = |rng: &mut Pcg32| uniform_sphere(rng.random::<f32>(), rng.random::<f32>());
     let wo = (0..BATCH).map(|_| dir(&mut rng)).collect();
     let wi = (0..BATCH).map(|_| dir(&mut rng)).collect();
-    let u = (0..BATCH).map(|_| rng.next_u3()).collect();
+    let u = (0..BATCH).map(|_| rng.random()).collect();
     Inputs { wo, wi, u }
 }
 

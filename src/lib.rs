@@ -23,3 +23,4 @@ pub mod shape;
 pub mod study;
 #[allow(unsafe_code)]
 pub mod sys;
+pub mod util;

@@ -15,6 +15,7 @@ use cuticle::sys::embree::{
     BuildQuality, CurveBasis, CurveGeometry, Device, ErrorCode, Scene, StrandTable,
     TRANSMITTANCE_CUTOFF,
 };
+use cuticle::util::hash::SplitMix64;
 use glam::Vec3;
 use std::sync::Arc;
 
@@ -217,20 +218,16 @@ fn opaque_strand_stops_the_ray() {
 // ---------------------------------------------------------------------------------------------------------------
 // Brute force: random rays through a random bundle against an analytic reference.
 
-/// SplitMix64: a tiny deterministic generator, so the test needs no extra crate and every failure reproduces.
-struct Rng(u64);
+/// The crate's SplitMix64, seeded as the reference implementation: deterministic, so every failure reproduces.
+struct Rng(SplitMix64);
 
 impl Rng {
-    fn next_f32(&mut self) -> f32 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        ((z ^ (z >> 31)) >> 40) as f32 / (1u64 << 24) as f32
+    fn new(seed: u64) -> Rng {
+        Rng(SplitMix64::from_state(seed))
     }
 
     fn range(&mut self, lo: f32, hi: f32) -> f32 {
-        lo + (hi - lo) * self.next_f32()
+        lo + (hi - lo) * self.0.next_f32()
     }
 
     /// A point in the disk of radius `r` in the xz plane.
@@ -318,7 +315,7 @@ fn crossing(
 
 #[test]
 fn random_rays_match_a_brute_force_reference() {
-    let mut rng = Rng(0x5eed_cafe);
+    let mut rng = Rng::new(0x5eed_cafe);
     let bundle = random_bundle(&mut rng);
     for kind in KINDS {
         let tracer = tracer(&bundle.strands, kind);
@@ -401,7 +398,7 @@ fn random_rays_match_a_brute_force_reference() {
 
 #[test]
 fn concurrent_queries_agree_with_serial_ones() {
-    let mut rng = Rng(7);
+    let mut rng = Rng::new(7);
     let bundle = random_bundle(&mut rng);
     let tracer = tracer(&bundle.strands, CurveKind::Round);
     let rays: Vec<Ray> = (0..4000)
@@ -605,7 +602,7 @@ fn bad_curve_input_is_rejected_by_the_wrapper() {
 
 /// `count` random wavy strands of 16 points on a unit sphere (a crude fur ball), for benchmarks without data.
 fn synthetic_fur(count: usize) -> Strands {
-    let mut rng = Rng(42);
+    let mut rng = Rng::new(42);
     let mut model = HairModel {
         radius_from_file: true,
         strand_offsets: vec![0],

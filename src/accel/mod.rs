@@ -6,6 +6,7 @@ pub mod embree;
 use glam::Vec3;
 
 use crate::ray::{InvalidRay, Ray};
+use crate::util::hash::{mix64, unit_f32, GOLDEN_GAMMA};
 
 /// How strands are intersected.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize)]
@@ -74,11 +75,7 @@ pub trait Tracer: Sync {
 /// The hash is SplitMix64's finaliser over the key mixed with the strand id; its top 24 bits give u ∈ [0, 1).
 #[inline]
 pub fn strand_present(key: u64, strand: u32, opacity: f32) -> bool {
-    let mut z = key ^ u64::from(strand).wrapping_mul(0x9e37_79b9_7f4a_7c15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-    z ^= z >> 31;
-    let u = (z >> 40) as f32 * (1.0 / (1u64 << 24) as f32);
+    let u = unit_f32(mix64(key ^ u64::from(strand).wrapping_mul(GOLDEN_GAMMA)));
     u < opacity
 }
 

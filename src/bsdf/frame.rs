@@ -22,6 +22,8 @@
 //!   rotation changes nothing they compute; it would matter to a model that uses the offset h across the
 //!   fibre or an elliptical cross-section (neither is implemented).
 
+use crate::util::hash::{hash64, unit_f32};
+use crate::util::sampling::uniform_sphere;
 use glam::Vec3;
 use std::f32::consts::{FRAC_PI_2, FRAC_PI_4, PI, TAU};
 
@@ -97,13 +99,10 @@ impl HairFrame {
 /// A unit vector that depends only on `strand_id`, for [`HairFrame::from_ribbon`] (the thesis' "hair specific
 /// index to create an arbitrary noise-based vector"). A SplitMix64 hash of the id, mapped uniformly to the sphere.
 pub fn strand_noise(strand_id: u32) -> Vec3 {
-    let mut z = (strand_id as u64).wrapping_add(0x9e37_79b9_7f4a_7c15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-    z ^= z >> 31;
-    let a = (z >> 40) as f32 / (1u64 << 24) as f32;
-    let b = ((z >> 8) & 0xff_ffff) as f32 / (1u64 << 24) as f32;
-    super::sphere::uniform_sphere(a, b)
+    let z = hash64(u64::from(strand_id));
+    // Two disjoint 24-bit fields of one hash: bits 40..64 and 8..32.
+    let (a, b) = (unit_f32(z), unit_f32(z << 32));
+    uniform_sphere(a, b)
 }
 
 /// θ of a local direction: atan2(x, √(y² + z²)) ∈ [−π/2, π/2] (exact near the poles, unlike asin(x)).

@@ -62,11 +62,12 @@ use super::frame::{
 use super::gaussian::{exp_lobe, gaussian_exponent, gaussian_unit, gaussian_unit_integral};
 use super::kajiya_kay::{diffuse_f, diffuse_pdf, sample_diffuse, selection_probability};
 use super::marschner::phi_eq12_parts;
-use super::sphere::{uniform_sphere, UNIFORM_SPHERE_PDF};
 use super::{
-    check, check_color, check_width, luminance, Balance, Bsdf, BsdfError, BsdfSample, Lobe,
-    LobeValues, Sampling,
+    check, check_color, check_width, Balance, Bsdf, BsdfError, BsdfSample, Lobe, LobeValues,
+    Sampling,
 };
+use crate::util::color::luminance;
+use crate::util::sampling::{uniform_sphere, UNIFORM_SPHERE_PDF};
 use glam::Vec3;
 use std::f32::consts::{FRAC_PI_2, FRAC_PI_4, PI};
 

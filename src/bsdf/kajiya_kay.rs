@@ -27,10 +27,9 @@
 
 use super::frame::{from_spherical, sin_cos_theta, theta, COS_THETA_MIN};
 use super::gaussian::TruncatedGaussian;
-use super::sphere::{uniform_sphere, UNIFORM_SPHERE_PDF};
-use super::{
-    check, check_color, luminance, Balance, Bsdf, BsdfError, BsdfSample, Lobe, LobeValues, Sampling,
-};
+use super::{check, check_color, Balance, Bsdf, BsdfError, BsdfSample, Lobe, LobeValues, Sampling};
+use crate::util::color::luminance;
+use crate::util::sampling::{uniform_sphere, UNIFORM_SPHERE_PDF};
 use glam::Vec3;
 use std::f32::consts::{FRAC_1_PI, FRAC_PI_2, PI, TAU};
 

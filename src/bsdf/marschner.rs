@@ -58,11 +58,12 @@ use super::frame::{
 };
 use super::gaussian::{exp_lobe, gaussian, TruncatedGaussianF32, INV_SQRT_TAU};
 use super::kajiya_kay::{diffuse_f, diffuse_pdf, sample_diffuse, selection_probability};
-use super::sphere::{uniform_sphere, UNIFORM_SPHERE_PDF};
 use super::{
-    check, check_color, check_width, luminance, Balance, Bsdf, BsdfError, BsdfSample, Lobe,
-    LobeValues, Sampling,
+    check, check_color, check_width, Balance, Bsdf, BsdfError, BsdfSample, Lobe, LobeValues,
+    Sampling,
 };
+use crate::util::color::luminance;
+use crate::util::sampling::{uniform_sphere, UNIFORM_SPHERE_PDF};
 use glam::Vec3;
 use std::f32::consts::{FRAC_PI_2, FRAC_PI_4, PI, TAU};
 
@@ -412,6 +413,8 @@ mod tests {
     use super::super::plot::sampled_vs_analytic;
     use super::super::testing::{self, mean, wo_at, CHI2_BINS, CHI2_SAMPLES};
     use super::*;
+    use rand::Rng;
+    use rand_pcg::Pcg32;
 
     /// θo of the furnace grid, degrees.
     const THETA_O_DEG: [f32; 5] = [-80.0, -40.0, 0.0, 30.0, 75.0];
@@ -534,7 +537,7 @@ mod tests {
             let n = CHI2_SAMPLES as f64;
             let l1: f64 = obs.iter().zip(&exp).map(|(o, e)| (o - e).abs() / n).sum();
             let claimed_mass: f64 = exp.iter().sum::<f64>() / n;
-            let chi = super::super::stats::chi_square(&obs, &exp, 5.0);
+            let chi = crate::util::stats::chi_square(&obs, &exp, 5.0);
             println!("marschner published β 15° α −7.5° θo {t}°: ∫|p_sampled − p_claimed| = {l1:.4}, ∫p_claimed = {claimed_mass:.4}, χ² p = {:.3e}", chi.p_value);
             worst = worst.max(l1);
             if t == -70.0 || t == 60.0 {
@@ -595,12 +598,12 @@ mod tests {
         // One lobe, published mode: the weight f cos θi / pdf_eq13 is exactly k_s cos²θi / cos²θd (eq. 14), and
         // ≈ 1 on average (Hery & Ramamoorthi's approximation) for a sharp lobe at normal view with α = 0.
         let m = single_lobe(0.0, 2.0, Sampling::ClampAndFlip);
-        let mut rng = super::super::pcg::Pcg32::new(3, 3);
+        let mut rng = Pcg32::new(3, 3);
         let wo = wo_at(0.0);
         let n = 10_000;
         let mut sum = 0.0;
         for _ in 0..n {
-            let s = m.sample(wo, rng.next_u3()).unwrap();
+            let s = m.sample(wo, rng.random()).unwrap();
             let a = Angles::new(wo, s.wi);
             let want = weight_eq14(a.cos_theta_i, a.theta_d().cos());
             assert!(

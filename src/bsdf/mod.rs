@@ -21,9 +21,10 @@
 //! - [`ishair`]: Sadeghi et al. 2010's four lobes as importance sampled by Ou et al. 2012 (thesis §4.3).
 //!
 //! Shared pieces sit in their own files: [`frame`] (hair frame, θ/φ conversions), [`gaussian`] (Gaussians, erf,
-//! truncated Gaussian sampling), [`cauchy`] (truncated Cauchy sampling), [`sphere`] (uniform sphere sampling),
-//! [`fresnel`] (dielectric Fresnel, for [`Balance::Fresnel`]), [`stats`] (chi-square test), [`pcg`] (a small
-//! deterministic RNG) and [`plot`] (plain data for `cuticle plot-bsdf`).
+//! truncated Gaussian sampling), [`cauchy`] (truncated Cauchy sampling), [`fresnel`] (dielectric Fresnel, for
+//! [`Balance::Fresnel`]) and [`plot`] (plain data for `cuticle plot-bsdf`). Tools that are not physics sit below,
+//! in [`crate::util`]: uniform sphere sampling ([`crate::util::sampling`]), luminance ([`crate::util::color`]),
+//! the chi-square test ([`crate::util::stats`]); tests and plots draw their random numbers from `rand_pcg`'s PCG32.
 
 pub mod cauchy;
 pub mod chart;
@@ -34,10 +35,7 @@ pub mod ishair;
 pub mod kajiya_kay;
 pub mod marschner;
 pub mod material;
-pub mod pcg;
 pub mod plot;
-pub mod sphere;
-pub mod stats;
 #[cfg(test)]
 mod testing;
 
@@ -395,9 +393,3 @@ pub(crate) fn check_width(
 /// The smallest lobe width accepted, radians (0.0057°): far below any paper's range (≥ 0.5°), far above where
 /// f32 Gaussians and Cauchy pdfs would overflow.
 pub const WIDTH_MIN: f32 = 1e-4;
-
-/// Luminance weights (Rec. 709) used to turn RGB lobe colours into sampling probabilities.
-#[inline]
-pub(crate) fn luminance(c: Vec3) -> f32 {
-    c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
-}

@@ -15,7 +15,7 @@
 //!   the left), radius on the same log scale.
 //! - **histogram**: where `model.sample` sends 10⁶ directions against what [`Bsdf::pdf`] predicts (cells equal in
 //!   solid angle, x = φi, y = sin θi), on a shared log colour scale, and their Pearson residual
-//!   (sampled − analytic)/√analytic, with Pearson's χ² of the two ([`super::stats::chi_square`]).
+//!   (sampled − analytic)/√analytic, with Pearson's χ² of the two ([`crate::util::stats::chi_square`]).
 //!
 //! **The f axis is logarithmic** (base 10, [`DECADES`] decades down from the power of ten above the curve's
 //! maximum): the lobes of one model differ by orders of magnitude (ISHair's R against its glints, Marschner's
@@ -28,11 +28,13 @@ use super::chart::{
     self, color_bar, srgb, Axis, Canvas, Colormap, HeatMap, LineChart, PolarChart, Rect, Series,
 };
 use super::frame::{from_spherical, phi};
-use super::pcg::Pcg32;
-use super::stats::chi_square;
-use super::{luminance, Bsdf, Lobe, LobeValues};
+use super::{Bsdf, Lobe, LobeValues};
 use crate::image::{self, Image, ImageError};
+use crate::util::color::luminance;
+use crate::util::stats::chi_square;
 use glam::Vec3;
+use rand::Rng;
+use rand_pcg::Pcg32;
 use std::f32::consts::{FRAC_PI_2, PI};
 use std::path::{Path, PathBuf};
 
@@ -96,7 +98,7 @@ pub fn sampled_vs_analytic<B: Bsdf + ?Sized>(
     let mut sampled = vec![0.0; rows * cols];
     let mut rng = Pcg32::new(seed, 0x5eed);
     for _ in 0..n_samples {
-        if let Some(s) = model.sample(wo, rng.next_u3()) {
+        if let Some(s) = model.sample(wo, rng.random()) {
             let x = s.wi.x.clamp(-1.0, 1.0);
             let i = (((x + 1.0) * 0.5 * rows as f32) as usize).min(rows - 1);
             let j = (((phi(s.wi) + PI) / (2.0 * PI) * cols as f32) as usize).min(cols - 1);

@@ -3,11 +3,12 @@
 //! and a finiteness sweep. Each model's tests call these with its own parameters.
 
 use super::frame::{from_spherical, sin_cos_theta, theta_h_range};
-use super::pcg::Pcg32;
 use super::plot::sampled_vs_analytic;
-use super::stats::{chi_square, sidak};
 use super::{Bsdf, LobeValues};
+use crate::util::stats::{chi_square, sidak};
 use glam::Vec3;
+use rand::Rng;
+use rand_pcg::Pcg32;
 use std::f32::consts::{FRAC_PI_2, FRAC_PI_4, PI};
 
 /// θ cells of the furnace quadrature: midpoint rule in θi, 0.25° apart, ≥ 4 nodes per σ of the narrowest lobe
@@ -103,7 +104,7 @@ pub fn sampled_furnace<B: Bsdf + ?Sized>(model: &B, wo: Vec3, n: usize, seed: u6
     let mut rng = Pcg32::new(seed, 7);
     let (mut s, mut s2) = (0.0f64, 0.0f64);
     for _ in 0..n {
-        if let Some(x) = model.sample(wo, rng.next_u3()) {
+        if let Some(x) = model.sample(wo, rng.random()) {
             let w = (x.weight.x + x.weight.y + x.weight.z) as f64 / 3.0;
             s += w;
             s2 += w * w;
@@ -195,12 +196,12 @@ fn direction_pairs() -> Vec<(Vec3, Vec3)> {
     let mut rng = Pcg32::new(5, 9);
     for _ in 0..2000 {
         let a = from_spherical(
-            (rng.next_f32() - 0.5) * 3.1,
-            (rng.next_f32() - 0.5) * (2.0 * PI - 0.01),
+            (rng.random::<f32>() - 0.5) * 3.1,
+            (rng.random::<f32>() - 0.5) * (2.0 * PI - 0.01),
         );
         let b = from_spherical(
-            (rng.next_f32() - 0.5) * 3.1,
-            (rng.next_f32() - 0.5) * (2.0 * PI - 0.01),
+            (rng.random::<f32>() - 0.5) * 3.1,
+            (rng.random::<f32>() - 0.5) * (2.0 * PI - 0.01),
         );
         v.push((a, b));
     }
@@ -267,8 +268,8 @@ fn sweep_angles() -> (Vec<f32>, Vec<f32>) {
 pub fn assert_sample_consistent<B: Bsdf + ?Sized>(name: &str, model: &B) {
     let mut rng = Pcg32::new(77, 1);
     for _ in 0..2000 {
-        let wo = super::sphere::uniform_sphere(rng.next_f32(), rng.next_f32());
-        let Some(s) = model.sample(wo, rng.next_u3()) else {
+        let wo = crate::util::sampling::uniform_sphere(rng.random::<f32>(), rng.random::<f32>());
+        let Some(s) = model.sample(wo, rng.random()) else {
             continue;
         };
         // An orthonormal pair perpendicular to wi.

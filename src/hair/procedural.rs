@@ -21,7 +21,7 @@
 //!   pulled towards the clump centre near the tips, the way real hair forms locks.
 //!
 //! Generation is deterministic: the same parameters and `seed` give bit-identical points on one machine. Random
-//! numbers come from SplitMix64 (Steele, Lea & Flood 2014) keyed by (seed, stream, index), so strand `i` does not
+//! numbers come from [`SplitMix64`] (Steele, Lea & Flood 2014) keyed by (seed, stream, index), so strand `i` does not
 //! depend on how many strands come before it.
 //!
 //! Radii are explicit per point (the taper is part of the design), so models come out with `radius_from_file`
@@ -34,6 +34,7 @@ use glam::{Vec2, Vec3};
 use serde::Deserialize;
 
 use super::{HairError, HairModel};
+use crate::util::hash::SplitMix64;
 
 /// A procedural hair model, as written in a scene's `[hair] procedural = { kind = ..., ... }`.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
@@ -469,57 +470,9 @@ fn color(path: &Path, c: [f32; 3]) -> Result<(), HairError> {
     }
 }
 
-/// SplitMix64 (Steele, Lea & Flood 2014, "Fast splittable pseudorandom number generators"): a 64-bit counter
-/// passed through a strong bit mixer. Tiny, fast, and good enough for placing strands.
-#[derive(Debug, Clone)]
-struct SplitMix64(u64);
-
-impl SplitMix64 {
-    /// The generator for (seed, stream): both are mixed so neighbouring keys give unrelated sequences.
-    fn new(seed: u64, stream: u64) -> Self {
-        SplitMix64(mix64(seed ^ mix64(stream ^ 0xD1B5_4A32_D192_ED03)))
-    }
-
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        mix64(self.0)
-    }
-
-    /// Uniform in [0, 1): the top 24 bits, exactly representable in an f32.
-    fn next_f32(&mut self) -> f32 {
-        (self.next_u64() >> 40) as f32 * (1.0 / (1u32 << 24) as f32)
-    }
-}
-
-/// SplitMix64's finaliser (a variant of MurmurHash3's fmix64).
-fn mix64(mut z: u64) -> u64 {
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn splitmix_reference_values() {
-        // First outputs of SplitMix64 seeded with 0 (the reference implementation's state starts at the seed).
-        let mut r = SplitMix64(0);
-        assert_eq!(r.next_u64(), 0xE220_A839_7B1D_CDAF);
-        assert_eq!(r.next_u64(), 0x6E78_9E6A_A1B9_65F4);
-    }
-
-    #[test]
-    fn next_f32_is_in_unit_interval_and_roughly_uniform() {
-        let mut r = SplitMix64::new(1, 2);
-        let n = 10_000;
-        let xs: Vec<f32> = (0..n).map(|_| r.next_f32()).collect();
-        assert!(xs.iter().all(|x| (0.0..1.0).contains(x)));
-        let mean = xs.iter().sum::<f32>() / n as f32;
-        // Standard error of the mean of U(0,1) over 10^4 samples is 0.0029; allow ~5 sigma.
-        assert!((mean - 0.5).abs() < 0.015, "mean {mean}");
-    }
 
     #[test]
     fn fur_ball_roots_lie_on_the_sphere() {

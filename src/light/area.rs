@@ -27,9 +27,9 @@ use glam::Vec3;
 
 use super::cone::Cone;
 use super::{check, check_color, check_direction, clamp_u, unit, LightError, LightSample};
-use crate::bsdf::luminance;
-use crate::bsdf::sphere::uniform_sphere;
 use crate::ray::Ray;
+use crate::util::color::luminance;
+use crate::util::sampling::uniform_sphere;
 
 use crate::geometry::{Disk, Parallelogram, Sphere};
 
@@ -392,9 +392,10 @@ impl AreaLight {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bsdf::pcg::Pcg32;
     use crate::light::Light;
     use glam::DVec3;
+    use rand::Rng;
+    use rand_pcg::Pcg32;
 
     /// Samples of each irradiance estimate: the area-sampled quad has a relative standard deviation per sample
     /// of ≈ 0.5, so 200 000 give a standard error ≈ 0.1 %, well inside the 1 % tolerance.
@@ -416,7 +417,7 @@ mod tests {
         let mut rng = Pcg32::new(seed, 17);
         let (mut sum, mut sum2) = (0.0f64, 0.0f64);
         for _ in 0..IRRADIANCE_SAMPLES {
-            let x = match l.sample_li(p, [rng.next_f32(), rng.next_f32()]) {
+            let x = match l.sample_li(p, rng.random()) {
                 Some(s) => {
                     assert!(
                         (s.pdf - l.pdf_li(p, s.wi)).abs() <= 1e-3 * s.pdf,
@@ -683,7 +684,7 @@ mod tests {
             );
             assert_eq!(rest, 0.0, "{name}: pdf outside the light's cap");
             for _ in 0..10_000 {
-                let s = l.sample_li(p, [rng.next_f32(), rng.next_f32()]).unwrap();
+                let s = l.sample_li(p, rng.random()).unwrap();
                 let pdf = l.pdf_li(p, s.wi);
                 assert!(
                     (s.pdf - pdf).abs() <= 1e-3 * s.pdf,

@@ -100,7 +100,8 @@ impl Cone {
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
-    use crate::bsdf::pcg::Pcg32;
+    use rand::Rng;
+    use rand_pcg::Pcg32;
 
     /// The angle between two directions, in f64 and without acos' loss near 0: 2 asin(|â − b̂| / 2).
     pub(crate) fn angle_between(a: Vec3, b: Vec3) -> f64 {
@@ -122,7 +123,7 @@ pub(crate) mod tests {
                 cone.solid_angle()
             );
             for k in 0..2000 {
-                let u = [rng.next_f32(), rng.next_f32()];
+                let u = rng.random();
                 let u = if k == 0 { [1.0, 0.3] } else { u };
                 let w = cone.sample(u);
                 assert!((w.length() - 1.0).abs() < 1e-5);

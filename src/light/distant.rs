@@ -19,7 +19,7 @@ use glam::Vec3;
 
 use super::cone::Cone;
 use super::{check, check_color, check_direction, clamp_u, unit, LightError, LightSample};
-use crate::bsdf::luminance;
+use crate::util::color::luminance;
 
 /// A directional light (see the module docs).
 #[derive(Debug, Clone, PartialEq)]
@@ -138,9 +138,10 @@ impl Distant {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bsdf::pcg::Pcg32;
     use crate::light::cone::tests::angle_between;
     use crate::light::Light;
+    use rand::Rng;
+    use rand_pcg::Pcg32;
 
     /// Quadrature grid of the cone integral (cos θ × φ); the midpoint rule in cos θ is exact for a constant
     /// integrand, so the error comes only from the rim cells (< 1/N_THETA of the cap).
@@ -179,9 +180,7 @@ mod tests {
             assert!(!l.is_delta());
             let axis = Vec3::new(-0.3, 1.0, -0.2).normalize();
             for _ in 0..5_000 {
-                let s = l
-                    .sample_li(Vec3::ONE, [rng.next_f32(), rng.next_f32()])
-                    .unwrap();
+                let s = l.sample_li(Vec3::ONE, rng.random()).unwrap();
                 let angle = angle_between(s.wi, axis);
                 assert!(
                     angle <= radius as f64 + 3e-7,

@@ -214,8 +214,9 @@ fn clamp_unit(u: f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bsdf::pcg::Pcg32;
-    use crate::bsdf::stats::chi_square;
+    use crate::util::stats::chi_square;
+    use rand::Rng;
+    use rand_pcg::Pcg32;
 
     /// Samples for the chi-square test: 200 000 over 48 cells expects ≈ 4 000 per cell, so a 5 % error in one
     /// cell's probability is ≈ 3 σ and shows up.
@@ -229,7 +230,7 @@ mod tests {
         assert!((d.integral() - 8.0 / 8.0).abs() < 1e-6);
         let mut rng = Pcg32::new(3, 1);
         for _ in 0..10_000 {
-            let (x, pdf, i) = d.sample_continuous(rng.next_f32());
+            let (x, pdf, i) = d.sample_continuous(rng.random::<f32>());
             assert!((0.0..1.0).contains(&x), "x = {x}");
             assert_eq!(i, (x * 8.0) as usize, "x = {x} reported bin {i}");
             assert!(pdf > 0.0, "sampled a zero bin {i}");
@@ -254,7 +255,7 @@ mod tests {
     #[test]
     fn one_d_pdf_integrates_to_one_and_all_zero_is_uniform() {
         let mut rng = Pcg32::new(5, 2);
-        let weights: Vec<f32> = (0..37).map(|_| rng.next_f32().powi(3)).collect();
+        let weights: Vec<f32> = (0..37).map(|_| rng.random::<f32>().powi(3)).collect();
         let d = Distribution1D::new(&weights);
         // Midpoint rule on a grid aligned with the bins is exact for a step function.
         let m = 37 * 16;
@@ -278,11 +279,11 @@ mod tests {
     fn two_d_sample_matches_pdf_and_integrates_to_one() {
         let mut rng = Pcg32::new(7, 3);
         let (w, h) = (5, 4);
-        let mut weights: Vec<f32> = (0..w * h).map(|_| rng.next_f32()).collect();
+        let mut weights: Vec<f32> = (0..w * h).map(|_| rng.random::<f32>()).collect();
         weights[2 * w..3 * w].fill(0.0); // A zero row is never drawn.
         let d = Distribution2D::new(&weights, w, h);
         for _ in 0..10_000 {
-            let (uv, pdf) = d.sample([rng.next_f32(), rng.next_f32()]);
+            let (uv, pdf) = d.sample(rng.random());
             assert!(uv.iter().all(|x| (0.0..1.0).contains(x)), "uv = {uv:?}");
             assert_ne!(
                 (uv[1] * h as f32) as usize,
@@ -320,11 +321,13 @@ mod tests {
     fn two_d_chi_square() {
         let mut rng = Pcg32::new(1, 4);
         let (w, h) = (8, 6);
-        let weights: Vec<f32> = (0..w * h).map(|_| rng.next_f32().powi(2) + 0.01).collect();
+        let weights: Vec<f32> = (0..w * h)
+            .map(|_| rng.random::<f32>().powi(2) + 0.01)
+            .collect();
         let d = Distribution2D::new(&weights, w, h);
         let mut observed = vec![0.0f64; w * h];
         for _ in 0..CHI2_SAMPLES {
-            let (uv, _) = d.sample([rng.next_f32(), rng.next_f32()]);
+            let (uv, _) = d.sample(rng.random());
             let (i, j) = ((uv[0] * w as f32) as usize, (uv[1] * h as f32) as usize);
             observed[j * w + i] += 1.0;
         }

@@ -41,9 +41,9 @@ use glam::{Mat3, Quat, Vec3};
 
 use super::distribution::Distribution2D;
 use super::{check, check_color, check_direction, clamp_u, unit, LightError, LightSample};
-use crate::bsdf::luminance;
-use crate::bsdf::sphere::{uniform_sphere, UNIFORM_SPHERE_PDF};
 use crate::image::{read, Image};
+use crate::util::color::luminance;
+use crate::util::sampling::{uniform_sphere, UNIFORM_SPHERE_PDF};
 
 /// Light from infinitely far away: a lat-long map or a constant (see the module docs for the conventions).
 #[derive(Debug, Clone)]
@@ -367,9 +367,10 @@ pub fn uv_to_direction(uv: [f32; 2]) -> (Vec3, f32) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bsdf::pcg::Pcg32;
-    use crate::bsdf::stats::chi_square;
     use crate::light::Light;
+    use crate::util::stats::chi_square;
+    use rand::Rng;
+    use rand_pcg::Pcg32;
     use std::sync::OnceLock;
 
     /// The shared maps, beside the repository. CI has them; without them the map tests fail, naming the directory
@@ -490,7 +491,7 @@ mod tests {
         let mut hist = vec![0.0; CHI2_COS_ROWS * CHI2_PHI_COLUMNS];
         let mut mismatches = 0;
         for _ in 0..n {
-            let u = [rng.next_f32(), rng.next_f32()];
+            let u = rng.random();
             let s = env.sample_li(u).expect("a map with light");
             assert!((s.wi.length() - 1.0).abs() < 1e-5 && s.distance == f32::INFINITY && !s.delta);
             assert_eq!(s.pdf, env.pdf_li(s.wi), "sample pdf vs pdf_li at {}", s.wi);
@@ -591,7 +592,7 @@ mod tests {
         );
         let mut rng = Pcg32::new(2, 2);
         for _ in 0..1000 {
-            let uv = [rng.next_f32(), rng.next_f32()];
+            let uv = rng.random();
             let back = direction_to_uv(uv_to_direction(uv).0);
             assert!(
                 (back[0] - uv[0]).abs() < 1e-5 && (back[1] - uv[1]).abs() < 1e-5,
@@ -632,7 +633,7 @@ mod tests {
         let mut rng = Pcg32::new(4, 4);
         let mut observed = vec![0.0; 16 * 8];
         for _ in 0..n {
-            let s = env.sample_li([rng.next_f32(), rng.next_f32()]).unwrap();
+            let s = env.sample_li(rng.random()).unwrap();
             assert_eq!(
                 env.le(s.wi),
                 s.radiance,
@@ -768,9 +769,7 @@ mod tests {
         let mut rng = Pcg32::new(8, 8);
         let (mut sum, mut sum2) = (0.0f64, 0.0f64);
         for _ in 0..samples {
-            let s = env
-                .sample_li(Vec3::ZERO, [rng.next_f32(), rng.next_f32()])
-                .unwrap();
+            let s = env.sample_li(Vec3::ZERO, rng.random()).unwrap();
             assert_eq!(s.pdf, env.pdf_li(Vec3::ZERO, s.wi));
             assert_eq!(s.radiance, env.le(s.wi));
             let x = (s.radiance.y * n.dot(s.wi).max(0.0) / s.pdf) as f64;

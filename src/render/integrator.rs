@@ -36,12 +36,13 @@ use glam::Vec3;
 
 use crate::accel::{CurveKind, Tracer};
 use crate::bsdf::frame::{sin_cos_theta, strand_noise, HairFrame};
-use crate::bsdf::{luminance, Lobe, LobeValues, Material};
+use crate::bsdf::{Lobe, LobeValues, Material};
 use crate::hair::Strands;
 use crate::light::{Distribution1D, Light};
 use crate::ray::Ray;
 use crate::shadow::ShadowMaps;
 use crate::shape::Shapes;
+use crate::util::color::luminance;
 
 use super::sampler::PixelSampler;
 use super::settings::{LightSelection, ShadowMode, Strategy, TransmittanceMode};

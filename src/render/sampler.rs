@@ -1,6 +1,8 @@
 //! Sample streams keyed by (pixel, sample index, dimension): Owen-scrambled Sobol points (Burley 2020, the
 //! `sobol_burley` crate), so every pixel's samples are independent of threads and tile order.
 
+use crate::util::hash::hash64;
+
 /// The sample dimensions a camera sample uses, named so no two consumers share one.
 pub mod dim {
     /// Pixel-filter offset, x and y.
@@ -62,19 +64,10 @@ impl PixelSampler {
     }
 }
 
-/// SplitMix64 finaliser folded to 32 bits: decorrelates the per-pixel scrambling seeds.
+/// [`hash64`] (SplitMix64) folded to 32 bits: decorrelates the per-pixel scrambling seeds.
 #[inline]
 fn hash(z: u64) -> u32 {
     hash64(z) as u32
-}
-
-/// SplitMix64's finaliser.
-#[inline]
-fn hash64(mut z: u64) -> u64 {
-    z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
 }
 
 #[cfg(test)]

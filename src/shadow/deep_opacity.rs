@@ -57,11 +57,11 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::{DeepOpacityConfig, LayerSpacing};
-use crate::bsdf::luminance;
 use crate::hair::Strands;
 use crate::image::Image;
 use crate::light::Light;
 use crate::ray::Ray;
+use crate::util::color::luminance;
 
 /// Fixed-point scale of accumulated optical depth (σ = 1 ⇔ 4096).
 const SIGMA_SCALE: f32 = 4096.0;

@@ -1,0 +1,14 @@
+//! Small shared tools below the physics, each with its own tests (as pbrt-v4's `util/hash.h`, `util/sampling.h`
+//! sit under its BxDFs): every layer above may import them, and they import nothing of this crate.
+//!
+//! - [`hash`]: SplitMix64's finaliser and the SplitMix64 generator (strand presence, the sampler's scrambling
+//!   seeds, per-strand noise, procedural hair).
+//! - [`color`]: Rec. 709 luminance.
+//! - [`sampling`]: uniform sampling of the sphere.
+//! - [`stats`]: Pearson's χ² test with pbrt-v4's pooling, and Šidák's correction (BSDF and light tests,
+//!   `plot-bsdf`).
+
+pub mod color;
+pub mod hash;
+pub mod sampling;
+pub mod stats;
