@@ -93,10 +93,8 @@ pub(super) fn rasterise(
                 let (dx, dy) = (xb - xa, yb - ya);
                 let len2 = dx * dx + dy * dy;
                 // Texel centres (tx + 0.5) inside the piece's bounding box …
-                let x0 = ceil_i(xa.min(xb) - half - 0.5).max(0);
-                let x1 = floor_i(xa.max(xb) + half - 0.5).min(res - 1);
-                let y0 = ceil_i(ya.min(yb) - half - 0.5).max(0);
-                let y1 = floor_i(ya.max(yb) + half - 0.5).min(res - 1);
+                let (x0, x1) = centres_in(xa.min(xb) - half, xa.max(xb) + half, (0, res - 1));
+                let (y0, y1) = centres_in(ya.min(yb) - half, ya.max(yb) + half, (0, res - 1));
                 let mut visit = |tx: i64, ty: i64| {
                     let (cx, cy) = (tx as f32 + 0.5, ty as f32 + 0.5);
                     // Parameter of the texel centre's projection onto the piece: half-open [0, 1) so a centre on
@@ -115,26 +113,13 @@ pub(super) fn rasterise(
                     }
                     fragment((ty * res + tx) as usize, za + t * (zb - za), sigma);
                 };
-                // … visited along the piece's major axis, each column (row) only over the centres within `half` of
-                // the line (|Δminor| ≤ half · length / |Δmajor|, plus a rounding margin; `visit` decides exactly).
+                // … visited along the piece's major axis (x for a flat piece, y for a steep one).
+                let half_length = half * len2.sqrt();
                 if len2 > 0.0 && dx.abs() >= dy.abs() {
-                    let (slope, reach) = (dy / dx, half * len2.sqrt() / dx.abs() + 1e-3);
-                    for tx in x0..=x1 {
-                        let y = ya + (tx as f32 + 0.5 - xa) * slope;
-                        for ty in ceil_i(y - reach - 0.5).max(y0)..=floor_i(y + reach - 0.5).min(y1)
-                        {
-                            visit(tx, ty);
-                        }
-                    }
+                    walk_line((x0, x1), (y0, y1), (xa, ya), (dx, dy), half_length, visit);
                 } else if len2 > 0.0 {
-                    let (slope, reach) = (dx / dy, half * len2.sqrt() / dy.abs() + 1e-3);
-                    for ty in y0..=y1 {
-                        let x = xa + (ty as f32 + 0.5 - ya) * slope;
-                        for tx in ceil_i(x - reach - 0.5).max(x0)..=floor_i(x + reach - 0.5).min(x1)
-                        {
-                            visit(tx, ty);
-                        }
-                    }
+                    let visit = |ty, tx| visit(tx, ty);
+                    walk_line((y0, y1), (x0, x1), (ya, xa), (dy, dx), half_length, visit);
                 } else {
                     for ty in y0..=y1 {
                         for tx in x0..=x1 {
@@ -145,6 +130,39 @@ pub(super) fn rasterise(
             }
         }
     }
+}
+
+/// Visits a piece's texel centres column by column along its major axis, in (major, minor) coordinates: (x, y) for
+/// a flat piece, (y, x) for a steep one. In each column `major` of `majors` only the centres of `minors` that can
+/// lie within `half` of the line through `start` along `delta` are visited: |Δminor| ≤ half · length / |Δmajor|
+/// (`half_length` = half · length), plus a rounding margin; `visit(major, minor)` decides exactly.
+#[inline]
+fn walk_line(
+    majors: (i64, i64),
+    minors: (i64, i64),
+    start: (f32, f32),
+    delta: (f32, f32),
+    half_length: f32,
+    mut visit: impl FnMut(i64, i64),
+) {
+    let (slope, reach) = (delta.1 / delta.0, half_length / delta.0.abs() + 1e-3);
+    for major in majors.0..=majors.1 {
+        let minor = start.1 + (major as f32 + 0.5 - start.0) * slope;
+        let (lo, hi) = centres_in(minor - reach, minor + reach, minors);
+        for minor in lo..=hi {
+            visit(major, minor);
+        }
+    }
+}
+
+/// The first and last index i whose texel centre i + 0.5 lies in [`lo`, `hi`], clamped to `clamp` (empty when the
+/// first exceeds the last).
+#[inline]
+fn centres_in(lo: f32, hi: f32, clamp: (i64, i64)) -> (i64, i64) {
+    (
+        ceil_i(lo - 0.5).max(clamp.0),
+        floor_i(hi - 0.5).min(clamp.1),
+    )
 }
 
 /// ⌊v⌋ as an integer without a libm call (baseline x86-64 has no rounding instruction); saturates like `as`.
