@@ -121,15 +121,10 @@ impl MapFrame {
     pub(super) fn project(&self, p: Vec3) -> Option<(f32, f32, f32)> {
         let d = p - self.origin;
         let z = d.dot(self.forward);
-        let scale = match self.projection {
-            Projection::Orthographic { half_extent } => half_extent,
-            Projection::Perspective { tan_half } => {
-                if z <= 0.0 {
-                    return None;
-                }
-                z * tan_half
-            }
-        };
+        if matches!(self.projection, Projection::Perspective { .. }) && z <= 0.0 {
+            return None;
+        }
+        let scale = self.half_side(z);
         let half_res = 0.5 * self.resolution as f32;
         Some((
             (d.dot(self.right) / scale + 1.0) * half_res,
@@ -141,11 +136,16 @@ impl MapFrame {
     /// World size of one texel at depth `z`.
     #[inline]
     pub(super) fn texel_size(&self, z: f32) -> f32 {
-        let scale = match self.projection {
+        2.0 * self.half_side(z.max(0.0)) / self.resolution as f32
+    }
+
+    /// Half the side of the square the map covers at depth `z` ≥ 0, world units (constant for orthographic maps).
+    #[inline]
+    fn half_side(&self, z: f32) -> f32 {
+        match self.projection {
             Projection::Orthographic { half_extent } => half_extent,
-            Projection::Perspective { tan_half } => z.max(0.0) * tan_half,
-        };
-        2.0 * scale / self.resolution as f32
+            Projection::Perspective { tan_half } => z * tan_half,
+        }
     }
 }
 
