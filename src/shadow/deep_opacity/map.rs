@@ -229,7 +229,7 @@ fn layer_of(bounds: &[f32], delta: f32) -> usize {
 
 #[cfg(test)]
 mod tests {
-    use super::super::test_field::{config, map, mean_error, sheet, Line, RASTER};
+    use super::super::test_field::{config, map, mean_error, row, sheet, Line, RASTER};
     use super::*;
 
     #[test]
@@ -289,16 +289,8 @@ mod tests {
         // A single sheet of strands tilted 45° to the light: shading points on the strands' far halves (between the
         // axis and the back surface) must see no strand in front of them — they are on it. Without bias the
         // filter footprint reaches texels whose z0 lies in front of the point (acne); the default bias removes it.
-        let mut lines = Vec::new();
-        for i in 0..40 {
-            let y = -0.95 + 0.0475 * i as f32;
-            lines.push(Line {
-                y,
-                z: y, // 45°: depth grows with y along the tilted sheet
-                r: 0.008,
-                a: 0.8,
-            });
-        }
+        // 45°: depth grows with y along the tilted sheet.
+        let lines = row(40, -0.95, 0.0475, |y| y, 0.008, 0.8);
         let lit_fraction = |bias: f32| {
             let cfg = DeepOpacityConfig {
                 bias,
@@ -333,22 +325,16 @@ mod tests {
     fn a_map_too_coarse_for_the_strand_spacing_blurs_the_shadow() {
         // Two sheets of thin, sparse strands (width 0.01, spacing 0.08, offset between sheets): the shadow behind
         // them is a fine stripe pattern. A 32² map (texel 0.0625) cannot resolve it; a 1024² map can.
-        let mut lines = Vec::new();
-        for i in 0..25 {
-            let y = -0.96 + 0.08 * i as f32;
-            lines.push(Line {
-                y,
-                z: 0.0,
-                r: 0.01,
-                a: 0.9,
-            });
-            lines.push(Line {
-                y: y + 0.04,
-                z: 0.2,
-                r: 0.01,
-                a: 0.9,
-            });
-        }
+        // The second sheet: each strand of the first moved 0.04 along y, to depth 0.2.
+        let behind = |l: Line| Line {
+            y: l.y + 0.04,
+            z: 0.2,
+            ..l
+        };
+        let lines: Vec<Line> = row(25, -0.96, 0.08, |_| 0.0, 0.01, 0.9)
+            .into_iter()
+            .flat_map(|l| [l, behind(l)])
+            .collect();
         let err = |res: u32| {
             let cfg = DeepOpacityConfig {
                 filter: 0,

@@ -99,15 +99,25 @@ pub(super) fn mean_error(lines: &[Line], m: &DeepOpacityMap, depths: &[f32]) -> 
     sum / n as f32
 }
 
-/// Sheets of strands that tile y completely (each sheet multiplies transmittance by 1 − a everywhere).
-pub(super) fn sheet(z: f32, spacing: f32, a: f32) -> Vec<Line> {
-    let n = (2.0 * HALF / spacing).ceil() as i32;
-    (0..=n)
-        .map(|i| Line {
-            y: -HALF + spacing * i as f32,
-            z,
-            r: 0.5 * spacing,
-            a,
+/// `n` strands at y = `y_first` + `step` · i (i = 0 … n − 1), each at depth `z(y)`, of radius `r` and opacity `a`.
+pub(super) fn row(
+    n: usize,
+    y_first: f32,
+    step: f32,
+    z: impl Fn(f32) -> f32,
+    r: f32,
+    a: f32,
+) -> Vec<Line> {
+    (0..n)
+        .map(|i| {
+            let y = y_first + step * i as f32;
+            Line { y, z: z(y), r, a }
         })
         .collect()
+}
+
+/// Sheets of strands that tile y completely (each sheet multiplies transmittance by 1 − a everywhere).
+pub(super) fn sheet(z: f32, spacing: f32, a: f32) -> Vec<Line> {
+    let n = (2.0 * HALF / spacing).ceil() as usize + 1;
+    row(n, -HALF, spacing, |_| z, 0.5 * spacing, a)
 }
