@@ -46,7 +46,7 @@ pub struct DeepOpacityConfig {
     pub filter: u32,
     /// Depth bias, in texels (a texel's world size at the lookup point): a lookup at depth z reads z − bias, so a
     /// strand does not shadow itself. The default, 2, removes the acne of a sheet of strands tilted 45° to the
-    /// light with margin (a test in `deep_opacity.rs`: mean T 0.20 without bias, 0.96 at 1 texel, 1.00 from 1.5
+    /// light with margin (a test in `deep_opacity/map.rs`: mean T 0.20 without bias, 0.96 at 1 texel, 1.00 from 1.5
     /// texels). A wider `filter` reaches further up a tilted strand and needs more.
     pub bias: f32,
     /// Maps for an environment light: one per cell of a Fibonacci partition of the sphere, looking along the
