@@ -40,6 +40,14 @@ pub enum HairError {
     },
 }
 
+/// The whole of `path`, or an [`HairError::Io`] naming it.
+fn read_bytes(path: &Path) -> Result<Vec<u8>, HairError> {
+    std::fs::read(path).map_err(|source| HairError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
 impl HairError {
     /// An [`HairError::Invalid`] for `path`.
     pub fn invalid(path: &Path, message: impl Into<String>) -> Self {

@@ -156,11 +156,7 @@ impl Header {
 
 /// Reads a `.tfx` file into memory and parses it with [`parse`].
 pub fn read(path: &Path) -> Result<HairModel, HairError> {
-    let bytes = std::fs::read(path).map_err(|source| HairError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    parse(path, &bytes)
+    parse(path, &super::read_bytes(path)?)
 }
 
 /// Parses the bytes of a `.tfx` file; `path` names it in errors.

@@ -219,11 +219,7 @@ impl Header {
 
 /// Reads a `.hair` file into memory and parses it with [`parse`].
 pub fn read(path: &Path) -> Result<HairModel, HairError> {
-    let bytes = std::fs::read(path).map_err(|source| HairError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    parse(path, &bytes)
+    parse(path, &super::read_bytes(path)?)
 }
 
 /// Parses the bytes of a `.hair` file; `path` names it in errors.
