@@ -3,11 +3,13 @@
 //! Module tree, following the data flow of DESIGN.md:
 //! [`hair`] (files → B-spline strands) → [`accel`] (Embree curves behind the [`accel::Tracer`] trait) →
 //! [`render`] (camera, sampler, shading, film) → [`image`] (OpenImageIO output). [`scene`] reads the TOML that ties
-//! them together. All `unsafe` code lives in [`sys`].
+//! them together. All `unsafe` code lives in [`sys`]. Below everything, [`atomic_file`] writes files whole or not
+//! at all.
 #![deny(unsafe_code)]
 #![warn(missing_docs)]
 
 pub mod accel;
+pub mod atomic_file;
 pub mod bench;
 pub mod bsdf;
 pub mod hair;
