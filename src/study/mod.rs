@@ -39,6 +39,9 @@ pub enum StudyError {
     /// An image (the cached reference, a chart, the crops) could not be read or written.
     #[error(transparent)]
     Image(#[from] crate::image::ImageError),
+    /// The CSV table could not be formatted.
+    #[error("cannot write the csv table: {0}")]
+    Csv(#[from] csv::Error),
     /// A file or directory could not be written.
     #[error("{path}: {context}: {source}")]
     Io {

@@ -51,6 +51,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use glam::Vec3;
+use serde::Serialize;
 
 use super::cache::{write_text, Fnv1a};
 use super::figures::{self, ChartSeries, Panel, Point};
@@ -437,7 +438,7 @@ pub fn run(scene_path: &Path, config: &ShadowStudyConfig) -> Result<ShadowStudyR
     }
 
     let csv = config.out_dir.join("shadows.csv");
-    write_text(&csv, &to_csv(&rows))?;
+    write_text(&csv, &to_csv(&rows)?)?;
     let chart = config.out_dir.join("shadows-error-time.png");
     image::write(&chart, &chart_image(&scene, config, &rows))?;
     let crops_path = config.out_dir.join("shadows-crops.png");
@@ -475,35 +476,63 @@ pub fn run(scene_path: &Path, config: &ShadowStudyConfig) -> Result<ShadowStudyR
 /// The CSV header (see the module docs for the columns).
 pub const CSV_HEADER: &str = "mode,spp,layers,resolution,build_s,render_s,total_s,rmse,relmse,rmse_shadowed,relmse_shadowed,map_mb,vmhwm_mb";
 
-/// The rows as CSV text, with [`CSV_HEADER`].
-pub fn to_csv(rows: &[Row]) -> String {
-    let mut out = String::from(CSV_HEADER);
-    out.push('\n');
-    for r in rows {
+/// One line of `shadows.csv`, in [`CSV_HEADER`] order (the field names are the header). Times and memory are
+/// written with fixed decimals, errors in scientific notation with 7 significant digits; `layers` and
+/// `resolution` are empty for non-map modes, `vmhwm_mb` where the platform does not report it.
+#[derive(Debug, Serialize)]
+struct CsvRow {
+    mode: &'static str,
+    spp: u32,
+    layers: Option<u32>,
+    resolution: Option<u32>,
+    build_s: String,
+    render_s: String,
+    total_s: String,
+    rmse: String,
+    relmse: String,
+    rmse_shadowed: String,
+    relmse_shadowed: String,
+    map_mb: String,
+    vmhwm_mb: Option<String>,
+}
+
+impl CsvRow {
+    fn new(r: &Row) -> CsvRow {
         let v = &r.variant;
-        let (layers, resolution) = if v.mode == ShadowMode::DeepOpacity {
-            (v.layers.to_string(), v.resolution.to_string())
-        } else {
-            (String::new(), String::new())
-        };
+        let maps = v.mode == ShadowMode::DeepOpacity;
         let e = &r.errors;
-        out.push_str(&format!(
-            "{},{},{layers},{resolution},{:.4},{:.4},{:.4},{:.6e},{:.6e},{:.6e},{:.6e},{:.3},{}\n",
-            v.mode_name(),
-            v.spp,
-            r.build_s,
-            r.render_s,
-            r.total_s(),
-            e.rmse,
-            e.relmse,
-            e.rmse_shadowed,
-            e.relmse_shadowed,
-            r.map_bytes as f64 / 1e6,
-            r.vmhwm_bytes
-                .map_or_else(String::new, |b| format!("{:.1}", b as f64 / 1e6)),
-        ));
+        let sci = |x: f64| format!("{x:.6e}");
+        CsvRow {
+            mode: v.mode_name(),
+            spp: v.spp,
+            layers: maps.then_some(v.layers),
+            resolution: maps.then_some(v.resolution),
+            build_s: format!("{:.4}", r.build_s),
+            render_s: format!("{:.4}", r.render_s),
+            total_s: format!("{:.4}", r.total_s()),
+            rmse: sci(e.rmse),
+            relmse: sci(e.relmse),
+            rmse_shadowed: sci(e.rmse_shadowed),
+            relmse_shadowed: sci(e.relmse_shadowed),
+            map_mb: format!("{:.3}", r.map_bytes as f64 / 1e6),
+            vmhwm_mb: r.vmhwm_bytes.map(|b| format!("{:.1}", b as f64 / 1e6)),
+        }
     }
-    out
+}
+
+/// The rows as CSV text, with [`CSV_HEADER`] (written by the `csv` crate from [`CsvRow`]s).
+pub fn to_csv(rows: &[Row]) -> Result<String, csv::Error> {
+    let mut writer = csv::Writer::from_writer(Vec::new());
+    if rows.is_empty() {
+        // `serialize` writes the header with the first row.
+        writer.write_record(CSV_HEADER.split(','))?;
+    }
+    for r in rows {
+        writer.serialize(CsvRow::new(r))?;
+    }
+    let bytes = writer.into_inner().map_err(|e| e.into_error())?;
+    String::from_utf8(bytes)
+        .map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidData, e).into())
 }
 
 /// Series colours (Okabe & Ito).
@@ -684,4 +713,46 @@ fn crops_image(
         cs,
         exposure,
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The table is the one written by hand before the `csv` crate (same header, decimals and empty fields), byte
+    /// for byte; NaN errors (no shadowed pixel) are written as `NaN`.
+    #[test]
+    fn csv_rows_keep_their_format() {
+        let row = |mode, layers, resolution, vmhwm_bytes| Row {
+            variant: Variant {
+                mode,
+                spp: 16,
+                layers,
+                resolution,
+            },
+            build_s: 0.5,
+            render_s: 1.25,
+            errors: Errors {
+                rmse: 0.012_345_678,
+                relmse: 3.0,
+                rmse_shadowed: f64::NAN,
+                relmse_shadowed: 1e-9,
+            },
+            map_bytes: 20_972_000,
+            vmhwm_bytes,
+        };
+        let rows = [
+            row(ShadowMode::DeepOpacity, 8, 1024, Some(240_700_000)),
+            row(ShadowMode::Raytraced, 0, 0, None),
+        ];
+        assert_eq!(
+            to_csv(&rows).unwrap(),
+            format!(
+                "{CSV_HEADER}\n\
+                 deep-opacity,16,8,1024,0.5000,1.2500,1.7500,1.234568e-2,3.000000e0,NaN,1.000000e-9,20.972,240.7\n\
+                 raytraced,16,,,0.5000,1.2500,1.7500,1.234568e-2,3.000000e0,NaN,1.000000e-9,20.972,\n"
+            )
+        );
+        assert_eq!(to_csv(&[]).unwrap(), format!("{CSV_HEADER}\n"));
+    }
 }
