@@ -4,8 +4,8 @@
 //! unpersisted) and the target is left as it was.
 //!
 //! Temporary names are hidden and keep the target's extension, `.<name>.tmp-<random>.<ext>`: OpenImageIO picks the
-//! format of a file it writes from the extension. Used by [`crate::image`] (images) and [`crate::study::cache`]
-//! (CSV tables).
+//! format of a file it writes from the extension. Used by [`crate::image`] (images), [`crate::plot`] (SVG charts)
+//! and [`crate::study::cache`] (CSV tables).
 
 use std::ffi::OsString;
 use std::fs::File;

@@ -3,8 +3,8 @@
 //! Module tree, following the data flow of DESIGN.md:
 //! [`hair`] (files → B-spline strands) → [`accel`] (Embree curves behind the [`accel::Tracer`] trait) →
 //! [`render`] (camera, sampler, shading, film) → [`image`] (OpenImageIO output). [`scene`] reads the TOML that ties
-//! them together. All `unsafe` code lives in [`sys`]. Below everything, [`atomic_file`] writes files whole or not
-//! at all.
+//! them together. All `unsafe` code lives in [`sys`]. Above the renderer, [`study`] and [`bench`] measure it and
+//! [`plot`] draws the charts (plotters); below everything, [`atomic_file`] writes files whole or not at all.
 #![deny(unsafe_code)]
 #![warn(missing_docs)]
 
@@ -15,6 +15,7 @@ pub mod bsdf;
 pub mod hair;
 pub mod image;
 pub mod light;
+pub mod plot;
 pub mod ray;
 pub mod render;
 pub mod scene;

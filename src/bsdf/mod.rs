@@ -23,18 +23,19 @@
 //! Shared pieces sit in their own files: [`frame`] (hair frame, θ/φ conversions), [`gaussian`] (Gaussians, erf,
 //! truncated Gaussian sampling), [`cauchy`] (truncated Cauchy sampling), [`sphere`] (uniform sphere sampling),
 //! [`fresnel`] (dielectric Fresnel, for [`Balance::Fresnel`]), [`stats`] (chi-square test), [`pcg`] (a small
-//! deterministic RNG) and [`plot`] (plain data for `cuticle plot-bsdf`).
+//! deterministic RNG), [`lobe_curves`] (f per lobe along θi or φ) and [`histogram`] (sampled directions against
+//! the pdf). The last two are plain data; `cuticle plot-bsdf` draws them in [`crate::plot::bsdf`].
 
 pub mod cauchy;
-pub mod chart;
 pub mod frame;
 pub mod fresnel;
 pub mod gaussian;
+pub mod histogram;
 pub mod ishair;
 pub mod kajiya_kay;
+pub mod lobe_curves;
 pub mod marschner;
 pub mod pcg;
-pub mod plot;
 pub mod sphere;
 pub mod stats;
 #[cfg(test)]

@@ -3,8 +3,8 @@
 //! and a finiteness sweep. Each model's tests call these with its own parameters.
 
 use super::frame::{from_spherical, sin_cos_theta, theta_h_range};
+use super::histogram::sampled_vs_analytic;
 use super::pcg::Pcg32;
-use super::plot::sampled_vs_analytic;
 use super::stats::{chi_square, sidak};
 use super::{Bsdf, LobeValues};
 use glam::Vec3;

@@ -40,7 +40,7 @@
 //! - `shadows.csv`: one row per variant, columns
 //!   `mode,spp,layers,resolution,build_s,render_s,total_s,rmse,relmse,rmse_shadowed,relmse_shadowed,map_mb,vmhwm_mb`
 //!   (`layers` and `resolution` empty for non-map modes);
-//! - `shadows-error-time.png`: RMSE against total time, log–log, a series for ray tracing over spp, one for the
+//! - `shadows-error-time.png` and `.svg`: RMSE against total time, log–log, a series for ray tracing over spp, one for the
 //!   maps over layers, one over resolution, and the no-shadow point;
 //! - `shadows-crops.png`: the `crop × crop` window (default 128, smaller for small images) holding the most
 //!   shadowed reference pixels, from the reference, then every variant, one row per series, at one exposure set
@@ -51,6 +51,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use glam::Vec3;
+use plotters::style::RGBColor;
 use serde::Serialize;
 
 use super::cache::{write_text, Fnv1a};
@@ -59,8 +60,8 @@ use super::metrics::{self, Errors};
 use super::StudyError;
 use crate::accel::embree::EmbreeTracer;
 use crate::bench::peak_rss_bytes;
-use crate::bsdf::chart::srgb;
 use crate::image::{self, Image};
+use crate::plot::{self, hex, Figure};
 use crate::render::{self, Options, RenderStats};
 use crate::scene::{Scene, ShadowMode, TransmittanceMode};
 
@@ -439,8 +440,11 @@ pub fn run(scene_path: &Path, config: &ShadowStudyConfig) -> Result<ShadowStudyR
 
     let csv = config.out_dir.join("shadows.csv");
     write_text(&csv, &to_csv(&rows)?)?;
-    let chart = config.out_dir.join("shadows-error-time.png");
-    image::write(&chart, &chart_image(&scene, config, &rows))?;
+    let [chart, _] = plot::write_figure(
+        &chart_figure(&scene, config, &rows)?,
+        &config.out_dir,
+        "shadows-error-time",
+    )?;
     let crops_path = config.out_dir.join("shadows-crops.png");
     image::write(
         &crops_path,
@@ -451,7 +455,7 @@ pub fn run(scene_path: &Path, config: &ShadowStudyConfig) -> Result<ShadowStudyR
             config,
             &variants,
             &crops,
-        ),
+        )?,
     )?;
     say(format!(
         "wrote {}, {} and {}",
@@ -536,13 +540,8 @@ pub fn to_csv(rows: &[Row]) -> Result<String, csv::Error> {
 }
 
 /// Series colours (Okabe & Ito).
-fn colors() -> [Vec3; 4] {
-    [
-        srgb(0x0072b2),
-        srgb(0xd55e00),
-        srgb(0x009e73),
-        srgb(0x555555),
-    ]
+fn colors() -> [RGBColor; 4] {
+    [hex(0x0072b2), hex(0xd55e00), hex(0x009e73), hex(0x555555)]
 }
 
 /// The rows of each series, in the order of the configured lists: ray traced, maps by layers, maps by resolution,
@@ -578,7 +577,11 @@ fn series_rows<'a>(config: &ShadowStudyConfig, rows: &'a [Row]) -> [Vec<&'a Row>
     ]
 }
 
-fn chart_image(scene: &Scene, config: &ShadowStudyConfig, rows: &[Row]) -> Image {
+fn chart_figure(
+    scene: &Scene,
+    config: &ShadowStudyConfig,
+    rows: &[Row],
+) -> Result<Figure, StudyError> {
     let [rt, layers, res, none] = series_rows(config, rows);
     let [c0, c1, c2, c3] = colors();
     let points = |rows: &[&Row], label: &dyn Fn(&Variant) -> String| -> Vec<Point> {
@@ -592,25 +595,25 @@ fn chart_image(scene: &Scene, config: &ShadowStudyConfig, rows: &[Row]) -> Image
     };
     let series = vec![
         ChartSeries {
-            label: "RAY TRACED (SPP)".into(),
+            label: "ray traced (spp)".into(),
             color: c0,
             points: points(&rt, &|v| v.spp.to_string()),
         },
         ChartSeries {
             label: format!(
-                "DOM LAYERS (RES {}, {} SPP)",
+                "DOM layers (resolution {}, {} spp)",
                 config.layer_resolution, config.dom_spp
             ),
             color: c1,
             points: points(&layers, &|v| format!("{}L", v.layers)),
         },
         ChartSeries {
-            label: format!("DOM RESOLUTION ({} LAYERS)", config.resolution_layers),
+            label: format!("DOM resolution ({} layers)", config.resolution_layers),
             color: c2,
             points: points(&res, &|v| v.resolution.to_string()),
         },
         ChartSeries {
-            label: "NO SHADOWS".into(),
+            label: "no shadows".into(),
             color: c3,
             points: points(&none, &|_| String::new()),
         },
@@ -621,17 +624,17 @@ fn chart_image(scene: &Scene, config: &ShadowStudyConfig, rows: &[Row]) -> Image
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_default();
     let [w, h] = scene.film.resolution;
-    figures::error_time_chart(
+    Ok(figures::error_time_chart(
         &format!(
-            "{name}: RMSE VS TIME, {w}X{h}, REFERENCE {} SPP",
+            "{name}: RMSE vs time, {w}×{h}, reference {} spp",
             config.reference_spp
         ),
-        "BUILD + RENDER TIME (S)",
+        "build + render time (s)",
         "RMSE",
         &series,
         960,
         640,
-    )
+    )?)
 }
 
 fn crops_image(
@@ -641,7 +644,7 @@ fn crops_image(
     config: &ShadowStudyConfig,
     variants: &[Variant],
     crops: &[Vec<Vec3>],
-) -> Image {
+) -> Result<Image, StudyError> {
     // One exposure for every panel: the reference crop's 99th percentile (largest channel) maps to 0.9.
     let mut peaks: Vec<f32> = reference_crop
         .iter()
@@ -707,12 +710,12 @@ fn crops_image(
             .iter()
             .filter_map(|&r| panel(dom(config.resolution_layers, r))),
     );
-    figures::mosaic(
-        &format!("CROP {cs}X{cs} AT ({cx}, {cy}), EXPOSURE ×{exposure:.2}"),
+    Ok(figures::mosaic(
+        &format!("crop {cs}×{cs} at ({cx}, {cy}), exposure ×{exposure:.2}"),
         &[row0, row1, row2],
         cs,
         exposure,
-    )
+    )?)
 }
 
 #[cfg(test)]
