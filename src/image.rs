@@ -18,17 +18,17 @@
 //!
 //! **Alpha**: as in EXR, colour is premultiplied by `A` (associated alpha).
 //!
-//! **Atomic writes**: a file is written to a temporary file in the same directory (named
-//! `.<name>.tmp-<pid>-<n>.<ext>`, keeping the extension from which OpenImageIO picks the format),
-//! flushed to disk, then renamed over the target. A reader never sees a half-written frame, and on
+//! **Atomic writes** ([`crate::atomic_file`]): a file is written to a temporary file in the same
+//! directory (named `.<name>.tmp-<random>.<ext>`, keeping the extension from which OpenImageIO
+//! picks the format), flushed to disk, then renamed over the target. A reader never sees a half-written frame, and on
 //! any failure the temporary file is removed and the target is left as it was.
 
 use std::ffi::OsStr;
-use std::fs::{self, File, OpenOptions};
+use std::fs;
 use std::io;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU32, Ordering};
 
+use crate::atomic_file;
 use crate::sys::oiio::{self, FileFormat, OiioError, Pixels, WriteOptions};
 
 /// An image could not be written or read. Every variant names the file.
@@ -347,84 +347,8 @@ pub fn read(path: impl AsRef<Path>) -> Result<Image, ImageError> {
     })
 }
 
-/// A temporary file that is removed on drop unless [`TempFile::keep`] is called.
-struct TempFile {
-    path: PathBuf,
-    keep: bool,
-}
-
-impl TempFile {
-    fn keep(mut self) {
-        self.keep = true;
-    }
-}
-
-impl Drop for TempFile {
-    fn drop(&mut self) {
-        if !self.keep {
-            // Best effort: the write already failed, and that error is the one to report.
-            let _ = fs::remove_file(&self.path);
-        }
-    }
-}
-
-/// Distinguishes temporary files of concurrent writes within one process.
-static TEMP_COUNTER: AtomicU32 = AtomicU32::new(0);
-
-/// How many taken temporary names to skip before giving up (only stale files from a crashed
-/// process with the same pid can collide).
-const TEMP_ATTEMPTS: u32 = 100;
-
-/// Creates an empty, new temporary file next to `path`, keeping its extension.
-fn create_temp(path: &Path) -> Result<TempFile, ImageError> {
-    let name = path
-        .file_name()
-        .ok_or_else(|| ImageError::invalid(path, "not a file name"))?;
-    let dir = match path.parent() {
-        Some(dir) if !dir.as_os_str().is_empty() => dir,
-        _ => Path::new("."),
-    };
-    let extension = path.extension().map(|e| {
-        let mut dot = std::ffi::OsString::from(".");
-        dot.push(e);
-        dot
-    });
-    let mut last_error = None;
-    for _ in 0..TEMP_ATTEMPTS {
-        let n = TEMP_COUNTER.fetch_add(1, Ordering::Relaxed);
-        let mut temp_name = std::ffi::OsString::from(".");
-        temp_name.push(name);
-        temp_name.push(format!(".tmp-{}-{n}", std::process::id()));
-        if let Some(extension) = &extension {
-            temp_name.push(extension);
-        }
-        let temp = dir.join(temp_name);
-        match OpenOptions::new().write(true).create_new(true).open(&temp) {
-            Ok(_) => {
-                return Ok(TempFile {
-                    path: temp,
-                    keep: false,
-                })
-            }
-            Err(e) if e.kind() == io::ErrorKind::AlreadyExists => last_error = Some(e),
-            Err(e) => {
-                return Err(ImageError::io(
-                    path,
-                    format!("cannot create a file in {}", dir.display()),
-                    e,
-                ))
-            }
-        }
-    }
-    Err(ImageError::io(
-        path,
-        format!("no free temporary file name in {}", dir.display()),
-        last_error.unwrap_or_else(|| io::Error::from(io::ErrorKind::AlreadyExists)),
-    ))
-}
-
-/// Runs `write_to` on a temporary file next to `path`, flushes it to disk and renames it over
-/// `path`. On any failure the temporary file is removed.
+/// Runs `write_to` on a temporary file next to `path` and renames it over `path`
+/// ([`crate::atomic_file`]). On any failure the temporary file is removed.
 fn write_atomically(
     path: &Path,
     write_to: impl FnOnce(&Path) -> Result<(), OiioError>,
@@ -432,24 +356,14 @@ fn write_atomically(
     if path.is_dir() {
         return Err(ImageError::invalid(path, "is a directory"));
     }
-    let temp = create_temp(path)?;
-    write_to(&temp.path).map_err(|source| ImageError::Oiio {
+    let io = |e: atomic_file::WriteError| ImageError::io(path, e.context, e.source);
+    let temp = atomic_file::temp_beside(path).map_err(io)?;
+    write_to(temp.path()).map_err(|source| ImageError::Oiio {
         path: path.to_path_buf(),
         context: "openimageio cannot write it".to_owned(),
         source,
     })?;
-    File::open(&temp.path)
-        .and_then(|f| f.sync_all())
-        .map_err(|e| ImageError::io(path, "cannot flush the written file to disk", e))?;
-    fs::rename(&temp.path, path).map_err(|e| {
-        ImageError::io(
-            path,
-            format!("cannot rename {} over it", temp.path.display()),
-            e,
-        )
-    })?;
-    temp.keep();
-    Ok(())
+    atomic_file::persist(temp, path).map_err(io)
 }
 
 #[cfg(test)]

@@ -310,14 +310,14 @@ fn plot_command(args: PlotArgs) -> Result<()> {
         }
     };
     let material = config.build().map_err(anyhow::Error::msg)?;
-    let options = cuticle::bsdf::plot::PlotOptions {
+    let options = cuticle::plot::bsdf::PlotOptions {
         theta_o_deg: args.theta_o,
         theta_i_deg: args.theta_i,
         phi_deg: args.phi,
         samples: args.samples,
         ..Default::default()
     };
-    let paths = cuticle::bsdf::plot::write_plots(
+    let paths = cuticle::plot::bsdf::write_plots(
         material.bsdf.as_ref(),
         material.name,
         &args.out,

@@ -762,7 +762,7 @@ mod tests {
     #[test]
     fn lobe_shapes() {
         let m = white_lobes(5.0);
-        let az = super::super::plot::azimuthal_lobes(&m, 0.0, 0.0, 721);
+        let az = super::super::lobe_curves::azimuthal_lobes(&m, 0.0, 0.0, 721);
         let argmax = |f: &dyn Fn(&LobeValues) -> f32| {
             az.iter()
                 .fold(

@@ -410,7 +410,7 @@ impl Bsdf for Marschner {
 
 #[cfg(test)]
 mod tests {
-    use super::super::plot::sampled_vs_analytic;
+    use super::super::histogram::sampled_vs_analytic;
     use super::super::testing::{self, mean, wo_at, CHI2_BINS, CHI2_SAMPLES};
     use super::*;
     use rand::Rng;
@@ -669,7 +669,7 @@ mod tests {
     fn lobes_peak_where_expected() {
         // M peaks at θh = α: for θo = 20° and α = −7.5°, the primary lobe peaks at θi = 2α − θo = −35°.
         let m = single_lobe(-7.5, 5.0, Sampling::ExactPdf);
-        let curve = super::super::plot::longitudinal_lobes(&m, 20f32.to_radians(), 0.0, 721);
+        let curve = super::super::lobe_curves::longitudinal_lobes(&m, 20f32.to_radians(), 0.0, 721);
         // (f carries 1/cos²θd, which moves the peak of f itself by about a degree: look at M = f·8cos²θd/N.)
         let m_of = |t: f32, l: &LobeValues| l.r.x * (0.5 * (20f32.to_radians() - t)).cos().powi(2);
         let (peak, _) = curve.iter().fold((0.0, 0.0), |(bt, bv), (t, l)| {
@@ -685,7 +685,7 @@ mod tests {
             peak.to_degrees()
         );
         // N = cos(φ/2): maximal at φ = 0, zero at ±π.
-        let az = super::super::plot::azimuthal_lobes(&m, 0.0, 0.0, 361);
+        let az = super::super::lobe_curves::azimuthal_lobes(&m, 0.0, 0.0, 361);
         assert!(
             az[0].1.r.x < 1e-6
                 && az[360].1.r.x < 1e-6

@@ -22,20 +22,22 @@
 //!
 //! Shared pieces sit in their own files: [`frame`] (hair frame, θ/φ conversions), [`gaussian`] (Gaussians, erf,
 //! truncated Gaussian sampling), [`cauchy`] (truncated Cauchy sampling), [`fresnel`] (dielectric Fresnel, for
-//! [`Balance::Fresnel`]) and [`plot`] (plain data for `cuticle plot-bsdf`). Tools that are not physics sit below,
-//! in [`crate::util`]: uniform sphere sampling ([`crate::util::sampling`]), luminance ([`crate::util::color`]),
-//! the chi-square test ([`crate::util::stats`]); tests and plots draw their random numbers from `rand_pcg`'s PCG32.
+//! [`Balance::Fresnel`]), [`lobe_curves`] (f per lobe along θi or φ) and [`histogram`] (sampled directions against
+//! the pdf); the last two are plain data, which `cuticle plot-bsdf` draws in `crate::plot::bsdf`. Tools that are not
+//! physics sit below, in [`crate::util`]: uniform sphere sampling ([`crate::util::sampling`]), luminance
+//! ([`crate::util::color`]), the chi-square test ([`crate::util::stats`]); tests and plots draw their random numbers
+//! from `rand_pcg`'s PCG32.
 
 pub mod cauchy;
-pub mod chart;
 pub mod frame;
 pub mod fresnel;
 pub mod gaussian;
+pub mod histogram;
 pub mod ishair;
 pub mod kajiya_kay;
+pub mod lobe_curves;
 pub mod marschner;
 pub mod material;
-pub mod plot;
 #[cfg(test)]
 mod testing;
 

@@ -3,7 +3,7 @@
 //! and a finiteness sweep. Each model's tests call these with its own parameters.
 
 use super::frame::{from_spherical, sin_cos_theta, theta_h_range};
-use super::plot::sampled_vs_analytic;
+use super::histogram::sampled_vs_analytic;
 use super::{Bsdf, LobeValues};
 use crate::util::stats::{chi_square, sidak};
 use glam::Vec3;

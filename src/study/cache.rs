@@ -6,12 +6,13 @@
 //! (see [`super::shadows`]); files the scene refers to (hair, environment maps) are *not* hashed, nor is the
 //! renderer's code: delete the cached file after changing either.
 //!
-//! Text outputs are written like images ([`crate::image`]): to a temporary file in the same directory, then renamed
-//! over the target, so a reader never sees half a table.
+//! Text outputs are written like images ([`crate::atomic_file`]): to a temporary file in the same directory, then
+//! renamed over the target, so a reader never sees half a table.
 
 use std::path::Path;
 
 use super::StudyError;
+use crate::atomic_file;
 
 /// 64-bit FNV-1a.
 #[derive(Debug, Clone, Copy)]
@@ -44,22 +45,12 @@ impl Fnv1a {
     }
 }
 
-/// Writes `text` to `path` atomically (temporary file in the same directory, then rename).
+/// Writes `text` to `path` atomically ([`crate::atomic_file`]: temporary file in the same directory, then rename).
 pub fn write_text(path: &Path, text: &str) -> Result<(), StudyError> {
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let temp = path.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
-    let io = |context, source| StudyError::Io {
+    atomic_file::write(path, text.as_bytes()).map_err(|e| StudyError::Io {
         path: path.to_path_buf(),
-        context,
-        source,
-    };
-    std::fs::write(&temp, text).map_err(|e| io("cannot write", e))?;
-    std::fs::rename(&temp, path).map_err(|e| {
-        let _ = std::fs::remove_file(&temp);
-        io("cannot rename the temporary file over it", e)
+        context: e.context,
+        source: e.source,
     })
 }
 

@@ -1,15 +1,16 @@
-//! The figures of a study, drawn with the chart rasteriser of [`crate::bsdf::chart`] (RGB images of linear values,
-//! for [`crate::image::write`] as PNG):
+//! The figures of a study:
 //!
 //! - [`error_time_chart`]: error against time on log–log axes, one polyline per series with a `+` marker and a
-//!   small label (spp, layers, resolution) at each measured point;
+//!   small label (spp, layers, resolution) at each measured point, drawn by [`crate::plot`] (PNG and SVG);
 //! - [`mosaic`]: rows of equally sized image crops, each labelled above, upscaled by an integer factor (nearest
-//!   neighbour, so pixels stay visible) and multiplied by one common exposure.
+//!   neighbour, so pixels stay visible) and multiplied by one common exposure. An image, not a chart: the pixels
+//!   are copied as image operations, and only the labels are set by [`crate::plot::annotate`].
 
 use glam::Vec3;
+use plotters::style::RGBColor;
 
-use crate::bsdf::chart::{text_width, Axis, Canvas, LineChart, Rect, Series, INK, TEXT_HEIGHT};
 use crate::image::Image;
+use crate::plot::{self, Axis, Figure, Label, LineChart, PlotError, Series};
 
 /// One measured point of a chart series.
 #[derive(Debug, Clone, PartialEq)]
@@ -27,27 +28,14 @@ pub struct Point {
 pub struct ChartSeries {
     /// The legend text.
     pub label: String,
-    /// Linear RGB.
-    pub color: Vec3,
+    /// The line colour.
+    pub color: RGBColor,
     /// The points, in drawing order.
     pub points: Vec<Point>,
 }
 
-/// A log10 axis of whole decades covering [`lo`, `hi`] (both > 0; anything else gives one decade below 1).
-fn log_axis(label: &str, lo: f64, hi: f64) -> Axis {
-    let (lo, hi) = if lo > 0.0 && hi >= lo && hi.is_finite() {
-        (lo, hi)
-    } else {
-        (0.1, 1.0)
-    };
-    let top = hi.log10().ceil();
-    let bottom = lo.log10().floor();
-    let decades = (top - bottom).max(1.0) as u32;
-    Axis::log_decades(label, hi as f32, decades)
-}
-
-/// Error against time: `series` on log–log axes labelled `x_label` and `y_label`, `width × height` pixels.
-/// Points with a non-positive or non-finite coordinate are left out.
+/// Error against time: `series` on log–log axes (whole decades covering every point) labelled `x_label` and
+/// `y_label`, `width × height` pixels. Points with a non-positive or non-finite coordinate are left out.
 pub fn error_time_chart(
     title: &str,
     x_label: &str,
@@ -55,7 +43,21 @@ pub fn error_time_chart(
     series: &[ChartSeries],
     width: usize,
     height: usize,
-) -> Image {
+) -> Result<Figure, PlotError> {
+    plot::render(
+        &error_time_line_chart(title, x_label, y_label, series),
+        "error-time",
+        (width, height),
+    )
+}
+
+/// The chart of [`error_time_chart`].
+fn error_time_line_chart(
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    series: &[ChartSeries],
+) -> LineChart {
     let valid = |p: &&Point| p.x > 0.0 && p.y > 0.0 && p.x.is_finite() && p.y.is_finite();
     let points = || series.iter().flat_map(|s| s.points.iter().filter(valid));
     let range = |f: fn(&Point) -> f64| {
@@ -67,51 +69,27 @@ pub fn error_time_chart(
     };
     let (x_lo, x_hi) = range(|p| p.x);
     let (y_lo, y_hi) = range(|p| p.y);
-    let mut chart = LineChart {
+    LineChart {
         title: title.to_owned(),
-        x: log_axis(x_label, x_lo, x_hi),
-        y: log_axis(y_label, y_lo, y_hi),
+        x: Axis::log_covering(x_label, x_lo, x_hi),
+        y: Axis::log_covering(y_label, y_lo, y_hi),
         series: series
             .iter()
-            .map(|s| Series {
-                label: s.label.clone(),
-                color: s.color,
-                width: 2.0,
-                points: Vec::new(),
+            .map(|s| {
+                let kept: Vec<&Point> = s.points.iter().filter(valid).collect();
+                Series {
+                    markers: true,
+                    point_labels: kept.iter().map(|p| p.label.clone()).collect(),
+                    ..Series::line(
+                        &s.label,
+                        s.color,
+                        2,
+                        kept.iter().map(|p| (p.x, p.y)).collect(),
+                    )
+                }
             })
             .collect(),
-    };
-    // A `+` of ±5 pixels at each point, drawn as excursions of the polyline (coverage is a max, so retraced
-    // segments are not darkened twice).
-    let area = chart.plot_area(width, height);
-    let decades = |a: &Axis| (a.max / a.min).log10();
-    let fx = 10f32.powf(5.0 * decades(&chart.x) / area.width().max(1) as f32);
-    let fy = 10f32.powf(5.0 * decades(&chart.y) / area.height().max(1) as f32);
-    for (out, s) in chart.series.iter_mut().zip(series) {
-        for p in s.points.iter().filter(valid) {
-            let (x, y) = (p.x as f32, p.y as f32);
-            out.points.extend([
-                (x, y),
-                (x * fx, y),
-                (x / fx, y),
-                (x, y),
-                (x, y * fy),
-                (x, y / fy),
-                (x, y),
-            ]);
-        }
     }
-    let mut canvas = Canvas::from_image(chart.render(width, height));
-    for s in series {
-        for p in s.points.iter().filter(valid) {
-            let (px, py) = chart.to_pixel(area, p.x as f32, p.y as f32);
-            if px.is_finite() && py.is_finite() && px >= 0.0 && py >= 0.0 {
-                let y = (py as usize).saturating_sub(TEXT_HEIGHT + 4);
-                canvas.text(px as usize + 6, y, &p.label, s.color * 0.7);
-            }
-        }
-    }
-    canvas.into_image()
 }
 
 /// A labelled square crop for [`mosaic`]: `size × size` linear RGB values, row-major.
@@ -201,11 +179,21 @@ pub fn overview(image: &Image, x0: usize, y0: usize, window: usize, size: usize)
 const GAP: usize = 10;
 /// Panels are upscaled to at least this many pixels across (and to their widest label).
 const MIN_PANEL: usize = 168;
+/// Size of the labels and title, pixels.
+const TEXT_SIZE: f64 = 15.0;
+/// Height of a line of text, pixels.
+const TEXT_HEIGHT: usize = 18;
 
 /// Rows of `size × size` panels under `title`, each panel's pixels multiplied by `exposure` (values above 1 clip
 /// when written as 8-bit).
-pub fn mosaic(title: &str, rows: &[Vec<Panel>], size: usize, exposure: f32) -> Image {
+pub fn mosaic(
+    title: &str,
+    rows: &[Vec<Panel>],
+    size: usize,
+    exposure: f32,
+) -> Result<Image, PlotError> {
     let size = size.max(1);
+    let text_width = |text: &str| plot::text_size(text, TEXT_SIZE).0 as usize;
     let widest = rows
         .iter()
         .flatten()
@@ -219,29 +207,35 @@ pub fn mosaic(title: &str, rows: &[Vec<Panel>], size: usize, exposure: f32) -> I
     let title_h = TEXT_HEIGHT + 16;
     let width = (GAP + cols * (panel + GAP)).max(text_width(title) + 2 * GAP);
     let height = title_h + rows.len() * (label_h + panel + GAP) + GAP;
-    let mut canvas = Canvas::new(width, height);
-    canvas.text(GAP, 8, title, INK);
+    let mut image = Image::new(width, height, vec!["R".into(), "G".into(), "B".into()]);
+    image.data.fill(1.0);
+    let mut labels = vec![Label {
+        x: GAP as i32,
+        y: 8,
+        text: title.to_owned(),
+    }];
     for (r, row) in rows.iter().enumerate() {
         let top = title_h + r * (label_h + panel + GAP);
         for (c, p) in row.iter().enumerate() {
             let left = GAP + c * (panel + GAP);
-            canvas.text(left, top, &p.label, INK);
+            labels.push(Label {
+                x: left as i32,
+                y: top as i32,
+                text: p.label.clone(),
+            });
             let y_img = top + label_h;
             for (k, v) in p.rgb.iter().enumerate().take(size * size) {
                 let (i, j) = (k % size, k / size);
-                canvas.fill(
-                    Rect {
-                        x0: left + i * scale,
-                        y0: y_img + j * scale,
-                        x1: left + (i + 1) * scale,
-                        y1: y_img + (j + 1) * scale,
-                    },
-                    *v * exposure,
-                );
+                let rgb = (*v * exposure).to_array();
+                for y in y_img + j * scale..y_img + (j + 1) * scale {
+                    for x in left + i * scale..left + (i + 1) * scale {
+                        image.pixel_mut(x, y).copy_from_slice(&rgb);
+                    }
+                }
             }
         }
     }
-    canvas.into_image()
+    plot::annotate(&image, &labels, TEXT_SIZE)
 }
 
 #[cfg(test)]
@@ -260,22 +254,29 @@ mod tests {
             &[vec![panel("A"), panel("B")], vec![panel("C")]],
             2,
             1.0,
-        );
+        )
+        .unwrap();
         let scale = MIN_PANEL.div_ceil(2);
         let panel_px = 2 * scale;
         assert_eq!(image.width, GAP + 2 * (panel_px + GAP));
-        let canvas = Canvas::from_image(image);
         let top = TEXT_HEIGHT + 16 + TEXT_HEIGHT + 6;
-        assert_eq!(canvas.color(GAP, top), red);
-        assert_eq!(canvas.color(GAP + panel_px - 1, top + panel_px - 1), red);
-        assert_ne!(canvas.color(GAP + panel_px, top), red);
+        let red = [1.0, 0.0, 0.0];
+        assert_eq!(image.pixel(GAP, top), red);
+        assert_eq!(image.pixel(GAP + panel_px - 1, top + panel_px - 1), red);
+        assert_ne!(image.pixel(GAP + panel_px, top), red);
+        // The labels are drawn: dark pixels in the label line over the first panel.
+        let dark = (top - TEXT_HEIGHT - 6..top)
+            .flat_map(|y| (GAP..GAP + panel_px).map(move |x| (x, y)))
+            .filter(|&(x, y)| image.pixel(x, y)[1] < 0.1)
+            .count();
+        assert!(dark > 10, "{dark} dark pixels in the label line");
     }
 
     #[test]
-    fn chart_axes_cover_every_point() {
+    fn chart_axes_cover_every_point_and_label_them() {
         let s = ChartSeries {
             label: "S".to_owned(),
-            color: Vec3::new(0.0, 0.0, 1.0),
+            color: RGBColor(0, 0, 255),
             points: vec![
                 Point {
                     x: 0.03,
@@ -287,11 +288,20 @@ mod tests {
                     y: 0.004,
                     label: "64".to_owned(),
                 },
+                Point {
+                    x: 0.0,
+                    y: 1.0,
+                    label: "left out".to_owned(),
+                },
             ],
         };
-        let x = log_axis("X", 0.03, 12.0);
-        assert_eq!((x.min, x.max), (0.01, 100.0));
-        let image = error_time_chart("C", "X", "Y", &[s], 600, 400);
-        assert_eq!((image.width, image.height), (600, 400));
+        let chart = error_time_line_chart("C", "X", "Y", std::slice::from_ref(&s));
+        assert_eq!((chart.x.min, chart.x.max), (0.01, 100.0));
+        assert_eq!((chart.y.min, chart.y.max), (0.001, 1.0));
+        assert_eq!(chart.series[0].points, [(0.03, 0.2), (12.0, 0.004)]);
+        let figure = error_time_chart("C", "X", "Y", &[s], 600, 400).unwrap();
+        assert_eq!((figure.image.width, figure.image.height), (600, 400));
+        // plotters writes each text on a line of its own.
+        assert!(figure.svg.contains("\n64\n") && !figure.svg.contains("left out"));
     }
 }

@@ -8,7 +8,7 @@
 //! Image error measures (RMSE, relMSE, shadowed pixels, the crop window) are [`crate::measure::metrics`], shared
 //! with the benchmarks.
 //! - [`cache`]: a stable hash (FNV-1a) naming cached reference renders, and atomic text-file writes.
-//! - [`figures`]: the error-against-time chart and the mosaic of crops.
+//! - [`figures`]: the error-against-time chart (through [`crate::plot`]) and the mosaic of crops.
 
 pub mod cache;
 pub mod figures;
@@ -36,6 +36,12 @@ pub enum StudyError {
     /// An image (the cached reference, a chart, the crops) could not be read or written.
     #[error(transparent)]
     Image(#[from] crate::image::ImageError),
+    /// A chart could not be drawn or written.
+    #[error(transparent)]
+    Plot(#[from] crate::plot::PlotError),
+    /// The CSV table could not be formatted.
+    #[error("cannot write the csv table: {0}")]
+    Csv(#[from] csv::Error),
     /// A file or directory could not be written.
     #[error("{path}: {context}: {source}")]
     Io {

@@ -40,7 +40,7 @@
 //! - `shadows.csv`: one row per variant, columns
 //!   `mode,spp,layers,resolution,build_s,render_s,total_s,rmse,relmse,rmse_shadowed,relmse_shadowed,map_mb,vmhwm_mb`
 //!   (`layers` and `resolution` empty for non-map modes);
-//! - `shadows-error-time.png`: RMSE against total time, log–log, a series for ray tracing over spp, one for the
+//! - `shadows-error-time.png` and `.svg`: RMSE against total time, log–log, a series for ray tracing over spp, one for the
 //!   maps over layers, one over resolution, and the no-shadow point;
 //! - `shadows-crops.png`: the `crop × crop` window (default 128, smaller for small images) holding the most
 //!   shadowed reference pixels, from the reference, then every variant, one row per series, at one exposure set
@@ -51,14 +51,16 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use glam::Vec3;
+use plotters::style::RGBColor;
+use serde::Serialize;
 
 use super::cache::{write_text, Fnv1a};
 use super::figures::{self, ChartSeries, Panel, Point};
 use super::StudyError;
-use crate::bsdf::chart::srgb;
 use crate::image::{self, Image};
 use crate::measure::metrics::{self, Errors};
 use crate::measure::peak_rss_bytes;
+use crate::plot::{self, hex, Figure};
 use crate::render::{thread_pool, Frame, Options, RenderStats};
 use crate::scene::{Scene, ShadowMode, TransmittanceMode};
 
@@ -428,9 +430,12 @@ pub fn run(scene_path: &Path, config: &ShadowStudyConfig) -> Result<ShadowStudyR
     }
 
     let csv = config.out_dir.join("shadows.csv");
-    write_text(&csv, &to_csv(&rows))?;
-    let chart = config.out_dir.join("shadows-error-time.png");
-    image::write(&chart, &chart_image(&scene, config, &rows))?;
+    write_text(&csv, &to_csv(&rows)?)?;
+    let [chart, _] = plot::write_figure(
+        &chart_figure(&scene, config, &rows)?,
+        &config.out_dir,
+        "shadows-error-time",
+    )?;
     let crops_path = config.out_dir.join("shadows-crops.png");
     image::write(
         &crops_path,
@@ -441,7 +446,7 @@ pub fn run(scene_path: &Path, config: &ShadowStudyConfig) -> Result<ShadowStudyR
             config,
             &variants,
             &crops,
-        ),
+        )?,
     )?;
     say(format!(
         "wrote {}, {} and {}",
@@ -466,45 +471,68 @@ pub fn run(scene_path: &Path, config: &ShadowStudyConfig) -> Result<ShadowStudyR
 /// The CSV header (see the module docs for the columns).
 pub const CSV_HEADER: &str = "mode,spp,layers,resolution,build_s,render_s,total_s,rmse,relmse,rmse_shadowed,relmse_shadowed,map_mb,vmhwm_mb";
 
-/// The rows as CSV text, with [`CSV_HEADER`].
-pub fn to_csv(rows: &[Row]) -> String {
-    let mut out = String::from(CSV_HEADER);
-    out.push('\n');
-    for r in rows {
+/// One line of `shadows.csv`, in [`CSV_HEADER`] order (the field names are the header). Times and memory are
+/// written with fixed decimals, errors in scientific notation with 7 significant digits; `layers` and
+/// `resolution` are empty for non-map modes, `vmhwm_mb` where the platform does not report it.
+#[derive(Debug, Serialize)]
+struct CsvRow {
+    mode: &'static str,
+    spp: u32,
+    layers: Option<u32>,
+    resolution: Option<u32>,
+    build_s: String,
+    render_s: String,
+    total_s: String,
+    rmse: String,
+    relmse: String,
+    rmse_shadowed: String,
+    relmse_shadowed: String,
+    map_mb: String,
+    vmhwm_mb: Option<String>,
+}
+
+impl CsvRow {
+    fn new(r: &Row) -> CsvRow {
         let v = &r.variant;
-        let (layers, resolution) = if v.mode == ShadowMode::DeepOpacity {
-            (v.layers.to_string(), v.resolution.to_string())
-        } else {
-            (String::new(), String::new())
-        };
+        let maps = v.mode == ShadowMode::DeepOpacity;
         let e = &r.errors;
-        out.push_str(&format!(
-            "{},{},{layers},{resolution},{:.4},{:.4},{:.4},{:.6e},{:.6e},{:.6e},{:.6e},{:.3},{}\n",
-            v.mode_name(),
-            v.spp,
-            r.build_s,
-            r.render_s,
-            r.total_s(),
-            e.rmse,
-            e.relmse,
-            e.rmse_shadowed,
-            e.relmse_shadowed,
-            r.map_bytes as f64 / 1e6,
-            r.vmhwm_bytes
-                .map_or_else(String::new, |b| format!("{:.1}", b as f64 / 1e6)),
-        ));
+        let sci = |x: f64| format!("{x:.6e}");
+        CsvRow {
+            mode: v.mode_name(),
+            spp: v.spp,
+            layers: maps.then_some(v.layers),
+            resolution: maps.then_some(v.resolution),
+            build_s: format!("{:.4}", r.build_s),
+            render_s: format!("{:.4}", r.render_s),
+            total_s: format!("{:.4}", r.total_s()),
+            rmse: sci(e.rmse),
+            relmse: sci(e.relmse),
+            rmse_shadowed: sci(e.rmse_shadowed),
+            relmse_shadowed: sci(e.relmse_shadowed),
+            map_mb: format!("{:.3}", r.map_bytes as f64 / 1e6),
+            vmhwm_mb: r.vmhwm_bytes.map(|b| format!("{:.1}", b as f64 / 1e6)),
+        }
     }
-    out
+}
+
+/// The rows as CSV text, with [`CSV_HEADER`] (written by the `csv` crate from [`CsvRow`]s).
+pub fn to_csv(rows: &[Row]) -> Result<String, csv::Error> {
+    let mut writer = csv::Writer::from_writer(Vec::new());
+    if rows.is_empty() {
+        // `serialize` writes the header with the first row.
+        writer.write_record(CSV_HEADER.split(','))?;
+    }
+    for r in rows {
+        writer.serialize(CsvRow::new(r))?;
+    }
+    let bytes = writer.into_inner().map_err(|e| e.into_error())?;
+    String::from_utf8(bytes)
+        .map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidData, e).into())
 }
 
 /// Series colours (Okabe & Ito).
-fn colors() -> [Vec3; 4] {
-    [
-        srgb(0x0072b2),
-        srgb(0xd55e00),
-        srgb(0x009e73),
-        srgb(0x555555),
-    ]
+fn colors() -> [RGBColor; 4] {
+    [hex(0x0072b2), hex(0xd55e00), hex(0x009e73), hex(0x555555)]
 }
 
 /// The rows of each series, in the order of the configured lists: ray traced, maps by layers, maps by resolution,
@@ -540,7 +568,11 @@ fn series_rows<'a>(config: &ShadowStudyConfig, rows: &'a [Row]) -> [Vec<&'a Row>
     ]
 }
 
-fn chart_image(scene: &Scene, config: &ShadowStudyConfig, rows: &[Row]) -> Image {
+fn chart_figure(
+    scene: &Scene,
+    config: &ShadowStudyConfig,
+    rows: &[Row],
+) -> Result<Figure, StudyError> {
     let [rt, layers, res, none] = series_rows(config, rows);
     let [c0, c1, c2, c3] = colors();
     let points = |rows: &[&Row], label: &dyn Fn(&Variant) -> String| -> Vec<Point> {
@@ -554,25 +586,25 @@ fn chart_image(scene: &Scene, config: &ShadowStudyConfig, rows: &[Row]) -> Image
     };
     let series = vec![
         ChartSeries {
-            label: "RAY TRACED (SPP)".into(),
+            label: "ray traced (spp)".into(),
             color: c0,
             points: points(&rt, &|v| v.spp.to_string()),
         },
         ChartSeries {
             label: format!(
-                "DOM LAYERS (RES {}, {} SPP)",
+                "DOM layers (resolution {}, {} spp)",
                 config.layer_resolution, config.dom_spp
             ),
             color: c1,
             points: points(&layers, &|v| format!("{}L", v.layers)),
         },
         ChartSeries {
-            label: format!("DOM RESOLUTION ({} LAYERS)", config.resolution_layers),
+            label: format!("DOM resolution ({} layers)", config.resolution_layers),
             color: c2,
             points: points(&res, &|v| v.resolution.to_string()),
         },
         ChartSeries {
-            label: "NO SHADOWS".into(),
+            label: "no shadows".into(),
             color: c3,
             points: points(&none, &|_| String::new()),
         },
@@ -583,17 +615,17 @@ fn chart_image(scene: &Scene, config: &ShadowStudyConfig, rows: &[Row]) -> Image
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_default();
     let [w, h] = scene.film.resolution;
-    figures::error_time_chart(
+    Ok(figures::error_time_chart(
         &format!(
-            "{name}: RMSE VS TIME, {w}X{h}, REFERENCE {} SPP",
+            "{name}: RMSE vs time, {w}×{h}, reference {} spp",
             config.reference_spp
         ),
-        "BUILD + RENDER TIME (S)",
+        "build + render time (s)",
         "RMSE",
         &series,
         960,
         640,
-    )
+    )?)
 }
 
 fn crops_image(
@@ -603,7 +635,7 @@ fn crops_image(
     config: &ShadowStudyConfig,
     variants: &[Variant],
     crops: &[Vec<Vec3>],
-) -> Image {
+) -> Result<Image, StudyError> {
     // One exposure for every panel: the reference crop's 99th percentile (largest channel) maps to 0.9.
     let mut peaks: Vec<f32> = reference_crop
         .iter()
@@ -669,10 +701,52 @@ fn crops_image(
             .iter()
             .filter_map(|&r| panel(dom(config.resolution_layers, r))),
     );
-    figures::mosaic(
-        &format!("CROP {cs}X{cs} AT ({cx}, {cy}), EXPOSURE ×{exposure:.2}"),
+    Ok(figures::mosaic(
+        &format!("crop {cs}×{cs} at ({cx}, {cy}), exposure ×{exposure:.2}"),
         &[row0, row1, row2],
         cs,
         exposure,
-    )
+    )?)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The table is the one written by hand before the `csv` crate (same header, decimals and empty fields), byte
+    /// for byte; NaN errors (no shadowed pixel) are written as `NaN`.
+    #[test]
+    fn csv_rows_keep_their_format() {
+        let row = |mode, layers, resolution, vmhwm_bytes| Row {
+            variant: Variant {
+                mode,
+                spp: 16,
+                layers,
+                resolution,
+            },
+            build_s: 0.5,
+            render_s: 1.25,
+            errors: Errors {
+                rmse: 0.012_345_678,
+                relmse: 3.0,
+                rmse_shadowed: f64::NAN,
+                relmse_shadowed: 1e-9,
+            },
+            map_bytes: 20_972_000,
+            vmhwm_bytes,
+        };
+        let rows = [
+            row(ShadowMode::DeepOpacity, 8, 1024, Some(240_700_000)),
+            row(ShadowMode::Raytraced, 0, 0, None),
+        ];
+        assert_eq!(
+            to_csv(&rows).unwrap(),
+            format!(
+                "{CSV_HEADER}\n\
+                 deep-opacity,16,8,1024,0.5000,1.2500,1.7500,1.234568e-2,3.000000e0,NaN,1.000000e-9,20.972,240.7\n\
+                 raytraced,16,,,0.5000,1.2500,1.7500,1.234568e-2,3.000000e0,NaN,1.000000e-9,20.972,\n"
+            )
+        );
+        assert_eq!(to_csv(&[]).unwrap(), format!("{CSV_HEADER}\n"));
+    }
 }

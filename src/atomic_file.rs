@@ -1,0 +1,149 @@
+//! Files written whole or not at all, through [`tempfile`]: the content goes into a new temporary file in the
+//! target's directory (so the same file system), is flushed to disk, then renamed over the target. A reader never
+//! sees half a file; on any failure the temporary file is removed (a [`NamedTempFile`] deletes itself when dropped
+//! unpersisted) and the target is left as it was.
+//!
+//! Temporary names are hidden and keep the target's extension, `.<name>.tmp-<random>.<ext>`: OpenImageIO picks the
+//! format of a file it writes from the extension. Used by [`crate::image`] (images), [`crate::plot`] (SVG charts)
+//! and [`crate::study::cache`] (CSV tables).
+
+use std::ffi::OsString;
+use std::fs::File;
+use std::io::{self, Write};
+use std::path::Path;
+
+use tempfile::{Builder, NamedTempFile};
+
+/// A step of an atomic write failed. The caller names the target file (see [`crate::image::ImageError`]).
+#[derive(Debug, thiserror::Error)]
+#[error("{context}: {source}")]
+pub struct WriteError {
+    /// What was being done, lower case.
+    pub context: &'static str,
+    /// The I/O error.
+    #[source]
+    pub source: io::Error,
+}
+
+fn fail(context: &'static str) -> impl FnOnce(io::Error) -> WriteError {
+    move |source| WriteError { context, source }
+}
+
+/// A new, empty temporary file beside `path` (see the [module docs](self)), removed when dropped unless
+/// [`persist`]ed.
+pub fn temp_beside(path: &Path) -> Result<NamedTempFile, WriteError> {
+    let name = path.file_name().ok_or_else(|| WriteError {
+        context: "not a file name",
+        source: io::Error::from(io::ErrorKind::InvalidInput),
+    })?;
+    let dir = match path.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() => dir,
+        _ => Path::new("."),
+    };
+    let mut prefix = OsString::from(".");
+    prefix.push(name);
+    prefix.push(".tmp-");
+    let mut suffix = OsString::new();
+    if let Some(extension) = path.extension() {
+        suffix.push(".");
+        suffix.push(extension);
+    }
+    let mut builder = Builder::new();
+    builder.prefix(&prefix).suffix(&suffix);
+    // tempfile creates owner-only files (0600); the target gets the permissions of a plain new file (0666 less
+    // the umask), as before the rename.
+    #[cfg(unix)]
+    builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
+    builder
+        .tempfile_in(dir)
+        .map_err(fail("cannot create a temporary file in its directory"))
+}
+
+/// Flushes what was written to `temp` (through its path: a writer may have replaced the file) to disk and renames
+/// it over `path`. On failure `temp` is removed.
+pub fn persist(temp: NamedTempFile, path: &Path) -> Result<(), WriteError> {
+    File::open(temp.path())
+        .and_then(|f| f.sync_all())
+        .map_err(fail("cannot flush the written file to disk"))?;
+    temp.persist(path)
+        .map_err(|e| fail("cannot rename the temporary file over it")(e.error))?;
+    Ok(())
+}
+
+/// Writes `bytes` to `path` atomically.
+pub fn write(path: &Path, bytes: &[u8]) -> Result<(), WriteError> {
+    let mut temp = temp_beside(path)?;
+    temp.write_all(bytes).map_err(fail("cannot write"))?;
+    persist(temp, path)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn listing(dir: &Path) -> Vec<String> {
+        let mut names: Vec<String> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        names
+    }
+
+    #[test]
+    fn temporary_names_are_hidden_beside_the_target_and_keep_the_extension() {
+        let dir = tempfile::tempdir().unwrap();
+        let temp = temp_beside(&dir.path().join("frame.exr")).unwrap();
+        let name = temp.path().file_name().unwrap().to_string_lossy();
+        assert!(
+            name.starts_with(".frame.exr.tmp-") && name.ends_with(".exr"),
+            "{name}"
+        );
+        assert_eq!(temp.path().parent(), Some(dir.path()));
+        drop(temp);
+        assert!(listing(dir.path()).is_empty(), "removed when dropped");
+    }
+
+    #[test]
+    fn write_replaces_the_target_and_leaves_nothing_else() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("table.csv");
+        write(&path, b"old").unwrap();
+        write(&path, b"new").unwrap();
+        assert_eq!(std::fs::read(&path).unwrap(), b"new");
+        assert_eq!(listing(dir.path()), ["table.csv"]);
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn the_target_gets_the_permissions_of_a_plain_new_file() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().unwrap();
+        let plain = dir.path().join("plain.txt");
+        std::fs::write(&plain, "x").unwrap();
+        let path = dir.path().join("table.csv");
+        write(&path, b"x").unwrap();
+        let mode = |p: &Path| std::fs::metadata(p).unwrap().permissions().mode();
+        assert_eq!(mode(&path), mode(&plain));
+    }
+
+    #[test]
+    fn a_failed_rename_removes_the_temporary_file_and_keeps_the_target() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("table.csv");
+        std::fs::create_dir(&path).unwrap();
+        std::fs::write(path.join("inside"), "kept").unwrap();
+        let err = write(&path, b"new").unwrap_err();
+        assert_eq!(err.context, "cannot rename the temporary file over it");
+        assert_eq!(listing(dir.path()), ["table.csv"]);
+        assert!(path.join("inside").is_file());
+    }
+
+    #[test]
+    fn a_missing_directory_is_an_error() {
+        let dir = tempfile::tempdir().unwrap();
+        let err = write(&dir.path().join("missing").join("table.csv"), b"x").unwrap_err();
+        assert_eq!(err.source.kind(), io::ErrorKind::NotFound, "{err}");
+        assert!(listing(dir.path()).is_empty());
+    }
+}
