@@ -147,59 +147,65 @@ unsafe fn filter_hits(
 }
 
 /// The payload of the stochastic queries ([`CommittedScene::intersect1_stochastic`],
-/// [`CommittedScene::occluded1_stochastic`]): Embree's context first, then the per-ray key that decides which strands
-/// are present.
+/// [`CommittedScene::occluded1_stochastic`]): Embree's context first, then the strand to ignore and the caller's
+/// presence test `present(strand, opacity)`, which decides which strands exist for this ray.
+///
+/// Generic over the presence test, so that the filter, which runs once per candidate hit, calls it directly
+/// (monomorphised and inlinable) rather than through a function pointer.
 #[repr(C)]
-#[derive(Debug, Clone, Copy)]
-pub(super) struct StochasticQuery {
+pub(super) struct StochasticQuery<P> {
     context: QueryContext,
     ignore_strand: u32,
-    key: u64,
+    present: P,
 }
 
-const _: () = assert!(std::mem::offset_of!(StochasticQuery, context) == 0);
+// The filter casts Embree's context pointer to the payload: the context must sit at offset 0. `repr(C)` lays the
+// first field out first whatever `P` is, so one instance checks them all.
+const _: () = assert!(std::mem::offset_of!(StochasticQuery<fn(u32, f32) -> bool>, context) == 0);
 
-impl StochasticQuery {
+impl<P: Fn(u32, f32) -> bool> StochasticQuery<P> {
     /// A payload whose context carries [`stochastic_filter`] (Embree 3; Embree 4 takes the filter in the query
     /// arguments).
-    pub(super) fn new(ignore_strand: Option<u32>, key: u64) -> Self {
+    pub(super) fn new(ignore_strand: Option<u32>, present: P) -> Self {
         #[allow(unused_mut)]
         let mut context = init_query_context();
         #[cfg(not(embree4))]
         {
-            context.filter = Some(stochastic_filter);
+            context.filter = Some(stochastic_filter::<P>);
         }
         StochasticQuery {
             context,
             ignore_strand: ignore_strand.unwrap_or(NO_STRAND),
-            key,
+            present,
         }
     }
 
     /// Whether a reported hit counts: primitives without strand data always do (opaque); a strand does unless it is
-    /// the ignored one or [`crate::accel::strand_present`] says it is absent for this ray.
+    /// the ignored one or the presence test says it is absent for this ray.
     #[inline]
     fn accepts(&self, strand: Option<(u32, f32)>) -> bool {
         match strand {
             None => true,
             Some((strand, opacity)) => {
-                strand != self.ignore_strand
-                    && crate::accel::strand_present(self.key, strand, opacity)
+                strand != self.ignore_strand && (self.present)(strand, opacity)
             }
         }
     }
 }
 
 /// The filter of the stochastic queries, for intersection and occlusion alike: rejects hits on strands that are
-/// absent for this ray, so traversal goes on past them.
-pub(super) unsafe extern "C" fn stochastic_filter(args: *const RTCFilterFunctionNArguments) {
+/// absent for this ray, so traversal goes on past them. One instance per presence type `P`.
+pub(super) unsafe extern "C" fn stochastic_filter<P: Fn(u32, f32) -> bool>(
+    args: *const RTCFilterFunctionNArguments,
+) {
     // SAFETY: Embree passes a valid argument struct for the duration of the call.
     let Some(args) = (unsafe { args.as_ref() }) else {
         return;
     };
-    // SAFETY: only the stochastic queries install this filter, and their context pointer is the first field of a
-    // live `StochasticQuery` (repr(C), offset 0 asserted above); the filter only reads it.
-    let query = unsafe { &*args.context.cast::<StochasticQuery>() };
+    // SAFETY: only the stochastic queries install this filter, each with the `P` of its own payload, and their
+    // context pointer is the first field of a live `StochasticQuery<P>` (repr(C), offset 0 asserted above); the
+    // filter only reads it.
+    let query = unsafe { &*args.context.cast::<StochasticQuery<P>>() };
     // SAFETY: `args` is the argument struct of this filter call, on cuticle's curve geometries.
     unsafe { filter_hits(args, |strand| query.accepts(strand)) };
 }
@@ -272,6 +278,19 @@ mod tests {
         assert_eq!(
             (q.transmittance, q.cutoff),
             (0.0, Some(Cutoff::SeenListFull))
+        );
+    }
+
+    #[test]
+    fn stochastic_query_asks_the_presence_test() {
+        let q = StochasticQuery::new(Some(4), |strand, opacity| strand % 2 == 0 && opacity > 0.5);
+        assert!(q.accepts(None), "primitives without strand data are opaque");
+        assert!(q.accepts(Some((2, 0.9))));
+        assert!(!q.accepts(Some((2, 0.1))), "absent by opacity");
+        assert!(!q.accepts(Some((3, 0.9))), "absent by strand");
+        assert!(
+            !q.accepts(Some((4, 0.9))),
+            "the ignored strand, present or not"
         );
     }
 }

@@ -21,6 +21,9 @@
 //! whose filter function rejects every hit (so traversal continues) and multiplies the transmittance by
 //! `1 − opacity` once per **strand** — round curves report one crossing several times (front and back of the
 //! tube, and both segments at a joint), so neither primitive ids nor distances de-duplicate correctly.
+//! [`CommittedScene::intersect1_stochastic`] and [`CommittedScene::occluded1_stochastic`] see only the strands a
+//! caller's presence test keeps for the ray (a closure `present(strand, opacity)`, called by their filter once per
+//! candidate hit).
 //!
 //! Every query first validates its ray with [`Ray::check`](crate::ray::Ray::check): Debian's libembree3 has
 //! assertions on and aborts the process on a NaN/Inf ray, a negative `tnear` or an origin beyond ~1.8e18.
@@ -29,6 +32,13 @@
 //! Embree reports errors through the device's error callback; every wrapper call that can fail checks for an error
 //! recorded on the calling thread (and clears Embree's per-thread error code) and returns it as an
 //! [`EmbreeError`].
+//!
+//! # Dependencies
+//! `std`, `glam` (`Vec3` in [`RayHit`]), `thiserror`, the bindgen output, and from the crate only `crate::ray`
+//! ([`Ray`](crate::ray::Ray), [`InvalidRay`](crate::ray::InvalidRay), [`MAX_ORIGIN`](crate::ray::MAX_ORIGIN)): the
+//! plain ray every query takes and validates. Nothing from the layers above: which strands a stochastic query sees
+//! is their decision, passed down as the presence test (`accel` passes its `strand_present` hash under the ray's
+//! key).
 //!
 //! # Files
 //! - `ffi.rs`: bindgen's output and hand-written replacements for what it cannot translate.

@@ -80,33 +80,38 @@ impl CommittedScene {
     /// The closest hit along `ray` within `[tnear, tfar]`, every strand opaque. Rays failing [`Ray::check`] never
     /// reach Embree.
     pub fn intersect1(&self, ray: &Ray) -> Result<Option<RayHit>, InvalidRay> {
-        self.intersect_with(ray, None)
+        // No payload, so the presence type is only a placeholder.
+        self.intersect_with(ray, None::<&mut StochasticQuery<fn(u32, f32) -> bool>>)
     }
 
-    /// The closest hit along `ray` among the strands *present* for this ray: strand s is present with probability
-    /// equal to its opacity, decided by [`crate::accel::strand_present`]`(key, s, opacity)` (so the same key and
-    /// strand always decide alike, whatever order Embree reports hits in). `ignore_strand` is never hit.
-    pub fn intersect1_stochastic(
+    /// The closest hit along `ray` among the strands *present* for this ray: `present(strand, opacity)` says
+    /// whether a strand exists for this ray, and must give the same answer for the same strand throughout the query
+    /// (Embree reports a strand several times, in no fixed order). `ignore_strand` is never hit; primitives without
+    /// strand data are always hit. `present` runs inside Embree's filter callback, once per candidate hit: it
+    /// must be cheap and must not panic. (The tracer passes `accel::strand_present` under the ray's key: strand
+    /// s present with probability equal to its opacity.)
+    pub fn intersect1_stochastic<P: Fn(u32, f32) -> bool>(
         &self,
         ray: &Ray,
         ignore_strand: Option<u32>,
-        key: u64,
+        present: P,
     ) -> Result<Option<RayHit>, InvalidRay> {
-        let mut query = StochasticQuery::new(ignore_strand, key);
+        let mut query = StochasticQuery::new(ignore_strand, present);
         self.intersect_with(ray, Some(&mut query))
     }
 
-    /// Whether any strand present for this ray (see [`CommittedScene::intersect1_stochastic`]) blocks `ray`: an
+    /// Whether any strand present for this ray (`present` as in [`CommittedScene::intersect1_stochastic`]) blocks
+    /// `ray`. With a presence test that keeps each strand with probability equal to its opacity, this is an
     /// unbiased one-sample estimate of [`CommittedScene::transmittance1`] (E[not occluded] = ∏ (1 − opacity)) at
     /// the cost of an opaque shadow ray.
-    pub fn occluded1_stochastic(
+    pub fn occluded1_stochastic<P: Fn(u32, f32) -> bool>(
         &self,
         ray: &Ray,
         ignore_strand: Option<u32>,
-        key: u64,
+        present: P,
     ) -> Result<bool, InvalidRay> {
         let (mut rtc_ray, _) = embree_ray(ray)?;
-        let mut query = StochasticQuery::new(ignore_strand, key);
+        let mut query = StochasticQuery::new(ignore_strand, present);
         let context = ptr::addr_of_mut!(query).cast::<QueryContext>();
         #[cfg(not(embree4))]
         {
@@ -118,7 +123,7 @@ impl CommittedScene {
         {
             let mut args = init_occluded_arguments();
             args.context = context;
-            args.filter = Some(stochastic_filter);
+            args.filter = Some(stochastic_filter::<P>);
             args.flags |= RTC_RAY_QUERY_FLAG_INVOKE_ARGUMENT_FILTER;
             // SAFETY: as for Embree 3, with the filter passed in the arguments.
             unsafe { rtcOccluded1(self.raw(), &mut rtc_ray, &mut args) };
@@ -128,10 +133,10 @@ impl CommittedScene {
     }
 
     /// The closest-hit query, with the stochastic filter when `query` is given.
-    fn intersect_with(
+    fn intersect_with<P: Fn(u32, f32) -> bool>(
         &self,
         ray: &Ray,
-        query: Option<&mut StochasticQuery>,
+        query: Option<&mut StochasticQuery<P>>,
     ) -> Result<Option<RayHit>, InvalidRay> {
         let (rtc_ray, scale) = embree_ray(ray)?;
         let mut rayhit = RTCRayHit {
@@ -162,7 +167,7 @@ impl CommittedScene {
                         RTC_RAY_QUERY_FLAG_INCOHERENT | RTC_RAY_QUERY_FLAG_INVOKE_ARGUMENT_FILTER;
                     args.feature_mask = RTC_FEATURE_FLAG_ALL;
                     args.context = ptr::from_mut(q).cast::<QueryContext>();
-                    args.filter = Some(stochastic_filter);
+                    args.filter = Some(stochastic_filter::<P>);
                     // SAFETY: as for Embree 3, with the filter passed in the arguments.
                     unsafe { rtcIntersect1(self.raw(), &mut rayhit, &mut args) };
                 }
