@@ -2,12 +2,13 @@
 //! [`Tracer`] trait.
 //!
 //! Everything Embree-specific (FFI, callbacks, the transparent-shadow filter) lives in [`crate::sys::embree`]; this
-//! file only maps cuticle's strands and hits onto it.
+//! file only maps cuticle's strands and hits onto it, and hands the stochastic queries their presence test
+//! ([`strand_present`] under the ray's key).
 
 use std::sync::Arc;
 use std::time::Instant;
 
-use super::{CurveKind, Hit, Tracer};
+use super::{strand_present, CurveKind, Hit, Tracer};
 use crate::hair::Strands;
 use crate::ray::{InvalidRay, Ray};
 use crate::sys::embree::{
@@ -119,7 +120,9 @@ impl Tracer for EmbreeTracer {
     ) -> Result<Option<Hit>, InvalidRay> {
         Ok(self
             .scene
-            .intersect1_stochastic(ray, ignore_strand, key)?
+            .intersect1_stochastic(ray, ignore_strand, |strand, opacity| {
+                strand_present(key, strand, opacity)
+            })?
             .map(|h| self.hit(h)))
     }
 
@@ -129,7 +132,10 @@ impl Tracer for EmbreeTracer {
         ignore_strand: Option<u32>,
         key: u64,
     ) -> Result<bool, InvalidRay> {
-        self.scene.occluded1_stochastic(ray, ignore_strand, key)
+        self.scene
+            .occluded1_stochastic(ray, ignore_strand, |strand, opacity| {
+                strand_present(key, strand, opacity)
+            })
     }
 
     fn transmittance(&self, ray: &Ray, ignore_strand: Option<u32>) -> Result<f32, InvalidRay> {

@@ -1,0 +1,136 @@
+//! [`Scene`] (being assembled) → [`Scene::commit`] → [`CommittedScene`] (immutable, queried from many threads; its
+//! queries are in `query.rs`).
+
+use std::fmt;
+use std::sync::Arc;
+
+use super::device::{Device, DeviceHandle};
+use super::error::{EmbreeError, ErrorCode};
+use super::ffi::*;
+use super::geometry::CurveGeometry;
+
+/// BVH build quality (`RTCBuildQuality`): higher builds slower and traces faster.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum BuildQuality {
+    /// `RTC_BUILD_QUALITY_LOW`: Morton-code build, for geometry that changes every frame.
+    Low,
+    /// `RTC_BUILD_QUALITY_MEDIUM`: SAH build (Embree's default).
+    #[default]
+    Medium,
+    /// `RTC_BUILD_QUALITY_HIGH`: SAH with spatial splits; suits long, diagonal strands.
+    High,
+}
+
+impl BuildQuality {
+    fn raw(self) -> RTCBuildQuality {
+        match self {
+            BuildQuality::Low => RTC_BUILD_QUALITY_LOW,
+            BuildQuality::Medium => RTC_BUILD_QUALITY_MEDIUM,
+            BuildQuality::High => RTC_BUILD_QUALITY_HIGH,
+        }
+    }
+}
+
+/// Scene flags for every scene: per-query filter functions on (the transparent-shadow filter is passed with the
+/// query); robust traversal off (it costs speed, and the brute-force tests in `tests/embree.rs` match without it);
+/// not dynamic (hair is built once); not compact (compact layouts trade speed for memory).
+#[cfg(not(embree4))]
+const SCENE_FLAGS: RTCSceneFlags = RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION;
+/// Scene flags for every scene (Embree 4 spelling; see the Embree 3 constant for the reasons).
+#[cfg(embree4)]
+const SCENE_FLAGS: RTCSceneFlags = RTC_SCENE_FLAG_FILTER_FUNCTION_IN_ARGUMENTS;
+
+/// A scene being assembled. [`Scene::commit`] builds the BVH and turns it into a [`CommittedScene`].
+pub struct Scene {
+    raw: RTCScene,
+    device: Arc<DeviceHandle>,
+    /// Keeps every attached geometry, and so its strand table (the filter's user data), alive.
+    geometries: Vec<CurveGeometry>,
+}
+
+// SAFETY: an Embree scene has no thread affinity; mutation needs `&mut self`.
+unsafe impl Send for Scene {}
+
+impl fmt::Debug for Scene {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Scene")
+            .field("geometries", &self.geometries)
+            .finish()
+    }
+}
+
+impl Scene {
+    /// An empty static scene with per-query filter functions enabled and robust traversal off.
+    pub fn new(device: &Device, quality: BuildQuality) -> Result<Scene, EmbreeError> {
+        let handle = &device.inner;
+        // SAFETY: `handle.raw` is a live device.
+        let raw = unsafe { rtcNewScene(handle.raw) };
+        if raw.is_null() {
+            handle.check("create scene")?;
+            return Err(EmbreeError {
+                code: ErrorCode::Unknown,
+                message: "create scene: embree returned no scene".into(),
+            });
+        }
+        let scene = Scene {
+            raw,
+            device: Arc::clone(handle),
+            geometries: Vec::new(),
+        };
+        // SAFETY: `raw` is a live scene and `SCENE_FLAGS` a combination of the header's flags.
+        unsafe { rtcSetSceneFlags(raw, SCENE_FLAGS) };
+        // SAFETY: `raw` is a live scene and the quality one of the header's constants.
+        unsafe { rtcSetSceneBuildQuality(raw, quality.raw()) };
+        scene.device.check("configure scene")?;
+        Ok(scene)
+    }
+
+    /// Attaches `geometry` and returns its geometry id (Embree's `geomID`). The scene keeps the geometry.
+    ///
+    /// Embree itself rejects a geometry created on another device (`invalid argument`).
+    pub fn attach(&mut self, geometry: CurveGeometry) -> Result<u32, EmbreeError> {
+        // SAFETY: both handles are live; Embree checks that they belong to the same device.
+        let id = unsafe { rtcAttachGeometry(self.raw, geometry.raw) };
+        self.device.check("attach geometry")?;
+        self.geometries.push(geometry);
+        Ok(id)
+    }
+
+    /// Builds the BVH. Only a committed scene can be traced.
+    pub fn commit(self) -> Result<CommittedScene, EmbreeError> {
+        // SAFETY: `raw` is a live scene whose geometries are all committed.
+        unsafe { rtcCommitScene(self.raw) };
+        self.device.check("commit scene")?;
+        Ok(CommittedScene { scene: self })
+    }
+}
+
+impl Drop for Scene {
+    fn drop(&mut self) {
+        // SAFETY: we own one reference to `raw` and give it up exactly once, before the geometries (and their
+        // strand tables) are dropped.
+        unsafe { rtcReleaseScene(self.raw) };
+    }
+}
+
+/// A committed scene: immutable, and safe to query from many threads at once.
+#[derive(Debug)]
+pub struct CommittedScene {
+    scene: Scene,
+}
+
+// SAFETY: Embree allows concurrent `rtcIntersect1`/`rtcOccluded1` on a committed scene that nobody modifies, and
+// `CommittedScene` offers no way to modify it; every query keeps its own context and ray on its own stack, and the
+// shared strand tables are immutable.
+unsafe impl Sync for CommittedScene {}
+
+impl CommittedScene {
+    pub(super) fn raw(&self) -> RTCScene {
+        self.scene.raw
+    }
+
+    /// The geometries in the scene, in the order they were attached.
+    pub fn geometries(&self) -> &[CurveGeometry] {
+        &self.scene.geometries
+    }
+}
