@@ -18,7 +18,7 @@
 //!
 //! **Alpha**: as in EXR, colour is premultiplied by `A` (associated alpha).
 //!
-//! **Atomic writes** ([`crate::atomic_file`]): a file is written to a temporary file in the same
+//! **Atomic writes** ([`crate::util::atomic_file`]): a file is written to a temporary file in the same
 //! directory (named `.<name>.tmp-<random>.<ext>`, keeping the extension from which OpenImageIO
 //! picks the format), flushed to disk, then renamed over the target. A reader never sees a half-written frame, and on
 //! any failure the temporary file is removed and the target is left as it was.
@@ -28,8 +28,8 @@ use std::fs;
 use std::io;
 use std::path::{Path, PathBuf};
 
-use crate::atomic_file;
 use crate::sys::oiio::{self, FileFormat, OiioError, Pixels, WriteOptions};
+use crate::util::atomic_file;
 
 /// An image could not be written or read. Every variant names the file.
 #[derive(Debug, thiserror::Error)]
@@ -348,7 +348,7 @@ pub fn read(path: impl AsRef<Path>) -> Result<Image, ImageError> {
 }
 
 /// Runs `write_to` on a temporary file next to `path` and renames it over `path`
-/// ([`crate::atomic_file`]). On any failure the temporary file is removed.
+/// ([`crate::util::atomic_file`]). On any failure the temporary file is removed.
 fn write_atomically(
     path: &Path,
     write_to: impl FnOnce(&Path) -> Result<(), OiioError>,

@@ -1,15 +1,20 @@
 //! cuticle: a physically based hair renderer.
 //!
-//! Module tree, following the data flow of DESIGN.md:
-//! [`hair`] (files → B-spline strands) → [`accel`] (Embree curves behind the [`accel::Tracer`] trait) →
-//! [`render`] (camera, sampler, shading, film) → [`image`] (OpenImageIO output). [`scene`] reads the TOML that ties
-//! them together. All `unsafe` code lives in [`sys`]. Above the renderer, [`study`] and [`bench`] measure it and
-//! [`plot`] draws the charts (plotters); below everything, [`atomic_file`] writes files whole or not at all.
+//! Layers, each importing only those below it (`docs/architecture.md` draws one frame's data flow):
+//!
+//! - measurement: [`study`] (error-against-time studies) and [`bench`] (benchmarks), drawing with [`plot`]
+//!   (plotters charts) and measuring with [`measure`] (timings, memory, image error);
+//! - configuration: [`scene`] reads and checks the TOML and resolves it into the settings each layer owns;
+//! - [`render`]: one frame set up ([`render::Frame`]), camera, sampler, film, integrator;
+//! - physics: [`shadow`] (deep opacity maps), [`light`], [`bsdf`] (fibre models), [`shape`] (Lambert shapes);
+//! - [`accel`]: the [`accel::Tracer`] trait and the Embree backend;
+//! - [`hair`] (files → B-spline strands), [`ray`], [`geometry`] (ray–primitive hits), [`image`] (OpenImageIO);
+//! - [`sys`]: FFI only; all `unsafe` code lives there;
+//! - [`util`]: hashing, colour, sampling, statistics, atomic file writes; imports nothing of this crate.
 #![deny(unsafe_code)]
 #![warn(missing_docs)]
 
 pub mod accel;
-pub mod atomic_file;
 pub mod bench;
 pub mod bsdf;
 pub mod geometry;

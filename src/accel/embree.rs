@@ -12,11 +12,10 @@ use super::{strand_present, CurveKind, Hit, Tracer};
 use crate::hair::Strands;
 use crate::ray::{InvalidRay, Ray};
 use crate::sys::embree::{
-    BuildQuality, CommittedScene, CurveBasis, CurveGeometry, Device, Scene, StrandTable,
-    Transmittance,
+    BuildQuality, CommittedScene, CurveBasis, CurveGeometry, Scene, StrandTable, Transmittance,
 };
 
-pub use crate::sys::embree::EmbreeError;
+pub use crate::sys::embree::{Cutoff, Device, EmbreeError};
 
 /// BVH quality for hair: Embree's SAH build. On furball.hair (455k segments, Embree 3.13.5, 2 threads) `High`
 /// built a BVH of the same size and traced camera and shadow rays no faster (differences within run-to-run

@@ -19,13 +19,13 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::accel::embree::EmbreeTracer;
+use crate::accel::embree::{Cutoff, Device, EmbreeError};
 use crate::accel::{CurveKind, Hit, Tracer};
 use crate::hair::Strands;
 use crate::measure::{peak_rss_bytes, Timing};
 use crate::ray::Ray;
 use crate::render::camera::Camera;
 use crate::scene::{LightConfig, Scene};
-use crate::sys::embree::{Cutoff, Device, EmbreeError};
 
 /// Why a benchmark could not run.
 #[derive(Debug, thiserror::Error)]

@@ -24,8 +24,8 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
-use crate::atomic_file;
 use crate::image::{Image, ImageError};
+use crate::util::atomic_file;
 
 /// A chart could not be drawn or written. Variants name the file where there is one.
 #[derive(Debug, thiserror::Error)]

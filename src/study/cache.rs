@@ -6,13 +6,13 @@
 //! (see [`super::shadows`]); files the scene refers to (hair, environment maps) are *not* hashed, nor is the
 //! renderer's code: delete the cached file after changing either.
 //!
-//! Text outputs are written like images ([`crate::atomic_file`]): to a temporary file in the same directory, then
+//! Text outputs are written like images ([`crate::util::atomic_file`]): to a temporary file in the same directory, then
 //! renamed over the target, so a reader never sees half a table.
 
 use std::path::Path;
 
 use super::StudyError;
-use crate::atomic_file;
+use crate::util::atomic_file;
 
 /// 64-bit FNV-1a.
 #[derive(Debug, Clone, Copy)]
@@ -45,7 +45,7 @@ impl Fnv1a {
     }
 }
 
-/// Writes `text` to `path` atomically ([`crate::atomic_file`]: temporary file in the same directory, then rename).
+/// Writes `text` to `path` atomically ([`crate::util::atomic_file`]: temporary file in the same directory, then rename).
 pub fn write_text(path: &Path, text: &str) -> Result<(), StudyError> {
     atomic_file::write(path, text.as_bytes()).map_err(|e| StudyError::Io {
         path: path.to_path_buf(),

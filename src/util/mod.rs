@@ -1,6 +1,7 @@
 //! Small shared tools below the physics, each with its own tests (as pbrt-v4's `util/hash.h`, `util/sampling.h`
 //! sit under its BxDFs): every layer above may import them, and they import nothing of this crate.
 //!
+//! - [`atomic_file`]: a temporary file beside the target, renamed over it only when complete.
 //! - [`hash`]: SplitMix64's finaliser and the SplitMix64 generator (strand presence, the sampler's scrambling
 //!   seeds, per-strand noise, procedural hair).
 //! - [`color`]: Rec. 709 luminance.
@@ -8,6 +9,7 @@
 //! - [`stats`]: Pearson's χ² test with pbrt-v4's pooling, and Šidák's correction (BSDF and light tests,
 //!   `plot-bsdf`).
 
+pub mod atomic_file;
 pub mod color;
 pub mod hash;
 pub mod sampling;
