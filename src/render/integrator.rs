@@ -44,27 +44,11 @@ use crate::scene::{LightSelection, Material, ShadowMode, Strategy, Transmittance
 use crate::shadow::ShadowMaps;
 use crate::shape::Shapes;
 
-use super::sampler::PixelSampler;
+use super::sampler::{dim, PixelSampler};
 
-/// Sample dimensions used per path vertex (see [`Integrator::sample`]); vertex b uses
-/// `FIRST_VERTEX_DIM + b * DIMS_PER_VERTEX ..`.
-const DIMS_PER_VERTEX: u32 = 8;
-/// The first dimension after the camera's (filter x, y).
-const FIRST_VERTEX_DIM: u32 = 2;
-/// Offsets within a vertex's dimensions.
-mod slot {
-    /// Light selection (deeper vertices, and the first under [`LightSelection::One`]).
-    pub const SELECT: u32 = 0;
-    /// Light sample (2 dimensions).
-    pub const LIGHT: u32 = 1;
-    /// Material sample (3 dimensions).
-    pub const MATERIAL: u32 = 3;
-    /// Russian roulette.
-    pub const ROULETTE: u32 = 6;
-}
-
-/// The largest `path_length` the sample dimensions allow (sobol_burley has 256 dimensions).
-pub const MAX_PATH_LENGTH: u32 = (256 - FIRST_VERTEX_DIM) / DIMS_PER_VERTEX - 1;
+/// The largest `path_length` the sample dimensions allow: path vertices 0..=`path_length` each take a block of
+/// [`dim::PER_VERTEX`] dimensions.
+pub const MAX_PATH_LENGTH: u32 = dim::MAX_VERTICES - 1;
 
 /// Light-transport settings of one render.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -578,7 +562,6 @@ impl<'a> Integrator<'a> {
         // ---- First vertex: light_samples light samples (for every light, or each for one light chosen ∝ power),
         // and material_samples material samples. ----
         let (n_l, n_m) = (s.light_samples.max(1), s.material_samples.max(1));
-        let dim = |b: u32, off: u32| FIRST_VERTEX_DIM + b * DIMS_PER_VERTEX + off;
         let mut direct = LobeValues::default();
         let mut light_sample =
             |j: usize, count: f32, idx: u32, salt: u32, counts: &mut RayCounts| {
@@ -586,8 +569,8 @@ impl<'a> Integrator<'a> {
                 // probability): the light strategy's density for MIS is count × pdf, its estimate Le f cos / (count pdf).
                 let light = &self.lights[j];
                 let u = [
-                    sampler.get_salted(idx, dim(0, slot::LIGHT), salt),
-                    sampler.get_salted(idx, dim(0, slot::LIGHT) + 1, salt),
+                    sampler.get_salted(idx, dim::vertex(0, dim::LIGHT), salt),
+                    sampler.get_salted(idx, dim::vertex(0, dim::LIGHT) + 1, salt),
                 ];
                 let Some(ls) = light.sample_li(first.p, u) else {
                     return;
@@ -603,7 +586,7 @@ impl<'a> Integrator<'a> {
                 if unshadowed <= 0.0 {
                     return;
                 }
-                let key = sampler.key(idx, dim(0, slot::LIGHT), salt);
+                let key = sampler.key(idx, dim::vertex(0, dim::LIGHT), salt);
                 let vis = self.visibility(j, &first, ls.wi, ls.distance, key, counts);
                 out.unshadowed += unshadowed;
                 out.lit += unshadowed * vis;
@@ -631,7 +614,7 @@ impl<'a> Integrator<'a> {
                     let idx = index * n_l + k;
                     let (j, p_select, _) = self
                         .select
-                        .sample_discrete(sampler.get(idx, dim(0, slot::SELECT)));
+                        .sample_discrete(sampler.get(idx, dim::vertex(0, dim::LIGHT_SELECT)));
                     let light = &self.lights[j];
                     if p_select <= 0.0 || (!light.is_delta() && s.strategy == Strategy::Material) {
                         continue;
@@ -657,7 +640,7 @@ impl<'a> Integrator<'a> {
         let mut next: Option<(Vertex, LobeValues)> = None;
         for k in 0..n_m {
             let idx = index * n_m + k;
-            let d = dim(0, slot::MATERIAL);
+            let d = dim::vertex(0, dim::MATERIAL);
             let u = [
                 sampler.get(idx, d),
                 sampler.get(idx, d + 1),
@@ -706,13 +689,13 @@ impl<'a> Integrator<'a> {
                 // ray is traced (still unbiased; saves one ray per path).
                 let light_only = b == s.path_length && s.strategy != Strategy::Material;
                 let mut radiance = Vec3::ZERO;
-                let select_u = sampler.get(index, dim(b, slot::SELECT));
+                let select_u = sampler.get(index, dim::vertex(b, dim::LIGHT_SELECT));
                 if !self.lights.is_empty() {
                     let (j, p_select, _) = self.select.sample_discrete(select_u);
                     let light = &self.lights[j];
                     let u = [
-                        sampler.get(index, dim(b, slot::LIGHT)),
-                        sampler.get(index, dim(b, slot::LIGHT) + 1),
+                        sampler.get(index, dim::vertex(b, dim::LIGHT)),
+                        sampler.get(index, dim::vertex(b, dim::LIGHT) + 1),
                     ];
                     if let Some(ls) = light.sample_li(v.p, u).filter(|_| p_select > 0.0) {
                         let (fcos, pdf_m) = self.eval(&v, ls.wi);
@@ -723,7 +706,7 @@ impl<'a> Integrator<'a> {
                             } else {
                                 self.light_weight(p_select * ls.pdf, pdf_m)
                             };
-                            let key = sampler.key(index, dim(b, slot::LIGHT), 0);
+                            let key = sampler.key(index, dim::vertex(b, dim::LIGHT), 0);
                             let vis = self.visibility(j, &v, ls.wi, ls.distance, key, counts);
                             radiance += f * ls.radiance * (vis * w / (p_select * ls.pdf));
                         }
@@ -733,7 +716,7 @@ impl<'a> Integrator<'a> {
                     self.add_indirect(&mut indirect, &first_weights, rest * radiance);
                     break;
                 }
-                let d = dim(b, slot::MATERIAL);
+                let d = dim::vertex(b, dim::MATERIAL);
                 let u = [
                     sampler.get(index, d),
                     sampler.get(index, d + 1),
@@ -767,7 +750,7 @@ impl<'a> Integrator<'a> {
                 // 0.3-0.7 end most paths early at no bias).
                 {
                     let q = luminance(first_weights.sum() * rest).clamp(0.05, 1.0);
-                    if sampler.get(index, dim(b, slot::ROULETTE)) >= q {
+                    if sampler.get(index, dim::vertex(b, dim::ROULETTE)) >= q {
                         break;
                     }
                     rest /= q;
