@@ -364,14 +364,15 @@ impl<'a> Integrator<'a> {
         }
     }
 
-    /// One camera sample: `ray` from the camera, sample `index` of the pixel's `sampler`. The steps, each below:
+    /// One camera sample: `ray` from the camera, sample `index` of the pixel's `sampler`. The steps, each a
+    /// method below:
     ///
-    /// 1. [`Integrator::seen_directly`]: a camera ray that finds no surface sees an emitter or the background;
-    /// 2. [`Integrator::first_vertex_light_samples`]: the first vertex's light samples;
-    /// 3. [`Integrator::first_vertex_material_samples`]: its material samples, the first of which continues;
-    /// 4. [`Integrator::indirect`]: the deeper vertices ([`Integrator::deeper_vertex`]), one light and one
-    ///    material sample each, with Russian roulette ([`roulette`]);
-    /// 5. the passes: direct = the first two steps, indirect = the fourth, beauty = both.
+    /// 1. `seen_directly`: a camera ray that finds no surface sees an emitter or the background;
+    /// 2. `first_vertex_light_samples`: the first vertex's light samples;
+    /// 3. `first_vertex_material_samples`: its material samples, the first of which continues the path;
+    /// 4. `indirect`: the deeper vertices (`deeper_vertex`), one light and one material sample each, with
+    ///    Russian roulette (`roulette`);
+    /// 5. the passes: direct = steps 2 and 3, indirect = step 4, beauty = direct + indirect.
     pub fn sample(
         &self,
         ray: &Ray,

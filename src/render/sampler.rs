@@ -6,15 +6,15 @@
 ///
 /// | dimensions | width | consumer |
 /// |---|---|---|
-/// | [`FILTER`] = 0 | 2 | pixel-filter offset x, y (`render`) |
-/// | [`vertex`]`(b, `[`LIGHT_SELECT`]`)` = 2 + 8b | 1 | path vertex b: light chosen ∝ power |
-/// | [`vertex`]`(b, `[`LIGHT`]`)` = 3 + 8b | 2 | path vertex b: light sample |
-/// | [`vertex`]`(b, `[`MATERIAL`]`)` = 5 + 8b | 3 | path vertex b: material (BSDF) sample |
-/// | [`vertex`]`(b, `[`ROULETTE`]`)` = 8 + 8b | 1 | path vertex b: Russian roulette |
+/// | `FILTER` = 0 | 2 | pixel-filter offset x, y (`render`) |
+/// | `vertex(b, LIGHT_SELECT)` = 2 + 8b | 1 | path vertex b: light chosen ∝ power |
+/// | `vertex(b, LIGHT)` = 3 + 8b | 2 | path vertex b: light sample |
+/// | `vertex(b, MATERIAL)` = 5 + 8b | 3 | path vertex b: material (BSDF) sample |
+/// | `vertex(b, ROULETTE)` = 8 + 8b | 1 | path vertex b: Russian roulette |
 /// | 9 + 8b | 1 | spare |
 ///
 /// Vertex 0 is the first shading point; its light samples also read scramblings salted per light
-/// ([`super::PixelSampler::get_salted`]), in the same dimensions.
+/// ([`PixelSampler::get_salted`]), in the same dimensions.
 pub mod dim {
     /// Dimensions of a `sobol_burley` point.
     pub const COUNT: u32 = 256;
