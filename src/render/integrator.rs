@@ -44,28 +44,18 @@ use crate::shadow::ShadowMaps;
 use crate::shape::Shapes;
 use crate::util::color::luminance;
 
-use super::sampler::PixelSampler;
+use super::sampler::{dim, PixelSampler};
 use super::settings::{LightSelection, ShadowMode, Strategy, TransmittanceMode};
 
-/// Sample dimensions used per path vertex (see [`Integrator::sample`]); vertex b uses
-/// `FIRST_VERTEX_DIM + b * DIMS_PER_VERTEX ..`.
-const DIMS_PER_VERTEX: u32 = 8;
-/// The first dimension after the camera's (filter x, y).
-const FIRST_VERTEX_DIM: u32 = 2;
-/// Offsets within a vertex's dimensions.
-mod slot {
-    /// Light selection (deeper vertices, and the first under [`LightSelection::One`]).
-    pub const SELECT: u32 = 0;
-    /// Light sample (2 dimensions).
-    pub const LIGHT: u32 = 1;
-    /// Material sample (3 dimensions).
-    pub const MATERIAL: u32 = 3;
-    /// Russian roulette.
-    pub const ROULETTE: u32 = 6;
-}
+mod mis;
+mod trace;
 
-/// The largest `path_length` the sample dimensions allow (sobol_burley has 256 dimensions).
-pub const MAX_PATH_LENGTH: u32 = (256 - FIRST_VERTEX_DIM) / DIMS_PER_VERTEX - 1;
+use mis::Mis;
+use trace::Found;
+
+/// The largest `path_length` the sample dimensions allow: path vertices 0..=`path_length` each take a block of
+/// [`dim::PER_VERTEX`] dimensions.
+pub const MAX_PATH_LENGTH: u32 = dim::MAX_VERTICES - 1;
 
 /// Light-transport settings of one render.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -167,13 +157,43 @@ struct Vertex {
     surface: Surface,
 }
 
-/// What a ray found first.
-enum Found {
-    Surface(Vertex),
-    /// An area light's radiance towards the ray origin, with the light's index.
-    Emitter(Vec3, usize),
-    /// Nothing: the ray left the scene.
-    Escaped,
+/// The random numbers of one sample of one strategy: sample `index` of the pixel's `sampler`, scrambled by `salt`
+/// (0, or a light's index so that the samples of different lights are independent), in the dimensions of
+/// [`dim`].
+#[derive(Clone, Copy)]
+struct Draw<'s> {
+    sampler: &'s PixelSampler,
+    index: u32,
+    salt: u32,
+}
+
+impl Draw<'_> {
+    #[inline]
+    fn get(&self, dimension: u32) -> f32 {
+        self.sampler.get_salted(self.index, dimension, self.salt)
+    }
+
+    /// Dimensions `dimension` and `dimension + 1`.
+    #[inline]
+    fn get_2(&self, dimension: u32) -> [f32; 2] {
+        [self.get(dimension), self.get(dimension + 1)]
+    }
+
+    /// Dimensions `dimension` to `dimension + 2`.
+    #[inline]
+    fn get_3(&self, dimension: u32) -> [f32; 3] {
+        [
+            self.get(dimension),
+            self.get(dimension + 1),
+            self.get(dimension + 2),
+        ]
+    }
+
+    /// The key of the ray drawn from `dimension` (its strands' stochastic presence).
+    #[inline]
+    fn key(&self, dimension: u32) -> u64 {
+        self.sampler.key(self.index, dimension, self.salt)
+    }
 }
 
 /// Per-frame state of the path tracer, shared by all threads.
@@ -185,6 +205,8 @@ pub struct Integrator<'a> {
     material: &'a Material,
     curves: CurveKind,
     settings: Settings,
+    /// The first vertex's strategies and weights (from `settings`).
+    first: Mis,
     /// Light selection ∝ power, for vertices after the first.
     select: Distribution1D,
     /// Offset of shadow-ray origins off Lambert surfaces (hair rays skip their own strand instead).
@@ -198,19 +220,6 @@ pub struct Integrator<'a> {
     material_finds_light: bool,
 }
 
-/// Power heuristic with β = 2 for strategy densities already multiplied by their sample counts.
-#[inline]
-fn power_heuristic(a: f32, b: f32) -> f32 {
-    let (a2, b2) = (a * a, b * b);
-    if a2 + b2 > 0.0 && (a2 + b2).is_finite() {
-        a2 / (a2 + b2)
-    } else if a.is_infinite() {
-        1.0
-    } else {
-        0.0
-    }
-}
-
 /// Adds `weights ⊙ scale` lobe by lobe.
 #[inline]
 fn add_lobes(acc: &mut LobeValues, weights: &LobeValues, scale: Vec3) {
@@ -220,27 +229,6 @@ fn add_lobes(acc: &mut LobeValues, weights: &LobeValues, scale: Vec3) {
 }
 
 impl<'a> Integrator<'a> {
-    /// The weight of a light sample of count-weighted density `p_light` against the material strategy's
-    /// `p_material`.
-    #[inline]
-    fn light_weight(&self, p_light: f32, p_material: f32) -> f32 {
-        match self.settings.strategy {
-            Strategy::Mis => power_heuristic(p_light, p_material),
-            Strategy::Light => 1.0,
-            Strategy::Material => 0.0,
-        }
-    }
-
-    /// The weight of a material sample that reached a light (the complement of [`Integrator::light_weight`]).
-    #[inline]
-    fn material_weight(&self, p_material: f32, p_light: f32) -> f32 {
-        match self.settings.strategy {
-            Strategy::Mis => power_heuristic(p_material, p_light),
-            Strategy::Light => 0.0,
-            Strategy::Material => 1.0,
-        }
-    }
-
     /// Resolves the per-frame state. `scene_radius` sizes infinite lights' power and the surface offset.
     #[allow(clippy::too_many_arguments)]
     pub fn new(
@@ -264,6 +252,7 @@ impl<'a> Integrator<'a> {
             material,
             curves,
             settings,
+            first: Mis::first_vertex(&settings),
             select: Distribution1D::new(&powers),
             epsilon: 1e-4 * scene_radius.max(1e-3),
             background_visible,
@@ -301,73 +290,6 @@ impl<'a> Integrator<'a> {
                 radius: point.radius,
             },
         }
-    }
-
-    /// The nearest of hair, shapes and area lights along `ray`. `stochastic` = Some((key, ignore_strand)) for
-    /// light-carrying rays (strands present with probability = opacity), `None` for camera rays (all opaque).
-    fn find(
-        &self,
-        ray: &Ray,
-        stochastic: Option<(u64, Option<u32>)>,
-        counts: &mut RayCounts,
-    ) -> Found {
-        let hair = match stochastic {
-            None => self.tracer.intersect(ray),
-            Some((key, ignore)) => self.tracer.intersect_stochastic(ray, ignore, key),
-        };
-        let hair = match hair {
-            Ok(h) => h,
-            Err(_) => {
-                counts.rejected += 1;
-                return Found::Escaped;
-            }
-        };
-        if let Some(found) = self.find_non_hair(ray, hair.map_or(ray.tfar, |h| h.t)) {
-            return found;
-        }
-        match hair {
-            Some(h) => Found::Surface(self.hair_vertex(ray, &h)),
-            None => Found::Escaped,
-        }
-    }
-
-    /// The nearest area light or shape along `ray` before `tfar` (hair is the caller's business), if any.
-    fn find_non_hair(&self, ray: &Ray, tfar: f32) -> Option<Found> {
-        let mut tmax = tfar;
-        let shape = self.shapes.intersect(ray, tmax);
-        if let Some(s) = shape {
-            tmax = s.t;
-        }
-        let mut emitter = None;
-        for (i, light) in self.lights.iter().enumerate() {
-            if let Some((t, radiance)) =
-                light.intersect(&Ray::segment(ray.origin, ray.dir, ray.tnear, tmax))
-            {
-                if t < tmax {
-                    tmax = t;
-                    emitter = Some((radiance, i));
-                }
-            }
-        }
-        if let Some((radiance, i)) = emitter {
-            return Some(Found::Emitter(radiance, i));
-        }
-        shape.map(|s| {
-            let wo = -ray.dir.normalize();
-            let normal = if s.normal.dot(wo) >= 0.0 {
-                s.normal
-            } else {
-                -s.normal
-            };
-            Found::Surface(Vertex {
-                p: ray.at(s.t),
-                wo,
-                surface: Surface::Lambert {
-                    normal,
-                    albedo: s.albedo,
-                },
-            })
-        })
     }
 
     /// f · cos θi per lobe of the hair material, in the local frame, the diffuse lobe tinted.
@@ -443,113 +365,15 @@ impl<'a> Integrator<'a> {
         }
     }
 
-    /// Visibility along a light sample's shadow ray, in [0, 1].
-    fn visibility(
-        &self,
-        light: usize,
-        v: &Vertex,
-        wi: Vec3,
-        distance: f32,
-        key: u64,
-        counts: &mut RayCounts,
-    ) -> f32 {
-        let (origin, ignore) = self.spawn(v, wi);
-        // Stop short of an area light's surface so the light itself does not occlude.
-        let tfar = if distance.is_finite() {
-            distance * (1.0 - 1e-4)
-        } else {
-            f32::INFINITY
-        };
-        let ray = Ray::segment(origin, wi, 0.0, tfar);
-        if self.shapes.occluded(&ray, tfar) {
-            counts.shadow += 1;
-            return 0.0;
-        }
-        match self.settings.shadows {
-            ShadowMode::None => return 1.0,
-            ShadowMode::DeepOpacity => {
-                // A far-field fibre model treats the fibre's cross-section as one point: look the light up where it
-                // enters the fibre (the side facing the light), not at the hit on the viewer's side.
-                let p = match v.surface {
-                    Surface::Hair { radius, .. } => v.p + wi * radius,
-                    Surface::Lambert { .. } => v.p,
-                };
-                if let Some(t) = self.maps.and_then(|m| m.transmittance(light, p, wi)) {
-                    counts.map_lookups += 1;
-                    return t;
-                }
-            }
-            ShadowMode::Raytraced => {}
-        }
-        counts.shadow += 1;
-        let result = match self.settings.transmittance {
-            TransmittanceMode::Stochastic => self
-                .tracer
-                .occluded_stochastic(&ray, ignore, key)
-                .map(|o| if o { 0.0 } else { 1.0 }),
-            TransmittanceMode::Exact => self.tracer.transmittance(&ray, ignore),
-        };
-        result.unwrap_or_else(|_| {
-            counts.rejected += 1;
-            1.0
-        })
-    }
-
-    /// Radiance a material-sampled direction sees of the lights: (Σ_j w_j Le_j, where the ray went).
-    /// `light_density(j, wi)` is the light strategy's count-weighted density for light j.
-    fn trace_material_sample(
-        &self,
-        v: &Vertex,
-        wi: Vec3,
-        pdf_m: f32,
-        light_density: &dyn Fn(usize, Vec3) -> f32,
-        key: u64,
-        counts: &mut RayCounts,
-    ) -> (Vec3, Found) {
-        let (origin, ignore) = self.spawn(v, wi);
-        let ray = Ray::new(origin, wi);
-        counts.material += 1;
-        if self.settings.shadows == ShadowMode::None {
-            // No self-shadowing: the light a material sample sees ignores hair (shapes and emitters still count),
-            // while the continuation still scatters at the hair it meets — a second ray, in this diagnostic mode.
-            let lit = self.find_non_hair(&ray, ray.tfar).unwrap_or(Found::Escaped);
-            let le = self.emitted_along(&ray, &lit, pdf_m, light_density);
-            counts.material += 1;
-            return (le, self.find(&ray, Some((key, ignore)), counts));
-        }
-        let found = self.find(&ray, Some((key, ignore)), counts);
-        (
-            self.emitted_along(&ray, &found, pdf_m, light_density),
-            found,
-        )
-    }
-
-    /// MIS-weighted emitted radiance for a material sample of density `pdf_m` (count-weighted) that found `found`.
-    fn emitted_along(
-        &self,
-        ray: &Ray,
-        found: &Found,
-        pdf_m: f32,
-        light_density: &dyn Fn(usize, Vec3) -> f32,
-    ) -> Vec3 {
-        match *found {
-            Found::Escaped => self
-                .lights
-                .iter()
-                .enumerate()
-                .filter(|(_, l)| l.is_infinite() && !l.is_delta())
-                .map(|(j, l)| {
-                    l.le(ray.dir) * self.material_weight(pdf_m, light_density(j, ray.dir))
-                })
-                .fold(Vec3::ZERO, |a, b| a + b),
-            Found::Emitter(radiance, j) => {
-                radiance * self.material_weight(pdf_m, light_density(j, ray.dir))
-            }
-            Found::Surface(_) => Vec3::ZERO,
-        }
-    }
-
-    /// One camera sample: `ray` from the camera, sample `index` of the pixel's `sampler`.
+    /// One camera sample: `ray` from the camera, sample `index` of the pixel's `sampler`. The steps, each a
+    /// method below:
+    ///
+    /// 1. `seen_directly`: a camera ray that finds no surface sees an emitter or the background;
+    /// 2. `first_vertex_light_samples`: the first vertex's light samples;
+    /// 3. `first_vertex_material_samples`: its material samples, the first of which continues the path;
+    /// 4. `indirect`: the deeper vertices (`deeper_vertex`), one light and one material sample each, with
+    ///    Russian roulette (`roulette`);
+    /// 5. the passes: direct = steps 2 and 3, indirect = step 4, beauty = direct + indirect.
     pub fn sample(
         &self,
         ray: &Ray,
@@ -557,232 +381,283 @@ impl<'a> Integrator<'a> {
         index: u32,
         counts: &mut RayCounts,
     ) -> PathSample {
-        let mut out = PathSample::default();
         counts.camera += 1;
         let first = match self.find(ray, None, counts) {
-            Found::Escaped => {
-                if self.background_visible {
-                    out.beauty = self.lights.iter().map(|l| l.le(ray.dir.normalize())).sum();
-                }
-                return out;
-            }
+            Found::Surface(v) => v,
+            seen => return self.seen_directly(ray, &seen),
+        };
+        let mut out = PathSample {
+            alpha: 1.0,
+            ..PathSample::default()
+        };
+        self.first_vertex_light_samples(&first, sampler, index, &mut out, counts);
+        let next = self.first_vertex_material_samples(&first, sampler, index, &mut out, counts);
+        out.direct = out.lobes.sum();
+        if let Some((second, first_weights)) = next {
+            let indirect = self.indirect(second, &first_weights, sampler, index, counts);
+            out.indirect = indirect.sum();
+            add_lobes(&mut out.lobes, &indirect, Vec3::ONE);
+        }
+        out.beauty = out.direct + out.indirect;
+        out
+    }
+
+    /// Step 1, a camera ray that found no surface (`found` is an emitter or nothing): the area light's L_e, with
+    /// alpha 1; or the background, Σ L_e of the infinite lights (black unless the environment is visible), with
+    /// alpha 0.
+    fn seen_directly(&self, ray: &Ray, found: &Found) -> PathSample {
+        let mut out = PathSample::default();
+        match *found {
             Found::Emitter(radiance, _) => {
                 out.beauty = radiance;
                 out.alpha = 1.0;
-                return out;
             }
-            Found::Surface(v) => v,
-        };
-        out.alpha = 1.0;
-        let s = &self.settings;
+            Found::Escaped if self.background_visible => {
+                out.beauty = self.lights.iter().map(|l| l.le(ray.dir.normalize())).sum();
+            }
+            Found::Escaped | Found::Surface(_) => {}
+        }
+        out
+    }
 
-        // ---- First vertex: light_samples light samples (for every light, or each for one light chosen ∝ power),
-        // and material_samples material samples. ----
-        let (n_l, n_m) = (s.light_samples.max(1), s.material_samples.max(1));
-        let dim = |b: u32, off: u32| FIRST_VERTEX_DIM + b * DIMS_PER_VERTEX + off;
-        let mut direct = LobeValues::default();
-        let mut light_sample =
-            |j: usize, count: f32, idx: u32, salt: u32, counts: &mut RayCounts| {
-                // `count` = expected number of samples light j receives here (its samples, or n_l × its selection
-                // probability): the light strategy's density for MIS is count × pdf, its estimate Le f cos / (count pdf).
-                let light = &self.lights[j];
-                let u = [
-                    sampler.get_salted(idx, dim(0, slot::LIGHT), salt),
-                    sampler.get_salted(idx, dim(0, slot::LIGHT) + 1, salt),
-                ];
-                let Some(ls) = light.sample_li(first.p, u) else {
-                    return;
-                };
-                let (fcos, pdf_m) = self.eval(&first, ls.wi);
-                let w = if ls.delta {
-                    1.0
-                } else {
-                    self.light_weight(count * ls.pdf, n_m as f32 * pdf_m)
-                };
-                let scale = ls.radiance * (w / (ls.pdf * count));
-                let unshadowed = luminance(fcos.sum() * scale);
-                if unshadowed <= 0.0 {
-                    return;
-                }
-                let key = sampler.key(idx, dim(0, slot::LIGHT), salt);
-                let vis = self.visibility(j, &first, ls.wi, ls.distance, key, counts);
-                out.unshadowed += unshadowed;
-                out.lit += unshadowed * vis;
-                if vis > 0.0 {
-                    add_lobes(&mut direct, &fcos, scale * vis);
-                }
-            };
-        match s.light_selection {
+    /// Step 2, next-event estimation at the first vertex `v` (the thesis' "light samples"). With `lights = "all"`
+    /// every light gets `light_samples` samples (a delta light one), each from its own scrambling; with
+    /// `lights = "one"` each of the `light_samples` samples first picks one light ∝ power. Under material-only
+    /// sampling only delta lights are light-sampled ([`Mis::samples_light`]).
+    fn first_vertex_light_samples(
+        &self,
+        v: &Vertex,
+        sampler: &PixelSampler,
+        index: u32,
+        out: &mut PathSample,
+        counts: &mut RayCounts,
+    ) {
+        let mis = &self.first;
+        match mis.selection {
             LightSelection::All => {
                 for (j, light) in self.lights.iter().enumerate() {
-                    let samples = if light.is_delta() {
-                        1
-                    } else if s.strategy == Strategy::Material {
-                        continue; // every non-delta light is found by material samples only
-                    } else {
-                        n_l
-                    };
+                    let delta = light.is_delta();
+                    if !mis.samples_light(delta) {
+                        continue;
+                    }
+                    let samples = mis.samples_per_light(delta);
                     for k in 0..samples {
-                        light_sample(j, samples as f32, index * samples + k, j as u32, counts);
+                        let draw = Draw {
+                            sampler,
+                            index: index * samples + k,
+                            salt: j as u32,
+                        };
+                        let count = mis.light_count(delta, 1.0);
+                        self.first_vertex_light_sample(v, j, count, draw, out, counts);
                     }
                 }
             }
             LightSelection::One if !self.lights.is_empty() => {
+                let n_l = mis.light_samples;
                 for k in 0..n_l {
-                    let idx = index * n_l + k;
-                    let (j, p_select, _) = self
-                        .select
-                        .sample_discrete(sampler.get(idx, dim(0, slot::SELECT)));
-                    let light = &self.lights[j];
-                    if p_select <= 0.0 || (!light.is_delta() && s.strategy == Strategy::Material) {
+                    let draw = Draw {
+                        sampler,
+                        index: index * n_l + k,
+                        salt: 0,
+                    };
+                    let u_select = draw.get(dim::vertex(0, dim::LIGHT_SELECT));
+                    let (j, p_select, _) = self.select.sample_discrete(u_select);
+                    let delta = self.lights[j].is_delta();
+                    if p_select <= 0.0 || !mis.samples_light(delta) {
                         continue;
                     }
-                    light_sample(j, n_l as f32 * p_select, idx, 0, counts);
+                    let count = mis.light_count(delta, p_select);
+                    self.first_vertex_light_sample(v, j, count, draw, out, counts);
                 }
             }
             LightSelection::One => {}
         }
-        // Count-weighted light density of light j in direction wi, at the first vertex.
-        let first_light_density = |j: usize, wi: Vec3| {
-            let l = &self.lights[j];
-            if l.is_delta() {
-                0.0
-            } else {
-                let count = match s.light_selection {
-                    LightSelection::All => n_l as f32,
-                    LightSelection::One => n_l as f32 * self.select.pmf(j),
-                };
-                count * l.pdf_li(first.p, wi)
-            }
+    }
+
+    /// One light sample of light `j` at the first vertex `v`, where the light expects `count` samples (n_j,
+    /// [`Mis::light_count`]): Veach's multi-sample estimate w_l L_e f cos θi / (n_j p_l) (§9.2.2), added lobe by
+    /// lobe times the shadow ray's visibility. The shadow pass sums its luminance with and without the visibility.
+    fn first_vertex_light_sample(
+        &self,
+        v: &Vertex,
+        j: usize,
+        count: f32,
+        draw: Draw,
+        out: &mut PathSample,
+        counts: &mut RayCounts,
+    ) {
+        let d = dim::vertex(0, dim::LIGHT);
+        let Some(ls) = self.lights[j].sample_li(v.p, draw.get_2(d)) else {
+            return;
         };
-        let mut next: Option<(Vertex, LobeValues)> = None;
+        let (fcos, pdf_m) = self.eval(v, ls.wi);
+        let w = self.first.light_weight(&ls, count, pdf_m);
+        let scale = ls.radiance * (w / (ls.pdf * count));
+        let unshadowed = luminance(fcos.sum() * scale);
+        if unshadowed <= 0.0 {
+            return;
+        }
+        let vis = self.visibility(j, v, ls.wi, ls.distance, draw.key(d), counts);
+        out.unshadowed += unshadowed;
+        out.lit += unshadowed * vis;
+        if vis > 0.0 {
+            add_lobes(&mut out.lobes, &fcos, scale * vis);
+        }
+    }
+
+    /// Step 3, the first vertex's material samples (the thesis' "material samples"): each of the n_m adds
+    /// Veach's multi-sample estimate f cos θi / p_m · w_m L_e / n_m of the light it reaches ([`Mis::material_weight`])
+    /// lobe by lobe. The first also gives the albedo pass (f cos θi / p_m) and, if `path_length` > 0, continues the
+    /// path: it returns the second vertex with the first's f cos θi / p_m per lobe. A sample that can neither add
+    /// light (light-only strategy, only delta lights) nor continue traces no ray.
+    fn first_vertex_material_samples(
+        &self,
+        v: &Vertex,
+        sampler: &PixelSampler,
+        index: u32,
+        out: &mut PathSample,
+        counts: &mut RayCounts,
+    ) -> Option<(Vertex, LobeValues)> {
+        let n_m = self.first.material_samples;
+        let d = dim::vertex(0, dim::MATERIAL);
+        let mut next = None;
         for k in 0..n_m {
-            let idx = index * n_m + k;
-            let d = dim(0, slot::MATERIAL);
-            let u = [
-                sampler.get(idx, d),
-                sampler.get(idx, d + 1),
-                sampler.get(idx, d + 2),
-            ];
-            let Some((wi, fcos, pdf)) = self.sample_material(&first, u) else {
+            let draw = Draw {
+                sampler,
+                index: index * n_m + k,
+                salt: 0,
+            };
+            let Some((wi, fcos, pdf)) = self.sample_material(v, draw.get_3(d)) else {
                 continue;
             };
             let weights = fcos.scaled(1.0 / pdf);
             if k == 0 {
                 out.albedo = weights.sum();
             }
-            let continues = k == 0 && s.path_length > 0;
+            let continues = k == 0 && self.settings.path_length > 0;
             if !self.material_finds_light && !continues {
-                continue; // no light to add and no path to continue: no ray
+                continue;
             }
-            let key = sampler.key(idx, d, 0);
-            let (le, found) = self.trace_material_sample(
-                &first,
-                wi,
-                n_m as f32 * pdf,
-                &first_light_density,
-                key,
-                counts,
-            );
+            let (le, found) =
+                self.trace_material_sample(v, &self.first, wi, pdf, draw.key(d), counts);
             if le.max_element() > 0.0 {
-                add_lobes(&mut direct, &weights, le / n_m as f32);
+                add_lobes(&mut out.lobes, &weights, le / n_m as f32);
             }
-            if k == 0 && s.path_length > 0 {
-                if let Found::Surface(v) = found {
-                    next = Some((v, weights));
+            if continues {
+                if let Found::Surface(second) = found {
+                    next = Some((second, weights));
                 }
             }
         }
-        out.direct = direct.sum();
-        out.lobes = direct;
+        next
+    }
 
-        // ---- Deeper vertices: one light chosen ∝ power, one material sample that also continues the path. ----
-        if let Some((mut v, first_weights)) = next {
-            // Path throughput after the first vertex; the first vertex's own weight stays split by lobe.
-            let mut rest = Vec3::ONE;
-            let mut indirect = LobeValues::default();
-            for b in 1..=s.path_length {
-                // At the path's last vertex a material sample could only add MIS's share of light hits; under MIS
-                // (and light-only sampling) the light sample takes the whole weight there instead and no material
-                // ray is traced (still unbiased; saves one ray per path).
-                let light_only = b == s.path_length && s.strategy != Strategy::Material;
-                let mut radiance = Vec3::ZERO;
-                let select_u = sampler.get(index, dim(b, slot::SELECT));
-                if !self.lights.is_empty() {
-                    let (j, p_select, _) = self.select.sample_discrete(select_u);
-                    let light = &self.lights[j];
-                    let u = [
-                        sampler.get(index, dim(b, slot::LIGHT)),
-                        sampler.get(index, dim(b, slot::LIGHT) + 1),
-                    ];
-                    if let Some(ls) = light.sample_li(v.p, u).filter(|_| p_select > 0.0) {
-                        let (fcos, pdf_m) = self.eval(&v, ls.wi);
-                        let f = fcos.sum();
-                        if f.max_element() > 0.0 {
-                            let w = if ls.delta || light_only {
-                                1.0
-                            } else {
-                                self.light_weight(p_select * ls.pdf, pdf_m)
-                            };
-                            let key = sampler.key(index, dim(b, slot::LIGHT), 0);
-                            let vis = self.visibility(j, &v, ls.wi, ls.distance, key, counts);
-                            radiance += f * ls.radiance * (vis * w / (p_select * ls.pdf));
-                        }
-                    }
-                }
-                if light_only {
-                    self.add_indirect(&mut indirect, &first_weights, rest * radiance);
-                    break;
-                }
-                let d = dim(b, slot::MATERIAL);
-                let u = [
-                    sampler.get(index, d),
-                    sampler.get(index, d + 1),
-                    sampler.get(index, d + 2),
-                ];
-                let Some((wi, fcos, pdf)) = self.sample_material(&v, u) else {
-                    self.add_indirect(&mut indirect, &first_weights, rest * radiance);
-                    break;
-                };
-                let weight = fcos.sum() / pdf;
-                let density = |j: usize, w: Vec3| {
-                    let l = &self.lights[j];
-                    if l.is_delta() {
-                        0.0
-                    } else {
-                        self.select.pmf(j) * l.pdf_li(v.p, w)
-                    }
-                };
-                let key = sampler.key(index, d, 0);
-                let (le, found) = self.trace_material_sample(&v, wi, pdf, &density, key, counts);
-                radiance += weight * le;
-                self.add_indirect(&mut indirect, &first_weights, rest * radiance);
-                let Found::Surface(nv) = found else {
-                    break;
-                };
-                if b == s.path_length {
-                    break;
-                }
-                rest *= weight;
-                // Russian roulette before every further vertex, on the whole path throughput (hair albedos of
-                // 0.3-0.7 end most paths early at no bias).
-                {
-                    let q = luminance(first_weights.sum() * rest).clamp(0.05, 1.0);
-                    if sampler.get(index, dim(b, slot::ROULETTE)) >= q {
-                        break;
-                    }
-                    rest /= q;
-                }
-                if !rest.is_finite() || rest.max_element() <= 0.0 {
-                    break;
-                }
-                v = nv;
+    /// Step 4, the path beyond the first vertex, from the second vertex `v`: the light each deeper vertex sends
+    /// back ([`Integrator::deeper_vertex`]) times the throughput between it and the first vertex, split by the
+    /// first vertex's lobes (`first_weights`, its f cos θi / p_m) and clamped ([`Integrator::add_indirect`]). The
+    /// path ends after `path_length` bounces, where a vertex has no continuation, or by Russian roulette
+    /// ([`roulette`]) before each further vertex.
+    fn indirect(
+        &self,
+        mut v: Vertex,
+        first_weights: &LobeValues,
+        sampler: &PixelSampler,
+        index: u32,
+        counts: &mut RayCounts,
+    ) -> LobeValues {
+        let path_length = self.settings.path_length;
+        // Path throughput after the first vertex; the first vertex's own weight stays split by lobe.
+        let mut rest = Vec3::ONE;
+        let mut indirect = LobeValues::default();
+        for b in 1..=path_length {
+            let (radiance, next) = self.deeper_vertex(&v, b, sampler, index, counts);
+            self.add_indirect(&mut indirect, first_weights, rest * radiance);
+            let Some((next, weight)) = next else {
+                break;
+            };
+            if b == path_length {
+                break;
             }
-            out.indirect = indirect.sum();
-            add_lobes(&mut out.lobes, &indirect, Vec3::ONE);
+            let u = sampler.get(index, dim::vertex(b, dim::ROULETTE));
+            let Some(survivor) = roulette(first_weights, rest * weight, u) else {
+                break;
+            };
+            rest = survivor;
+            v = next;
         }
-        out.beauty = out.direct + out.indirect;
-        out
+        indirect
+    }
+
+    /// Step 4 at one deeper vertex `v` (number `b` ≥ 1): one light chosen ∝ power and one material sample,
+    /// weighted by [`Mis::deeper_vertex`] (at the last vertex, under the last-vertex rule, the light sample alone).
+    /// Returns the radiance `v` sends back along ωo, and the continuation (the next vertex and f cos θi / p_m) if
+    /// the material sample found a surface.
+    fn deeper_vertex(
+        &self,
+        v: &Vertex,
+        b: u32,
+        sampler: &PixelSampler,
+        index: u32,
+        counts: &mut RayCounts,
+    ) -> (Vec3, Option<(Vertex, Vec3)>) {
+        let mis = Mis::deeper_vertex(self.settings.strategy, b == self.settings.path_length);
+        let draw = Draw {
+            sampler,
+            index,
+            salt: 0,
+        };
+        let mut radiance = self.deeper_light_sample(v, &mis, b, draw, counts);
+        if mis.light_only() {
+            return (radiance, None);
+        }
+        let d = dim::vertex(b, dim::MATERIAL);
+        let Some((wi, fcos, pdf)) = self.sample_material(v, draw.get_3(d)) else {
+            return (radiance, None);
+        };
+        let weight = fcos.sum() / pdf;
+        let (le, found) = self.trace_material_sample(v, &mis, wi, pdf, draw.key(d), counts);
+        radiance += weight * le;
+        match found {
+            Found::Surface(next) => (radiance, Some((next, weight))),
+            Found::Emitter(..) | Found::Escaped => (radiance, None),
+        }
+    }
+
+    /// Next-event estimation at deeper vertex `v` (number `b`): one light j chosen with probability P(j) ∝ power
+    /// and one sample of it, w_l L_e f cos θi / (P(j) p_l) with w_l from `mis` ([`Mis::light_weight`]).
+    fn deeper_light_sample(
+        &self,
+        v: &Vertex,
+        mis: &Mis,
+        b: u32,
+        draw: Draw,
+        counts: &mut RayCounts,
+    ) -> Vec3 {
+        let mut radiance = Vec3::ZERO;
+        if self.lights.is_empty() {
+            return radiance;
+        }
+        let (j, p_select, _) = self
+            .select
+            .sample_discrete(draw.get(dim::vertex(b, dim::LIGHT_SELECT)));
+        let light = &self.lights[j];
+        let d = dim::vertex(b, dim::LIGHT);
+        let Some(ls) = light
+            .sample_li(v.p, draw.get_2(d))
+            .filter(|_| p_select > 0.0)
+        else {
+            return radiance;
+        };
+        let (fcos, pdf_m) = self.eval(v, ls.wi);
+        let f = fcos.sum();
+        if f.max_element() > 0.0 {
+            // n_j = P(j): one sample, of the chosen light.
+            let count = mis.light_count(ls.delta, p_select);
+            let w = mis.light_weight(&ls, count, pdf_m);
+            let vis = self.visibility(j, v, ls.wi, ls.distance, draw.key(d), counts);
+            radiance += f * ls.radiance * (vis * w / (count * ls.pdf));
+        }
+        radiance
     }
 
     /// Adds light `l` (already multiplied by the throughput after the first vertex) arriving through the first
@@ -800,4 +675,18 @@ impl<'a> Integrator<'a> {
             add_lobes(acc, first_weights, scale);
         }
     }
+}
+
+/// Russian roulette (Arvo & Kirk 1990; pbrt-v4 §2.2.4) before a further path vertex: the path goes on with
+/// probability q = clamp(luminance of its whole throughput, 0.05, 1), decided by `u`, and its throughput after the
+/// first vertex, `rest`, is divided by q so the estimate stays unbiased (hair albedos of 0.3–0.7 end most paths
+/// early). Returns the new `rest`, or `None` if the path ends (also when `rest` is no longer finite and positive).
+#[inline]
+fn roulette(first_weights: &LobeValues, rest: Vec3, u: f32) -> Option<Vec3> {
+    let q = luminance(first_weights.sum() * rest).clamp(0.05, 1.0);
+    if u >= q {
+        return None;
+    }
+    let rest = rest / q;
+    (rest.is_finite() && rest.max_element() > 0.0).then_some(rest)
 }

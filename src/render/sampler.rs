@@ -3,12 +3,98 @@
 
 use crate::util::hash::hash64;
 
-/// The sample dimensions a camera sample uses, named so no two consumers share one.
+/// Every sample dimension a camera sample uses, in one table so that no two consumers share one. The values are
+/// part of every image: changing one changes the noise of every render (`scripts/same-images.sh` notices).
+///
+/// | dimensions | width | consumer |
+/// |---|---|---|
+/// | `FILTER` = 0 | 2 | pixel-filter offset x, y (`render`) |
+/// | `vertex(b, LIGHT_SELECT)` = 2 + 8b | 1 | path vertex b: light chosen ∝ power |
+/// | `vertex(b, LIGHT)` = 3 + 8b | 2 | path vertex b: light sample |
+/// | `vertex(b, MATERIAL)` = 5 + 8b | 3 | path vertex b: material (BSDF) sample |
+/// | `vertex(b, ROULETTE)` = 8 + 8b | 1 | path vertex b: Russian roulette |
+/// | 9 + 8b | 1 | spare |
+///
+/// Vertex 0 is the first shading point; its light samples also read scramblings salted per light
+/// ([`PixelSampler::get_salted`]), in the same dimensions.
 pub mod dim {
-    /// Pixel-filter offset, x and y.
+    /// Dimensions of a `sobol_burley` point.
+    pub const COUNT: u32 = 256;
+    /// Pixel-filter offset, x and y (2 dimensions).
     pub const FILTER: u32 = 0;
-    /// Environment-light direction (two dimensions).
-    pub const ENVIRONMENT: u32 = 2;
+    /// The first dimension of path vertex 0, after the filter's.
+    pub const FIRST_VERTEX: u32 = 2;
+    /// Dimensions per path vertex (7 used, 1 spare).
+    pub const PER_VERTEX: u32 = 8;
+    /// Offset in a vertex's block: the light chosen in proportion to power (1 dimension).
+    pub const LIGHT_SELECT: u32 = 0;
+    /// Offset in a vertex's block: the light sample (2 dimensions).
+    pub const LIGHT: u32 = 1;
+    /// Offset in a vertex's block: the material sample (3 dimensions).
+    pub const MATERIAL: u32 = 3;
+    /// Offset in a vertex's block: Russian roulette after the vertex (1 dimension).
+    pub const ROULETTE: u32 = 6;
+    /// The most path vertices whose blocks fit in [`COUNT`] dimensions (31).
+    pub const MAX_VERTICES: u32 = (COUNT - FIRST_VERTEX) / PER_VERTEX;
+
+    /// Dimension `offset` (one of [`LIGHT_SELECT`], [`LIGHT`], [`MATERIAL`], [`ROULETTE`]) of path vertex `b`
+    /// (0 = the first shading point; `b` < [`MAX_VERTICES`]).
+    #[inline]
+    pub const fn vertex(b: u32, offset: u32) -> u32 {
+        FIRST_VERTEX + b * PER_VERTEX + offset
+    }
+
+    #[cfg(test)]
+    mod tests {
+        use super::*;
+
+        /// Every named range of the table, as (first dimension, width, name).
+        fn ranges() -> Vec<(u32, u32, String)> {
+            let mut r = vec![(FILTER, 2, "filter".to_string())];
+            for b in 0..MAX_VERTICES {
+                for (offset, width, name) in [
+                    (LIGHT_SELECT, 1, "light select"),
+                    (LIGHT, 2, "light"),
+                    (MATERIAL, 3, "material"),
+                    (ROULETTE, 1, "roulette"),
+                ] {
+                    r.push((vertex(b, offset), width, format!("vertex {b} {name}")));
+                }
+            }
+            r
+        }
+
+        #[test]
+        fn no_two_consumers_share_a_dimension_and_all_fit() {
+            let mut owner: Vec<Option<String>> = vec![None; COUNT as usize];
+            for (first, width, name) in ranges() {
+                for d in first..first + width {
+                    let slot = owner
+                        .get_mut(d as usize)
+                        .unwrap_or_else(|| panic!("{name}: dimension {d} >= {COUNT}"));
+                    if let Some(other) = slot {
+                        panic!("dimension {d} is used by both {other} and {name}");
+                    }
+                    *slot = Some(name.clone());
+                }
+            }
+        }
+
+        #[test]
+        fn the_recorded_images_dimensions_are_unchanged() {
+            // The values every render so far used: changing one changes the noise of every image.
+            assert_eq!(FILTER, 0);
+            assert_eq!(
+                [LIGHT_SELECT, LIGHT, MATERIAL, ROULETTE].map(|o| vertex(0, o)),
+                [2, 3, 5, 8]
+            );
+            assert_eq!(
+                [LIGHT_SELECT, LIGHT, MATERIAL, ROULETTE].map(|o| vertex(2, o)),
+                [18, 19, 21, 24]
+            );
+            assert_eq!(MAX_VERTICES, 31);
+        }
+    }
 }
 
 /// The sampler of one pixel.

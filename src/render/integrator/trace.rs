@@ -1,0 +1,187 @@
+//! The integrator's rays: what a camera or material ray finds first (hair, a shape, an area light, or nothing),
+//! the visibility along a light sample's shadow ray, and the MIS-weighted light a material sample brings back.
+
+use glam::Vec3;
+
+use crate::ray::Ray;
+
+use super::mis::Mis;
+use super::{Integrator, RayCounts, ShadowMode, Surface, TransmittanceMode, Vertex};
+
+/// What a ray found first.
+pub(super) enum Found {
+    Surface(Vertex),
+    /// An area light's radiance towards the ray origin, with the light's index.
+    Emitter(Vec3, usize),
+    /// Nothing: the ray left the scene.
+    Escaped,
+}
+
+impl Integrator<'_> {
+    /// The nearest of hair, shapes and area lights along `ray`. `stochastic` = Some((key, ignore_strand)) for
+    /// light-carrying rays (strands present with probability = opacity), `None` for camera rays (all opaque).
+    pub(super) fn find(
+        &self,
+        ray: &Ray,
+        stochastic: Option<(u64, Option<u32>)>,
+        counts: &mut RayCounts,
+    ) -> Found {
+        let hair = match stochastic {
+            None => self.tracer.intersect(ray),
+            Some((key, ignore)) => self.tracer.intersect_stochastic(ray, ignore, key),
+        };
+        let hair = match hair {
+            Ok(h) => h,
+            Err(_) => {
+                counts.rejected += 1;
+                return Found::Escaped;
+            }
+        };
+        if let Some(found) = self.find_non_hair(ray, hair.map_or(ray.tfar, |h| h.t)) {
+            return found;
+        }
+        match hair {
+            Some(h) => Found::Surface(self.hair_vertex(ray, &h)),
+            None => Found::Escaped,
+        }
+    }
+
+    /// The nearest area light or shape along `ray` before `tfar` (hair is the caller's business), if any.
+    fn find_non_hair(&self, ray: &Ray, tfar: f32) -> Option<Found> {
+        let mut tmax = tfar;
+        let shape = self.shapes.intersect(ray, tmax);
+        if let Some(s) = shape {
+            tmax = s.t;
+        }
+        let mut emitter = None;
+        for (i, light) in self.lights.iter().enumerate() {
+            if let Some((t, radiance)) =
+                light.intersect(&Ray::segment(ray.origin, ray.dir, ray.tnear, tmax))
+            {
+                if t < tmax {
+                    tmax = t;
+                    emitter = Some((radiance, i));
+                }
+            }
+        }
+        if let Some((radiance, i)) = emitter {
+            return Some(Found::Emitter(radiance, i));
+        }
+        shape.map(|s| {
+            let wo = -ray.dir.normalize();
+            let normal = if s.normal.dot(wo) >= 0.0 {
+                s.normal
+            } else {
+                -s.normal
+            };
+            Found::Surface(Vertex {
+                p: ray.at(s.t),
+                wo,
+                surface: Surface::Lambert {
+                    normal,
+                    albedo: s.albedo,
+                },
+            })
+        })
+    }
+
+    /// Visibility along a light sample's shadow ray, in [0, 1].
+    pub(super) fn visibility(
+        &self,
+        light: usize,
+        v: &Vertex,
+        wi: Vec3,
+        distance: f32,
+        key: u64,
+        counts: &mut RayCounts,
+    ) -> f32 {
+        let (origin, ignore) = self.spawn(v, wi);
+        // Stop short of an area light's surface so the light itself does not occlude.
+        let tfar = if distance.is_finite() {
+            distance * (1.0 - 1e-4)
+        } else {
+            f32::INFINITY
+        };
+        let ray = Ray::segment(origin, wi, 0.0, tfar);
+        if self.shapes.occluded(&ray, tfar) {
+            counts.shadow += 1;
+            return 0.0;
+        }
+        match self.settings.shadows {
+            ShadowMode::None => return 1.0,
+            ShadowMode::DeepOpacity => {
+                // A far-field fibre model treats the fibre's cross-section as one point: look the light up where it
+                // enters the fibre (the side facing the light), not at the hit on the viewer's side.
+                let p = match v.surface {
+                    Surface::Hair { radius, .. } => v.p + wi * radius,
+                    Surface::Lambert { .. } => v.p,
+                };
+                if let Some(t) = self.maps.and_then(|m| m.transmittance(light, p, wi)) {
+                    counts.map_lookups += 1;
+                    return t;
+                }
+            }
+            ShadowMode::Raytraced => {}
+        }
+        counts.shadow += 1;
+        let result = match self.settings.transmittance {
+            TransmittanceMode::Stochastic => self
+                .tracer
+                .occluded_stochastic(&ray, ignore, key)
+                .map(|o| if o { 0.0 } else { 1.0 }),
+            TransmittanceMode::Exact => self.tracer.transmittance(&ray, ignore),
+        };
+        result.unwrap_or_else(|_| {
+            counts.rejected += 1;
+            1.0
+        })
+    }
+
+    /// Traces a material sample leaving `v` along `wi`, drawn with density `pdf` (per sample) at a vertex weighted
+    /// by `mis`: (Σ_j w_m,j L_e,j of the lights it reaches, where the ray went).
+    pub(super) fn trace_material_sample(
+        &self,
+        v: &Vertex,
+        mis: &Mis,
+        wi: Vec3,
+        pdf: f32,
+        key: u64,
+        counts: &mut RayCounts,
+    ) -> (Vec3, Found) {
+        let (origin, ignore) = self.spawn(v, wi);
+        let ray = Ray::new(origin, wi);
+        counts.material += 1;
+        if self.settings.shadows == ShadowMode::None {
+            // No self-shadowing: the light a material sample sees ignores hair (shapes and emitters still count),
+            // while the continuation still scatters at the hair it meets — a second ray, in this diagnostic mode.
+            let lit = self.find_non_hair(&ray, ray.tfar).unwrap_or(Found::Escaped);
+            let le = self.emitted_along(v, mis, &ray, &lit, pdf);
+            counts.material += 1;
+            return (le, self.find(&ray, Some((key, ignore)), counts));
+        }
+        let found = self.find(&ray, Some((key, ignore)), counts);
+        (self.emitted_along(v, mis, &ray, &found, pdf), found)
+    }
+
+    /// The emitted radiance a material sample from `v` along `ray` (density `pdf` per sample) finds in `found`,
+    /// each light's share weighted by [`Mis::material_weight`] against that light's own density for the direction:
+    /// every non-delta infinite light if it escaped, the area light it hit, nothing at a surface.
+    fn emitted_along(&self, v: &Vertex, mis: &Mis, ray: &Ray, found: &Found, pdf: f32) -> Vec3 {
+        let p_material = mis.material_density(pdf);
+        let weight = |j: usize| {
+            let p_light = mis.light_density(&self.lights[j], self.select.pmf(j), v.p, ray.dir);
+            mis.material_weight(p_material, p_light)
+        };
+        match *found {
+            Found::Escaped => self
+                .lights
+                .iter()
+                .enumerate()
+                .filter(|(_, l)| l.is_infinite() && !l.is_delta())
+                .map(|(j, l)| l.le(ray.dir) * weight(j))
+                .fold(Vec3::ZERO, |a, b| a + b),
+            Found::Emitter(radiance, j) => radiance * weight(j),
+            Found::Surface(_) => Vec3::ZERO,
+        }
+    }
+}
