@@ -20,7 +20,7 @@ pub struct Summary {
     pub points: usize,
     /// Fewest and most points of one strand (0, 0 for an empty model).
     pub points_per_strand: (usize, usize),
-    /// Bounding box (min, max).
+    /// Bounding box (min, max); zeros for an empty model.
     pub bounds: (Vec3, Vec3),
     /// Thickness (twice the radius) over all points: min, mean, max (0s for an empty model).
     pub thickness: (f32, f64, f32),
@@ -64,7 +64,11 @@ impl HairModel {
             strands,
             points,
             points_per_strand,
-            bounds: self.bounds(),
+            bounds: if points == 0 {
+                (Vec3::ZERO, Vec3::ZERO)
+            } else {
+                self.bounds()
+            },
             thickness: (tmin, tmean, tmax),
             thickness_from_file: self.radius_from_file,
             transparency: range(self.transparency.iter().copied()),
