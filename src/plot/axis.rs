@@ -8,6 +8,8 @@ use plotters::coord::ranged1d::{DefaultFormatting, KeyPointHint};
 use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
+use super::{text_style, DrawResult, GRID, INK, LIGHT_GRID, TICK_SIZE};
+
 /// How an axis maps values to positions.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Scale {
@@ -221,6 +223,33 @@ fn superscript(e: i32) -> String {
         .map(|b| DIGITS[usize::from(b - b'0')])
         .collect();
     format!("{sign}{digits}")
+}
+
+/// Draws the axes of `chart` (built over the [`Axis::coord`] of `x` and `y`): ticks labelled by
+/// [`Axis::tick_label`] at [`TICK_SIZE`], the axis titles at `title_size` pixels, all in [`INK`]; with `grid`, grid
+/// lines at the labelled ticks ([`GRID`]) and between them ([`LIGHT_GRID`]), else none.
+pub(super) fn draw_axes<DB: DrawingBackend>(
+    chart: &mut ChartContext<'_, DB, Cartesian2d<AxisCoord, AxisCoord>>,
+    (x, y): (&Axis, &Axis),
+    title_size: f64,
+    grid: bool,
+) -> DrawResult<DB> {
+    let x_label = |v: &f64| x.tick_label(*v);
+    let y_label = |v: &f64| y.tick_label(*v);
+    let mut mesh = chart.configure_mesh();
+    mesh.x_desc(x.label.as_str())
+        .y_desc(y.label.as_str())
+        .x_label_formatter(&x_label)
+        .y_label_formatter(&y_label)
+        .label_style(text_style(TICK_SIZE, INK))
+        .axis_desc_style(text_style(title_size, INK))
+        .axis_style(INK);
+    if grid {
+        mesh.bold_line_style(GRID).light_line_style(LIGHT_GRID);
+    } else {
+        mesh.disable_mesh();
+    }
+    mesh.draw()
 }
 
 #[cfg(test)]

@@ -3,7 +3,7 @@
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use super::axis::Axis;
+use super::axis::{draw_axes, Axis};
 use super::{hex, text_style, Chart, DrawResult, INK, LABEL_SIZE, TICK_SIZE};
 
 /// A colour map from [0, 1] to sRGB.
@@ -74,19 +74,7 @@ impl Chart for HeatMap {
             let color = self.colormap.color((self.values[k] - lo) / (hi - lo));
             Rectangle::new([(x0, y0), (x0 + dx, y0 + dy)], color.filled())
         }))?;
-        let x_label = |v: &f64| self.x.tick_label(*v);
-        let y_label = |v: &f64| self.y.tick_label(*v);
-        chart
-            .configure_mesh()
-            .disable_mesh()
-            .x_desc(self.x.label.as_str())
-            .y_desc(self.y.label.as_str())
-            .x_label_formatter(&x_label)
-            .y_label_formatter(&y_label)
-            .label_style(text_style(TICK_SIZE, INK))
-            .axis_desc_style(text_style(TICK_SIZE, INK))
-            .axis_style(INK)
-            .draw()
+        draw_axes(&mut chart, (&self.x, &self.y), TICK_SIZE, false)
     }
 }
 

@@ -8,11 +8,8 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
-use super::axis::Axis;
-use super::{
-    text_size, text_style, Chart, DrawResult, GRID, INK, LABEL_SIZE, LIGHT_GRID, TICK_SIZE,
-    TITLE_SIZE,
-};
+use super::axis::{draw_axes, Axis};
+use super::{text_size, text_style, Chart, DrawResult, INK, LABEL_SIZE, TICK_SIZE, TITLE_SIZE};
 
 /// One curve: points in data units, drawn in `color`, `width` pixels wide.
 #[derive(Debug, Clone, PartialEq)]
@@ -136,20 +133,7 @@ impl Chart for LineChart {
             .x_label_area_size(X_LABEL_AREA)
             .y_label_area_size(Y_LABEL_AREA)
             .build_cartesian_2d(self.x.coord(), self.y.coord())?;
-        let x_label = |v: &f64| self.x.tick_label(*v);
-        let y_label = |v: &f64| self.y.tick_label(*v);
-        chart
-            .configure_mesh()
-            .x_desc(self.x.label.as_str())
-            .y_desc(self.y.label.as_str())
-            .x_label_formatter(&x_label)
-            .y_label_formatter(&y_label)
-            .label_style(text_style(TICK_SIZE, INK))
-            .axis_desc_style(text_style(LABEL_SIZE, INK))
-            .axis_style(INK)
-            .bold_line_style(GRID)
-            .light_line_style(LIGHT_GRID)
-            .draw()?;
+        draw_axes(&mut chart, (&self.x, &self.y), LABEL_SIZE, true)?;
         for s in &self.series {
             let points: Vec<(f64, f64)> = s
                 .points

@@ -166,6 +166,18 @@ fn draw_error<E: std::fmt::Display>(what: &str) -> impl FnOnce(E) -> PlotError +
     }
 }
 
+/// Fills `root` white, draws `chart` on it and presents it; `what` names the chart and backend in errors.
+fn draw_page<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    chart: &impl Chart,
+    what: &str,
+) -> Result<(), PlotError> {
+    root.fill(&WHITE)
+        .and_then(|()| chart.draw(root))
+        .and_then(|()| root.present())
+        .map_err(draw_error(what))
+}
+
 /// Draws `chart` on a white `width × height` bitmap and SVG page. `what` names the chart in errors.
 pub fn render(
     chart: &impl Chart,
@@ -175,21 +187,17 @@ pub fn render(
     register_font();
     let size = (width as u32, height as u32);
     let mut rgb = vec![0u8; width * height * 3];
-    {
-        let root = BitMapBackend::with_buffer(&mut rgb, size).into_drawing_area();
-        root.fill(&WHITE)
-            .and_then(|()| chart.draw(&root))
-            .and_then(|()| root.present())
-            .map_err(draw_error(&format!("{what} png")))?;
-    }
+    draw_page(
+        &BitMapBackend::with_buffer(&mut rgb, size).into_drawing_area(),
+        chart,
+        &format!("{what} png"),
+    )?;
     let mut svg = String::new();
-    {
-        let root = SVGBackend::with_string(&mut svg, size).into_drawing_area();
-        root.fill(&WHITE)
-            .and_then(|()| chart.draw(&root))
-            .and_then(|()| root.present())
-            .map_err(draw_error(&format!("{what} svg")))?;
-    }
+    draw_page(
+        &SVGBackend::with_string(&mut svg, size).into_drawing_area(),
+        chart,
+        &format!("{what} svg"),
+    )?;
     Ok(Figure {
         image: image_from_srgb8(width, height, &rgb),
         svg,
