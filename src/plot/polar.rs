@@ -84,3 +84,42 @@ impl Chart for PolarChart {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::plot::{linear, render};
+
+    /// A constant red series at half the radius is drawn as a circle (its red pixels under the legend span a square
+    /// about half the plot's width), and the title, legend, radius label and angle labels are in the SVG.
+    #[test]
+    fn polar_chart_draws_a_constant_series_as_a_circle() {
+        let red = RGBColor(255, 0, 0);
+        let half: Vec<(f64, f64)> = (0..=360)
+            .map(|k| (f64::from(k).to_radians(), 0.5))
+            .collect();
+        let chart = PolarChart {
+            title: "polar test".to_owned(),
+            radius: Axis::linear("r label", 0.0, 1.0, 0.5),
+            series: vec![Series::line("half", red, 3, half)],
+        };
+        let (width, height) = (400, 500);
+        let figure = render(&chart, "test", (width, height)).unwrap();
+        // Below the title and legend (whose swatch is red too).
+        let red_pixels: Vec<(usize, usize)> = (100..height)
+            .flat_map(|y| (0..width).map(move |x| (x, y)))
+            .filter(|&(x, y)| figure.image.pixel(x, y) == linear(red))
+            .collect();
+        let span = |coord: fn(&(usize, usize)) -> usize| {
+            let values = red_pixels.iter().map(coord);
+            values.clone().max().unwrap_or(0) - values.min().unwrap_or(0)
+        };
+        let (w, h) = (span(|p| p.0), span(|p| p.1));
+        // The plot is 400 pixels wide and the unit circle 1/1.19 of its half-width: a 168-pixel circle.
+        assert!((150..195).contains(&w), "circle {w} × {h} pixels");
+        assert!(w.abs_diff(h) <= 6, "circle {w} × {h} pixels");
+        for text in ["polar test", "half", "r label", "90°", "−90°"] {
+            assert!(figure.svg.contains(text), "{text} missing from the svg");
+        }
+    }
+}
