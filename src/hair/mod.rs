@@ -40,6 +40,16 @@ pub enum HairError {
     },
 }
 
+/// The little-endian u32 at `offset`. Callers have checked the length.
+fn u32_at(b: &[u8], offset: usize) -> u32 {
+    u32::from_le_bytes([b[offset], b[offset + 1], b[offset + 2], b[offset + 3]])
+}
+
+/// The little-endian f32 at `offset`. Callers have checked the length.
+fn f32_at(b: &[u8], offset: usize) -> f32 {
+    f32::from_bits(u32_at(b, offset))
+}
+
 /// The whole of `path`, or an [`HairError::Io`] naming it.
 fn read_bytes(path: &Path) -> Result<Vec<u8>, HairError> {
     std::fs::read(path).map_err(|source| HairError::Io {

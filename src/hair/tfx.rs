@@ -41,6 +41,7 @@ use std::path::Path;
 
 use glam::Vec3;
 
+use super::{f32_at, u32_at};
 use super::{HairError, HairModel};
 
 /// Size of the fixed header, bytes.
@@ -267,16 +268,6 @@ fn median_segment_length(points: &[Vec3], per_strand: usize) -> f32 {
     }
     let mid = lengths.len() / 2;
     *lengths.select_nth_unstable_by(mid, f32::total_cmp).1
-}
-
-/// The little-endian u32 at `offset`. Callers have checked the length.
-fn u32_at(b: &[u8], offset: usize) -> u32 {
-    u32::from_le_bytes([b[offset], b[offset + 1], b[offset + 2], b[offset + 3]])
-}
-
-/// The little-endian f32 at `offset`. Callers have checked the length.
-fn f32_at(b: &[u8], offset: usize) -> f32 {
-    f32::from_bits(u32_at(b, offset))
 }
 
 #[cfg(test)]

@@ -26,6 +26,7 @@ use std::path::Path;
 
 use glam::Vec3;
 
+use super::{f32_at, u32_at};
 use super::{HairError, HairModel};
 
 /// The first four bytes of every `.hair` file.
@@ -491,16 +492,6 @@ pub fn encode(path: &Path, model: &HairModel) -> Result<Vec<u8>, HairError> {
         }
     }
     Ok(out)
-}
-
-/// The little-endian u32 at `offset`. Callers have checked the length.
-fn u32_at(b: &[u8], offset: usize) -> u32 {
-    u32::from_le_bytes([b[offset], b[offset + 1], b[offset + 2], b[offset + 3]])
-}
-
-/// The little-endian f32 at `offset`. Callers have checked the length.
-fn f32_at(b: &[u8], offset: usize) -> f32 {
-    f32::from_bits(u32_at(b, offset))
 }
 
 #[cfg(test)]

@@ -95,6 +95,28 @@ impl Frame {
         })
     }
 
+    /// Radius of a sphere around the hair and the shapes (sizes infinite lights' power and ray offsets).
+    pub fn radius(&self) -> f32 {
+        let (mut lo, mut hi) = self.strands.bounds();
+        for q in self.shapes.quads() {
+            for p in [
+                q.corner,
+                q.corner + q.edge_u,
+                q.corner + q.edge_v,
+                q.corner + q.edge_u + q.edge_v,
+            ] {
+                lo = lo.min(p);
+                hi = hi.max(p);
+            }
+        }
+        let r = 0.5 * (hi - lo).length();
+        if r.is_finite() && r > 0.0 {
+            r
+        } else {
+            1.0
+        }
+    }
+
     /// Wall time of building the acceleration structure, seconds.
     pub fn build_seconds(&self) -> f64 {
         self.tracer.build_seconds()

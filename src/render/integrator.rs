@@ -45,7 +45,8 @@ use crate::shape::Shapes;
 use crate::util::color::luminance;
 
 use super::sampler::{dim, PixelSampler};
-use super::settings::{LightSelection, ShadowMode, Strategy, TransmittanceMode};
+use super::settings::{LightSelection, RenderSettings, ShadowMode, Strategy, TransmittanceMode};
+use super::Frame;
 
 mod mis;
 mod trace;
@@ -229,28 +230,20 @@ fn add_lobes(acc: &mut LobeValues, weights: &LobeValues, scale: Vec3) {
 }
 
 impl<'a> Integrator<'a> {
-    /// Resolves the per-frame state. `scene_radius` sizes infinite lights' power and the surface offset.
-    #[allow(clippy::too_many_arguments)]
-    pub fn new(
-        strands: &'a Strands,
-        tracer: &'a dyn Tracer,
-        shapes: &'a Shapes,
-        lights: &'a [Light],
-        material: &'a Material,
-        curves: CurveKind,
-        settings: Settings,
-        scene_radius: f32,
-        background_visible: bool,
-        maps: Option<&'a ShadowMaps>,
-    ) -> Self {
+    /// The path tracer of `frame` rendered with `settings` (and `maps` in deep-opacity mode). The frame's radius
+    /// ([`Frame::radius`]) sizes infinite lights' power and the surface offset.
+    pub fn new(frame: &'a Frame, settings: &RenderSettings, maps: Option<&'a ShadowMaps>) -> Self {
+        let (lights, scene_radius) = (&frame.lights[..], frame.radius());
+        let background_visible = settings.background_visible;
+        let settings = settings.transport();
         let powers: Vec<f32> = lights.iter().map(|l| l.power(scene_radius)).collect();
         Integrator {
-            strands,
-            tracer,
-            shapes,
+            strands: &frame.strands,
+            tracer: &frame.tracer,
+            shapes: &frame.shapes,
             lights,
-            material,
-            curves,
+            material: &frame.material,
+            curves: frame.curves,
             settings,
             first: Mis::first_vertex(&settings),
             select: Distribution1D::new(&powers),

@@ -73,19 +73,7 @@ fn render_tiles(
     let bounds = strands.bounds();
     let camera = Camera::from_config(&settings.camera, bounds, width, height);
     let filter = GaussianFilter::new(settings.film.filter_width);
-    let scene_radius = scene_radius(bounds, &frame.shapes);
-    let integrator = Integrator::new(
-        strands,
-        tracer,
-        &frame.shapes,
-        &frame.lights,
-        &frame.material,
-        frame.curves,
-        settings.transport(),
-        scene_radius,
-        settings.background_visible,
-        maps,
-    );
+    let integrator = Integrator::new(frame, settings, maps);
 
     let tiles_x = width.div_ceil(TILE);
     let tiles_y = height.div_ceil(TILE);
@@ -159,26 +147,4 @@ fn render_tiles(
         shadow_map_bytes: 0,
     };
     (image, stats)
-}
-
-/// Radius of a sphere around the hair and the shapes (sizes infinite lights' power and ray offsets).
-fn scene_radius(bounds: (Vec3, Vec3), shapes: &crate::shape::Shapes) -> f32 {
-    let (mut lo, mut hi) = bounds;
-    for q in shapes.quads() {
-        for p in [
-            q.corner,
-            q.corner + q.edge_u,
-            q.corner + q.edge_v,
-            q.corner + q.edge_u + q.edge_v,
-        ] {
-            lo = lo.min(p);
-            hi = hi.max(p);
-        }
-    }
-    let r = 0.5 * (hi - lo).length();
-    if r.is_finite() && r > 0.0 {
-        r
-    } else {
-        1.0
-    }
 }
