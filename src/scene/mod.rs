@@ -184,6 +184,8 @@ impl Scene {
         }
         self.camera.validate()?;
         self.film.validate()?;
+        // Building a model is how its parameters are checked (each model validates its own); it takes microseconds
+        // and is dropped here. The material a frame renders with is built once, by `resolve`.
         self.material.build()?;
         self.integrator.validate()?;
         self.shadows.deep_opacity.validate()?;
