@@ -654,6 +654,18 @@ fn bench_trace_reports_both_curve_kinds() {
         assert!((0.0..=1.0).contains(&k.mean_transmittance), "{report}");
         assert!(k.embree_bytes > 0, "{report}");
     }
+    // The script-readable lines: one per (measure, curves), with a positive finite number.
+    let text = report.to_string();
+    for what in ["build", "camera", "shadow-exact"] {
+        for kind in ["round", "flat"] {
+            let line = text
+                .lines()
+                .find(|l| l.starts_with(&format!("{what} {kind} embree ")))
+                .unwrap_or_else(|| panic!("no `{what} {kind} embree` line in\n{text}"));
+            let value: f64 = line.split_whitespace().nth(3).unwrap().parse().unwrap();
+            assert!(value.is_finite() && value > 0.0, "{line}");
+        }
+    }
     eprintln!("{report}");
 }
 

@@ -214,6 +214,18 @@ impl fmt::Display for TraceReport {
                 format!("{}/{}", k.shadow_dark, k.shadow_seen_list_full),
             )?;
         }
+        // One line per measurement for scripts: `<ray kind> <curves> <backend> <value> <unit>`.
+        for k in &self.kinds {
+            let kind = format!("{:?}", k.kind).to_lowercase();
+            writeln!(f, "build {kind} embree {:.4} s", k.build.median)?;
+            for (what, t) in [("camera", &k.primary), ("shadow-exact", &k.shadow)] {
+                writeln!(
+                    f,
+                    "{what} {kind} embree {:.4} Mrays/s",
+                    t.mrays_per_second()
+                )?;
+            }
+        }
         match self.peak_rss_bytes {
             Some(b) => write!(f, "peak memory (VmHWM): {:.1} MB", b as f64 / 1e6),
             None => write!(f, "peak memory: not reported by this platform"),
