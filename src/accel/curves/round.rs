@@ -977,6 +977,33 @@ mod tests {
     }
 
     #[test]
+    #[ignore = "measurement: ns per call of `intersect` on the single-segment rays (release build)"]
+    fn time_per_call() {
+        let mut rng = Rng::new(13);
+        let cases: Vec<_> = (0..200)
+            .flat_map(|_| {
+                let cp = random_segment(&mut rng);
+                (0..100)
+                    .map(|_| (cp, ray_at(&mut rng, cp)))
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        let mut hits = 0usize;
+        let start = std::time::Instant::now();
+        for _ in 0..10 {
+            for (cp, ray) in &cases {
+                let hit = intersect(ray.origin, ray.dir, ray.tnear, ray.tfar, *cp);
+                hits += usize::from(std::hint::black_box(hit).is_some());
+            }
+        }
+        let ns = start.elapsed().as_secs_f64() * 1e9 / (10 * cases.len()) as f64;
+        println!(
+            "{ns:.0} ns per call over {} calls, {hits} hits",
+            10 * cases.len()
+        );
+    }
+
+    #[test]
     fn embree_agrees_on_open_ends() {
         // A ray along the axis of a straight tube, from beyond its end: Embree's round B-spline has no end cap
         // (module docs), so both miss; a ray into the end at a slant hits the inside wall in both.
