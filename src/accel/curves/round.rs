@@ -22,10 +22,9 @@
 //! `embree_agrees_on_open_ends` probes it.
 //!
 //! **The algorithm** is Embree's sweep intersector (Embree 3, `kernels/geometry/curve_intersector_sweep.h`,
-//! `intersect_bezier_recursive_jacobian`; Woop et al., "Exploiting Local Orientation Similarity for Efficient Ray
-//! Traversal of Hair and Fur", HPG 2014, for the bounding scheme; Cycles' `curve_intersect.h` carries a port of
-//! it), re-derived and rewritten here, because agreeing hit for hit means finding the same root where there are
-//! several (front and back wall) and failing on the same grazing rays:
+//! `intersect_bezier_recursive_jacobian`; Cycles' `kernel/geom/curve_intersect.h`, `curve_intersect_recursive`,
+//! carries a port of it), re-derived and rewritten here, because agreeing hit for hit means finding the same root
+//! where there are several (front and back wall) and failing on the same grazing rays:
 //!
 //! 1. Move the ray origin to the point of the ray nearest the control points' centroid (t offset `dt`), so the
 //!    numbers stay small.
