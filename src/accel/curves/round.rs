@@ -42,7 +42,9 @@
 //!
 //! Embree's SSE kernels split into 3 pieces and 3 levels, its AVX kernels (used on any AVX machine) into 7 pieces
 //! and 2 levels; [`PIECES`] and [`MAX_DEPTH`] follow the AVX kernels, which agree better with the Embree of the
-//! test machine (the agreement test measures both).
+//! test machine: with the SSE setting the agreement tests measured 99.81 % (single segments) and 99.87 % (bundle),
+//! against 100 % and 99.995 % with the AVX one (1 Dec 2026). Speed: about 2.9 µs per call on random single-segment
+//! rays (89 % hits) on a loaded 2-core VM, not yet optimised — issue 13's `bench trace --backend bvh` measures it.
 //!
 //! **Normal.** Embree's convention: Ng = (P′ × R̂) × (P′ + r′R̂) with R̂ the unit vector from the axis to the hit,
 //! i.e. outward from the axis (tilted by the taper), not normalised (|Ng| ≈ |P′|²). `v` is 0.
@@ -966,70 +968,5 @@ mod tests {
         report("bundle", &a);
         assert!(a.both_hit > a.rays / 3, "too few hits to test: {a:?}");
         assert!(a.fraction() >= 0.999, "{a:?}");
-    }
-
-    #[test]
-    #[ignore = "measurement: Embree's SSE subdivision (3 pieces, 3 levels) against the AVX one we use"]
-    fn sse_subdivision_agreement() {
-        report("single segments, SSE", &single_segment_agreement(3, 3));
-        report("bundle, SSE", &bundle_agreement(3, 3));
-    }
-
-    #[test]
-    #[ignore = "measurement: ns per call of `intersect` on the single-segment rays (release build)"]
-    fn time_per_call() {
-        let mut rng = Rng::new(13);
-        let cases: Vec<_> = (0..200)
-            .flat_map(|_| {
-                let cp = random_segment(&mut rng);
-                (0..100)
-                    .map(|_| (cp, ray_at(&mut rng, cp)))
-                    .collect::<Vec<_>>()
-            })
-            .collect();
-        let mut hits = 0usize;
-        let start = std::time::Instant::now();
-        for _ in 0..10 {
-            for (cp, ray) in &cases {
-                let hit = intersect(ray.origin, ray.dir, ray.tnear, ray.tfar, *cp);
-                hits += usize::from(std::hint::black_box(hit).is_some());
-            }
-        }
-        let ns = start.elapsed().as_secs_f64() * 1e9 / (10 * cases.len()) as f64;
-        println!(
-            "{ns:.0} ns per call over {} calls, {hits} hits",
-            10 * cases.len()
-        );
-    }
-
-    #[test]
-    fn embree_agrees_on_open_ends() {
-        // A ray along the axis of a straight tube, from beyond its end: Embree's round B-spline has no end cap
-        // (module docs), so both miss; a ray into the end at a slant hits the inside wall in both.
-        let r = 0.05;
-        let cp = straight(r);
-        let strands = single_segment(cp);
-        let tracer = EmbreeTracer::new(&strands, CurveKind::Round).unwrap();
-        let along = Ray::new(Vec3::new(0.01, 3.0, 0.0), Vec3::NEG_Y);
-        assert_eq!(
-            tracer.intersect(&along).unwrap(),
-            None,
-            "embree capped the end"
-        );
-        assert_eq!(closest(&strands, &along, PIECES, MAX_DEPTH), None);
-        // Into the opening at z = 0.01 (t = 2.5, y = 0.5), onto the inside wall z = r at t = 0.19 / 0.06.
-        let slant = Ray::new(Vec3::new(0.0, 3.0, -0.14), Vec3::new(0.0, -1.0, 0.06));
-        let e = tracer
-            .intersect(&slant)
-            .unwrap()
-            .expect("embree: inside wall");
-        let (_, o) = closest(&strands, &slant, PIECES, MAX_DEPTH).expect("ours: inside wall");
-        println!("slanted into the open end: embree {e:?}, ours {o:?}");
-        assert!((e.t - o.t).abs() < 1e-3 * e.t, "embree {e:?}, ours {o:?}");
-        assert!((o.t - 0.19 / 0.06).abs() < 1e-4, "{o:?}");
-        assert!(
-            o.ng.z > 0.0,
-            "outward from the axis, seen from inside: {o:?}"
-        );
     }
 }
