@@ -27,11 +27,14 @@
 //!    t = (v₀·Ng)/den ∈ [tnear, tfar], den ≠ 0; (u′, v′) = (U, V)/den, or (1 − U/den, 1 − V/den) when W > 0.
 //! 6. **Self-intersection avoidance** (`EMBREE_CURVE_SELF_INTERSECTION_AVOIDANCE_FACTOR`, default 2.0): the hit
 //!    counts only if t > 2 r s with r = lerp(w₀, w₁, u′): a ray leaving a ribbon does not hit it again within two
-//!    radii. (Embree ≥ 4 has the same default.)
+//!    radii. (Embree 4's current source keeps this factor, the default rate 4 and the whole algorithm.)
 //! 7. **Result**: the piece with the smallest t; u = (j + u′)/N, v = 2v′ − 1 ∈ [−1, 1],
 //!    Ng = dP/du at u in world space (the curve tangent, not normalised).
 //!
-//! The code is our own, from these equations; its agreement with Embree is measured by the tests below.
+//! The code is our own, from these equations; the tests below measure its agreement with Debian 12's libembree3
+//! 3.13.5 through [`crate::accel::embree::EmbreeTracer`]: on 215 992 random rays (single hair-like and wild segments,
+//! a wavy bundle, secondary rays leaving ribbons) not one hit/miss, segment or |Δt| > 1e-3·t disagreement, and at
+//! any other tessellation rate (3, 5, 8) 0.2–2.3 % of the rays disagree on hit/miss.
 
 use glam::{Vec2, Vec3, Vec4};
 
@@ -131,13 +134,27 @@ fn intersect_quad(
 /// The closest hit in `[tnear, tfar]` of the ray `org + t·dir` with Embree's ray-facing `FLAT_BSPLINE` ribbon of
 /// the cubic uniform B-spline segment `cp` (x, y, z, radius per control point), tessellated into
 /// [`TESSELLATION_RATE`] quads. `dir` need not be unit length; t is in its units. `u` runs along the segment,
-/// `v` ∈ [−1, 1] across the ribbon, `ng` is the curve tangent dP/du at `u` (not normalised).
+/// `v` ∈ [−1, 1] across the ribbon, `ng` is the curve tangent dP/du at `u` (not normalised). The ray must be
+/// valid ([`crate::ray::Ray::check`]: finite, non-zero `dir`); degenerate segments (coincident points, zero radius)
+/// give `None`, as in Embree. Allocates nothing.
 pub fn intersect(
     org: Vec3,
     dir: Vec3,
     tnear: f32,
     tfar: f32,
     cp: [[f32; 4]; 4],
+) -> Option<CurveHit> {
+    intersect_tessellated(org, dir, tnear, tfar, cp, TESSELLATION_RATE)
+}
+
+/// [`intersect`] with `rate` quads per segment instead of Embree's (the tests show that the rate matters).
+fn intersect_tessellated(
+    org: Vec3,
+    dir: Vec3,
+    tnear: f32,
+    tfar: f32,
+    cp: [[f32; 4]; 4],
+    rate: usize,
 ) -> Option<CurveHit> {
     let (rx, ry, rz, depth_scale) = ray_space(dir);
     let mut q = [Vec4::ZERO; 4];
@@ -150,9 +167,9 @@ pub fn intersect(
     }
     let eps = 4.0 * f32::EPSILON * extent;
 
-    let n = TESSELLATION_RATE as f32;
+    let n = rate as f32;
     let mut best: Option<(f32, f32, f32)> = None; // (t, u along the segment, v′)
-    for j in 0..TESSELLATION_RATE {
+    for j in 0..rate {
         let (u0, u1) = (j as f32 / n, (j + 1) as f32 / n);
         let (p0, p1) = (
             combine(bspline_basis(u0), &q),
@@ -344,6 +361,24 @@ mod tests {
         assert!((at(2.1 * r, 0.5).unwrap().t - 4.2 * r).abs() < 1e-6);
     }
 
+    #[test]
+    fn degenerate_segments_are_missed_like_embree_misses_them() {
+        // Coincident control points (a point, not a curve) and zero radius (a ribbon of no width): no hit, no NaN,
+        // and Embree misses them too.
+        let device = Device::new().expect("embree device");
+        let point = [[0.1, 0.2, 0.0, 0.05]; 4];
+        let thin = straight(Vec3::new(0.0, -3.0, 0.0), Vec3::new(0.0, 2.0, 0.0), 0.0);
+        for (name, cp) in [("coincident points", point), ("zero radius", thin)] {
+            let strands = one_segment(cp);
+            let tracer = EmbreeTracer::with_device(&device, &strands, CurveKind::Flat).expect(name);
+            for (x, y) in [(0.1, 0.2), (0.0, 0.3), (0.12, 0.2), (0.0, 0.0)] {
+                let ray = Ray::new(Vec3::new(x, y, 5.0), Vec3::NEG_Z);
+                assert_eq!(ours(&strands, &ray), None, "{name}: {ray:?}");
+                assert_eq!(embree(&tracer, &ray), None, "{name}: embree, {ray:?}");
+            }
+        }
+    }
+
     // ---- Agreement with Embree ------------------------------------------------------------------------------
 
     /// Seeded SplitMix64: every failure reproduces.
@@ -374,6 +409,11 @@ mod tests {
 
     /// The closest hit over every segment of `strands`, by [`intersect`] (brute force).
     fn ours(strands: &Strands, ray: &Ray) -> Reported {
+        ours_tessellated(strands, ray, TESSELLATION_RATE)
+    }
+
+    /// [`ours`] with `rate` quads per segment.
+    fn ours_tessellated(strands: &Strands, ray: &Ray, rate: usize) -> Reported {
         let mut best: Reported = None;
         for (segment, &first) in strands.segment_first.iter().enumerate() {
             let f = first as usize;
@@ -383,7 +423,9 @@ mod tests {
                 strands.control_points[f + 2],
                 strands.control_points[f + 3],
             ];
-            if let Some(h) = intersect(ray.origin, ray.dir, ray.tnear, ray.tfar, cp) {
+            if let Some(h) =
+                intersect_tessellated(ray.origin, ray.dir, ray.tnear, ray.tfar, cp, rate)
+            {
                 if best.map_or(true, |b| h.t < b.0) {
                     best = Some((h.t, segment as u32, h.u, h.v, h.ng));
                 }
@@ -458,7 +500,7 @@ mod tests {
         }
 
         /// Prints the tallies and asserts what the issue asks (≥ 99.9 % of rays agree on hit/miss; of the hits,
-        /// ≥ 99.9 % within 1e-3·t on the same segment) and the u, v, Ng agreement measured.
+        /// ≥ 99.9 % within 1e-3·t on the same segment), and the t, u, v (sign included) and Ng agreement measured.
         fn check(&self, name: &str) {
             let pct = |n: usize, of: usize| 100.0 * n as f64 / of.max(1) as f64;
             println!(
@@ -495,6 +537,28 @@ mod tests {
             assert!(pct(self.hit_miss, self.rays) <= 0.1, "{name}: hit/miss");
             assert!(pct(self.far_t, self.hits) <= 0.1, "{name}: t");
             assert!(pct(self.other_segment, self.hits) <= 0.1, "{name}: segment");
+            // Where they agree, they agree to float noise (Embree's approximate reciprocals and square roots,
+            // FMAs): measured worst |dt|/t 3.3e-6, |du| 1.5e-5, |dv| 6.7e-5, |dNg|/|Ng| 1.1e-4 over all tests.
+            assert!(
+                self.worst_t.0 <= 2e-5,
+                "{name}: worst |dt|/t {:?}",
+                self.worst_t
+            );
+            assert!(
+                self.worst_u.0 <= 2e-4,
+                "{name}: worst |du| {:?}",
+                self.worst_u
+            );
+            assert!(
+                self.worst_v.0 <= 2e-4,
+                "{name}: worst |dv| {:?}",
+                self.worst_v
+            );
+            assert!(
+                self.worst_ng.0 <= 5e-4,
+                "{name}: worst |dNg|/|Ng| {:?}",
+                self.worst_ng
+            );
         }
     }
 
@@ -511,7 +575,8 @@ mod tests {
     }
 
     /// A random ray aimed within 1.5 radii of a random point of segment 0..n of `strands` (so silhouettes are
-    /// well sampled), from 1–4 units away, with |dir| in [0.5, 2] and, for one ray in five, a finite tfar.
+    /// well sampled), from 1–4 units away, with |dir| in [0.5, 2]; one ray in five ends near the curve (finite
+    /// tfar), one in five starts near it (tnear > 0).
     fn ray_near_curve(rng: &mut Rng, strands: &Strands) -> Ray {
         let segment = (rng.0.next_u64() % strands.segment_count() as u64) as u32;
         let p = strands.eval(segment, rng.range(0.0, 1.0));
@@ -519,56 +584,90 @@ mod tests {
         let dir = rng.unit_vector();
         let distance = rng.range(1.0, 4.0);
         let len = rng.range(0.5, 2.0);
-        let tfar = if rng.range(0.0, 1.0) < 0.2 {
-            rng.range(0.5, 1.5) * distance / len
-        } else {
-            f32::INFINITY
-        };
-        Ray::segment(target - distance * dir, len * dir, 0.0, tfar)
+        let (mut tnear, mut tfar) = (0.0, f32::INFINITY);
+        match rng.0.next_u64() % 5 {
+            0 => tfar = rng.range(0.5, 1.5) * distance / len,
+            1 => tnear = rng.range(0.5, 1.5) * distance / len,
+            _ => {}
+        }
+        Ray::segment(target - distance * dir, len * dir, tnear, tfar)
+    }
+
+    /// Our intersector at `rate` quads per segment against Embree's flat curves on 300 random single segments,
+    /// 300 rays each. "Hair-like": control points a short walk apart, gently turning, radii 0.005–0.03; "wild":
+    /// anywhere in a unit box (loops, cusps, tight bends), radii 0.01–0.1.
+    fn single_segments(device: &Device, seed: u64, wild: bool, rate: usize) -> Agreement {
+        let mut rng = Rng(SplitMix64::from_state(seed));
+        let mut agreement = Agreement::default();
+        for _ in 0..300 {
+            let mut cp = [[0.0f32; 4]; 4];
+            let mut p = Vec3::ZERO;
+            let mut heading = rng.unit_vector();
+            for c in &mut cp {
+                if wild {
+                    p = Vec3::new(
+                        rng.range(-0.5, 0.5),
+                        rng.range(-0.5, 0.5),
+                        rng.range(-0.5, 0.5),
+                    );
+                } else {
+                    heading = (heading + 0.4 * rng.unit_vector()).normalize();
+                    p += rng.range(0.2, 0.4) * heading;
+                }
+                let r = if wild {
+                    rng.range(0.01, 0.1)
+                } else {
+                    rng.range(0.005, 0.03)
+                };
+                *c = [p.x, p.y, p.z, r];
+            }
+            let strands = one_segment(cp);
+            let tracer = EmbreeTracer::with_device(device, &strands, CurveKind::Flat)
+                .expect("embree flat curves");
+            for _ in 0..300 {
+                let ray = ray_near_curve(&mut rng, &strands);
+                agreement.add(
+                    &ray,
+                    ours_tessellated(&strands, &ray, rate),
+                    embree(&tracer, &ray),
+                );
+            }
+        }
+        agreement
     }
 
     #[test]
     fn agrees_with_embree_on_random_single_segments() {
         let device = Device::new().expect("embree device");
-        let mut rng = Rng(SplitMix64::from_state(0xf1a7_0001));
-        // "hair": control points a short walk apart, gently turning; "wild": anywhere in a unit box (loops,
-        // cusps, tight bends, radius up to a third of the segment).
-        for (name, wild) in [
-            ("single segments, hair-like", false),
-            ("single segments, wild", true),
-        ] {
-            let mut agreement = Agreement::default();
-            for _ in 0..300 {
-                let mut cp = [[0.0f32; 4]; 4];
-                let mut p = Vec3::ZERO;
-                let mut heading = rng.unit_vector();
-                for c in &mut cp {
-                    if wild {
-                        p = Vec3::new(
-                            rng.range(-0.5, 0.5),
-                            rng.range(-0.5, 0.5),
-                            rng.range(-0.5, 0.5),
-                        );
-                    } else {
-                        heading = (heading + 0.4 * rng.unit_vector()).normalize();
-                        p += rng.range(0.2, 0.4) * heading;
-                    }
-                    let r = if wild {
-                        rng.range(0.01, 0.1)
-                    } else {
-                        rng.range(0.005, 0.03)
-                    };
-                    *c = [p.x, p.y, p.z, r];
-                }
-                let strands = one_segment(cp);
-                let tracer = EmbreeTracer::with_device(&device, &strands, CurveKind::Flat)
-                    .expect("embree flat curves");
-                for _ in 0..300 {
-                    let ray = ray_near_curve(&mut rng, &strands);
-                    agreement.add(&ray, ours(&strands, &ray), embree(&tracer, &ray));
-                }
+        single_segments(&device, 0xf1a7_0001, false, TESSELLATION_RATE)
+            .check("single segments, hair-like");
+        single_segments(&device, 0xf1a7_0003, true, TESSELLATION_RATE)
+            .check("single segments, wild");
+    }
+
+    #[test]
+    fn another_tessellation_rate_disagrees_with_embree() {
+        // The comparison is sensitive to the tessellation: at any rate but Embree's 4 the chords of bent segments
+        // move silhouettes and hit points, and the agreement test above fails. Measured (hair-like / wild, of 90 000
+        // rays): hit/miss disagreements 339 / 2045 at rate 3, 170 / 1140 at 5, 247 / 1735 at 8.
+        let device = Device::new().expect("embree device");
+        for rate in [3, 5, 8] {
+            for (name, seed, wild) in [
+                ("hair-like", 0xf1a7_0001, false),
+                ("wild", 0xf1a7_0003, true),
+            ] {
+                let a = single_segments(&device, seed, wild, rate);
+                println!(
+                    "{name}, rate {rate}: {} rays, {} hit/miss disagreements, {} hits with |dt| > 1e-3 t",
+                    a.rays, a.hit_miss, a.far_t
+                );
+                assert!(
+                    a.hit_miss * 1000 > a.rays,
+                    "{name}: rate {rate} agrees with Embree's rate 4 on hit/miss: {} of {}",
+                    a.hit_miss,
+                    a.rays
+                );
             }
-            agreement.check(name);
         }
     }
 
