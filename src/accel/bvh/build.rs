@@ -13,12 +13,11 @@ pub(super) const MEDIAN_DEPTH: u32 = (STACK_SIZE - 32) as u32;
 /// worth a task (a 4 096-primitive subtree builds in well under a millisecond).
 pub(super) const PARALLEL_MIN: usize = 4096;
 
-/// SAH cost of visiting a node (one box test), relative to [`INTERSECT_COST`].
-const TRAVERSAL_COST: f32 = 1.0;
+/// Most SAH bins per axis: Wald 2007 found 16–32 enough; the bin arrays live on the stack, sized by this.
+pub(super) const MAX_BINS: usize = 32;
 
-/// SAH cost of one ray–curve test in box tests: a curve test (subdivision and Newton steps, or ribbon pieces) is
-/// far dearer than a slab test, so leaves stay small.
-const INTERSECT_COST: f32 = 4.0;
+/// SAH cost of visiting a node (one box test), the unit of [`BuildOptions::intersect_cost`].
+const TRAVERSAL_COST: f32 = 1.0;
 
 /// A primitive during the build: its box and segment id.
 #[derive(Debug, Clone, Copy)]
@@ -80,9 +79,14 @@ pub(super) fn build(strands: &Strands, options: BuildOptions) -> Bvh {
         options.max_leaf
     );
     assert!(
-        (2..=64).contains(&options.bins),
-        "bvh: bins must be in 2..=64, got {}",
+        (2..=MAX_BINS).contains(&options.bins),
+        "bvh: bins must be in 2..={MAX_BINS}, got {}",
         options.bins
+    );
+    assert!(
+        options.intersect_cost > 0.0,
+        "bvh: intersect_cost must be > 0, got {}",
+        options.intersect_cost
     );
     if let Bounding::Spans { levels } | Bounding::SpanRefs { levels } = options.bounding {
         assert!(
@@ -138,8 +142,8 @@ fn primitive_refs(strands: &Strands, bounding: Bounding) -> Vec<PrimRef> {
 fn subtree(refs: &mut [PrimRef], base: u32, depth: u32, options: &BuildOptions) -> Vec<Node> {
     let mut out = Vec::new();
     if refs.len() >= PARALLEL_MIN {
-        let bounds = refs.iter().fold(Aabb::EMPTY, |b, r| b.union(r.bounds));
-        match split(refs, &bounds, depth, options) {
+        let (bounds, centroids) = node_bounds(refs);
+        match split(refs, &bounds, &centroids, depth, options) {
             None => out.push(leaf(&bounds, base, refs.len())),
             Some((mid, axis)) => {
                 let (left, right) = refs.split_at_mut(mid);
@@ -179,8 +183,8 @@ fn sequential(
     options: &BuildOptions,
     out: &mut Vec<Node>,
 ) {
-    let bounds = refs.iter().fold(Aabb::EMPTY, |b, r| b.union(r.bounds));
-    match split(refs, &bounds, depth, options) {
+    let (bounds, centroids) = node_bounds(refs);
+    match split(refs, &bounds, &centroids, depth, options) {
         None => out.push(leaf(&bounds, base, refs.len())),
         Some((mid, axis)) => {
             let me = out.len();
@@ -220,6 +224,7 @@ fn inner(bounds: &Aabb, axis: usize, second: u32) -> Node {
 fn split(
     refs: &mut [PrimRef],
     bounds: &Aabb,
+    centroids: &Aabb,
     depth: u32,
     options: &BuildOptions,
 ) -> Option<(usize, usize)> {
@@ -227,10 +232,6 @@ fn split(
     if n == 1 {
         return None;
     }
-    let centroids = refs.iter().fold(Aabb::EMPTY, |b, r| {
-        let c = r.bounds.centroid();
-        b.union(Aabb { lo: c, hi: c })
-    });
     let extent = centroids.hi - centroids.lo;
     // The widest centroid axis: the median split's axis, and the SAH's when it finds nothing better.
     let widest = if extent.x >= extent.y && extent.x >= extent.z {
@@ -241,16 +242,16 @@ fn split(
         2
     };
     if depth < MEDIAN_DEPTH && extent[widest] > 0.0 {
-        let best = best_plane(refs, &centroids, options.bins);
+        let best = best_plane(refs, centroids, options.bins);
         if let Some(plane) = best {
             // SAH (MacDonald & Booth 1990): C = C_trav + C_isect · (A_L N_L + A_R N_R) / A against C_isect · N.
             let area = bounds.area();
             let split_cost = if area > 0.0 {
-                TRAVERSAL_COST + INTERSECT_COST * plane.cost / area
+                TRAVERSAL_COST + options.intersect_cost * plane.cost / area
             } else {
-                TRAVERSAL_COST + INTERSECT_COST * n as f32
+                TRAVERSAL_COST + options.intersect_cost * n as f32
             };
-            if n <= options.max_leaf && INTERSECT_COST * n as f32 <= split_cost {
+            if n <= options.max_leaf && options.intersect_cost * n as f32 <= split_cost {
                 return None;
             }
             let mid = partition(refs, |r| plane.bin_of(r) < plane.bin);
@@ -268,6 +269,14 @@ fn split(
         a.bounds.centroid()[widest].total_cmp(&b.bounds.centroid()[widest])
     });
     Some((mid, widest))
+}
+
+/// The box of the primitives and the box of their centroids, in one pass.
+fn node_bounds(refs: &[PrimRef]) -> (Aabb, Aabb) {
+    refs.iter().fold((Aabb::EMPTY, Aabb::EMPTY), |(b, c), r| {
+        let m = r.bounds.centroid();
+        (b.union(r.bounds), c.union(Aabb { lo: m, hi: m }))
+    })
 }
 
 /// A candidate plane: primitives whose centroid falls in a bin below `bin` on `axis` go left.
@@ -311,15 +320,15 @@ fn best_plane(refs: &[PrimRef], centroids: &Aabb, bins: usize) -> Option<Plane> 
             continue;
         }
         let scale = bins as f32 * (1.0 - 1e-6) / (hi - lo);
-        let mut count = [0usize; 64];
-        let mut boxes = [Aabb::EMPTY; 64];
+        let mut count = [0usize; MAX_BINS];
+        let mut boxes = [Aabb::EMPTY; MAX_BINS];
         for r in refs {
             let b = bin_index(r.bounds.centroid()[axis], lo, scale, bins);
             count[b] += 1;
             boxes[b] = boxes[b].union(r.bounds);
         }
         // right_cost[i] = A · N of bins i.. ; sweep left to right adding the left side.
-        let mut right_cost = [0.0f32; 64];
+        let mut right_cost = [0.0f32; MAX_BINS];
         let (mut acc, mut n) = (Aabb::EMPTY, 0usize);
         for i in (1..bins).rev() {
             acc = acc.union(boxes[i]);

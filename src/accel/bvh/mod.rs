@@ -170,16 +170,20 @@ pub struct BuildOptions {
     pub bounding: Bounding,
     /// Largest number of primitives in a leaf (1–255).
     pub max_leaf: usize,
-    /// SAH bins per axis (2–64).
+    /// SAH bins per axis (2–32).
     pub bins: usize,
+    /// SAH cost of one primitive (ray–curve) test, in box tests (> 0). Higher makes smaller leaves.
+    pub intersect_cost: f32,
 }
 
 impl Default for BuildOptions {
     fn default() -> Self {
         BuildOptions {
-            bounding: Bounding::Hull,
+            bounding: Bounding::Spans { levels: 2 },
             max_leaf: 4,
             bins: 16,
+            // A curve test (subdivision and Newton steps, or ribbon pieces) is far dearer than a slab test.
+            intersect_cost: 4.0,
         }
     }
 }
@@ -306,37 +310,60 @@ impl Bvh {
         if self.nodes.is_empty() {
             return false;
         }
-        let mut stack = [0u32; STACK_SIZE];
+        let entry = |i: usize, r: &RayInv| {
+            #[cfg(test)]
+            tests::NODE_VISITS.with(|v| v.set(v.get() + 1));
+            self.nodes[i].bounds().entry(r)
+        };
+        if entry(0, r).is_none() {
+            return false;
+        }
+        // Far children still to visit, with their entry distances: skipped when a closer hit has been found since.
+        let mut stack = [(0u32, 0.0f32); STACK_SIZE];
         let mut top = 0;
         let mut index = 0usize;
         loop {
             let node = &self.nodes[index];
-            if node.bounds().entry(r).is_some() {
-                if node.is_leaf() {
-                    let first = node.offset as usize;
-                    for &segment in &self.primitives[first..first + usize::from(node.count)] {
-                        if leaf_primitive(segment, r) == Control::Stop {
-                            return true;
-                        }
+            if node.is_leaf() {
+                let first = node.offset as usize;
+                for &segment in &self.primitives[first..first + usize::from(node.count)] {
+                    if leaf_primitive(segment, r) == Control::Stop {
+                        return true;
                     }
-                } else {
-                    // The child on the ray's side of the split plane first (front to back), the other on the stack.
-                    let (near, far) = if r.negative[usize::from(node.axis)] {
-                        (node.offset, index as u32 + 1)
-                    } else {
-                        (index as u32 + 1, node.offset)
-                    };
-                    stack[top] = far;
-                    top += 1;
-                    index = near as usize;
-                    continue;
+                }
+            } else {
+                // Both children's boxes tested here: the nearer entry first (front to back), the other stacked.
+                let (a, b) = (index + 1, node.offset as usize);
+                match (entry(a, r), entry(b, r)) {
+                    (Some(ta), Some(tb)) => {
+                        let (near, far, t_far) = if ta <= tb { (a, b, tb) } else { (b, a, ta) };
+                        stack[top] = (far as u32, t_far);
+                        top += 1;
+                        index = near;
+                        continue;
+                    }
+                    (Some(_), None) => {
+                        index = a;
+                        continue;
+                    }
+                    (None, Some(_)) => {
+                        index = b;
+                        continue;
+                    }
+                    (None, None) => {}
                 }
             }
-            if top == 0 {
-                return false;
+            loop {
+                if top == 0 {
+                    return false;
+                }
+                top -= 1;
+                let (i, t) = stack[top];
+                if t <= r.tfar {
+                    index = i as usize;
+                    break;
+                }
             }
-            top -= 1;
-            index = stack[top] as usize;
         }
     }
 }

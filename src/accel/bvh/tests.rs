@@ -11,6 +11,11 @@ use crate::accel::{CurveKind, Tracer};
 use crate::hair::HairModel;
 use crate::util::hash::SplitMix64;
 
+thread_local! {
+    /// Nodes visited by this thread's traversals (counted in test builds only), for the measurements.
+    pub(super) static NODE_VISITS: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
+}
+
 /// Every bounding mode, the default first.
 const BOUNDINGS: [Bounding; 7] = [
     Bounding::Hull,
@@ -460,7 +465,11 @@ fn check_deterministic(strands: &Strands, what: &str) {
             .build()
             .expect("thread pool")
     };
-    for bounding in [Bounding::Hull, Bounding::SpanRefs { levels: 1 }] {
+    for bounding in [
+        Bounding::Hull,
+        Bounding::Spans { levels: 2 },
+        Bounding::SpanRefs { levels: 1 },
+    ] {
         let options = BuildOptions {
             bounding,
             ..BuildOptions::default()
@@ -664,7 +673,7 @@ fn sah_cost(bvh: &Bvh) -> f64 {
         .map(|n| {
             let a = f64::from(n.bounds().area()) / root;
             if n.is_leaf() {
-                a * 4.0 * f64::from(n.count)
+                a * f64::from(bvh.options().intersect_cost) * f64::from(n.count)
             } else {
                 a
             }
@@ -704,11 +713,33 @@ fn measure_build() {
         );
         let (lo, hi) = model_bounds(&strands);
         let rays = random_rays(lo, hi, RAYS, 21);
-        for bounding in BOUNDINGS {
-            for max_leaf in [4, 8] {
+        // Embree's closest hits on the same rays, real round curves, this thread only: the scale of the numbers.
+        let tracer = EmbreeTracer::new(&strands, CurveKind::Round).expect("embree");
+        let start = std::time::Instant::now();
+        let embree_hits = rays
+            .iter()
+            .filter(|r| tracer.intersect(r).expect("valid ray").is_some())
+            .count();
+        println!(
+            "  embree round closest hit: {:.2} Mrays/s (1 thread), {embree_hits} of {RAYS} rays hit",
+            RAYS as f64 / start.elapsed().as_secs_f64() / 1e6
+        );
+        let rows = [
+            (Bounding::Hull, 4, 4.0),
+            (Bounding::Spans { levels: 1 }, 4, 4.0),
+            (Bounding::Spans { levels: 2 }, 4, 1.0),
+            (Bounding::Spans { levels: 2 }, 4, 2.0),
+            (Bounding::Spans { levels: 2 }, 4, 4.0),
+            (Bounding::Spans { levels: 2 }, 8, 1.0),
+            (Bounding::Spans { levels: 3 }, 4, 4.0),
+            (Bounding::SpanRefs { levels: 1 }, 4, 4.0),
+        ];
+        for (bounding, max_leaf, intersect_cost) in rows {
+            {
                 let options = BuildOptions {
                     bounding,
                     max_leaf,
+                    intersect_cost,
                     ..BuildOptions::default()
                 };
                 let mut bvh = None;
@@ -727,6 +758,7 @@ fn measure_build() {
                     .map(|s| segment_bounds(&strands, s, Bounding::Hull))
                     .collect();
                 let mut tests = 0usize;
+                NODE_VISITS.with(|v| v.set(0));
                 let start = std::time::Instant::now();
                 for ray in &rays {
                     bvh.closest(ray, |s, tfar| {
@@ -735,9 +767,10 @@ fn measure_build() {
                     });
                 }
                 let trace = start.elapsed().as_secs_f64();
+                let visits = NODE_VISITS.with(|v| v.get()) as f64 / RAYS as f64;
                 println!(
-                    "  {:<28} leaf ≤ {max_leaf}: build {:7.1} ms ({:.1}–{:.1}) = {:4.2}× embree, {:.3} nodes/seg, \
-                     {:5.1} B/seg, SAH {:7.1}, {:6.1} prim tests/ray, {:.2} Mrays/s (1 thread, box prims)",
+                    "  {:<24} leaf ≤ {max_leaf}, C_isect {intersect_cost}: build {:7.1} ms ({:.1}–{:.1}) = {:4.2}× embree, {:.3} nodes/seg, \
+                     {:5.1} B/seg, SAH {:7.1}, {:6.1} prim tests/ray, {visits:6.1} nodes/ray, {:.2} Mrays/s (1 thread, box prims)",
                     format!("{bounding:?}"),
                     m * 1e3,
                     tlo * 1e3,
