@@ -145,14 +145,14 @@ fn subtree(refs: &mut [PrimRef], base: u32, depth: u32, options: &BuildOptions) 
         let (bounds, centroids) = node_bounds(refs);
         match split(refs, &bounds, &centroids, depth, options) {
             None => out.push(leaf(&bounds, base, refs.len())),
-            Some((mid, axis)) => {
+            Some(mid) => {
                 let (left, right) = refs.split_at_mut(mid);
                 let (l, r) = rayon::join(
                     || subtree(left, base, depth + 1, options),
                     || subtree(right, base + mid as u32, depth + 1, options),
                 );
                 out.reserve(1 + l.len() + r.len());
-                out.push(inner(&bounds, axis, 0));
+                out.push(inner(&bounds, 0));
                 place(&mut out, l);
                 out[0].offset = out.len() as u32;
                 place(&mut out, r);
@@ -186,9 +186,9 @@ fn sequential(
     let (bounds, centroids) = node_bounds(refs);
     match split(refs, &bounds, &centroids, depth, options) {
         None => out.push(leaf(&bounds, base, refs.len())),
-        Some((mid, axis)) => {
+        Some(mid) => {
             let me = out.len();
-            out.push(inner(&bounds, axis, 0));
+            out.push(inner(&bounds, 0));
             let (left, right) = refs.split_at_mut(mid);
             sequential(left, base, depth + 1, options, out);
             out[me].offset = out.len() as u32;
@@ -202,24 +202,20 @@ fn leaf(bounds: &Aabb, first: u32, count: usize) -> Node {
         lo: bounds.lo.to_array(),
         hi: bounds.hi.to_array(),
         offset: first,
-        count: count as u16,
-        axis: 0,
-        _pad: 0,
+        count: count as u32,
     }
 }
 
-fn inner(bounds: &Aabb, axis: usize, second: u32) -> Node {
+fn inner(bounds: &Aabb, second: u32) -> Node {
     Node {
         lo: bounds.lo.to_array(),
         hi: bounds.hi.to_array(),
         offset: second,
         count: 0,
-        axis: axis as u8,
-        _pad: 0,
     }
 }
 
-/// Chooses how to split `refs` and partitions them: `Some((mid, axis))` puts `refs[..mid]` in the first child;
+/// Chooses how to split `refs` and partitions them: `Some(mid)` puts `refs[..mid]` in the first child;
 /// `None` makes a leaf.
 fn split(
     refs: &mut [PrimRef],
@@ -227,7 +223,7 @@ fn split(
     centroids: &Aabb,
     depth: u32,
     options: &BuildOptions,
-) -> Option<(usize, usize)> {
+) -> Option<usize> {
     let n = refs.len();
     if n == 1 {
         return None;
@@ -256,7 +252,7 @@ fn split(
             }
             let mid = partition(refs, |r| plane.bin_of(r) < plane.bin);
             if mid > 0 && mid < n {
-                return Some((mid, plane.axis));
+                return Some(mid);
             }
         }
     }
@@ -268,7 +264,7 @@ fn split(
     refs.select_nth_unstable_by(mid, |a, b| {
         a.bounds.centroid()[widest].total_cmp(&b.bounds.centroid()[widest])
     });
-    Some((mid, widest))
+    Some(mid)
 }
 
 /// The box of the primitives and the box of their centroids, in one pass.

@@ -14,9 +14,11 @@
 //!   node are built with `rayon::join`; every decision depends only on the node's primitives, so the tree is the
 //!   same for any thread count (tested).
 //! - **Layout**: pbrt-v3's linear BVH (Pharr, Jakob & Humphreys, §4.3.4): 32-byte nodes in depth-first order, the
-//!   first child right after its parent, the second child's index and the split axis in the node.
-//! - **Traversal**: a fixed stack of [`STACK_SIZE`] entries (no allocation per ray), the child on the ray's side of
-//!   the split axis first, and the robust slab test of Ize 2013 ("Robust BVH ray traversal", JCGT 2(2)): far slab
+//!   first child right after its parent, the second child's index in the node.
+//! - **Traversal**: a fixed stack of [`STACK_SIZE`] entries (no allocation per ray); both children's boxes are
+//!   tested at the parent, the nearer entered first and the other stacked with its entry distance, skipped when a
+//!   closer hit has been found by the time it is popped (measured against pbrt's split-axis order: 2–4 % fewer box
+//!   tests). Boxes use the robust slab test of Ize 2013 ("Robust BVH ray traversal", JCGT 2(2)): far slab
 //!   distances scaled by 1 + 2γ₃ so that rounding never loses a box the ray touches.
 
 mod build;
@@ -199,10 +201,7 @@ pub struct Node {
     /// Inner node: index of the second child. Leaf: index of its first primitive.
     pub offset: u32,
     /// Leaf: number of primitives (> 0). Inner node: 0.
-    pub count: u16,
-    /// Inner node: the split axis (0–2), which orders the children along the ray.
-    pub axis: u8,
-    _pad: u8,
+    pub count: u32,
 }
 
 impl Node {
@@ -326,7 +325,7 @@ impl Bvh {
             let node = &self.nodes[index];
             if node.is_leaf() {
                 let first = node.offset as usize;
-                for &segment in &self.primitives[first..first + usize::from(node.count)] {
+                for &segment in &self.primitives[first..first + node.count as usize] {
                     if leaf_primitive(segment, r) == Control::Stop {
                         return true;
                     }

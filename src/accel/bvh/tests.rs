@@ -179,11 +179,11 @@ fn check_invariants(bvh: &Bvh, strands: &Strands, what: &str) {
         let n = &nodes[i];
         if n.is_leaf() {
             assert!(
-                usize::from(n.count) <= bvh.options().max_leaf,
+                n.count as usize <= bvh.options().max_leaf,
                 "{what}: leaf {i} holds {} > max_leaf",
                 n.count
             );
-            let range = n.offset as usize..n.offset as usize + usize::from(n.count);
+            let range = n.offset as usize..n.offset as usize + n.count as usize;
             for k in range {
                 covered[k] += 1;
                 leaf_of[bvh.primitives()[k] as usize].push(i);
@@ -493,7 +493,7 @@ fn check_deterministic(strands: &Strands, what: &str) {
                         n.hi[1].to_bits(),
                         n.hi[2].to_bits(),
                         n.offset,
-                        u32::from(n.count) | u32::from(n.axis) << 16,
+                        n.count,
                     ]
                 })
                 .collect()
