@@ -711,6 +711,26 @@ fn measure_build() {
             elo * 1e3,
             ehi * 1e3
         );
+        // The default build on one thread: the parallel speed-up.
+        let one = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .expect("thread pool");
+        let (m1, lo1, hi1) = median(
+            (0..REPEATS)
+                .map(|_| {
+                    let start = std::time::Instant::now();
+                    one.install(|| Bvh::build(&strands, BuildOptions::default()));
+                    start.elapsed().as_secs_f64()
+                })
+                .collect(),
+        );
+        println!(
+            "  default options on 1 thread: build {:.1} ms ({:.1}–{:.1})",
+            m1 * 1e3,
+            lo1 * 1e3,
+            hi1 * 1e3
+        );
         let (lo, hi) = model_bounds(&strands);
         let rays = random_rays(lo, hi, RAYS, 21);
         // Embree's closest hits on the same rays, real round curves, this thread only: the scale of the numbers.
