@@ -1,6 +1,7 @@
 //! Ray tracing of strands behind one small trait, so that Embree and (later, issue 7) a pure-Rust BVH can be
 //! swapped per render and timed on identical rays.
 
+pub mod bvh;
 pub mod curves;
 pub mod embree;
 

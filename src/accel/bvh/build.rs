@@ -1,0 +1,375 @@
+//! Binned SAH construction (Wald 2007) into pbrt-v3's depth-first node array, parallel at the top levels.
+
+use glam::{Vec3, Vec4};
+
+use super::{Aabb, Bounding, BuildOptions, Bvh, Node, STACK_SIZE};
+use crate::hair::Strands;
+
+/// Below this depth the build stops looking for SAH planes and splits at the median: with at most 2³² primitives
+/// the tree is then at most `MEDIAN_DEPTH + 32 ≤ STACK_SIZE` levels deep, so the traversal stack cannot overflow.
+pub(super) const MEDIAN_DEPTH: u32 = (STACK_SIZE - 32) as u32;
+
+/// Nodes with at least this many primitives build their two halves with `rayon::join`. Smaller subtrees are not
+/// worth a task (a 4 096-primitive subtree builds in well under a millisecond).
+pub(super) const PARALLEL_MIN: usize = 4096;
+
+/// Most SAH bins per axis: Wald 2007 found 16–32 enough; the bin arrays live on the stack, sized by this.
+pub(super) const MAX_BINS: usize = 32;
+
+/// SAH cost of visiting a node (one box test), the unit of [`BuildOptions::intersect_cost`].
+const TRAVERSAL_COST: f32 = 1.0;
+
+/// A primitive during the build: its box and segment id.
+#[derive(Debug, Clone, Copy)]
+struct PrimRef {
+    bounds: Aabb,
+    segment: u32,
+}
+
+/// Calls `f` with the box of each span of `segment` that `bounding` asks for (one box for [`Bounding::Hull`]).
+pub(super) fn for_each_span(
+    strands: &Strands,
+    segment: u32,
+    bounding: Bounding,
+    mut f: impl FnMut(Aabb),
+) {
+    let first = strands.segment_first[segment as usize] as usize;
+    let cps: [Vec4; 4] =
+        std::array::from_fn(|i| Vec4::from_array(strands.control_points[first + i]));
+    let levels = match bounding {
+        Bounding::Hull => 0,
+        Bounding::Spans { levels } | Bounding::SpanRefs { levels } => levels,
+    };
+    subdivide(cps, levels, &mut f);
+}
+
+/// Recursive midpoint subdivision of a uniform cubic B-spline segment (x, y, z, radius together, since both use
+/// the same basis): the refined polygon of P₀…P₃ is E₀, V₁, E₁, V₂, E₂ with edge points Eᵢ = (Pᵢ + Pᵢ₊₁)/2 and
+/// vertex points Vᵢ = (Pᵢ₋₁ + 6Pᵢ + Pᵢ₊₁)/8 (Lane & Riesenfeld 1980); [E₀ V₁ E₁ V₂] is u ∈ [0, ½] and
+/// [V₁ E₁ V₂ E₂] is u ∈ [½, 1].
+fn subdivide(p: [Vec4; 4], levels: u32, f: &mut impl FnMut(Aabb)) {
+    if levels == 0 {
+        f(hull_box(&p));
+        return;
+    }
+    let e = |i: usize| 0.5 * (p[i] + p[i + 1]);
+    let v = |i: usize| 0.125 * (p[i - 1] + 6.0 * p[i] + p[i + 1]);
+    let (e0, v1, e1, v2, e2) = (e(0), v(1), e(1), v(2), e(2));
+    subdivide([e0, v1, e1, v2], levels - 1, f);
+    subdivide([v1, e1, v2, e2], levels - 1, f);
+}
+
+/// The box of four control points, each inflated by its own radius (w): conservative for the swept surface,
+/// see the module doc.
+fn hull_box(p: &[Vec4; 4]) -> Aabb {
+    p.iter().fold(Aabb::EMPTY, |b, c| {
+        let (x, r) = (c.truncate(), Vec3::splat(c.w.abs()));
+        b.union(Aabb {
+            lo: x - r,
+            hi: x + r,
+        })
+    })
+}
+
+/// Builds the tree (see [`Bvh::build`]).
+pub(super) fn build(strands: &Strands, options: BuildOptions) -> Bvh {
+    assert!(
+        (1..=255).contains(&options.max_leaf),
+        "bvh: max_leaf must be in 1..=255, got {}",
+        options.max_leaf
+    );
+    assert!(
+        (2..=MAX_BINS).contains(&options.bins),
+        "bvh: bins must be in 2..={MAX_BINS}, got {}",
+        options.bins
+    );
+    assert!(
+        options.intersect_cost > 0.0,
+        "bvh: intersect_cost must be > 0, got {}",
+        options.intersect_cost
+    );
+    if let Bounding::Spans { levels } | Bounding::SpanRefs { levels } = options.bounding {
+        assert!(
+            (1..=3).contains(&levels),
+            "bvh: span levels must be in 1..=3, got {levels}"
+        );
+    }
+    let mut refs = primitive_refs(strands, options.bounding);
+    assert!(
+        refs.len() <= u32::MAX as usize,
+        "bvh: {} primitives exceed u32 indices",
+        refs.len()
+    );
+    let nodes = if refs.is_empty() {
+        Vec::new()
+    } else {
+        subtree(&mut refs, 0, 0, &options)
+    };
+    Bvh {
+        nodes,
+        primitives: refs.iter().map(|r| r.segment).collect(),
+        options,
+    }
+}
+
+/// One reference per segment, or one per span for [`Bounding::SpanRefs`]; in segment order (determinism).
+fn primitive_refs(strands: &Strands, bounding: Bounding) -> Vec<PrimRef> {
+    use rayon::prelude::*;
+    let n = strands.segment_count() as u32;
+    match bounding {
+        Bounding::SpanRefs { .. } => {
+            let mut refs = Vec::new();
+            for segment in 0..n {
+                for_each_span(strands, segment, bounding, |bounds| {
+                    refs.push(PrimRef { bounds, segment });
+                });
+            }
+            refs
+        }
+        _ => (0..n)
+            .into_par_iter()
+            .map(|segment| PrimRef {
+                bounds: super::segment_bounds(strands, segment, bounding),
+                segment,
+            })
+            .collect(),
+    }
+}
+
+/// Builds the subtree over `refs` (which start at `base` in the final primitive array) as its own depth-first
+/// node array. Second-child offsets are stored relative while building so subtrees can be concatenated, and
+/// made absolute by [`subtree`]'s caller chain: see [`place`].
+fn subtree(refs: &mut [PrimRef], base: u32, depth: u32, options: &BuildOptions) -> Vec<Node> {
+    let mut out = Vec::new();
+    if refs.len() >= PARALLEL_MIN {
+        let (bounds, centroids) = node_bounds(refs);
+        match split(refs, &bounds, &centroids, depth, options) {
+            None => out.push(leaf(&bounds, base, refs.len())),
+            Some(mid) => {
+                let (left, right) = refs.split_at_mut(mid);
+                let (l, r) = rayon::join(
+                    || subtree(left, base, depth + 1, options),
+                    || subtree(right, base + mid as u32, depth + 1, options),
+                );
+                out.reserve(1 + l.len() + r.len());
+                out.push(inner(&bounds, 0));
+                place(&mut out, l);
+                out[0].offset = out.len() as u32;
+                place(&mut out, r);
+            }
+        }
+    } else {
+        sequential(refs, base, depth, options, &mut out);
+    }
+    out
+}
+
+/// Appends a subtree built with indices from 0, shifting its second-child indices by where it lands.
+fn place(out: &mut Vec<Node>, sub: Vec<Node>) {
+    let shift = out.len() as u32;
+    out.extend(sub.into_iter().map(|mut n| {
+        if !n.is_leaf() {
+            n.offset += shift;
+        }
+        n
+    }));
+}
+
+/// The same build on one thread, appending to `out` (indices relative to `out`'s start).
+fn sequential(
+    refs: &mut [PrimRef],
+    base: u32,
+    depth: u32,
+    options: &BuildOptions,
+    out: &mut Vec<Node>,
+) {
+    let (bounds, centroids) = node_bounds(refs);
+    match split(refs, &bounds, &centroids, depth, options) {
+        None => out.push(leaf(&bounds, base, refs.len())),
+        Some(mid) => {
+            let me = out.len();
+            out.push(inner(&bounds, 0));
+            let (left, right) = refs.split_at_mut(mid);
+            sequential(left, base, depth + 1, options, out);
+            out[me].offset = out.len() as u32;
+            sequential(right, base + mid as u32, depth + 1, options, out);
+        }
+    }
+}
+
+fn leaf(bounds: &Aabb, first: u32, count: usize) -> Node {
+    Node {
+        lo: bounds.lo.to_array(),
+        hi: bounds.hi.to_array(),
+        offset: first,
+        count: count as u32,
+    }
+}
+
+fn inner(bounds: &Aabb, second: u32) -> Node {
+    Node {
+        lo: bounds.lo.to_array(),
+        hi: bounds.hi.to_array(),
+        offset: second,
+        count: 0,
+    }
+}
+
+/// Chooses how to split `refs` and partitions them: `Some(mid)` puts `refs[..mid]` in the first child;
+/// `None` makes a leaf.
+fn split(
+    refs: &mut [PrimRef],
+    bounds: &Aabb,
+    centroids: &Aabb,
+    depth: u32,
+    options: &BuildOptions,
+) -> Option<usize> {
+    let n = refs.len();
+    if n == 1 {
+        return None;
+    }
+    let extent = centroids.hi - centroids.lo;
+    // The widest centroid axis: the median split's axis, and the SAH's when it finds nothing better.
+    let widest = if extent.x >= extent.y && extent.x >= extent.z {
+        0
+    } else if extent.y >= extent.z {
+        1
+    } else {
+        2
+    };
+    if depth < MEDIAN_DEPTH && extent[widest] > 0.0 {
+        let best = best_plane(refs, centroids, options.bins);
+        if let Some(plane) = best {
+            // SAH (MacDonald & Booth 1990): C = C_trav + C_isect · (A_L N_L + A_R N_R) / A against C_isect · N.
+            let area = bounds.area();
+            let split_cost = if area > 0.0 {
+                TRAVERSAL_COST + options.intersect_cost * plane.cost / area
+            } else {
+                TRAVERSAL_COST + options.intersect_cost * n as f32
+            };
+            if n <= options.max_leaf && options.intersect_cost * n as f32 <= split_cost {
+                return None;
+            }
+            let mid = partition(refs, |r| plane.bin_of(r) < plane.bin);
+            if mid > 0 && mid < n {
+                return Some(mid);
+            }
+        }
+    }
+    if n <= options.max_leaf {
+        return None;
+    }
+    // No usable plane (all centroids equal, or too deep): split at the median centroid of the widest axis.
+    let mid = n / 2;
+    refs.select_nth_unstable_by(mid, |a, b| {
+        a.bounds.centroid()[widest].total_cmp(&b.bounds.centroid()[widest])
+    });
+    Some(mid)
+}
+
+/// The box of the primitives and the box of their centroids, in one pass.
+fn node_bounds(refs: &[PrimRef]) -> (Aabb, Aabb) {
+    refs.iter().fold((Aabb::EMPTY, Aabb::EMPTY), |(b, c), r| {
+        let m = r.bounds.centroid();
+        (b.union(r.bounds), c.union(Aabb { lo: m, hi: m }))
+    })
+}
+
+/// A candidate plane: primitives whose centroid falls in a bin below `bin` on `axis` go left.
+#[derive(Debug, Clone, Copy)]
+struct Plane {
+    axis: usize,
+    bin: usize,
+    /// A_L N_L + A_R N_R.
+    cost: f32,
+    lo: f32,
+    scale: f32,
+    bins: usize,
+}
+
+impl Plane {
+    /// The bin of a primitive's centroid, computed identically when binning and when partitioning.
+    #[inline]
+    fn bin_of(&self, r: &PrimRef) -> usize {
+        bin_index(
+            r.bounds.centroid()[self.axis],
+            self.lo,
+            self.scale,
+            self.bins,
+        )
+    }
+}
+
+#[inline]
+fn bin_index(c: f32, lo: f32, scale: f32, bins: usize) -> usize {
+    // `as usize` saturates (NaN → 0); the min keeps the top centroid in the last bin.
+    (((c - lo) * scale) as usize).min(bins - 1)
+}
+
+/// Wald 2007's binning: per axis, count primitives and grow boxes per centroid bin, then sweep the bin boundaries
+/// from both sides for the cheapest A_L N_L + A_R N_R.
+fn best_plane(refs: &[PrimRef], centroids: &Aabb, bins: usize) -> Option<Plane> {
+    let mut best: Option<Plane> = None;
+    for axis in 0..3 {
+        let (lo, hi) = (centroids.lo[axis], centroids.hi[axis]);
+        if hi <= lo {
+            continue;
+        }
+        let scale = bins as f32 * (1.0 - 1e-6) / (hi - lo);
+        let mut count = [0usize; MAX_BINS];
+        let mut boxes = [Aabb::EMPTY; MAX_BINS];
+        for r in refs {
+            let b = bin_index(r.bounds.centroid()[axis], lo, scale, bins);
+            count[b] += 1;
+            boxes[b] = boxes[b].union(r.bounds);
+        }
+        // right_cost[i] = A · N of bins i.. ; sweep left to right adding the left side.
+        let mut right_cost = [0.0f32; MAX_BINS];
+        let (mut acc, mut n) = (Aabb::EMPTY, 0usize);
+        for i in (1..bins).rev() {
+            acc = acc.union(boxes[i]);
+            n += count[i];
+            right_cost[i] = acc.area() * n as f32;
+        }
+        let (mut acc, mut n) = (Aabb::EMPTY, 0usize);
+        for i in 1..bins {
+            acc = acc.union(boxes[i - 1]);
+            n += count[i - 1];
+            let right_n = refs.len() - n;
+            if n == 0 || right_n == 0 {
+                continue;
+            }
+            let cost = acc.area() * n as f32 + right_cost[i];
+            if best.map_or(true, |b| cost < b.cost) {
+                best = Some(Plane {
+                    axis,
+                    bin: i,
+                    cost,
+                    lo,
+                    scale,
+                    bins,
+                });
+            }
+        }
+    }
+    best
+}
+
+/// Moves the elements satisfying `left` to the front (Hoare's two-index scheme); returns how many there are.
+fn partition(refs: &mut [PrimRef], left: impl Fn(&PrimRef) -> bool) -> usize {
+    let (mut i, mut j) = (0, refs.len());
+    loop {
+        while i < j && left(&refs[i]) {
+            i += 1;
+        }
+        while i < j && !left(&refs[j - 1]) {
+            j -= 1;
+        }
+        if i >= j {
+            return i;
+        }
+        refs.swap(i, j - 1);
+        i += 1;
+        j -= 1;
+    }
+}

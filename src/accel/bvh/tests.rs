@@ -1,0 +1,808 @@
+//! Build invariants, determinism across thread counts, traversal against brute force over the segments' boxes,
+//! degenerate input, containment of Embree's hits, and (ignored, printing) the build measurements.
+
+use std::path::{Path, PathBuf};
+
+use glam::Vec3;
+
+use super::*;
+use crate::accel::embree::EmbreeTracer;
+use crate::accel::{CurveKind, Tracer};
+use crate::hair::HairModel;
+use crate::util::hash::SplitMix64;
+
+thread_local! {
+    /// Nodes visited by this thread's traversals (counted in test builds only), for the measurements.
+    pub(super) static NODE_VISITS: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
+}
+
+/// Every bounding mode, the default first.
+const BOUNDINGS: [Bounding; 7] = [
+    Bounding::Hull,
+    Bounding::Spans { levels: 1 },
+    Bounding::Spans { levels: 2 },
+    Bounding::Spans { levels: 3 },
+    Bounding::SpanRefs { levels: 1 },
+    Bounding::SpanRefs { levels: 2 },
+    Bounding::SpanRefs { levels: 3 },
+];
+
+/// Random rays per brute-force comparison on the random bundle: each is checked against every segment.
+const BUNDLE_RAYS: usize = 2000;
+
+/// Random rays on straight.hair (brute force over all its segments per ray, so fewer).
+const FILE_RAYS: usize = 200;
+
+/// Curve samples per segment when checking that the swept curve lies in its leaf box.
+const CURVE_SAMPLES: usize = 16;
+
+/// Relative slack for the curve-sample containment check: `Strands::eval` and the subdivision round differently
+/// (a few ulps of the coordinates).
+const EVAL_SLACK: f32 = 1e-5;
+
+fn data_file(name: &str) -> PathBuf {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data/hair")
+        .join(name);
+    assert!(
+        path.exists(),
+        "missing test data {} (the tests need ../shared/data beside the repository)",
+        path.display()
+    );
+    path
+}
+
+fn load_strands(name: &str) -> Strands {
+    let path = data_file(name);
+    let model = crate::hair::load(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    Strands::from_model(&model)
+}
+
+/// `count` random wavy strands of `points` points in the cube [−1, 1]³, radii 0.002–0.02.
+fn random_bundle(count: usize, points: usize, seed: u64) -> Strands {
+    let mut rng = SplitMix64::new(seed, 0);
+    let mut u = || rng.next_f32();
+    let mut model = HairModel {
+        strand_offsets: vec![0],
+        ..Default::default()
+    };
+    for _ in 0..count {
+        let mut p = Vec3::new(u(), u(), u()) * 2.0 - Vec3::ONE;
+        let dir = (Vec3::new(u(), u(), u()) * 2.0 - Vec3::ONE).normalize_or(Vec3::Y);
+        let radius = 0.002 + 0.018 * u();
+        for _ in 0..points {
+            model.points.push(p);
+            model.radius.push(radius);
+            model.transparency.push(0.5);
+            model.color.push([0.5; 3]);
+            p += 0.1 * dir + 0.05 * (Vec3::new(u(), u(), u()) - Vec3::splat(0.5));
+        }
+        model.strand_offsets.push(model.points.len() as u32);
+    }
+    Strands::from_model(&model)
+}
+
+/// Random rays through the box `(lo, hi)`: from outside and from inside, some with zero direction components
+/// (axis-parallel and in-plane rays) and some with a finite `[tnear, tfar]`.
+fn random_rays(lo: Vec3, hi: Vec3, n: usize, seed: u64) -> Vec<Ray> {
+    let mut rng = SplitMix64::new(seed, 1);
+    let mut u = || rng.next_f32();
+    let (centre, size) = (0.5 * (lo + hi), hi - lo);
+    (0..n)
+        .map(|i| {
+            let inside = lo + size * Vec3::new(u(), u(), u());
+            let target = lo + size * Vec3::new(u(), u(), u());
+            let mut dir = Vec3::new(u(), u(), u()) * 2.0 - Vec3::ONE;
+            let origin = match i % 3 {
+                0 => {
+                    centre
+                        - 2.0 * size.length() * (target - centre + 0.1 * dir).normalize_or(Vec3::X)
+                }
+                _ => inside,
+            };
+            if i % 3 == 0 {
+                dir = target - origin;
+            }
+            // Every 5th ray keeps only one or two axes: 1/d is ±∞ on the others.
+            match i % 10 {
+                5 => dir = Vec3::new(dir.x, 0.0, 0.0),
+                7 => dir = Vec3::new(0.0, -0.0, dir.z),
+                9 => dir = Vec3::new(dir.x, dir.y, -0.0),
+                _ => {}
+            }
+            if dir == Vec3::ZERO {
+                dir = Vec3::Y;
+            }
+            if i % 4 == 1 {
+                let len = size.length() / dir.length();
+                Ray::segment(origin, dir, 0.2 * len * u(), 0.3 * len + len * u())
+            } else {
+                Ray::new(origin, dir)
+            }
+        })
+        .collect()
+}
+
+fn model_bounds(strands: &Strands) -> (Vec3, Vec3) {
+    strands.bounds()
+}
+
+/// The boxes the tree was built over, per segment (one box, or one per span for `SpanRefs`).
+fn primitive_boxes(strands: &Strands, segment: u32, bounding: Bounding) -> Vec<Aabb> {
+    match bounding {
+        Bounding::SpanRefs { .. } => {
+            let mut v = Vec::new();
+            build::for_each_span(strands, segment, bounding, |b| v.push(b));
+            v
+        }
+        _ => vec![segment_bounds(strands, segment, bounding)],
+    }
+}
+
+fn spans_per_segment(bounding: Bounding) -> usize {
+    match bounding {
+        Bounding::SpanRefs { levels } => 1 << levels,
+        _ => 1,
+    }
+}
+
+/// Depth of the deepest leaf below `index` (the root is at depth 0).
+fn depth(nodes: &[Node], index: usize) -> usize {
+    let n = &nodes[index];
+    if n.is_leaf() {
+        0
+    } else {
+        1 + depth(nodes, index + 1).max(depth(nodes, n.offset as usize))
+    }
+}
+
+/// Checks every structural invariant, panicking with the node or segment that breaks it.
+fn check_invariants(bvh: &Bvh, strands: &Strands, what: &str) {
+    let nodes = bvh.nodes();
+    let bounding = bvh.options().bounding;
+    assert_eq!(
+        bvh.primitives().len(),
+        strands.segment_count() * spans_per_segment(bounding),
+        "{what}: primitive count"
+    );
+    if strands.segment_count() == 0 {
+        assert!(nodes.is_empty(), "{what}: nodes for an empty model");
+        return;
+    }
+    // Walk the tree: children inside parents, leaves covering the primitive array exactly once.
+    let mut covered = vec![0u32; bvh.primitives().len()];
+    let mut leaf_of = vec![Vec::new(); strands.segment_count()];
+    let mut stack = vec![0usize];
+    let mut visited = 0;
+    while let Some(i) = stack.pop() {
+        visited += 1;
+        let n = &nodes[i];
+        if n.is_leaf() {
+            assert!(
+                n.count as usize <= bvh.options().max_leaf,
+                "{what}: leaf {i} holds {} > max_leaf",
+                n.count
+            );
+            let range = n.offset as usize..n.offset as usize + n.count as usize;
+            for k in range {
+                covered[k] += 1;
+                leaf_of[bvh.primitives()[k] as usize].push(i);
+            }
+        } else {
+            for child in [i + 1, n.offset as usize] {
+                assert!(
+                    child > i && child < nodes.len(),
+                    "{what}: node {i} child {child}"
+                );
+                assert!(
+                    n.bounds().contains(&nodes[child].bounds()),
+                    "{what}: child {child} {:?} outside parent {i} {:?}",
+                    nodes[child].bounds(),
+                    n.bounds()
+                );
+                stack.push(child);
+            }
+        }
+    }
+    assert_eq!(visited, nodes.len(), "{what}: unreachable nodes");
+    if let Some(k) = covered.iter().position(|&c| c != 1) {
+        panic!("{what}: primitive slot {k} is in {} leaves", covered[k]);
+    }
+    assert!(
+        depth(nodes, 0) <= STACK_SIZE,
+        "{what}: depth {} > stack",
+        depth(nodes, 0)
+    );
+    let scale = {
+        let (lo, hi) = model_bounds(strands);
+        lo.abs().max(hi.abs()).max_element().max(1.0)
+    };
+    for (segment, leaves) in leaf_of.iter().enumerate() {
+        let segment = segment as u32;
+        assert_eq!(
+            leaves.len(),
+            spans_per_segment(bounding),
+            "{what}: segment {segment} is in {} leaves",
+            leaves.len()
+        );
+        let leaf_union = leaves
+            .iter()
+            .fold(Aabb::EMPTY, |b, &l| b.union(nodes[l].bounds()));
+        // Each of the segment's boxes inside a leaf that holds it.
+        for b in primitive_boxes(strands, segment, bounding) {
+            assert!(
+                leaves.iter().any(|&l| nodes[l].bounds().contains(&b)),
+                "{what}: segment {segment} box {b:?} in none of its leaves"
+            );
+        }
+        // The hull of the control points (each ± its radius) inside the leaf for hull bounds.
+        if bounding == Bounding::Hull {
+            let first = strands.segment_first[segment as usize] as usize;
+            for c in &strands.control_points[first..first + 4] {
+                let (p, r) = (Vec3::new(c[0], c[1], c[2]), Vec3::splat(c[3]));
+                let b = Aabb {
+                    lo: p - r,
+                    hi: p + r,
+                };
+                assert!(
+                    leaf_union.contains(&b),
+                    "{what}: segment {segment} control point {c:?} outside its leaf {leaf_union:?}"
+                );
+            }
+        }
+        // The swept curve itself (points ± radius along it) inside its leaves, for every mode.
+        let slack = Vec3::splat(EVAL_SLACK * scale);
+        for s in 0..=CURVE_SAMPLES {
+            let c = strands.eval(segment, s as f32 / CURVE_SAMPLES as f32);
+            let b = Aabb {
+                lo: c.position - Vec3::splat(c.radius) + slack,
+                hi: c.position + Vec3::splat(c.radius) - slack,
+            };
+            assert!(
+                leaf_union.contains(&b),
+                "{what}: segment {segment} at u = {s}/{CURVE_SAMPLES}: {c:?} outside its leaves {leaf_union:?}"
+            );
+        }
+    }
+}
+
+/// The brute-force answers for `ray` over the primitive boxes: the nearest entry and the set of segments hit.
+fn brute_force(boxes: &[(u32, Aabb)], ray: &Ray) -> (Option<f32>, Vec<u32>) {
+    let r = RayInv::new(ray);
+    let mut nearest: Option<f32> = None;
+    let mut hit = Vec::new();
+    for (segment, b) in boxes {
+        if let Some(t) = b.entry(&r) {
+            nearest = Some(nearest.map_or(t, |n| n.min(t)));
+            hit.push(*segment);
+        }
+    }
+    hit.sort_unstable();
+    hit.dedup();
+    (nearest, hit)
+}
+
+/// Traversal with the box as primitive against brute force: the same nearest entry distance, and the all-hits
+/// walk reaches exactly the segments whose boxes the ray crosses. Returns (rays that hit, segments reported).
+fn check_traversal(bvh: &Bvh, strands: &Strands, rays: &[Ray], what: &str) -> (usize, usize) {
+    let bounding = bvh.options().bounding;
+    let boxes: Vec<(u32, Aabb)> = (0..strands.segment_count() as u32)
+        .flat_map(|s| {
+            primitive_boxes(strands, s, bounding)
+                .into_iter()
+                .map(move |b| (s, b))
+        })
+        .collect();
+    let seg_boxes: Vec<Vec<Aabb>> = (0..strands.segment_count() as u32)
+        .map(|s| primitive_boxes(strands, s, bounding))
+        .collect();
+    let (mut hits, mut reported) = (0, 0);
+    for (i, ray) in rays.iter().enumerate() {
+        let (want_t, want_set) = brute_force(&boxes, ray);
+        // The primitive test: the segment's nearest box entry before the current tfar.
+        let got_t = bvh.closest(ray, |segment, tfar| {
+            let clipped = Ray { tfar, ..*ray };
+            let r = RayInv::new(&clipped);
+            seg_boxes[segment as usize]
+                .iter()
+                .filter_map(|b| b.entry(&r))
+                .min_by(f32::total_cmp)
+        });
+        assert_eq!(
+            got_t.map(f32::to_bits),
+            want_t.map(f32::to_bits),
+            "{what}: ray {i} {ray:?}: closest {got_t:?}, brute force {want_t:?}"
+        );
+        let mut got_set = Vec::new();
+        let stopped = bvh.for_each(ray, |segment, _| {
+            let r = RayInv::new(ray);
+            if seg_boxes[segment as usize]
+                .iter()
+                .any(|b| b.entry(&r).is_some())
+            {
+                got_set.push(segment);
+            }
+            Control::Continue
+        });
+        assert!(!stopped, "{what}: walk stopped by itself");
+        got_set.sort_unstable();
+        got_set.dedup();
+        assert_eq!(
+            got_set, want_set,
+            "{what}: ray {i} {ray:?}: all-hits walk differs from brute force"
+        );
+        hits += usize::from(want_t.is_some());
+        reported += want_set.len();
+    }
+    (hits, reported)
+}
+
+#[test]
+fn node_is_32_bytes() {
+    assert_eq!(std::mem::size_of::<Node>(), 32);
+}
+
+#[test]
+fn slab_test_is_robust_to_zero_direction_components() {
+    let b = Aabb {
+        lo: Vec3::ZERO,
+        hi: Vec3::ONE,
+    };
+    let entry = |o: Vec3, d: Vec3| b.entry(&RayInv::new(&Ray::new(o, d)));
+    // Along +x inside the y and z slabs, on the box's faces, with +0 and −0 components.
+    assert_eq!(entry(Vec3::new(-1.0, 0.5, 0.5), Vec3::X), Some(1.0));
+    assert_eq!(entry(Vec3::new(-1.0, 0.0, 1.0), Vec3::X), Some(1.0));
+    assert_eq!(
+        entry(Vec3::new(-1.0, 0.0, 1.0), Vec3::new(1.0, -0.0, -0.0)),
+        Some(1.0)
+    );
+    assert_eq!(entry(Vec3::new(2.0, 0.5, 0.5), Vec3::NEG_X), Some(1.0));
+    // Outside a slab with no motion along it: a miss, whatever the sign of the zero.
+    assert_eq!(entry(Vec3::new(-1.0, 1.5, 0.5), Vec3::X), None);
+    assert_eq!(
+        entry(Vec3::new(-1.0, 1.5, 0.5), Vec3::new(1.0, -0.0, 0.0)),
+        None
+    );
+    assert_eq!(
+        entry(Vec3::new(-1.0, -0.5, 0.5), Vec3::new(1.0, -0.0, 0.0)),
+        None
+    );
+    // Starting inside: the entry is tnear.
+    assert_eq!(
+        entry(Vec3::splat(0.5), Vec3::new(0.3, -0.2, 0.0)),
+        Some(0.0)
+    );
+    // A flat box (zero extent) is still hit through its plane.
+    let flat = Aabb {
+        lo: Vec3::new(0.0, 0.0, 1.0),
+        hi: Vec3::new(1.0, 1.0, 1.0),
+    };
+    assert_eq!(
+        flat.entry(&RayInv::new(&Ray::new(Vec3::splat(0.5), Vec3::Z))),
+        Some(0.5)
+    );
+}
+
+#[test]
+fn subdivision_reproduces_the_curve() {
+    // The spans of midpoint subdivision are the same cubic: evaluate span k of 2^levels at its start.
+    let strands = random_bundle(3, 6, 11);
+    let first = strands.segment_first[2] as usize;
+    let p: [glam::Vec4; 4] =
+        std::array::from_fn(|i| glam::Vec4::from_array(strands.control_points[first + i]));
+    let mut starts = Vec::new();
+    build_spans_control_points(p, 2, &mut starts);
+    for (k, q) in starts.iter().enumerate() {
+        let u = k as f32 / 4.0;
+        let want = strands.eval(2, u);
+        let b = crate::hair::strands::bspline_basis(0.0);
+        let got = b[0] * q[0] + b[1] * q[1] + b[2] * q[2] + b[3] * q[3];
+        assert!(
+            (got.truncate() - want.position).length() < 1e-5 && (got.w - want.radius).abs() < 1e-6,
+            "span {k}: {got:?} vs {want:?}"
+        );
+    }
+}
+
+/// The control points of the 2^levels spans, by the same rule as `build::subdivide`.
+fn build_spans_control_points(p: [glam::Vec4; 4], levels: u32, out: &mut Vec<[glam::Vec4; 4]>) {
+    if levels == 0 {
+        out.push(p);
+        return;
+    }
+    let e = |i: usize| 0.5 * (p[i] + p[i + 1]);
+    let v = |i: usize| 0.125 * (p[i - 1] + 6.0 * p[i] + p[i + 1]);
+    build_spans_control_points([e(0), v(1), e(1), v(2)], levels - 1, out);
+    build_spans_control_points([v(1), e(1), v(2), e(2)], levels - 1, out);
+}
+
+#[test]
+fn random_bundle_builds_valid_trees_that_traverse_like_brute_force() {
+    let strands = random_bundle(300, 8, 1);
+    let (lo, hi) = model_bounds(&strands);
+    let rays = random_rays(lo, hi, BUNDLE_RAYS, 2);
+    for bounding in BOUNDINGS {
+        for max_leaf in [1, 4, 8] {
+            let options = BuildOptions {
+                bounding,
+                max_leaf,
+                ..BuildOptions::default()
+            };
+            let what = format!("random bundle, {options:?}");
+            let bvh = Bvh::build(&strands, options);
+            check_invariants(&bvh, &strands, &what);
+            let (hits, reported) = check_traversal(&bvh, &strands, &rays, &what);
+            // Guard against a vacuous test: most rays must hit something.
+            assert!(hits > rays.len() / 4, "{what}: only {hits} rays hit");
+            assert!(reported > rays.len(), "{what}: {reported} boxes crossed");
+        }
+    }
+}
+
+#[test]
+fn straight_hair_builds_a_valid_tree_that_traverses_like_brute_force() {
+    let strands = load_strands("straight.hair");
+    let (lo, hi) = model_bounds(&strands);
+    let rays = random_rays(lo, hi, FILE_RAYS, 3);
+    for bounding in [Bounding::Hull, Bounding::Spans { levels: 2 }] {
+        let options = BuildOptions {
+            bounding,
+            ..BuildOptions::default()
+        };
+        let what = format!("straight.hair, {options:?}");
+        let bvh = Bvh::build(&strands, options);
+        check_invariants(&bvh, &strands, &what);
+        let (hits, _) = check_traversal(&bvh, &strands, &rays, &what);
+        assert!(hits > rays.len() / 4, "{what}: only {hits} rays hit");
+    }
+}
+
+/// Builds on pools of 1 and 2 threads and compares every node and primitive bit for bit.
+fn check_deterministic(strands: &Strands, what: &str) {
+    let pool = |n| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build()
+            .expect("thread pool")
+    };
+    for bounding in [
+        Bounding::Hull,
+        Bounding::Spans { levels: 2 },
+        Bounding::SpanRefs { levels: 1 },
+    ] {
+        let options = BuildOptions {
+            bounding,
+            ..BuildOptions::default()
+        };
+        let one = pool(1).install(|| Bvh::build(strands, options));
+        let two = pool(2).install(|| Bvh::build(strands, options));
+        assert!(
+            one.primitives().len() >= 2 * build::PARALLEL_MIN,
+            "{what}: too small to take the parallel path"
+        );
+        assert_eq!(one.nodes().len(), two.nodes().len(), "{what}: node counts");
+        let bits = |b: &Bvh| -> Vec<[u32; 8]> {
+            b.nodes()
+                .iter()
+                .map(|n| {
+                    [
+                        n.lo[0].to_bits(),
+                        n.lo[1].to_bits(),
+                        n.lo[2].to_bits(),
+                        n.hi[0].to_bits(),
+                        n.hi[1].to_bits(),
+                        n.hi[2].to_bits(),
+                        n.offset,
+                        n.count,
+                    ]
+                })
+                .collect()
+        };
+        assert!(
+            bits(&one) == bits(&two),
+            "{what}, {bounding:?}: nodes differ between 1 and 2 threads"
+        );
+        assert_eq!(
+            one.primitives(),
+            two.primitives(),
+            "{what}: primitive order"
+        );
+    }
+}
+
+#[test]
+fn build_is_the_same_for_one_and_two_threads() {
+    check_deterministic(&random_bundle(3000, 8, 5), "random bundle");
+    check_deterministic(&load_strands("straight.hair"), "straight.hair");
+}
+
+/// One strand of `n` copies of the same point (zero-length segments), radius `radius`.
+fn coincident_strand(n: usize, radius: f32) -> HairModel {
+    HairModel {
+        points: vec![Vec3::new(0.25, -0.5, 1.0); n],
+        strand_offsets: vec![0, n as u32],
+        radius: vec![radius; n],
+        radius_from_file: true,
+        transparency: vec![0.0; n],
+        color: vec![[0.5; 3]; n],
+        ..Default::default()
+    }
+}
+
+#[test]
+fn degenerate_input_builds_and_traverses() {
+    let rays = random_rays(Vec3::splat(-1.0), Vec3::splat(1.5), 300, 9);
+    // Empty model: no nodes, nothing hit, the callback never called.
+    let empty = Bvh::build(&Strands::default(), BuildOptions::default());
+    assert!(empty.nodes().is_empty() && empty.primitives().is_empty());
+    for ray in &rays {
+        assert_eq!(
+            empty.closest(ray, |s, _| panic!("segment {s} in an empty bvh")),
+            None
+        );
+        assert!(!empty.for_each(ray, |s, _| panic!("segment {s} in an empty bvh")));
+    }
+    let cases = [
+        ("one strand", random_bundle(1, 5, 3)),
+        (
+            "zero-length segments",
+            Strands::from_model(&coincident_strand(40, 0.01)),
+        ),
+        (
+            "zero-length segments of zero radius",
+            Strands::from_model(&coincident_strand(40, 0.0)),
+        ),
+    ];
+    for (what, strands) in &cases {
+        for bounding in BOUNDINGS {
+            let options = BuildOptions {
+                bounding,
+                ..BuildOptions::default()
+            };
+            let bvh = Bvh::build(strands, options);
+            let what = format!("{what}, {bounding:?}");
+            check_invariants(&bvh, strands, &what);
+            check_traversal(&bvh, strands, &rays, &what);
+        }
+    }
+    // A ray through the coincident point's box hits it: the traversal handles zero-size boxes.
+    let strands = &cases[1].1;
+    let bvh = Bvh::build(strands, BuildOptions::default());
+    let ray = Ray::new(Vec3::new(0.25, -0.5, -3.0), Vec3::Z);
+    let t = bvh.closest(&ray, |s, tfar| {
+        segment_bounds(strands, s, Bounding::Hull).entry(&RayInv::new(&Ray { tfar, ..ray }))
+    });
+    assert!(
+        t.is_some_and(|t| (t - 3.99).abs() < 1e-4),
+        "zero-length segments: {t:?}"
+    );
+}
+
+#[test]
+fn all_hits_walk_stops_when_asked() {
+    let strands = random_bundle(200, 6, 4);
+    let bvh = Bvh::build(&strands, BuildOptions::default());
+    let ray = Ray::new(Vec3::new(-3.0, 0.0, 0.0), Vec3::X);
+    let mut calls = 0;
+    assert!(bvh.for_each(&ray, |_, _| {
+        calls += 1;
+        Control::Stop
+    }));
+    assert_eq!(calls, 1);
+}
+
+/// Where Embree hits a strand, that point lies in the hit segment's box (to Embree's numerical tolerance), so
+/// the BVH's walk offers the segment to the curve test: the boxes are conservative for the real surfaces.
+fn check_embree_hits_inside_boxes(strands: &Strands, rays: &[Ray], what: &str) -> usize {
+    let scale = {
+        let (lo, hi) = model_bounds(strands);
+        (hi - lo).max_element()
+    };
+    // Embree's round-curve hits are within ~3e-5 of the exact surface on unit-scale scenes (tests/embree.rs).
+    let tolerance = Vec3::splat(1e-4 * scale.max(1.0));
+    let mut checked = 0;
+    for kind in [CurveKind::Round, CurveKind::Flat] {
+        let tracer =
+            EmbreeTracer::new(strands, kind).unwrap_or_else(|e| panic!("{what}: embree: {e}"));
+        for bounding in [Bounding::Hull, Bounding::Spans { levels: 2 }] {
+            let bvh = Bvh::build(
+                strands,
+                BuildOptions {
+                    bounding,
+                    ..BuildOptions::default()
+                },
+            );
+            for (i, ray) in rays.iter().enumerate() {
+                let Some(hit) = tracer.intersect(ray).expect("valid ray") else {
+                    continue;
+                };
+                let p = ray.origin + hit.t * ray.dir;
+                let b = segment_bounds(strands, hit.segment, bounding);
+                assert!(
+                    p.cmpge(b.lo - tolerance).all() && p.cmple(b.hi + tolerance).all(),
+                    "{what}, {kind:?}, {bounding:?}: ray {i}: embree hit {p} on segment {} outside its box {b:?}",
+                    hit.segment
+                );
+                let mut offered = false;
+                bvh.for_each(
+                    &Ray {
+                        tfar: hit.t * 1.001 + 1e-4,
+                        ..*ray
+                    },
+                    |s, _| {
+                        offered |= s == hit.segment;
+                        if offered {
+                            Control::Stop
+                        } else {
+                            Control::Continue
+                        }
+                    },
+                );
+                assert!(
+                    offered,
+                    "{what}, {kind:?}, {bounding:?}: ray {i}: walk never offered embree's segment {}",
+                    hit.segment
+                );
+                checked += 1;
+            }
+        }
+    }
+    checked
+}
+
+#[test]
+fn embree_hits_lie_in_the_segment_boxes() {
+    let bundle = random_bundle(500, 8, 7);
+    let (lo, hi) = model_bounds(&bundle);
+    let checked = check_embree_hits_inside_boxes(&bundle, &random_rays(lo, hi, 4000, 8), "bundle");
+    assert!(checked > 1000, "bundle: only {checked} embree hits");
+    let hair = load_strands("straight.hair");
+    let (lo, hi) = model_bounds(&hair);
+    let checked =
+        check_embree_hits_inside_boxes(&hair, &random_rays(lo, hi, 4000, 9), "straight.hair");
+    assert!(checked > 1000, "straight.hair: only {checked} embree hits");
+}
+
+/// SAH cost of a built tree (TRAVERSAL_COST per inner node and INTERSECT_COST per primitive, weighted by area
+/// relative to the root): the build's own objective, comparable between bounding modes.
+fn sah_cost(bvh: &Bvh) -> f64 {
+    let nodes = bvh.nodes();
+    let root = f64::from(nodes[0].bounds().area());
+    nodes
+        .iter()
+        .map(|n| {
+            let a = f64::from(n.bounds().area()) / root;
+            if n.is_leaf() {
+                a * f64::from(bvh.options().intersect_cost) * f64::from(n.count)
+            } else {
+                a
+            }
+        })
+        .sum()
+}
+
+fn median(mut v: Vec<f64>) -> (f64, f64, f64) {
+    v.sort_by(f64::total_cmp);
+    (v[v.len() / 2], v[0], v[v.len() - 1])
+}
+
+/// Build time (median of 5, min–max), nodes and bytes per segment, SAH cost and primitive tests per random ray for
+/// each bounding mode, beside Embree's build of the same strands. Prints only: timings do not belong in asserts.
+#[test]
+#[ignore = "measurement, prints numbers: cargo test --release --lib accel::bvh -- --ignored --nocapture"]
+fn measure_build() {
+    const REPEATS: usize = 5;
+    const RAYS: usize = 20_000;
+    let threads = rayon::current_num_threads();
+    for name in ["straight.hair", "furball.hair"] {
+        let strands = load_strands(name);
+        let segments = strands.segment_count();
+        let embree: Vec<f64> = (0..REPEATS)
+            .map(|_| {
+                EmbreeTracer::new(&strands, CurveKind::Round)
+                    .expect("embree")
+                    .build_seconds()
+            })
+            .collect();
+        let (em, elo, ehi) = median(embree);
+        println!(
+            "{name}: {segments} segments, {threads} rayon threads; embree round build {:.1} ms ({:.1}–{:.1})",
+            em * 1e3,
+            elo * 1e3,
+            ehi * 1e3
+        );
+        // The default build on one thread: the parallel speed-up.
+        let one = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .expect("thread pool");
+        let (m1, lo1, hi1) = median(
+            (0..REPEATS)
+                .map(|_| {
+                    let start = std::time::Instant::now();
+                    one.install(|| Bvh::build(&strands, BuildOptions::default()));
+                    start.elapsed().as_secs_f64()
+                })
+                .collect(),
+        );
+        println!(
+            "  default options on 1 thread: build {:.1} ms ({:.1}–{:.1})",
+            m1 * 1e3,
+            lo1 * 1e3,
+            hi1 * 1e3
+        );
+        let (lo, hi) = model_bounds(&strands);
+        let rays = random_rays(lo, hi, RAYS, 21);
+        // Embree's closest hits on the same rays, real round curves, this thread only: the scale of the numbers.
+        let tracer = EmbreeTracer::new(&strands, CurveKind::Round).expect("embree");
+        let start = std::time::Instant::now();
+        let embree_hits = rays
+            .iter()
+            .filter(|r| tracer.intersect(r).expect("valid ray").is_some())
+            .count();
+        println!(
+            "  embree round closest hit: {:.2} Mrays/s (1 thread), {embree_hits} of {RAYS} rays hit",
+            RAYS as f64 / start.elapsed().as_secs_f64() / 1e6
+        );
+        let rows = [
+            (Bounding::Hull, 4, 4.0),
+            (Bounding::Spans { levels: 1 }, 4, 4.0),
+            (Bounding::Spans { levels: 2 }, 4, 1.0),
+            (Bounding::Spans { levels: 2 }, 4, 2.0),
+            (Bounding::Spans { levels: 2 }, 4, 4.0),
+            (Bounding::Spans { levels: 2 }, 8, 1.0),
+            (Bounding::Spans { levels: 3 }, 4, 4.0),
+            (Bounding::SpanRefs { levels: 1 }, 4, 4.0),
+        ];
+        for (bounding, max_leaf, intersect_cost) in rows {
+            {
+                let options = BuildOptions {
+                    bounding,
+                    max_leaf,
+                    intersect_cost,
+                    ..BuildOptions::default()
+                };
+                let mut bvh = None;
+                let times: Vec<f64> = (0..REPEATS)
+                    .map(|_| {
+                        let start = std::time::Instant::now();
+                        bvh = Some(Bvh::build(&strands, options));
+                        start.elapsed().as_secs_f64()
+                    })
+                    .collect();
+                let bvh = bvh.expect("built");
+                let (m, tlo, thi) = median(times);
+                // Primitive tests per ray for a closest-hit query whose primitive is the segment's hull box
+                // (a stand-in for the curve test: the same boxes for every mode, so modes compare fairly).
+                let hull: Vec<Aabb> = (0..segments as u32)
+                    .map(|s| segment_bounds(&strands, s, Bounding::Hull))
+                    .collect();
+                let mut tests = 0usize;
+                NODE_VISITS.with(|v| v.set(0));
+                let start = std::time::Instant::now();
+                for ray in &rays {
+                    bvh.closest(ray, |s, tfar| {
+                        tests += 1;
+                        hull[s as usize].entry(&RayInv::new(&Ray { tfar, ..*ray }))
+                    });
+                }
+                let trace = start.elapsed().as_secs_f64();
+                let visits = NODE_VISITS.with(|v| v.get()) as f64 / RAYS as f64;
+                println!(
+                    "  {:<24} leaf ≤ {max_leaf}, C_isect {intersect_cost}: build {:7.1} ms ({:.1}–{:.1}) = {:4.2}× embree, {:.3} nodes/seg, \
+                     {:5.1} B/seg, SAH {:7.1}, {:6.1} prim tests/ray, {visits:6.1} nodes/ray, {:.2} Mrays/s (1 thread, box prims)",
+                    format!("{bounding:?}"),
+                    m * 1e3,
+                    tlo * 1e3,
+                    thi * 1e3,
+                    m / em,
+                    bvh.nodes().len() as f64 / segments as f64,
+                    bvh.bytes() as f64 / segments as f64,
+                    sah_cost(&bvh),
+                    tests as f64 / RAYS as f64,
+                    RAYS as f64 / trace / 1e6,
+                );
+            }
+        }
+    }
+}
