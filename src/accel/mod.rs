@@ -2,6 +2,7 @@
 //! swapped per render and timed on identical rays.
 
 pub mod bvh;
+pub mod bvh_tracer;
 pub mod curves;
 pub mod embree;
 
