@@ -8,7 +8,7 @@ use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
 use serde::de::DeserializeOwned;
 
-use cuticle::accel::CurveKind;
+use cuticle::accel::{Backend, CurveKind};
 use cuticle::hair;
 use cuticle::render::{self, thread_pool, Frame, LightSelection, ShadowMode, TransmittanceMode};
 use cuticle::scene::{Overrides, Scene};
@@ -59,6 +59,9 @@ struct RenderArgs {
     /// Strand geometry, round or flat (overrides hair.curves).
     #[arg(long, value_parser = scene_name::<CurveKind>)]
     curves: Option<CurveKind>,
+    /// Strand tracer: embree or bvh, the pure-Rust BVH (overrides hair.backend).
+    #[arg(long, value_parser = scene_name::<Backend>)]
+    backend: Option<Backend>,
     /// Seed of the sample streams (overrides film.seed).
     #[arg(long)]
     seed: Option<u32>,
@@ -155,6 +158,9 @@ struct TimedRenderArgs {
     /// Timed renders (per variant) after one warm-up.
     #[arg(long, default_value_t = 2)]
     repetitions: usize,
+    /// Strand tracer: embree or bvh (overrides hair.backend).
+    #[arg(long, value_parser = scene_name::<Backend>)]
+    backend: Option<Backend>,
 }
 
 impl TimedRenderArgs {
@@ -163,7 +169,11 @@ impl TimedRenderArgs {
         if self.threads == 0 {
             bail!("--threads must be at least 1");
         }
-        load_scene(self.scene.as_deref())
+        let overrides = Overrides {
+            backend: self.backend,
+            ..Overrides::default()
+        };
+        Ok(load_scene(self.scene.as_deref())?.apply(&overrides)?)
     }
 }
 
@@ -206,6 +216,7 @@ fn render_command(args: RenderArgs) -> Result<()> {
         resolution: args.res,
         seed: args.seed,
         curves: args.curves,
+        backend: args.backend,
         shadows: args.shadows,
         transmittance: args.transmittance,
         light_samples: args.light_samples,
@@ -258,10 +269,11 @@ fn render_command(args: RenderArgs) -> Result<()> {
     }
     let [w, h] = settings.film.resolution;
     eprintln!(
-        "{} strands ({:?} curves), {w}x{h}, {} spp, {} threads: load {:.2} s, build {:.2} s, render {:.2} s \
+        "{} strands ({:?} curves, {:?} backend), {w}x{h}, {} spp, {} threads: load {:.2} s, build {:.2} s, render {:.2} s \
          ({:.2} Mrays/s: {} camera, {} shadow, {} material rays)",
         frame.strands.strand_count(),
         frame.curves,
+        frame.backend,
         settings.film.spp,
         pool.current_num_threads(),
         frame.load_seconds,

@@ -22,6 +22,17 @@ pub enum CurveKind {
     Flat,
 }
 
+/// Which implementation traces the strands: the two are timed against each other on identical work (issue 13).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Backend {
+    /// Intel Embree through `sys::embree` ([`embree::EmbreeTracer`]).
+    #[default]
+    Embree,
+    /// The pure-Rust BVH ([`bvh_tracer::BvhTracer`]): [`bvh`] with the ray–curve tests of [`curves`].
+    Bvh,
+}
+
 /// The closest hit of a ray with a strand.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Hit {

@@ -31,6 +31,8 @@ pub struct FrameReport {
     pub material: &'static str,
     /// Threads used.
     pub threads: usize,
+    /// The strand tracer.
+    pub backend: crate::accel::Backend,
     /// Hair load (file or procedural) and conversion to strands, seconds.
     pub load_seconds: f64,
     /// Embree geometry + BVH build, seconds.
@@ -50,8 +52,8 @@ impl fmt::Display for FrameReport {
         let [w, h] = self.resolution;
         writeln!(
             f,
-            "frame benchmark: {} ({} strands, {w}x{h}, {} spp, path length {}, {}); {} threads; median (min-max) of {} runs after 1 warm-up",
-            self.scene, self.strands, self.spp, self.path_length, self.material, self.threads, self.repetitions
+            "frame benchmark: {} ({} strands, {w}x{h}, {} spp, path length {}, {}); {:?} backend; {} threads; median (min-max) of {} runs after 1 warm-up",
+            self.scene, self.strands, self.spp, self.path_length, self.material, self.backend, self.threads, self.repetitions
         )?;
         writeln!(
             f,
@@ -118,6 +120,7 @@ pub fn frame(
         path_length: scene.integrator.path_length,
         material: frame.material.name,
         threads: pool.current_num_threads(),
+        backend: frame.backend,
         load_seconds: frame.load_seconds,
         build_seconds: frame.build_seconds(),
         render: Timing::from_samples(seconds),

@@ -15,7 +15,6 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 use super::frame::FrameBenchError;
-use crate::accel::Tracer;
 use crate::image::Image;
 use crate::measure::Timing;
 use crate::render::{thread_pool, Frame, Options, ShadowMode};

@@ -8,9 +8,10 @@
 
 use std::time::Instant;
 
+use crate::accel::bvh_tracer::BvhTracer;
 use crate::accel::embree::EmbreeError;
 use crate::accel::embree::EmbreeTracer;
-use crate::accel::CurveKind;
+use crate::accel::{Backend, CurveKind, Tracer};
 use crate::bsdf::Material;
 use crate::hair::{HairError, HairSpec, Strands};
 use crate::image::Image;
@@ -28,6 +29,8 @@ pub struct FrameSpec {
     pub hair: HairSpec,
     /// Round tubes or flat ribbons.
     pub curves: CurveKind,
+    /// Embree or the pure-Rust BVH.
+    pub backend: Backend,
     /// The fibre material.
     pub material: Material,
     /// Every light, environment last.
@@ -53,10 +56,14 @@ pub enum FrameError {
 pub struct Frame {
     /// The strands, as every tracer and the shadow maps see them.
     pub strands: Strands,
-    /// The hair's acceleration structure.
-    pub tracer: EmbreeTracer,
+    /// The hair's acceleration structure, built by [`Frame::backend`].
+    pub tracer: Box<dyn Tracer + Send>,
     /// Round tubes or flat ribbons.
     pub curves: CurveKind,
+    /// Which implementation traces the strands.
+    pub backend: Backend,
+    /// Wall time of building the acceleration structure, seconds.
+    build_seconds: f64,
     /// The fibre material.
     pub material: Material,
     /// Every light, environment last.
@@ -82,11 +89,24 @@ impl Frame {
 
     /// Builds the frame around strands already in memory (`spec.hair` is not read).
     pub fn build(strands: Strands, spec: FrameSpec) -> Result<Frame, FrameError> {
-        let tracer = EmbreeTracer::new(&strands, spec.curves)?;
+        let (tracer, build_seconds): (Box<dyn Tracer + Send>, f64) = match spec.backend {
+            Backend::Embree => {
+                let t = EmbreeTracer::new(&strands, spec.curves)?;
+                let s = t.build_seconds();
+                (Box::new(t), s)
+            }
+            Backend::Bvh => {
+                let t = BvhTracer::new(&strands, spec.curves);
+                let s = t.build_seconds();
+                (Box::new(t), s)
+            }
+        };
         Ok(Frame {
             strands,
             tracer,
             curves: spec.curves,
+            backend: spec.backend,
+            build_seconds,
             material: spec.material,
             lights: spec.lights,
             shapes: spec.shapes,
@@ -119,7 +139,7 @@ impl Frame {
 
     /// Wall time of building the acceleration structure, seconds.
     pub fn build_seconds(&self) -> f64 {
-        self.tracer.build_seconds()
+        self.build_seconds
     }
 
     /// Builds the deep opacity maps of every light with `settings.shadows.deep_opacity`, on the current rayon pool.

@@ -239,7 +239,7 @@ impl<'a> Integrator<'a> {
         let powers: Vec<f32> = lights.iter().map(|l| l.power(scene_radius)).collect();
         Integrator {
             strands: &frame.strands,
-            tracer: &frame.tracer,
+            tracer: frame.tracer.as_ref(),
             shapes: &frame.shapes,
             lights,
             material: &frame.material,

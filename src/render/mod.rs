@@ -20,7 +20,6 @@ use std::time::Instant;
 use glam::Vec3;
 use rayon::prelude::*;
 
-use crate::accel::Tracer;
 use crate::image::Image;
 use crate::shadow::ShadowMaps;
 
@@ -69,7 +68,7 @@ fn render_tiles(
 ) -> (Image, RenderStats) {
     let [width, height] = settings.film.resolution;
     let strands = &frame.strands;
-    let tracer = &frame.tracer;
+    let tracer = frame.tracer.as_ref();
     let bounds = strands.bounds();
     let camera = Camera::from_config(&settings.camera, bounds, width, height);
     let filter = GaussianFilter::new(settings.film.filter_width);

@@ -24,7 +24,7 @@ use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
 
-use crate::accel::CurveKind;
+use crate::accel::{Backend, CurveKind};
 use crate::hair::procedural::Procedural;
 use crate::hair::{HairSource, HairSpec};
 use crate::render::{FrameSpec, RenderSettings};
@@ -113,6 +113,9 @@ pub struct HairConfig {
     /// Round tubes or flat ribbons.
     #[serde(default)]
     pub curves: CurveKind,
+    /// Which implementation traces the strands: `"embree"` (default) or `"bvh"` (the pure-Rust BVH).
+    #[serde(default)]
+    pub backend: Backend,
     /// Per-strand opacity for shadow rays, overriding the file's transparency (0 = invisible to shadows).
     pub opacity: Option<f32>,
     /// Multiplies every strand radius (a thickness control for models whose files are too thick or thin).
@@ -235,6 +238,7 @@ impl Scene {
         Ok(FrameSpec {
             hair: self.hair_spec(),
             curves: self.hair.curves,
+            backend: self.hair.backend,
             material,
             lights: self.build_lights()?,
             shapes: self.build_shapes(),
@@ -256,6 +260,9 @@ impl Scene {
         }
         if let Some(curves) = o.curves {
             self.hair.curves = curves;
+        }
+        if let Some(backend) = o.backend {
+            self.hair.backend = backend;
         }
         if let Some(mode) = o.shadows {
             self.shadows.mode = mode;
@@ -290,6 +297,8 @@ pub struct Overrides {
     pub seed: Option<u32>,
     /// `hair.curves`.
     pub curves: Option<CurveKind>,
+    /// `hair.backend`.
+    pub backend: Option<Backend>,
     /// `shadows.mode`.
     pub shadows: Option<ShadowMode>,
     /// `shadows.transmittance`.
