@@ -56,11 +56,6 @@ impl BvhTracer {
         }
     }
 
-    /// Wall time to copy the strands and build the BVH, in seconds.
-    pub fn build_seconds(&self) -> f64 {
-        self.build_seconds
-    }
-
     /// The curve type the strands are intersected as.
     pub fn kind(&self) -> CurveKind {
         self.kind
@@ -176,6 +171,11 @@ impl Seen {
 }
 
 impl Tracer for BvhTracer {
+    /// Wall time to copy the strands and build the BVH, in seconds.
+    fn build_seconds(&self) -> f64 {
+        self.build_seconds
+    }
+
     fn intersect(&self, ray: &Ray) -> Result<Option<Hit>, InvalidRay> {
         self.closest(ray, |_, _| true)
     }
@@ -233,7 +233,7 @@ mod tests {
 
     use super::*;
     use crate::accel::embree::EmbreeTracer;
-    use crate::hair::HairModel;
+    use crate::accel::testing::random_bundle;
     use crate::util::hash::SplitMix64;
 
     /// Primary rays per model and curve kind (each hit also spawns a secondary ray).
@@ -251,32 +251,6 @@ mod tests {
 
     /// Absolute tolerance on transmittance.
     const TRANSMITTANCE_TOLERANCE: f32 = 1e-4;
-
-    /// `count` random wavy strands of `points` points in the cube [−1, 1]³, radii 0.002–0.02, opacity 0.5.
-    fn random_bundle(count: usize, points: usize, seed: u64) -> Strands {
-        let mut rng = SplitMix64::new(seed, 0);
-        let mut u = || rng.next_f32();
-        let mut model = HairModel {
-            strand_offsets: vec![0],
-            ..Default::default()
-        };
-        for _ in 0..count {
-            let mut p = Vec3::new(u(), u(), u()) * 2.0 - Vec3::ONE;
-            let dir = (Vec3::new(u(), u(), u()) * 2.0 - Vec3::ONE).normalize_or(Vec3::Y);
-            let radius = 0.002 + 0.018 * u();
-            for _ in 0..points {
-                model.points.push(p);
-                model.radius.push(radius);
-                model.transparency.push(0.5);
-                model.color.push([0.5; 3]);
-                p += 0.1 * dir + 0.05 * (Vec3::new(u(), u(), u()) - Vec3::splat(0.5));
-            }
-            model.strand_offsets.push(model.points.len() as u32);
-        }
-        let mut strands = Strands::from_model(&model);
-        strands.set_opacity(0.5);
-        strands
-    }
 
     fn straight_hair() -> Strands {
         let path = Path::new(concat!(

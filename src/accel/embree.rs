@@ -81,11 +81,6 @@ impl EmbreeTracer {
         })
     }
 
-    /// Wall time to create the geometry and build (commit) the BVH, in seconds; device creation excluded.
-    pub fn build_seconds(&self) -> f64 {
-        self.build_seconds
-    }
-
     /// The curve type the strands were built as.
     pub fn kind(&self) -> CurveKind {
         self.kind
@@ -107,6 +102,11 @@ impl EmbreeTracer {
 }
 
 impl Tracer for EmbreeTracer {
+    /// Wall time to create the geometry and build (commit) the BVH, in seconds; device creation excluded.
+    fn build_seconds(&self) -> f64 {
+        self.build_seconds
+    }
+
     fn intersect(&self, ray: &Ray) -> Result<Option<Hit>, InvalidRay> {
         Ok(self.scene.intersect1(ray)?.map(|h| self.hit(h)))
     }

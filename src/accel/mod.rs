@@ -5,6 +5,8 @@ pub mod bvh;
 pub mod bvh_tracer;
 pub mod curves;
 pub mod embree;
+#[cfg(test)]
+mod testing;
 
 use glam::Vec3;
 
@@ -53,6 +55,9 @@ pub struct Hit {
 
 /// A strand tracer. Implementations are shared between render threads.
 pub trait Tracer: Sync {
+    /// Wall time of building the acceleration structure, seconds (what the backends are compared on).
+    fn build_seconds(&self) -> f64;
+
     /// The closest strand hit along `ray` in `[tnear, tfar]`, if any.
     fn intersect(&self, ray: &Ray) -> Result<Option<Hit>, InvalidRay>;
 

@@ -62,8 +62,6 @@ pub struct Frame {
     pub curves: CurveKind,
     /// Which implementation traces the strands.
     pub backend: Backend,
-    /// Wall time of building the acceleration structure, seconds.
-    build_seconds: f64,
     /// The fibre material.
     pub material: Material,
     /// Every light, environment last.
@@ -89,24 +87,15 @@ impl Frame {
 
     /// Builds the frame around strands already in memory (`spec.hair` is not read).
     pub fn build(strands: Strands, spec: FrameSpec) -> Result<Frame, FrameError> {
-        let (tracer, build_seconds): (Box<dyn Tracer + Send>, f64) = match spec.backend {
-            Backend::Embree => {
-                let t = EmbreeTracer::new(&strands, spec.curves)?;
-                let s = t.build_seconds();
-                (Box::new(t), s)
-            }
-            Backend::Bvh => {
-                let t = BvhTracer::new(&strands, spec.curves);
-                let s = t.build_seconds();
-                (Box::new(t), s)
-            }
+        let tracer: Box<dyn Tracer + Send> = match spec.backend {
+            Backend::Embree => Box::new(EmbreeTracer::new(&strands, spec.curves)?),
+            Backend::Bvh => Box::new(BvhTracer::new(&strands, spec.curves)),
         };
         Ok(Frame {
             strands,
             tracer,
             curves: spec.curves,
             backend: spec.backend,
-            build_seconds,
             material: spec.material,
             lights: spec.lights,
             shapes: spec.shapes,
@@ -139,7 +128,7 @@ impl Frame {
 
     /// Wall time of building the acceleration structure, seconds.
     pub fn build_seconds(&self) -> f64 {
-        self.build_seconds
+        self.tracer.build_seconds()
     }
 
     /// Builds the deep opacity maps of every light with `settings.shadows.deep_opacity`, on the current rayon pool.

@@ -197,14 +197,6 @@ pub struct RenderSettings {
 }
 
 impl RenderSettings {
-    /// Range checks of every part; messages name the scene key.
-    pub fn validate(&self) -> Result<(), String> {
-        self.camera.validate()?;
-        self.film.validate()?;
-        self.integrator.validate()?;
-        self.shadows.deep_opacity.validate()
-    }
-
     /// The light-transport settings of the integrator.
     pub fn transport(&self) -> Settings {
         let i = &self.integrator;

@@ -7,6 +7,7 @@ use glam::Vec3;
 
 use super::*;
 use crate::accel::embree::EmbreeTracer;
+use crate::accel::testing::random_bundle;
 use crate::accel::{CurveKind, Tracer};
 use crate::hair::HairModel;
 use crate::util::hash::SplitMix64;
@@ -55,30 +56,6 @@ fn data_file(name: &str) -> PathBuf {
 fn load_strands(name: &str) -> Strands {
     let path = data_file(name);
     let model = crate::hair::load(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    Strands::from_model(&model)
-}
-
-/// `count` random wavy strands of `points` points in the cube [−1, 1]³, radii 0.002–0.02.
-fn random_bundle(count: usize, points: usize, seed: u64) -> Strands {
-    let mut rng = SplitMix64::new(seed, 0);
-    let mut u = || rng.next_f32();
-    let mut model = HairModel {
-        strand_offsets: vec![0],
-        ..Default::default()
-    };
-    for _ in 0..count {
-        let mut p = Vec3::new(u(), u(), u()) * 2.0 - Vec3::ONE;
-        let dir = (Vec3::new(u(), u(), u()) * 2.0 - Vec3::ONE).normalize_or(Vec3::Y);
-        let radius = 0.002 + 0.018 * u();
-        for _ in 0..points {
-            model.points.push(p);
-            model.radius.push(radius);
-            model.transparency.push(0.5);
-            model.color.push([0.5; 3]);
-            p += 0.1 * dir + 0.05 * (Vec3::new(u(), u(), u()) - Vec3::splat(0.5));
-        }
-        model.strand_offsets.push(model.points.len() as u32);
-    }
     Strands::from_model(&model)
 }
 

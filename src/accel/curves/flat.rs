@@ -233,10 +233,10 @@ fn intersect_tessellated(
 mod tests {
     use super::*;
     use crate::accel::embree::{Device, EmbreeTracer};
+    use crate::accel::testing::Rng;
     use crate::accel::{CurveKind, Tracer};
     use crate::hair::{HairModel, Strands};
     use crate::ray::Ray;
-    use crate::util::hash::SplitMix64;
 
     /// Four equally spaced collinear control points `a + k·h` (k = 0..3) of radius `r`: the B-spline is the
     /// straight segment P(u) = a + (1 + u)·h, so the ray-facing ribbon is flat and every quad lies in one plane.
@@ -380,29 +380,6 @@ mod tests {
     }
 
     // ---- Agreement with Embree ------------------------------------------------------------------------------
-
-    /// Seeded SplitMix64: every failure reproduces.
-    struct Rng(SplitMix64);
-
-    impl Rng {
-        fn range(&mut self, lo: f32, hi: f32) -> f32 {
-            lo + (hi - lo) * self.0.next_f32()
-        }
-
-        fn unit_vector(&mut self) -> Vec3 {
-            loop {
-                let p = Vec3::new(
-                    self.range(-1.0, 1.0),
-                    self.range(-1.0, 1.0),
-                    self.range(-1.0, 1.0),
-                );
-                let l = p.length();
-                if (0.1..=1.0).contains(&l) {
-                    return p / l;
-                }
-            }
-        }
-    }
 
     /// A hit as both backends report it: (t, segment, u, v, Ng).
     type Reported = Option<(f32, u32, f32, f32, Vec3)>;
@@ -578,14 +555,14 @@ mod tests {
     /// well sampled), from 1–4 units away, with |dir| in [0.5, 2]; one ray in five ends near the curve (finite
     /// tfar), one in five starts near it (tnear > 0).
     fn ray_near_curve(rng: &mut Rng, strands: &Strands) -> Ray {
-        let segment = (rng.0.next_u64() % strands.segment_count() as u64) as u32;
+        let segment = (rng.next_u64() % strands.segment_count() as u64) as u32;
         let p = strands.eval(segment, rng.range(0.0, 1.0));
         let target = p.position + rng.unit_vector() * rng.range(0.0, 1.5) * p.radius;
         let dir = rng.unit_vector();
         let distance = rng.range(1.0, 4.0);
         let len = rng.range(0.5, 2.0);
         let (mut tnear, mut tfar) = (0.0, f32::INFINITY);
-        match rng.0.next_u64() % 5 {
+        match rng.next_u64() % 5 {
             0 => tfar = rng.range(0.5, 1.5) * distance / len,
             1 => tnear = rng.range(0.5, 1.5) * distance / len,
             _ => {}
@@ -597,7 +574,7 @@ mod tests {
     /// 300 rays each. "Hair-like": control points a short walk apart, gently turning, radii 0.005–0.03; "wild":
     /// anywhere in a unit box (loops, cusps, tight bends), radii 0.01–0.1.
     fn single_segments(device: &Device, seed: u64, wild: bool, rate: usize) -> Agreement {
-        let mut rng = Rng(SplitMix64::from_state(seed));
+        let mut rng = Rng::new(seed);
         let mut agreement = Agreement::default();
         for _ in 0..300 {
             let mut cp = [[0.0f32; 4]; 4];
@@ -676,7 +653,7 @@ mod tests {
         // 40 wavy strands of 10 points (9 segments each, phantom end points, tapered radii 0.02 → 0.01) rooted
         // in a disk of radius 0.3, growing up; rays near the strands, and secondary rays leaving Embree's hits in
         // random directions (they start on a ribbon: self-intersection avoidance decides those).
-        let mut rng = Rng(SplitMix64::from_state(0xf1a7_0002));
+        let mut rng = Rng::new(0xf1a7_0002);
         let mut model = HairModel {
             strand_offsets: vec![0],
             ..Default::default()

@@ -592,10 +592,10 @@ fn lerp(a: f32, b: f32, s: f32) -> f32 {
 mod tests {
     use super::*;
     use crate::accel::embree::{Device, EmbreeTracer};
+    use crate::accel::testing::Rng;
     use crate::accel::{CurveKind, Tracer};
     use crate::hair::{HairModel, Strands};
     use crate::ray::Ray;
-    use crate::util::hash::SplitMix64;
 
     /// Hit distances agree when |Δt| ≤ this · t (issue 13).
     const T_RELATIVE: f32 = 1e-3;
@@ -603,31 +603,6 @@ mod tests {
     /// A hit whose |cos| between ray and normal is below this counts as grazing the silhouette, where two
     /// correct float implementations may decide hit or miss differently.
     const GRAZING_COS: f32 = 0.1;
-
-    /// Deterministic random numbers: every failure reproduces.
-    struct Rng(SplitMix64);
-
-    impl Rng {
-        fn new(seed: u64) -> Self {
-            Rng(SplitMix64::from_state(seed))
-        }
-        fn range(&mut self, lo: f32, hi: f32) -> f32 {
-            lo + (hi - lo) * self.0.next_f32()
-        }
-        fn unit(&mut self) -> Vec3 {
-            loop {
-                let v = Vec3::new(
-                    self.range(-1.0, 1.0),
-                    self.range(-1.0, 1.0),
-                    self.range(-1.0, 1.0),
-                );
-                let l = v.length();
-                if l > 0.1 && l <= 1.0 {
-                    return v / l;
-                }
-            }
-        }
-    }
 
     /// Straight, evenly spaced control points along y with radius `r`: the B-spline is the segment
     /// y ∈ [−0.5, 0.5] itself, u = y + 0.5, a cylinder of radius r.
@@ -845,8 +820,8 @@ mod tests {
     fn ray_at(rng: &mut Rng, cp: [[f32; 4]; 4]) -> Ray {
         let curve = BSpline(cp.map(Vec4::from_array));
         let p = curve.eval(rng.range(-0.05, 1.05));
-        let target = p.xyz() + rng.range(0.0, 1.5 * p.w.abs()) * rng.unit();
-        let origin = target + rng.range(2.0, 6.0) * rng.unit();
+        let target = p.xyz() + rng.range(0.0, 1.5 * p.w.abs()) * rng.unit_vector();
+        let origin = target + rng.range(2.0, 6.0) * rng.unit_vector();
         Ray::new(origin, (target - origin).normalize() * rng.range(0.5, 2.0))
     }
 
@@ -860,7 +835,7 @@ mod tests {
         let mut cp = [[0.0; 4]; 4];
         for c in &mut cp {
             *c = [p.x, p.y, p.z, rng.range(0.01, 0.1)];
-            p += rng.range(0.2, 1.0) * rng.unit();
+            p += rng.range(0.2, 1.0) * rng.unit_vector();
         }
         cp
     }
@@ -909,7 +884,7 @@ mod tests {
         let tracer = EmbreeTracer::new(&strands, CurveKind::Round).unwrap();
         let mut agreement = Agreement::default();
         for _ in 0..10_000 {
-            let s = (rng.0.next_u64() % strands.segment_count() as u64) as usize;
+            let s = (rng.next_u64() % strands.segment_count() as u64) as usize;
             let first = strands.segment_first[s] as usize;
             let cp = [0, 1, 2, 3].map(|k| strands.control_points[first + k]);
             let ray = ray_at(&mut rng, cp);
@@ -917,7 +892,7 @@ mod tests {
             // A secondary ray from the hit, as shading spawns them: into or out of the tube, tnear just past
             // the surface, so exits through the back wall and neighbouring strands are compared too.
             if let Some(hit) = tracer.intersect(&ray).unwrap() {
-                let secondary = Ray::segment(ray.at(hit.t), rng.unit(), 1e-3, f32::INFINITY);
+                let secondary = Ray::segment(ray.at(hit.t), rng.unit_vector(), 1e-3, f32::INFINITY);
                 compare(
                     &mut agreement,
                     &tracer,
