@@ -134,16 +134,26 @@ enum BenchCommand {
     /// Shadow cost of ray-traced shadows and of deep opacity maps on one scene (default: the built-in scene; the
     /// issue-6 configuration is `scenes/furball-shadows.toml`), and the difference between their images.
     Shadows(TimedRenderArgs),
-    /// Primary- and shadow-ray throughput for round and flat curves, BVH build time, peak memory.
+    /// Embree against the pure-Rust BVH on identical rays: Mrays/s per ray type (camera, secondary, shadow exact
+    /// and stochastic), build time and bytes per segment, for round and flat curves.
     Trace {
         /// Scene whose hair model is traced (default: the built-in default scene).
         scene: Option<PathBuf>,
-        /// Worker threads.
-        #[arg(long, default_value_t = 2)]
-        threads: usize,
+        /// Worker threads; a list measures each, e.g. `--threads 1,2`.
+        #[arg(long, value_delimiter = ',', default_value = "2")]
+        threads: Vec<usize>,
+        /// Backends to measure, e.g. `--backend bvh` (default: embree,bvh).
+        #[arg(long, value_delimiter = ',', value_parser = scene_name::<Backend>, default_value = "embree,bvh")]
+        backend: Vec<Backend>,
+        /// Curve types to measure (default: round,flat).
+        #[arg(long, value_delimiter = ',', value_parser = scene_name::<CurveKind>, default_value = "round,flat")]
+        curves: Vec<CurveKind>,
         /// Camera rays: one per pixel of a WxH image through the scene's camera.
         #[arg(long, value_parser = parse_resolution, default_value = "512x512")]
         res: [u32; 2],
+        /// Timed repetitions after one warm-up.
+        #[arg(long, default_value_t = 3)]
+        repetitions: usize,
     },
 }
 
@@ -356,10 +366,21 @@ fn bench_command(command: BenchCommand) -> Result<()> {
         BenchCommand::Trace {
             scene,
             threads,
+            backend,
+            curves,
             res,
+            repetitions,
         } => {
+            if threads.contains(&0) {
+                bail!("--threads must be at least 1");
+            }
             let scene = load_scene(scene.as_deref())?;
-            let report = cuticle::bench::trace_scene(&scene, threads, res)?;
+            let (strands, mut config) = cuticle::bench::scene_config(&scene, res)?;
+            config.threads = threads;
+            config.backends = backend;
+            config.kinds = curves;
+            config.repetitions = repetitions;
+            let report = cuticle::bench::trace(&strands, &config)?;
             println!("{report}");
         }
     }

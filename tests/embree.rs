@@ -638,32 +638,68 @@ fn synthetic_fur(count: usize) -> Strands {
 }
 
 #[test]
-fn bench_trace_reports_both_curve_kinds() {
+fn bench_trace_measures_both_backends_on_the_same_rays() {
+    use cuticle::accel::{Backend, CurveKind};
+    use cuticle::bench::trace::RayType;
     let strands = synthetic_fur(500);
     let (lo, hi) = strands.bounds();
     let centre = 0.5 * (lo + hi);
     let eye = centre + Vec3::new(0.0, 0.0, 2.5 * (hi - lo).max_element());
     let camera = cuticle::render::camera::Camera::look_at(eye, centre, Vec3::Y, 50.0, 64, 64);
     let mut config = cuticle::bench::TraceConfig::new(camera, 2);
+    config.threads = vec![1, 2];
     config.repetitions = 1;
     let report = cuticle::bench::trace(&strands, &config).unwrap();
-    assert_eq!(report.kinds.len(), 2);
-    for k in &report.kinds {
-        assert!(k.primary_hits > 0 && k.primary_hits < 4096, "{report}");
-        assert_eq!(k.shadow.rays, k.primary_hits);
-        assert!((0.0..=1.0).contains(&k.mean_transmittance), "{report}");
-        assert!(k.embree_bytes > 0, "{report}");
+    assert_eq!(report.measurements.len(), 2 * 2 * 2, "{report}");
+    for kind in [CurveKind::Round, CurveKind::Flat] {
+        let embree = report.get(kind, Backend::Embree, 2).unwrap();
+        for m in report.measurements.iter().filter(|m| m.kind == kind) {
+            assert!(m.memory_bytes > 0, "{report}");
+            for (r, e) in m.rays.iter().zip(&embree.rays) {
+                assert!(r.throughput.rays > 0, "{:?} has no rays\n{report}", r.ray);
+                // The same rays through either backend: the same work, so (up to a few silhouette grazes) the
+                // same correctness figure.
+                assert_eq!(r.throughput.rays, e.throughput.rays, "{report}");
+                assert!(
+                    (r.figure - e.figure).abs() <= 0.01,
+                    "{kind:?} {:?} {:?} figure {} against embree's {}\n{report}",
+                    m.backend,
+                    r.ray,
+                    r.figure,
+                    e.figure
+                );
+            }
+            let camera = &m.rays[0];
+            assert_eq!(camera.ray, RayType::Camera);
+            assert!(camera.figure > 0.0 && camera.figure < 1.0, "{report}");
+        }
     }
-    // The script-readable lines: one per (measure, curves), with a positive finite number.
+    // The script-readable lines: one per (measure, curves, backend, threads), with a positive finite number.
     let text = report.to_string();
-    for what in ["build", "camera", "shadow-exact"] {
+    for what in [
+        "build",
+        "memory",
+        "camera",
+        "secondary",
+        "shadow-exact",
+        "shadow-stochastic",
+    ] {
         for kind in ["round", "flat"] {
-            let line = text
-                .lines()
-                .find(|l| l.starts_with(&format!("{what} {kind} embree ")))
-                .unwrap_or_else(|| panic!("no `{what} {kind} embree` line in\n{text}"));
-            let value: f64 = line.split_whitespace().nth(3).unwrap().parse().unwrap();
-            assert!(value.is_finite() && value > 0.0, "{line}");
+            for backend in ["embree", "bvh"] {
+                for threads in ["1-threads", "2-threads"] {
+                    let line = text
+                        .lines()
+                        .find(|l| {
+                            l.starts_with(&format!("{what} {kind} {backend} "))
+                                && l.ends_with(threads)
+                        })
+                        .unwrap_or_else(|| {
+                            panic!("no `{what} {kind} {backend} … {threads}` line in\n{text}")
+                        });
+                    let value: f64 = line.split_whitespace().nth(3).unwrap().parse().unwrap();
+                    assert!(value.is_finite() && value > 0.0, "{line}");
+                }
+            }
         }
     }
     eprintln!("{report}");

@@ -176,6 +176,11 @@ impl Tracer for BvhTracer {
         self.build_seconds
     }
 
+    /// The hierarchy (nodes and leaf indices) plus the tracer's copy of the strands.
+    fn memory_bytes(&self) -> usize {
+        self.bvh.bytes() + self.strands.bytes()
+    }
+
     fn intersect(&self, ray: &Ray) -> Result<Option<Hit>, InvalidRay> {
         self.closest(ray, |_, _| true)
     }

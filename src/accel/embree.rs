@@ -107,6 +107,12 @@ impl Tracer for EmbreeTracer {
         self.build_seconds
     }
 
+    /// Embree's memory monitor for the device (BVH and the curve buffers Embree copied) plus the strand table kept
+    /// in Rust for the filter. Exact when the device holds this scene alone, as [`EmbreeTracer::new`]'s does.
+    fn memory_bytes(&self) -> usize {
+        self.device.memory_bytes() + self.strands.bytes()
+    }
+
     fn intersect(&self, ray: &Ray) -> Result<Option<Hit>, InvalidRay> {
         Ok(self.scene.intersect1(ray)?.map(|h| self.hit(h)))
     }

@@ -58,6 +58,10 @@ pub trait Tracer: Sync {
     /// Wall time of building the acceleration structure, seconds (what the backends are compared on).
     fn build_seconds(&self) -> f64;
 
+    /// Bytes the tracer holds for the strands: its hierarchy plus its own copy of the curves (control points,
+    /// indices, strand table). What the backends are compared on per segment.
+    fn memory_bytes(&self) -> usize;
+
     /// The closest strand hit along `ray` in `[tnear, tfar]`, if any.
     fn intersect(&self, ray: &Ray) -> Result<Option<Hit>, InvalidRay>;
 

@@ -124,6 +124,17 @@ impl Strands {
         self.strand_offsets.len().saturating_sub(1)
     }
 
+    /// Heap bytes of all arrays.
+    pub fn bytes(&self) -> usize {
+        use std::mem::size_of_val;
+        size_of_val(self.control_points.as_slice())
+            + size_of_val(self.strand_offsets.as_slice())
+            + size_of_val(self.segment_first.as_slice())
+            + size_of_val(self.segment_strand.as_slice())
+            + size_of_val(self.opacity.as_slice())
+            + size_of_val(self.color.as_slice())
+    }
+
     /// Number of cubic segments (Embree primitives).
     pub fn segment_count(&self) -> usize {
         self.segment_first.len()

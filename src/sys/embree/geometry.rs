@@ -58,6 +58,12 @@ impl StrandTable {
         })
     }
 
+    /// Heap bytes of the table.
+    pub fn bytes(&self) -> usize {
+        std::mem::size_of_val(self.segment_strand.as_slice())
+            + std::mem::size_of_val(self.opacity.as_slice())
+    }
+
     /// Number of segments (Embree primitives).
     pub fn segment_count(&self) -> usize {
         self.segment_strand.len()
