@@ -18,6 +18,7 @@
 
 use std::time::Instant;
 
+use super::bvh::wide::WideBvh;
 use super::bvh::{BuildOptions, Bvh, Control};
 use super::curves::{flat, round, CurveHit};
 use super::{strand_present, CurveKind, Hit, Tracer};
@@ -29,7 +30,7 @@ use crate::sys::embree::{SEEN_STRANDS, TRANSMITTANCE_CUTOFF};
 #[derive(Debug, Clone)]
 pub struct BvhTracer {
     strands: Strands,
-    bvh: Bvh,
+    bvh: WideBvh,
     kind: CurveKind,
     build_seconds: f64,
 }
@@ -47,7 +48,7 @@ impl BvhTracer {
     pub fn with_options(strands: &Strands, kind: CurveKind, options: BuildOptions) -> Self {
         let start = Instant::now();
         let strands = strands.clone();
-        let bvh = Bvh::build(&strands, options);
+        let bvh = WideBvh::new(&Bvh::build(&strands, options), &strands);
         BvhTracer {
             strands,
             bvh,
@@ -62,7 +63,7 @@ impl BvhTracer {
     }
 
     /// The hierarchy (for its size and statistics).
-    pub fn bvh(&self) -> &Bvh {
+    pub fn bvh(&self) -> &WideBvh {
         &self.bvh
     }
 

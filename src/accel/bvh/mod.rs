@@ -15,7 +15,8 @@
 //!   same for any thread count (tested).
 //! - **Layout**: pbrt-v3's linear BVH (Pharr, Jakob & Humphreys, §4.3.4): 32-byte nodes in depth-first order, the
 //!   first child right after its parent, the second child's index in the node.
-//! - **Traversal**: a fixed stack of [`STACK_SIZE`] entries (no allocation per ray); both children's boxes are
+//! - **Traversal** (this file's, kept as the build's output and the reference the tests compare [`wide`] with;
+//!   the tracer walks [`wide::WideBvh`], the same tree collapsed to 4-wide nodes): a fixed stack of [`STACK_SIZE`] entries (no allocation per ray); both children's boxes are
 //!   tested at the parent, the nearer entered first and the other stacked with its entry distance, skipped when a
 //!   closer hit has been found by the time it is popped (measured against pbrt's split-axis order: 2–4 % fewer box
 //!   tests). Boxes use the robust slab test of Ize 2013 ("Robust BVH ray traversal", JCGT 2(2)): far slab
@@ -24,6 +25,7 @@
 mod build;
 #[cfg(test)]
 mod tests;
+pub mod wide;
 
 use glam::Vec3;
 

@@ -314,6 +314,64 @@ fn check_traversal(bvh: &Bvh, strands: &Strands, rays: &[Ray], what: &str) -> (u
     (hits, reported)
 }
 
+/// Whether the tree's boxes contain the four quarter-span boxes the wide leaves test (midpoint subdivision nests:
+/// hull ⊇ halves ⊇ quarters), so that the wide walk reaches a segment exactly when the ray crosses a quarter span.
+/// Eighth spans are tighter than quarters: then a segment is reached only when the ray crosses both, which
+/// [`check_wide_traversal`]'s brute force does not model.
+fn contains_quarter_spans(bounding: Bounding) -> bool {
+    !matches!(
+        bounding,
+        Bounding::Spans { levels: 3 } | Bounding::SpanRefs { levels: 3 }
+    )
+}
+
+/// [`wide::WideBvh`] over `bvh` against brute force over every segment's four span boxes (what its leaves test):
+/// the same nearest entry bit for bit, and the all-hits walk reaches exactly the segments whose spans the ray
+/// crosses. Returns the segments reported.
+fn check_wide_traversal(bvh: &Bvh, strands: &Strands, rays: &[Ray], what: &str) -> usize {
+    let wide = wide::WideBvh::new(bvh, strands);
+    let spans = Bounding::SpanRefs { levels: 2 };
+    let boxes: Vec<(u32, Aabb)> = (0..strands.segment_count() as u32)
+        .flat_map(|s| {
+            primitive_boxes(strands, s, spans)
+                .into_iter()
+                .map(move |b| (s, b))
+        })
+        .collect();
+    let seg_boxes: Vec<Vec<Aabb>> = (0..strands.segment_count() as u32)
+        .map(|s| primitive_boxes(strands, s, spans))
+        .collect();
+    let mut reported = 0;
+    for (i, ray) in rays.iter().enumerate() {
+        let (want_t, want_set) = brute_force(&boxes, ray);
+        let got_t = wide.closest(ray, |segment, tfar| {
+            let r = RayInv::new(&Ray { tfar, ..*ray });
+            seg_boxes[segment as usize]
+                .iter()
+                .filter_map(|b| b.entry(&r))
+                .min_by(f32::total_cmp)
+        });
+        assert_eq!(
+            got_t.map(f32::to_bits),
+            want_t.map(f32::to_bits),
+            "{what}, wide: ray {i} {ray:?}: closest {got_t:?}, brute force {want_t:?}"
+        );
+        let mut got_set = Vec::new();
+        assert!(!wide.for_each(ray, |segment, _| {
+            got_set.push(segment);
+            Control::Continue
+        }));
+        got_set.sort_unstable();
+        got_set.dedup();
+        assert_eq!(
+            got_set, want_set,
+            "{what}, wide: ray {i} {ray:?}: all-hits walk differs from brute force"
+        );
+        reported += want_set.len();
+    }
+    reported
+}
+
 #[test]
 fn node_is_32_bytes() {
     assert_eq!(std::mem::size_of::<Node>(), 32);
@@ -412,6 +470,13 @@ fn random_bundle_builds_valid_trees_that_traverse_like_brute_force() {
             // Guard against a vacuous test: most rays must hit something.
             assert!(hits > rays.len() / 4, "{what}: only {hits} rays hit");
             assert!(reported > rays.len(), "{what}: {reported} boxes crossed");
+            if contains_quarter_spans(bounding) {
+                let reported = check_wide_traversal(&bvh, &strands, &rays, &what);
+                assert!(
+                    reported > rays.len() / 2,
+                    "{what}, wide: {reported} spans crossed"
+                );
+            }
         }
     }
 }
@@ -431,6 +496,7 @@ fn straight_hair_builds_a_valid_tree_that_traverses_like_brute_force() {
         check_invariants(&bvh, &strands, &what);
         let (hits, _) = check_traversal(&bvh, &strands, &rays, &what);
         assert!(hits > rays.len() / 4, "{what}: only {hits} rays hit");
+        check_wide_traversal(&bvh, &strands, &rays, &what);
     }
 }
 
@@ -519,6 +585,7 @@ fn degenerate_input_builds_and_traverses() {
         );
         assert!(!empty.for_each(ray, |s, _| panic!("segment {s} in an empty bvh")));
     }
+    check_wide_traversal(&empty, &Strands::default(), &rays, "empty");
     let cases = [
         ("one strand", random_bundle(1, 5, 3)),
         (
@@ -540,6 +607,9 @@ fn degenerate_input_builds_and_traverses() {
             let what = format!("{what}, {bounding:?}");
             check_invariants(&bvh, strands, &what);
             check_traversal(&bvh, strands, &rays, &what);
+            if contains_quarter_spans(bounding) {
+                check_wide_traversal(&bvh, strands, &rays, &what);
+            }
         }
     }
     // A ray through the coincident point's box hits it: the traversal handles zero-size boxes.
