@@ -393,6 +393,9 @@ fn bench_command(command: BenchCommand) -> Result<()> {
 enum StudyCommand {
     /// Shadow modes against a converged ray-traced reference: error vs time, map memory, crops (issue 6).
     Shadows(StudyShadowsArgs),
+    /// The same frame on Embree and on the pure-Rust BVH: time, error against a reference, image difference
+    /// (issue 13).
+    Backends(StudyBackendsArgs),
 }
 
 #[derive(clap::Args)]
@@ -435,6 +438,39 @@ struct StudyShadowsArgs {
     /// Side of the crop window, pixels.
     #[arg(long, default_value_t = 128)]
     crop: usize,
+    /// Strand tracer: embree or bvh (overrides hair.backend).
+    #[arg(long, value_parser = scene_name::<Backend>)]
+    backend: Option<Backend>,
+    /// No progress lines.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+#[derive(clap::Args)]
+struct StudyBackendsArgs {
+    /// Scene file (TOML).
+    scene: PathBuf,
+    /// Output directory: backends.csv, backends-error-time.png, backends-diff-*.png, the cached references.
+    #[arg(short, long, default_value = "study-backends")]
+    out: PathBuf,
+    /// Where the reference EXRs are cached (default: the output directory).
+    #[arg(long)]
+    cache_dir: Option<PathBuf>,
+    /// Samples per pixel of the references (Embree).
+    #[arg(long, default_value_t = 256)]
+    reference_spp: u32,
+    /// Samples per pixel of the compared renders.
+    #[arg(long, value_delimiter = ',', default_value = "1,4,16")]
+    spp: Vec<u32>,
+    /// Curve types.
+    #[arg(long, value_delimiter = ',', value_parser = scene_name::<CurveKind>, default_value = "round,flat")]
+    curves: Vec<CurveKind>,
+    /// Film resolution WxH (overrides film.resolution).
+    #[arg(long, value_parser = parse_resolution)]
+    res: Option<[u32; 2]>,
+    /// Worker threads.
+    #[arg(long, default_value_t = 2)]
+    threads: usize,
     /// No progress lines.
     #[arg(short, long)]
     quiet: bool,
@@ -457,9 +493,25 @@ fn study_command(command: StudyCommand) -> Result<()> {
                 threads: a.threads,
                 crop: a.crop,
                 progress: !a.quiet,
+                backend: a.backend,
                 ..ShadowStudyConfig::new(a.out)
             };
             run(&a.scene, &config)?;
+        }
+        StudyCommand::Backends(a) => {
+            use cuticle::study::backends::{run, BackendStudyConfig};
+            let config = BackendStudyConfig {
+                cache_dir: a.cache_dir,
+                reference_spp: a.reference_spp,
+                spp: a.spp,
+                kinds: a.curves,
+                film_resolution: a.res,
+                threads: a.threads,
+                progress: !a.quiet,
+                ..BackendStudyConfig::new(a.out)
+            };
+            let report = run(&a.scene, &config)?;
+            println!("{}", std::fs::read_to_string(&report.csv)?);
         }
     }
     Ok(())

@@ -158,3 +158,39 @@ fn missing_scene_is_an_error_naming_the_file() {
         "{stderr}"
     );
 }
+
+#[test]
+fn backend_study_renders_both_backends_alike() {
+    use cuticle::accel::{Backend, CurveKind};
+    use cuticle::study::backends::{self, BackendStudyConfig};
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("tiny.toml");
+    std::fs::write(&scene, TINY).unwrap();
+    let config = BackendStudyConfig {
+        reference_spp: 8,
+        spp: vec![1, 2],
+        ..BackendStudyConfig::new(dir.path().join("out"))
+    };
+    let report = backends::run(&scene, &config).unwrap();
+    // 2 curve types × 2 spp × 2 backends, in that order.
+    assert_eq!(report.rows.len(), 8);
+    let csv = std::fs::read_to_string(&report.csv).unwrap();
+    assert_eq!(csv.lines().next(), Some(backends::CSV_HEADER));
+    assert_eq!(csv.lines().count(), 9, "{csv}");
+    assert!(report.chart.is_file() && report.diffs.iter().all(|d| d.is_file()));
+    for pair in report.rows.chunks(2) {
+        let (e, b) = (&pair[0], &pair[1]);
+        assert_eq!((e.backend, b.backend), (Backend::Embree, Backend::Bvh));
+        assert_eq!((e.curves, e.spp), (b.curves, b.spp));
+        // Same samples on both backends: the images differ far less than either differs from the reference.
+        assert!(e.errors.rmse > 0.0 && e.errors.rmse.is_finite(), "{e:?}");
+        assert!(
+            e.diff_rmse < 0.25 * e.errors.rmse.min(b.errors.rmse),
+            "backends differ by {} at rmse {} / {}",
+            e.diff_rmse,
+            e.errors.rmse,
+            b.errors.rmse
+        );
+    }
+    assert!(report.rows.iter().any(|r| r.curves == CurveKind::Flat));
+}

@@ -12,6 +12,7 @@
 use std::path::Path;
 
 use super::StudyError;
+use crate::scene::Scene;
 use crate::util::atomic_file;
 
 /// 64-bit FNV-1a.
@@ -43,6 +44,34 @@ impl Fnv1a {
     pub fn finish(&self) -> u64 {
         self.0
     }
+}
+
+/// The cache key of a render of `scene`, whose file held `text`: `format` (a recipe version), the scene's directory,
+/// the text as parsed and re-serialised (sorted keys, no comments) without the tables named in `drop_tables` (those
+/// the study overrides), and `extra` (the settings the study sets: resolution, spp, seed, mode…).
+pub fn scene_key(
+    format: &str,
+    text: &str,
+    scene: &Scene,
+    drop_tables: &[&str],
+    extra: &str,
+) -> u64 {
+    let dir = std::fs::canonicalize(&scene.base_dir).unwrap_or_else(|_| scene.base_dir.clone());
+    let canonical = toml::from_str::<toml::Table>(text)
+        .ok()
+        .and_then(|mut table| {
+            for name in drop_tables {
+                table.remove(*name);
+            }
+            toml::to_string(&table).ok()
+        })
+        .unwrap_or_else(|| text.to_owned());
+    let mut h = Fnv1a::default();
+    h.field(format)
+        .field(&dir.to_string_lossy())
+        .field(&canonical)
+        .field(extra);
+    h.finish()
 }
 
 /// Writes `text` to `path` atomically ([`crate::util::atomic_file`]: temporary file in the same directory, then rename).

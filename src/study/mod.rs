@@ -7,14 +7,72 @@
 //!
 //! Image error measures (RMSE, relMSE, shadowed pixels, the crop window) are [`crate::measure::metrics`], shared
 //! with the benchmarks.
+//! - [`backends`]: `cuticle study backends SCENE` — the same frame on Embree and on the pure-Rust BVH: time, error
+//!   against a converged reference, and the difference between the two backends' images (issue 13).
 //! - [`cache`]: a stable hash (FNV-1a) naming cached reference renders, and atomic text-file writes.
 //! - [`figures`]: the error-against-time chart (through [`crate::plot`]) and the mosaic of crops.
 
+pub mod backends;
 pub mod cache;
 pub mod figures;
 pub mod shadows;
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+
+use crate::image::{self, Image};
+use crate::scene::Scene;
+
+/// Reads and validates the scene file at `path`, with the film resolution replaced by `resolution` if given.
+/// Returns the file's text (for cache keys) and the scene.
+pub fn load_scene(
+    path: &Path,
+    resolution: Option<[u32; 2]>,
+) -> Result<(String, Scene), StudyError> {
+    let text = std::fs::read_to_string(path).map_err(|source| StudyError::SceneFile {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    let mut scene = Scene::parse(&text, path, &base_dir)?;
+    if let Some(res) = resolution {
+        scene.film.resolution = res;
+    }
+    Ok((text, scene.revalidate()?))
+}
+
+/// Creates `dir` and its parents.
+pub fn create_dir(dir: &Path) -> Result<(), StudyError> {
+    std::fs::create_dir_all(dir).map_err(|source| StudyError::Io {
+        path: dir.to_path_buf(),
+        context: "cannot create the directory",
+        source,
+    })
+}
+
+/// A converged reference: read from `path` if it is there (checked to be `width × height`), else rendered by
+/// `render` (returning the image and its render seconds) and written there. Returns the image, whether it was
+/// cached, and the render time if it was rendered now.
+pub fn cached_reference(
+    path: &Path,
+    [width, height]: [u32; 2],
+    render: impl FnOnce() -> (Image, f64),
+) -> Result<(Image, bool, Option<f64>), StudyError> {
+    if path.is_file() {
+        let image = image::read(path)?;
+        if (image.width, image.height) != (width as usize, height as usize) {
+            return Err(StudyError::Config(format!(
+                "{}: cached reference is {}x{}, expected {width}x{height}; delete it",
+                path.display(),
+                image.width,
+                image.height
+            )));
+        }
+        return Ok((image, true, None));
+    }
+    let (image, seconds) = render();
+    image::write(path, &image)?;
+    Ok((image, false, Some(seconds)))
+}
 
 /// Why a study could not run. Variants name the file involved where there is one.
 #[derive(Debug, thiserror::Error)]

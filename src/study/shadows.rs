@@ -54,15 +54,16 @@ use glam::Vec3;
 use plotters::style::RGBColor;
 use serde::Serialize;
 
-use super::cache::{write_text, Fnv1a};
+use super::cache::write_text;
 use super::figures::{self, ChartSeries, Panel, Point};
 use super::StudyError;
+use crate::accel::Backend;
 use crate::image::{self, Image};
 use crate::measure::metrics::{self, Errors};
 use crate::measure::peak_rss_bytes;
 use crate::plot::{self, hex, Figure};
 use crate::render::{thread_pool, Frame, Options, RenderStats};
-use crate::scene::{Scene, ShadowMode, TransmittanceMode};
+use crate::scene::{Overrides, Scene, ShadowMode, TransmittanceMode};
 
 /// Added to the scene's seed for the reference render.
 pub const REFERENCE_SEED_OFFSET: u32 = 0x0001_0001;
@@ -98,6 +99,9 @@ pub struct ShadowStudyConfig {
     pub crop: usize,
     /// One line per variant (and a progress bar for the reference) on stderr.
     pub progress: bool,
+    /// Strand tracer (default: the scene's). The cached reference does not depend on it (both backends converge
+    /// to the same image).
+    pub backend: Option<Backend>,
 }
 
 impl ShadowStudyConfig {
@@ -117,6 +121,7 @@ impl ShadowStudyConfig {
             threads: 2,
             crop: 128,
             progress: false,
+            backend: None,
         }
     }
 }
@@ -263,23 +268,16 @@ pub fn variants(config: &ShadowStudyConfig) -> Vec<Variant> {
 /// of the text is hashed as parsed and re-serialised (sorted keys, no comments), so comments and layout do not
 /// matter either.
 fn reference_key(text: &str, scene: &Scene) -> u64 {
-    let dir = std::fs::canonicalize(&scene.base_dir).unwrap_or_else(|_| scene.base_dir.clone());
-    let canonical = toml::from_str::<toml::Table>(text)
-        .ok()
-        .and_then(|mut table| {
-            table.remove("shadows");
-            toml::to_string(&table).ok()
-        })
-        .unwrap_or_else(|| text.to_owned());
-    let mut h = Fnv1a::default();
-    h.field(REFERENCE_FORMAT)
-        .field(&dir.to_string_lossy())
-        .field(&canonical)
-        .field(&format!(
+    super::cache::scene_key(
+        REFERENCE_FORMAT,
+        text,
+        scene,
+        &["shadows"],
+        &format!(
             "resolution={:?};spp={};seed={};mode=raytraced;transmittance=exact",
             scene.film.resolution, scene.film.spp, scene.film.seed
-        ));
-    h.finish()
+        ),
+    )
 }
 
 /// Checks the study's own settings.
@@ -308,19 +306,14 @@ fn check(config: &ShadowStudyConfig) -> Result<(), StudyError> {
 /// Runs the study on the scene file at `scene_path` (see the module docs).
 pub fn run(scene_path: &Path, config: &ShadowStudyConfig) -> Result<ShadowStudyReport, StudyError> {
     check(config)?;
-    let text = std::fs::read_to_string(scene_path).map_err(|source| StudyError::SceneFile {
-        path: scene_path.to_path_buf(),
-        source,
-    })?;
-    let base_dir = scene_path
-        .parent()
-        .map(Path::to_path_buf)
-        .unwrap_or_default();
-    let mut scene = Scene::parse(&text, scene_path, &base_dir)?;
-    if let Some(res) = config.film_resolution {
-        scene.film.resolution = res;
-    }
-    let scene = scene.revalidate()?;
+    let (text, scene) = super::load_scene(scene_path, config.film_resolution)?;
+    let scene = match config.backend {
+        Some(backend) => scene.apply(&Overrides {
+            backend: Some(backend),
+            ..Overrides::default()
+        })?,
+        None => scene,
+    };
     let variants = variants(config);
     // Every variant's settings are checked before anything is rendered.
     let scenes = variants
@@ -334,16 +327,9 @@ pub fn run(scene_path: &Path, config: &ShadowStudyConfig) -> Result<ShadowStudyR
     reference_scene.shadows.transmittance = TransmittanceMode::Exact;
     let reference_scene = reference_scene.revalidate()?;
 
-    let mkdir = |dir: &Path| {
-        std::fs::create_dir_all(dir).map_err(|source| StudyError::Io {
-            path: dir.to_path_buf(),
-            context: "cannot create the directory",
-            source,
-        })
-    };
-    mkdir(&config.out_dir)?;
+    super::create_dir(&config.out_dir)?;
     let cache_dir = config.cache_dir.as_deref().unwrap_or(&config.out_dir);
-    mkdir(cache_dir)?;
+    super::create_dir(cache_dir)?;
 
     let say = |line: String| {
         if config.progress {
@@ -360,34 +346,26 @@ pub fn run(scene_path: &Path, config: &ShadowStudyConfig) -> Result<ShadowStudyR
     let key = reference_key(&text, &reference_scene);
     let reference_path = cache_dir.join(format!("reference-{key:016x}.exr"));
     let [width, height] = scene.film.resolution;
-    let (reference, reference_cached, reference_seconds) = if reference_path.is_file() {
-        let image = image::read(&reference_path)?;
-        if (image.width, image.height) != (width as usize, height as usize) {
-            return Err(StudyError::Config(format!(
-                "{}: cached reference is {}x{}, expected {width}x{height}; delete it",
-                reference_path.display(),
-                image.width,
-                image.height
-            )));
-        }
+    if reference_path.is_file() {
         say(format!("reference: reusing {}", reference_path.display()));
-        (image, true, None)
     } else {
         say(format!(
             "reference: ray traced, exact transmittance, {} spp, {width}x{height} -> {}",
             config.reference_spp,
             reference_path.display()
         ));
-        let start = Instant::now();
-        let (image, stats) = render_scene(&reference_scene, config.progress);
-        image::write(&reference_path, &image)?;
-        say(format!(
-            "reference: {:.2} s ({:.2} s with writing)",
-            stats.seconds,
-            start.elapsed().as_secs_f64()
-        ));
-        (image, false, Some(stats.seconds))
-    };
+    }
+    let (reference, reference_cached, reference_seconds) =
+        super::cached_reference(&reference_path, scene.film.resolution, || {
+            let start = Instant::now();
+            let (image, stats) = render_scene(&reference_scene, config.progress);
+            say(format!(
+                "reference: {:.2} s ({:.2} s with writing)",
+                stats.seconds,
+                start.elapsed().as_secs_f64()
+            ));
+            (image, stats.seconds)
+        })?;
     let mask = metrics::shadowed_mask(&reference).map_err(StudyError::Config)?;
     let shadowed_pixels = mask.iter().filter(|&&m| m).count();
     let crop_window =
