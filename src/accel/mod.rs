@@ -1,4 +1,4 @@
-//! Ray tracing of strands behind one small trait, so that Embree and (later, issue 7) a pure-Rust BVH can be
+//! Ray tracing of strands behind one small trait, so that Embree and the pure-Rust BVH (issue 13) can be
 //! swapped per render and timed on identical rays.
 
 pub mod bvh;
