@@ -87,10 +87,12 @@ pub fn intersect(
     tfar: f32,
     cp: [[f32; 4]; 4],
 ) -> Option<CurveHit> {
-    intersect_with(org, dir, tnear, tfar, cp, PIECES, MAX_DEPTH)
+    intersect_with(org, dir, tnear, tfar, cp, PIECES, MAX_DEPTH, true)
 }
 
-/// [`intersect`] with `pieces` per level (at most 7) and `max_depth` levels: Embree's SSE kernels use (3, 3).
+/// [`intersect`] with `pieces` per level (at most 7) and `max_depth` levels: Embree's SSE kernels use (3, 3);
+/// `early_reject: false` skips step 0 (the tests check that it changes nothing).
+#[allow(clippy::too_many_arguments)]
 fn intersect_with(
     org: Vec3,
     dir: Vec3,
@@ -99,6 +101,7 @@ fn intersect_with(
     cp: [[f32; 4]; 4],
     pieces: usize,
     max_depth: u32,
+    early_reject: bool,
 ) -> Option<CurveHit> {
     debug_assert!((1..MAX_POINTS).contains(&pieces));
     let v = cp.map(Vec4::from_array);
@@ -107,19 +110,93 @@ fn intersect_with(
     let dt = (center.xyz() - org).dot(dir) / dir.dot(dir);
     let reference = (org + dt * dir).extend(0.0);
     let curve = BSpline(v.map(|p| p - reference));
+    let r_max = curve.max_radius();
+    let p_err = 16.0 * ULP * curve.max_abs_coordinate();
+    // Step 0: most calls are near misses (the BVH offers every segment whose box the ray crosses): reject those
+    // that pass farther than REJECT_RADII radii from the segment's convex hull.
+    if early_reject && misses_hull(&curve, dir, REJECT_RADII * r_max.abs() + 64.0 * p_err) {
+        return None;
+    }
     let mut search = Search {
         curve,
         dir,
         dt,
         tnear,
         tfar,
-        p_err: 16.0 * ULP * curve.max_abs_coordinate(),
-        r_max: curve.max_radius(),
+        p_err,
+        r_max,
         pieces,
         best: None,
     };
     search.run(max_depth);
     search.best
+}
+
+/// Step 0's reject distance, in radii. An accepted hit lies within r(u) ≤ r_max of the axis up to the Newton
+/// tolerances (|f|, |g| below bounds of a few float ulps of the coordinates) and the last Newton step, which is of
+/// the order of those tolerances except on grazing rays; twice the radius leaves room for all of it, and costs
+/// little: the rays it lets through pass within 2 r_max of the hull, a thin band.
+const REJECT_RADII: f32 = 2.0;
+
+/// True when the ray through the origin along `dir` passes farther than `radius` from the convex hull of the
+/// segment's Bézier control points, which holds the centre line: then no point within `radius` of the centre line
+/// is on the ray, and the segment cannot be hit.
+///
+/// The uniform B-spline of v₀…v₃ is the Bézier curve of b₀ = (v₀ + 4v₁ + v₂)/6, b₁ = (2v₁ + v₂)/3,
+/// b₂ = (v₁ + 2v₂)/3, b₃ = (v₁ + 4v₂ + v₃)/6 (a tighter hull than the B-spline's own control points). Projected
+/// along `dir` onto the plane normal to it, the ray is the origin and the hull is the hull of four 2-D points q_i:
+/// its distance from the origin exceeds `radius` when the origin lies in none of the four triangles q_i q_j q_k
+/// (whose union is the hull) and is farther than `radius` from each of the six segments q_i q_j (the hull's
+/// edges are among them). NaNs never reject.
+fn misses_hull(curve: &BSpline, dir: Vec3, radius: f32) -> bool {
+    let [v0, v1, v2, v3] = curve.0.map(|v| v.xyz());
+    let b = [
+        (v0 + 4.0 * v1 + v2) * (1.0 / 6.0),
+        (2.0 * v1 + v2) * (1.0 / 3.0),
+        (v1 + 2.0 * v2) * (1.0 / 3.0),
+        (v1 + 4.0 * v2 + v3) * (1.0 / 6.0),
+    ];
+    // An orthonormal pair (ex, ey) normal to dir: ex from the larger of two vectors normal to dir, ey = d × ex.
+    let ex0 = Vec3::new(0.0, dir.z, -dir.y);
+    let ex1 = Vec3::new(-dir.z, 0.0, dir.x);
+    let ex = if ex0.length_squared() > ex1.length_squared() {
+        ex0
+    } else {
+        ex1
+    };
+    let ey = dir.cross(ex);
+    let (ex, ey) = (ex * ex.length_recip(), ey * ey.length_recip());
+    let q = b.map(|p| glam::Vec2::new(p.dot(ex), p.dot(ey)));
+    let r2 = radius * radius;
+    const PAIRS: [(usize, usize); 6] = [(0, 1), (1, 2), (2, 3), (0, 3), (0, 2), (1, 3)];
+    for (i, j) in PAIRS {
+        // Nearest point of the segment q_i q_j to the origin.
+        let e = q[j] - q[i];
+        let ee = e.dot(e);
+        let s = if ee > 0.0 {
+            (-q[i].dot(e) / ee).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let p = q[i] + s * e;
+        let d2 = p.dot(p);
+        if d2 <= r2 || d2.is_nan() {
+            return false;
+        }
+    }
+    const TRIANGLES: [(usize, usize, usize); 4] = [(0, 1, 2), (0, 1, 3), (0, 2, 3), (1, 2, 3)];
+    for (i, j, k) in TRIANGLES {
+        // The origin is inside when it is on the same side of all three edges.
+        let (a, b, c) = (
+            q[i].perp_dot(q[j]),
+            q[j].perp_dot(q[k]),
+            q[k].perp_dot(q[i]),
+        );
+        if (a >= 0.0 && b >= 0.0 && c >= 0.0) || (a <= 0.0 && b <= 0.0 && c <= 0.0) {
+            return false;
+        }
+    }
+    true
 }
 
 /// A cubic uniform B-spline segment with radius in `w`, evaluated in Embree's grouping of the basis.
@@ -714,9 +791,9 @@ mod tests {
             let first = first as usize;
             let cp = [0, 1, 2, 3].map(|k| strands.control_points[first + k]);
             let tfar = best.map_or(ray.tfar, |(_, h)| h.t);
-            if let Some(h) =
-                intersect_with(ray.origin, ray.dir, ray.tnear, tfar, cp, pieces, max_depth)
-            {
+            if let Some(h) = intersect_with(
+                ray.origin, ray.dir, ray.tnear, tfar, cp, pieces, max_depth, true,
+            ) {
                 best = Some((s as u32, h));
             }
         }
@@ -927,6 +1004,79 @@ mod tests {
         for e in &a.examples {
             println!("  {e}");
         }
+    }
+
+    #[test]
+    fn early_reject_changes_no_result() {
+        // Rays through the bounding box of hair-like segments (what the BVH offers), and rays aimed within 3 radii
+        // of the curve (the band around the reject distance): the same result with and without step 0, and step 0
+        // must reject most of the box rays, or it is not worth its cost.
+        let mut rng = Rng::new(0x5eed);
+        let (mut box_rays, mut rejected, mut hits) = (0, 0, 0);
+        for _ in 0..300 {
+            let mut cp = [[0.0f32; 4]; 4];
+            let mut p = Vec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), 0.0);
+            let mut heading = rng.unit_vector();
+            let r = rng.range(1e-3, 3e-2);
+            for c in &mut cp {
+                *c = [p.x, p.y, p.z, r * rng.range(0.5, 1.0)];
+                heading = (heading + 0.3 * rng.unit_vector()).normalize();
+                p += rng.range(0.2, 1.0) * heading;
+            }
+            let curve = BSpline(cp.map(Vec4::from_array));
+            let lo = cp
+                .iter()
+                .fold(Vec3::INFINITY, |m, c| m.min(Vec3::from_slice(c)));
+            let hi = cp
+                .iter()
+                .fold(Vec3::NEG_INFINITY, |m, c| m.max(Vec3::from_slice(c)));
+            for k in 0..200 {
+                let target = if k % 2 == 0 {
+                    box_rays += 1;
+                    lo - r
+                        + Vec3::new(
+                            rng.range(0.0, 1.0),
+                            rng.range(0.0, 1.0),
+                            rng.range(0.0, 1.0),
+                        ) * (hi - lo + Vec3::splat(2.0 * r))
+                } else {
+                    let p = curve.eval(rng.range(-0.02, 1.02));
+                    p.xyz() + rng.range(0.0, 3.0 * p.w) * rng.unit_vector()
+                };
+                let dir = rng.unit_vector() * rng.range(0.5, 2.0);
+                let org = target - rng.range(1.0, 4.0) * dir;
+                let tnear = if k % 7 == 0 { 1.0 } else { 0.0 };
+                let with =
+                    intersect_with(org, dir, tnear, f32::INFINITY, cp, PIECES, MAX_DEPTH, true);
+                let without =
+                    intersect_with(org, dir, tnear, f32::INFINITY, cp, PIECES, MAX_DEPTH, false);
+                assert_eq!(
+                    with, without,
+                    "cp {cp:?}, org {org}, dir {dir}, tnear {tnear}"
+                );
+                hits += usize::from(with.is_some());
+                if k % 2 == 0 && with.is_none() {
+                    let v = cp.map(Vec4::from_array);
+                    let center = 0.25 * (v[0] + v[1] + v[2] + v[3]);
+                    let shifted = BSpline(v.map(|p| {
+                        p - (org + (center.xyz() - org).dot(dir) / dir.dot(dir) * dir).extend(0.0)
+                    }));
+                    rejected += usize::from(misses_hull(
+                        &shifted,
+                        dir,
+                        REJECT_RADII * shifted.max_radius(),
+                    ));
+                }
+            }
+        }
+        println!(
+            "early reject: {box_rays} box rays, {rejected} rejected by step 0; {hits} hits in all"
+        );
+        assert!(hits > 10_000, "too few hits to test: {hits}");
+        assert!(
+            rejected * 10 > box_rays * 7,
+            "step 0 rejects only {rejected} of {box_rays} box rays"
+        );
     }
 
     #[test]
