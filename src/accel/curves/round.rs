@@ -53,7 +53,7 @@
 
 use std::cmp::Ordering;
 
-use glam::{Vec3, Vec4, Vec4Swizzles};
+use glam::{Vec2, Vec3, Vec4, Vec4Swizzles};
 
 use super::CurveHit;
 
@@ -139,23 +139,11 @@ fn intersect_with(
 const REJECT_RADII: f32 = 2.0;
 
 /// True when the ray through the origin along `dir` passes farther than `radius` from the convex hull of the
-/// segment's Bézier control points, which holds the centre line: then no point within `radius` of the centre line
-/// is on the ray, and the segment cannot be hit.
-///
-/// The uniform B-spline of v₀…v₃ is the Bézier curve of b₀ = (v₀ + 4v₁ + v₂)/6, b₁ = (2v₁ + v₂)/3,
-/// b₂ = (v₁ + 2v₂)/3, b₃ = (v₁ + 4v₂ + v₃)/6 (a tighter hull than the B-spline's own control points). Projected
-/// along `dir` onto the plane normal to it, the ray is the origin and the hull is the hull of four 2-D points q_i:
-/// its distance from the origin exceeds `radius` when the origin lies in none of the four triangles q_i q_j q_k
-/// (whose union is the hull) and is farther than `radius` from each of the six segments q_i q_j (the hull's
-/// edges are among them). NaNs never reject.
+/// segment's Bézier control points ([`super::bezier_points`]), which holds the centre line: then no point within
+/// `radius` of the centre line is on the ray, and the segment cannot be hit. Projected along `dir` onto the plane
+/// normal to it, the ray is the origin and the test is [`super::origin_far_from_hull`].
 fn misses_hull(curve: &BSpline, dir: Vec3, radius: f32) -> bool {
-    let [v0, v1, v2, v3] = curve.0.map(|v| v.xyz());
-    let b = [
-        (v0 + 4.0 * v1 + v2) * (1.0 / 6.0),
-        (2.0 * v1 + v2) * (1.0 / 3.0),
-        (v1 + 2.0 * v2) * (1.0 / 3.0),
-        (v1 + 4.0 * v2 + v3) * (1.0 / 6.0),
-    ];
+    let b = super::bezier_points(curve.0.map(|v| v.xyz()));
     // An orthonormal pair (ex, ey) normal to dir: ex from the larger of two vectors normal to dir, ey = d × ex.
     let ex0 = Vec3::new(0.0, dir.z, -dir.y);
     let ex1 = Vec3::new(-dir.z, 0.0, dir.x);
@@ -166,37 +154,7 @@ fn misses_hull(curve: &BSpline, dir: Vec3, radius: f32) -> bool {
     };
     let ey = dir.cross(ex);
     let (ex, ey) = (ex * ex.length_recip(), ey * ey.length_recip());
-    let q = b.map(|p| glam::Vec2::new(p.dot(ex), p.dot(ey)));
-    let r2 = radius * radius;
-    const PAIRS: [(usize, usize); 6] = [(0, 1), (1, 2), (2, 3), (0, 3), (0, 2), (1, 3)];
-    for (i, j) in PAIRS {
-        // Nearest point of the segment q_i q_j to the origin.
-        let e = q[j] - q[i];
-        let ee = e.dot(e);
-        let s = if ee > 0.0 {
-            (-q[i].dot(e) / ee).clamp(0.0, 1.0)
-        } else {
-            0.0
-        };
-        let p = q[i] + s * e;
-        let d2 = p.dot(p);
-        if d2 <= r2 || d2.is_nan() {
-            return false;
-        }
-    }
-    const TRIANGLES: [(usize, usize, usize); 4] = [(0, 1, 2), (0, 1, 3), (0, 2, 3), (1, 2, 3)];
-    for (i, j, k) in TRIANGLES {
-        // The origin is inside when it is on the same side of all three edges.
-        let (a, b, c) = (
-            q[i].perp_dot(q[j]),
-            q[j].perp_dot(q[k]),
-            q[k].perp_dot(q[i]),
-        );
-        if (a >= 0.0 && b >= 0.0 && c >= 0.0) || (a <= 0.0 && b <= 0.0 && c <= 0.0) {
-            return false;
-        }
-    }
-    true
+    super::origin_far_from_hull(b.map(|p| Vec2::new(p.dot(ex), p.dot(ey))), radius)
 }
 
 /// A cubic uniform B-spline segment with radius in `w`, evaluated in Embree's grouping of the basis.
