@@ -38,7 +38,7 @@
 
 use glam::{Vec2, Vec3, Vec4};
 
-use super::{bezier_points, origin_far_from_hull, CurveHit};
+use super::{bezier_points, origin_far_from_chord_box, CurveHit};
 use crate::hair::strands::bspline_basis;
 
 /// Ray-facing quads per segment: Embree's default tessellation rate for flat curves (`scene_curves.cpp`,
@@ -52,7 +52,7 @@ const SELF_INTERSECTION_AVOIDANCE: f32 = 2.0;
 /// Largest tessellation rate (Embree clamps `rtcSetGeometryTessellationRate` to 1..=16).
 const MAX_RATE: usize = 16;
 
-/// Step 0's reject distance, in radii (see `intersect_tessellated`).
+/// Step 0's reject distance, in radii (see `intersect_tessellated`); as in [`super::round`].
 const REJECT_RADII: f32 = 2.0;
 
 /// Derivative of the uniform cubic B-spline basis, dBᵢ/du (Embree's `BSplineBasis::derivative`).
@@ -177,11 +177,12 @@ fn intersect_tessellated(
 
     // Step 0 (ours; Embree culls with the BVH's oriented boxes instead): most calls are near misses, rays that
     // cross the segment's box. Every quad lies within r_max of its corner points on the curve, so within r_max of
-    // the hull of the Bézier control points; reject rays (the origin of ray space) farther than REJECT_RADII r_max
-    // from it, a margin far above the float error of the quads' corners (a few eps).
+    // the hull of the Bézier control points, which lies in the box along their chord; reject rays (the origin of
+    // ray space) farther than REJECT_RADII r_max from that box, a margin far above the float error of the quads'
+    // corners (a few eps).
     let r_max = q.iter().fold(0.0f32, |m, p| m.max(p.w.abs()));
     let hull = bezier_points(q.map(|p| p.truncate())).map(|p| p.truncate());
-    if early_reject && origin_far_from_hull(hull, REJECT_RADII * r_max + 16.0 * eps) {
+    if early_reject && origin_far_from_chord_box(hull, REJECT_RADII * r_max + 16.0 * eps) {
         return None;
     }
 
@@ -704,7 +705,7 @@ mod tests {
                     });
                     let r_max = cp.iter().fold(0.0f32, |m, c| m.max(c[3]));
                     let hull = bezier_points(q).map(|p| p.truncate());
-                    rejected += usize::from(origin_far_from_hull(hull, REJECT_RADII * r_max));
+                    rejected += usize::from(origin_far_from_chord_box(hull, REJECT_RADII * r_max));
                 }
             }
         }

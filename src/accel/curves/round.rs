@@ -113,8 +113,8 @@ fn intersect_with(
     let r_max = curve.max_radius();
     let p_err = 16.0 * ULP * curve.max_abs_coordinate();
     // Step 0: most calls are near misses (the BVH offers every segment whose box the ray crosses): reject those
-    // that pass farther than REJECT_RADII radii from the segment's convex hull.
-    if early_reject && misses_hull(&curve, dir, REJECT_RADII * r_max.abs() + 64.0 * p_err) {
+    // that pass farther than REJECT_RADII radii from the box around the segment's chord and Bézier hull.
+    if early_reject && far_from_curve(&curve, dir, REJECT_RADII * r_max.abs() + 64.0 * p_err) {
         return None;
     }
     let mut search = Search {
@@ -135,14 +135,13 @@ fn intersect_with(
 /// Step 0's reject distance, in radii. An accepted hit lies within r(u) ≤ r_max of the axis up to the Newton
 /// tolerances (|f|, |g| below bounds of a few float ulps of the coordinates) and the last Newton step, which is of
 /// the order of those tolerances except on grazing rays; twice the radius leaves room for all of it, and costs
-/// little: the rays it lets through pass within 2 r_max of the hull, a thin band.
+/// little: the rays it lets through pass within 2 r_max of the box around the segment's chord and hull.
 const REJECT_RADII: f32 = 2.0;
 
-/// True when the ray through the origin along `dir` passes farther than `radius` from the convex hull of the
-/// segment's Bézier control points ([`super::bezier_points`]), which holds the centre line: then no point within
-/// `radius` of the centre line is on the ray, and the segment cannot be hit. Projected along `dir` onto the plane
-/// normal to it, the ray is the origin and the test is [`super::origin_far_from_hull`].
-fn misses_hull(curve: &BSpline, dir: Vec3, radius: f32) -> bool {
+/// True when the ray through the origin along `dir` passes farther than `radius` from the segment's centre line:
+/// projected along `dir` onto the plane normal to it, the ray is the origin, and the curve lies in the hull of
+/// the projected Bézier control points ([`super::bezier_points`]), so [`super::origin_far_from_chord_box`] proves it.
+fn far_from_curve(curve: &BSpline, dir: Vec3, radius: f32) -> bool {
     let b = super::bezier_points(curve.0.map(|v| v.xyz()));
     // An orthonormal pair (ex, ey) normal to dir: ex from the larger of two vectors normal to dir, ey = d × ex.
     let ex0 = Vec3::new(0.0, dir.z, -dir.y);
@@ -154,7 +153,7 @@ fn misses_hull(curve: &BSpline, dir: Vec3, radius: f32) -> bool {
     };
     let ey = dir.cross(ex);
     let (ex, ey) = (ex * ex.length_recip(), ey * ey.length_recip());
-    super::origin_far_from_hull(b.map(|p| Vec2::new(p.dot(ex), p.dot(ey))), radius)
+    super::origin_far_from_chord_box(b.map(|p| Vec2::new(p.dot(ex), p.dot(ey))), radius)
 }
 
 /// A cubic uniform B-spline segment with radius in `w`, evaluated in Embree's grouping of the basis.
@@ -1181,7 +1180,7 @@ mod tests {
                     let shifted = BSpline(v.map(|p| {
                         p - (org + (center.xyz() - org).dot(dir) / dir.dot(dir) * dir).extend(0.0)
                     }));
-                    rejected += usize::from(misses_hull(
+                    rejected += usize::from(far_from_curve(
                         &shifted,
                         dir,
                         REJECT_RADII * shifted.max_radius(),
