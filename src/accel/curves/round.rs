@@ -267,14 +267,22 @@ impl SamplePoints {
         Vec4::new(self.dp[0][i], self.dp[1][i], self.dp[2][i], self.dp[3][i])
     }
 
-    /// The pieces (bit i: piece from point i to i + 1, i < n) that [`Search::level`] keeps: the ray interval
-    /// `ray` clipped by the piece's outer cylinder ([`intersect_cylinder`] with the outer radius) and its two cap
-    /// planes ([`half_space`]) is not empty. Same operations as the scalar code, so exactly the same pieces.
-    fn candidates(&self, dir: Vec3, n: usize, ray: Interval) -> u8 {
+    /// Bounds of every piece (lane i: the piece from point i to i + 1, i < n): the ray interval `ray` clipped by
+    /// the piece's outer cylinder ([`intersect_cylinder`] with the outer radius) and its two cap planes
+    /// ([`half_space`]), and whether it is empty. Same operations as the scalar code in
+    /// [`Search::check_bounds`], so the same bits.
+    fn bounds(&self, dir: Vec3, n: usize, ray: Interval) -> PieceBounds {
         let [x, y, z, w] = &self.p;
         let [dx, dy, dz, dw] = &self.dp;
         let dd = dir.dot(dir);
         let mut keep = [false; MAX_POINTS];
+        let mut b = PieceBounds {
+            keep: 0,
+            lower: [0.0; MAX_POINTS],
+            upper: [0.0; MAX_POINTS],
+            axis_u: [[0.0; MAX_POINTS]; 2],
+            stray: [0.0; MAX_POINTS],
+        };
         for i in 0..MAX_POINTS - 1 {
             let j = i + 1;
             // Handles' radii P1 = P0 + d0, P2 = P3 − d3.
@@ -316,6 +324,12 @@ impl SamplePoints {
             } else {
                 (t0, t1)
             };
+            // The axis parameters of entry and exit (0 at P0, 1 at P3).
+            let (axis_u0, axis_u1) = if parallel {
+                (0.0, 0.0)
+            } else {
+                ((t0 * a_d + a_o) * rl, (t1 * a_d + a_o) * rl)
+            };
             let hit = hit && (!parallel || qc <= 0.0);
             // Cap planes: half_space(dir, P0, d0) and half_space(dir, P3, −d3).
             let on0 = ((-x[i]) * dx[i] + (-y[i]) * dy[i]) + (-z[i]) * dz[i];
@@ -344,13 +358,31 @@ impl SamplePoints {
             let lower = ray.lower.max(lower).max(l0).max(l3);
             let upper = ray.upper.min(upper).min(u0).min(u3);
             keep[i] = hit && lower <= upper;
+            b.lower[i] = lower;
+            b.upper[i] = upper;
+            b.axis_u[0][i] = axis_u0;
+            b.axis_u[1][i] = axis_u1;
+            b.stray[i] = stray;
         }
-        let mut mask = 0;
         for (i, &k) in keep.iter().enumerate().take(n) {
-            mask |= u8::from(k) << i;
+            b.keep |= u8::from(k) << i;
         }
-        mask
+        b
     }
+}
+
+/// What [`SamplePoints::bounds`] finds for each piece i (lane i): the values [`Search::level`] would compute for
+/// it one piece at a time.
+struct PieceBounds {
+    /// Bit i: the ray interval clipped by the piece's outer cylinder and cap planes is not empty.
+    keep: u8,
+    /// That interval (meaningful for kept pieces).
+    lower: Lanes,
+    upper: Lanes,
+    /// Axis parameters of the outer cylinder's entry and exit ([`CylinderHit::u`]).
+    axis_u: [Lanes; 2],
+    /// How far the Bézier handles stray from the chord.
+    stray: Lanes,
 }
 
 /// A closed interval of ray parameters; empty when `lower > upper`.
@@ -571,58 +603,35 @@ impl Search {
             lower: self.tnear - self.dt,
             upper: self.tfar - self.dt,
         };
-        let candidates = points.candidates(self.dir, n, ray);
+        let bounds = points.bounds(self.dir, n, ray);
         let mut tp0 = [Interval::EMPTY; MAX_POINTS];
         let mut tp1 = [Interval::EMPTY; MAX_POINTS];
         let mut u_start = [[0.0f32; 2]; MAX_POINTS];
         let (mut newton0, mut newton1, mut refine0, mut refine1) = (0u8, 0u8, 0u8, 0u8);
         for i in 0..n {
-            let candidate = candidates & (1 << i) != 0;
-            // The unit tests run every piece through the scalar code below and check that the SIMD filter kept
-            // exactly the pieces it keeps.
-            if !candidate && !cfg!(test) {
+            if cfg!(test) {
+                self.check_bounds(&p, &dp, i, ray, &bounds);
+            }
+            if bounds.keep & (1 << i) == 0 {
                 continue;
             }
             let (p0, p3, d0, d3) = (p[i], p[i + 1], dp[i], dp[i + 1]);
             let (p1, p2) = (p0 + d0, p3 - d3);
             // Bounding cylinders around the chord P0P3: the radius range widened by how far the handles stray.
-            let chord = (p3 - p0).xyz();
-            let stray = sqr_point_to_line_distance(d0.xyz(), chord)
-                .max(sqr_point_to_line_distance(d3.xyz(), chord))
-                .sqrt();
-            let r_outer = (p0.w.max(p1.w).max(p2.w).max(p3.w) + stray) * (1.0 + 2.0 * ULP);
-            let r_inner =
-                ((p0.w.min(p1.w).min(p2.w).min(p3.w) - stray) * (1.0 - 2.0 * ULP)).max(0.0);
-            let Some(outer) = intersect_cylinder(self.dir, p0.xyz(), p3.xyz(), r_outer) else {
-                assert!(
-                    !(cfg!(test) && candidate),
-                    "SamplePoints::candidates kept piece {i}, without outer cylinder"
-                );
-                continue;
+            // The outer one, clipped by the ray extent and by the planes normal to the curve at the piece's ends,
+            // is in `bounds`.
+            let r_inner = ((p0.w.min(p1.w).min(p2.w).min(p3.w) - bounds.stray[i])
+                * (1.0 - 2.0 * ULP))
+                .max(0.0);
+            let tp = Interval {
+                lower: bounds.lower[i],
+                upper: bounds.upper[i],
             };
-            // Clip by the ray extent and by the planes normal to the curve at the piece's ends.
-            let ray = Interval {
-                lower: self.tnear - self.dt,
-                upper: self.tfar - self.dt,
-            };
-            let tp = ray
-                .intersect(outer.t)
-                .intersect(half_space(self.dir, p0.xyz(), d0.xyz()))
-                .intersect(half_space(self.dir, p3.xyz(), -d3.xyz()));
-            if cfg!(test) {
-                assert_eq!(
-                    candidate,
-                    !tp.is_empty(),
-                    "SamplePoints::candidates disagrees on piece {i}"
-                );
-            }
-            if tp.is_empty() {
-                continue;
-            }
             // Start parameters from the cylinder's axis parameter, as Embree maps it (over n + 1, not n).
-            u_start[i] = outer
-                .u
-                .map(|u| lerp(u0, u1, (i as f32 + u.clamp(0.0, 1.0)) / (n + 1) as f32));
+            u_start[i] = [0, 1].map(|k| {
+                let u = bounds.axis_u[k][i];
+                lerp(u0, u1, (i as f32 + u.clamp(0.0, 1.0)) / (n + 1) as f32)
+            });
             let inner = intersect_cylinder(self.dir, p0.xyz(), p3.xyz(), r_inner);
             let inner_t = inner.as_ref().map_or(Interval::EMPTY, |c| c.t);
             // Unstable where the ray misses the inner cylinder or meets it at a glancing angle (|d·Ng| < 0.3,
@@ -699,6 +708,52 @@ impl Search {
                 depth: depth + 1,
             }
         })
+    }
+
+    /// The scalar bounds of piece `i` (outer cylinder, cap planes, ray extent), one piece at a time: the unit
+    /// tests assert that [`SamplePoints::bounds`] found them bit for bit.
+    fn check_bounds(
+        &self,
+        p: &[Vec4; MAX_POINTS],
+        dp: &[Vec4; MAX_POINTS],
+        i: usize,
+        ray: Interval,
+        bounds: &PieceBounds,
+    ) {
+        let keep = bounds.keep & (1 << i) != 0;
+        let (p0, p3, d0, d3) = (p[i], p[i + 1], dp[i], dp[i + 1]);
+        let (p1, p2) = (p0 + d0, p3 - d3);
+        let chord = (p3 - p0).xyz();
+        let stray = sqr_point_to_line_distance(d0.xyz(), chord)
+            .max(sqr_point_to_line_distance(d3.xyz(), chord))
+            .sqrt();
+        let r_outer = (p0.w.max(p1.w).max(p2.w).max(p3.w) + stray) * (1.0 + 2.0 * ULP);
+        let Some(outer) = intersect_cylinder(self.dir, p0.xyz(), p3.xyz(), r_outer) else {
+            assert!(
+                !keep,
+                "SamplePoints::bounds kept piece {i} without outer cylinder"
+            );
+            return;
+        };
+        let tp = ray
+            .intersect(outer.t)
+            .intersect(half_space(self.dir, p0.xyz(), d0.xyz()))
+            .intersect(half_space(self.dir, p3.xyz(), -d3.xyz()));
+        assert_eq!(keep, !tp.is_empty(), "SamplePoints::bounds on piece {i}");
+        if keep {
+            let bits = |v: [f32; 5]| v.map(f32::to_bits);
+            assert_eq!(
+                bits([tp.lower, tp.upper, outer.u[0], outer.u[1], stray]),
+                bits([
+                    bounds.lower[i],
+                    bounds.upper[i],
+                    bounds.axis_u[0][i],
+                    bounds.axis_u[1][i],
+                    bounds.stray[i]
+                ]),
+                "SamplePoints::bounds on piece {i}"
+            );
+        }
     }
 
     /// The pieces whose part starts no later than the closest hit so far.
