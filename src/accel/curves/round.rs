@@ -27,7 +27,9 @@
 //! where there are several (front and back wall) and failing on the same grazing rays:
 //!
 //! 1. Move the ray origin to the point of the ray nearest the control points' centroid (t offset `dt`), so the
-//!    numbers stay small.
+//!    numbers stay small. (Ours, not Embree's, which culls with the BVH's oriented boxes:) return no hit if the
+//!    ray passes farther than 2 r_max from the box along the chord of the segment's Bézier control points,
+//!    seen along the ray (`origin_far_from_chord_box` in `curves`): most calls the BVH makes are such near misses.
 //! 2. Split [u0, u1] into [`PIECES`] pieces; each piece is the Bézier curve of its end points and end
 //!    derivatives. Bound it by an *outer* cylinder around the chord (max radius plus the Bézier handles' distance
 //!    from the chord) clipped by the two planes normal to the curve at the piece's ends, and an *inner* cylinder
@@ -43,8 +45,13 @@
 //! Embree's SSE kernels split into 3 pieces and 3 levels, its AVX kernels (used on any AVX machine) into 7 pieces
 //! and 2 levels; [`PIECES`] and [`MAX_DEPTH`] follow the AVX kernels, which agree better with the Embree of the
 //! test machine: with the SSE setting the agreement tests measured 99.81 % (single segments) and 99.87 % (bundle),
-//! against 100 % and 99.995 % with the AVX one (1 Dec 2026). Speed: about 2.9 µs per call on random single-segment
-//! rays (89 % hits) on a loaded 2-core VM, not yet optimised — issue 13's `bench trace --backend bvh` measures it.
+//! against 100 % and 99.995 % with the AVX one (1 Dec 2026).
+//!
+//! **Speed.** Each level evaluates its 8 sample points and bounds its 7 pieces as structure of arrays
+//! (`SamplePoints`, autovectorised, the same arithmetic as the scalar code: the unit tests check the bits), so
+//! only the 1–2 pieces the ray really crosses go through the scalar inner-cylinder and Newton code.
+//! `benches/curves.rs` (fur-ball-like segments, 1 Dec 2026, 2-core VM): ~880 ns and ~6 000 instructions per hit,
+//! ~65 ns and ~350 instructions per near miss (before: 1 760 ns / 13 100 and 255 ns / 2 500).
 //!
 //! **Normal.** Embree's convention: Ng = (P′ × R̂) × (P′ + r′R̂) with R̂ the unit vector from the axis to the hit,
 //! i.e. outward from the axis (tilted by the taper), not normalised (|Ng| ≈ |P′|²). `v` is 0.
