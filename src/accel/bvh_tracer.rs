@@ -18,7 +18,7 @@
 
 use std::time::Instant;
 
-use super::bvh::wide::WideBvh;
+use super::bvh::wide::{Primitive, WideBvh};
 use super::bvh::{BuildOptions, Bvh, Control};
 use super::curves::{flat, round, CurveHit};
 use super::{strand_present, CurveKind, Hit, Tracer};
@@ -29,14 +29,14 @@ use crate::sys::embree::{SEEN_STRANDS, TRANSMITTANCE_CUTOFF};
 /// Strands in a pure-Rust BVH, intersected as round tubes or flat ribbons. Queries may run from many threads.
 #[derive(Debug, Clone)]
 pub struct BvhTracer {
-    strands: Strands,
     bvh: WideBvh,
     kind: CurveKind,
     build_seconds: f64,
 }
 
 impl BvhTracer {
-    /// Builds a BVH ([`BuildOptions::default`]) over a copy of `strands`, to intersect as curves of type `kind`.
+    /// Builds a BVH ([`BuildOptions::default`]) over `strands` (copied into its leaves), to intersect as curves of
+    /// type `kind`.
     pub fn new(strands: &Strands, kind: CurveKind) -> Self {
         Self::with_options(strands, kind, BuildOptions::default())
     }
@@ -47,10 +47,8 @@ impl BvhTracer {
     /// If `options` are out of range (see [`Bvh::build`]).
     pub fn with_options(strands: &Strands, kind: CurveKind, options: BuildOptions) -> Self {
         let start = Instant::now();
-        let strands = strands.clone();
-        let bvh = WideBvh::new(&Bvh::build(&strands, options), &strands);
+        let bvh = WideBvh::new(&Bvh::build(strands, options), strands);
         BvhTracer {
-            strands,
             bvh,
             kind,
             build_seconds: start.elapsed().as_secs_f64(),
@@ -67,12 +65,10 @@ impl BvhTracer {
         &self.bvh
     }
 
-    /// The ray–curve test of one segment over `[ray.tnear, tfar]`.
+    /// The ray–curve test of one leaf entry over `[ray.tnear, tfar]`.
     #[inline]
-    fn test(&self, ray: &Ray, segment: u32, tfar: f32) -> Option<CurveHit> {
-        let first = self.strands.segment_first[segment as usize] as usize;
-        let p = &self.strands.control_points[first..first + 4];
-        let cp = [p[0], p[1], p[2], p[3]];
+    fn test(&self, ray: &Ray, p: &Primitive, tfar: f32) -> Option<CurveHit> {
+        let cp = p.control_points;
         match self.kind {
             CurveKind::Round => round::intersect(ray.origin, ray.dir, ray.tnear, tfar, cp),
             CurveKind::Flat => flat::intersect(ray.origin, ray.dir, ray.tnear, tfar, cp),
@@ -87,13 +83,12 @@ impl BvhTracer {
     ) -> Result<Option<Hit>, InvalidRay> {
         let (traced, scale) = traced_ray(ray)?;
         let mut best = None;
-        self.bvh.closest(&traced, |segment, tfar| {
-            let strand = self.strands.segment_strand[segment as usize];
-            if !accept(strand, self.strands.opacity[strand as usize]) {
+        self.bvh.closest(&traced, |p, tfar| {
+            if !accept(p.strand, p.opacity) {
                 return None;
             }
-            let hit = self.test(&traced, segment, tfar)?;
-            best = Some((segment, strand, hit));
+            let hit = self.test(&traced, p, tfar)?;
+            best = Some((p.segment, p.strand, hit));
             Some(hit.t)
         });
         Ok(best.map(|(segment, strand, h)| Hit {
@@ -177,9 +172,9 @@ impl Tracer for BvhTracer {
         self.build_seconds
     }
 
-    /// The hierarchy (nodes and leaf indices) plus the tracer's copy of the strands.
+    /// The hierarchy: nodes and leaf entries, which hold the tracer's copy of the curves.
     fn memory_bytes(&self) -> usize {
-        self.bvh.bytes() + self.strands.bytes()
+        self.bvh.bytes()
     }
 
     fn intersect(&self, ray: &Ray) -> Result<Option<Hit>, InvalidRay> {
@@ -189,13 +184,11 @@ impl Tracer for BvhTracer {
     fn transmittance(&self, ray: &Ray, ignore_strand: Option<u32>) -> Result<f32, InvalidRay> {
         let (traced, _) = traced_ray(ray)?;
         let mut seen = Seen::new(ignore_strand);
-        self.bvh.for_each(&traced, |segment, tfar| {
-            let strand = self.strands.segment_strand[segment as usize];
-            let opacity = self.strands.opacity[strand as usize];
-            if seen.skips(strand, opacity) || self.test(&traced, segment, tfar).is_none() {
+        self.bvh.for_each(&traced, |p, tfar| {
+            if seen.skips(p.strand, p.opacity) || self.test(&traced, p, tfar).is_none() {
                 return Control::Continue;
             }
-            seen.count(strand, opacity)
+            seen.count(p.strand, p.opacity)
         });
         Ok(seen.transmittance)
     }
@@ -218,11 +211,10 @@ impl Tracer for BvhTracer {
         key: u64,
     ) -> Result<bool, InvalidRay> {
         let (traced, _) = traced_ray(ray)?;
-        Ok(self.bvh.for_each(&traced, |segment, tfar| {
-            let strand = self.strands.segment_strand[segment as usize];
-            let present = Some(strand) != ignore_strand
-                && strand_present(key, strand, self.strands.opacity[strand as usize]);
-            if present && self.test(&traced, segment, tfar).is_some() {
+        Ok(self.bvh.for_each(&traced, |p, tfar| {
+            let present =
+                Some(p.strand) != ignore_strand && strand_present(key, p.strand, p.opacity);
+            if present && self.test(&traced, p, tfar).is_some() {
                 Control::Stop
             } else {
                 Control::Continue

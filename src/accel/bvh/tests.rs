@@ -344,9 +344,9 @@ fn check_wide_traversal(bvh: &Bvh, strands: &Strands, rays: &[Ray], what: &str) 
     let mut reported = 0;
     for (i, ray) in rays.iter().enumerate() {
         let (want_t, want_set) = brute_force(&boxes, ray);
-        let got_t = wide.closest(ray, |segment, tfar| {
+        let got_t = wide.closest(ray, |p, tfar| {
             let r = RayInv::new(&Ray { tfar, ..*ray });
-            seg_boxes[segment as usize]
+            seg_boxes[p.segment as usize]
                 .iter()
                 .filter_map(|b| b.entry(&r))
                 .min_by(f32::total_cmp)
@@ -357,8 +357,11 @@ fn check_wide_traversal(bvh: &Bvh, strands: &Strands, rays: &[Ray], what: &str) 
             "{what}, wide: ray {i} {ray:?}: closest {got_t:?}, brute force {want_t:?}"
         );
         let mut got_set = Vec::new();
-        assert!(!wide.for_each(ray, |segment, _| {
-            got_set.push(segment);
+        assert!(!wide.for_each(ray, |p, _| {
+            let first = strands.segment_first[p.segment as usize] as usize;
+            assert_eq!(p.control_points[..], strands.control_points[first..first + 4]);
+            assert_eq!(p.strand, strands.segment_strand[p.segment as usize]);
+            got_set.push(p.segment);
             Control::Continue
         }));
         got_set.sort_unstable();

@@ -131,14 +131,30 @@ pub struct WideNode {
     valid: u32,
 }
 
+/// A leaf entry: everything a ray–curve test and the shadow bookkeeping need, in one place, so that a leaf is
+/// read sequentially instead of through four index arrays (segment → first control point → points, segment →
+/// strand → opacity), as Embree's curve leaves also store their control points.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[repr(C, align(16))]
+pub struct Primitive {
+    /// The segment's four quarter-span boxes.
+    spans: Boxes4,
+    /// The segment's control points (x, y, z, radius).
+    pub control_points: [[f32; 4]; 4],
+    /// The segment id.
+    pub segment: u32,
+    /// The strand it belongs to.
+    pub strand: u32,
+    /// The strand's opacity.
+    pub opacity: f32,
+}
+
 /// The 4-wide tree with per-segment span boxes (see the module docs).
 #[derive(Debug, Clone, PartialEq)]
 pub struct WideBvh {
     nodes: Vec<WideNode>,
-    /// Segment id of each leaf entry.
-    segments: Vec<u32>,
-    /// The four span boxes of each leaf entry's segment.
-    spans: Vec<Boxes4>,
+    /// The leaf entries, leaf by leaf.
+    primitives: Vec<Primitive>,
     /// The root: a node, a leaf, or nothing (no segments).
     root: Option<(Child, [f32; 3], [f32; 3])>,
 }
@@ -147,23 +163,30 @@ impl WideBvh {
     /// Collapses `bvh` (built over `strands`) into 4-wide nodes and stores each leaf entry's span boxes.
     pub fn new(bvh: &Bvh, strands: &Strands) -> WideBvh {
         use rayon::prelude::*;
-        let segments = bvh.primitives().to_vec();
-        let spans = segments
+        let primitives = bvh
+            .primitives()
             .par_iter()
             .map(|&segment| {
-                let mut b = Boxes4::EMPTY;
+                let mut spans = Boxes4::EMPTY;
                 let mut lane = 0;
                 for_each_span(strands, segment, Bounding::Spans { levels: 2 }, |span| {
-                    b.set(lane, span.lo, span.hi);
+                    spans.set(lane, span.lo, span.hi);
                     lane += 1;
                 });
-                b
+                let first = strands.segment_first[segment as usize] as usize;
+                let strand = strands.segment_strand[segment as usize];
+                Primitive {
+                    spans,
+                    control_points: std::array::from_fn(|i| strands.control_points[first + i]),
+                    segment,
+                    strand,
+                    opacity: strands.opacity[strand as usize],
+                }
             })
             .collect();
         let mut wide = WideBvh {
             nodes: Vec::new(),
-            segments,
-            spans,
+            primitives,
             root: None,
         };
         let binary = bvh.nodes();
@@ -174,11 +197,9 @@ impl WideBvh {
         wide
     }
 
-    /// Memory of nodes, leaf entries and span boxes, bytes.
+    /// Memory of nodes and leaf entries, bytes.
     pub fn bytes(&self) -> usize {
-        std::mem::size_of_val(self.nodes.as_slice())
-            + std::mem::size_of_val(self.segments.as_slice())
-            + std::mem::size_of_val(self.spans.as_slice())
+        std::mem::size_of_val(self.nodes.as_slice()) + std::mem::size_of_val(self.primitives.as_slice())
     }
 
     /// Number of 4-wide nodes.
@@ -235,12 +256,12 @@ impl WideBvh {
         }
     }
 
-    /// The closest primitive along `ray`: [`Bvh::closest`]'s contract.
-    pub fn closest<F: FnMut(u32, f32) -> Option<f32>>(&self, ray: &Ray, mut hit: F) -> Option<f32> {
+    /// The closest primitive along `ray`: [`Bvh::closest`]'s contract, the callback given the leaf entry.
+    pub fn closest<F: FnMut(&Primitive, f32) -> Option<f32>>(&self, ray: &Ray, mut hit: F) -> Option<f32> {
         let mut r = WideRay::new(ray);
         let mut found = None;
-        self.walk(&mut r, |segment, r| {
-            if let Some(t) = hit(segment, r.tfar) {
+        self.walk(&mut r, |primitive, r| {
+            if let Some(t) = hit(primitive, r.tfar) {
                 debug_assert!(t >= r.tnear && t <= r.tfar, "hit t = {t} outside the ray");
                 r.tfar = t;
                 found = Some(t);
@@ -250,14 +271,15 @@ impl WideBvh {
         found
     }
 
-    /// Every primitive whose span boxes the ray crosses: [`Bvh::for_each`]'s contract.
-    pub fn for_each<F: FnMut(u32, f32) -> Control>(&self, ray: &Ray, mut visit: F) -> bool {
+    /// Every primitive whose span boxes the ray crosses: [`Bvh::for_each`]'s contract, the callback given the leaf
+    /// entry.
+    pub fn for_each<F: FnMut(&Primitive, f32) -> Control>(&self, ray: &Ray, mut visit: F) -> bool {
         let mut r = WideRay::new(ray);
-        self.walk(&mut r, |segment, r| visit(segment, r.tfar))
+        self.walk(&mut r, |primitive, r| visit(primitive, r.tfar))
     }
 
     #[inline]
-    fn walk<F: FnMut(u32, &mut WideRay) -> Control>(
+    fn walk<F: FnMut(&Primitive, &mut WideRay) -> Control>(
         &self,
         r: &mut WideRay,
         mut primitive: F,
@@ -276,11 +298,8 @@ impl WideBvh {
         loop {
             if current.count > 0 {
                 let first = current.index as usize;
-                for k in first..first + current.count as usize {
-                    if self.spans[k].test(r).1 == 0 {
-                        continue;
-                    }
-                    if primitive(self.segments[k], r) == Control::Stop {
+                for p in &self.primitives[first..first + current.count as usize] {
+                    if p.spans.test(r).1 != 0 && primitive(p, r) == Control::Stop {
                         return true;
                     }
                 }
