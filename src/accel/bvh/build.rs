@@ -40,6 +40,20 @@ pub(super) fn for_each_span(
         Bounding::Hull => 0,
         Bounding::Spans { levels } | Bounding::SpanRefs { levels } => levels,
     };
+    subdivide(cps, levels, &mut |p| f(hull_box(&p)));
+}
+
+/// Calls `f` with the four control points (x, y, z, radius) of each of the 2^`levels` spans of `segment`, in order
+/// along the curve.
+pub(super) fn for_each_span_points(
+    strands: &Strands,
+    segment: u32,
+    levels: u32,
+    mut f: impl FnMut([Vec4; 4]),
+) {
+    let first = strands.segment_first[segment as usize] as usize;
+    let cps: [Vec4; 4] =
+        std::array::from_fn(|i| Vec4::from_array(strands.control_points[first + i]));
     subdivide(cps, levels, &mut f);
 }
 
@@ -47,9 +61,9 @@ pub(super) fn for_each_span(
 /// the same basis): the refined polygon of P₀…P₃ is E₀, V₁, E₁, V₂, E₂ with edge points Eᵢ = (Pᵢ + Pᵢ₊₁)/2 and
 /// vertex points Vᵢ = (Pᵢ₋₁ + 6Pᵢ + Pᵢ₊₁)/8 (Lane & Riesenfeld 1980); [E₀ V₁ E₁ V₂] is u ∈ [0, ½] and
 /// [V₁ E₁ V₂ E₂] is u ∈ [½, 1].
-fn subdivide(p: [Vec4; 4], levels: u32, f: &mut impl FnMut(Aabb)) {
+fn subdivide(p: [Vec4; 4], levels: u32, f: &mut impl FnMut([Vec4; 4])) {
     if levels == 0 {
-        f(hull_box(&p));
+        f(p);
         return;
     }
     let e = |i: usize| 0.5 * (p[i] + p[i + 1]);

@@ -325,9 +325,9 @@ fn contains_quarter_spans(bounding: Bounding) -> bool {
     )
 }
 
-/// [`wide::WideBvh`] over `bvh` against brute force over every segment's four span boxes (what its leaves test):
-/// the same nearest entry bit for bit, and the all-hits walk reaches exactly the segments whose spans the ray
-/// crosses. Returns the segments reported.
+/// [`wide::WideBvh`] over `bvh` against brute force over every segment's four span boxes (what its leaves test,
+/// with their oriented bounds, [`wide::Primitive::crosses`]): the same nearest entry bit for bit, and the all-hits
+/// walk reaches exactly the segments whose spans the ray crosses. Returns the segments reported.
 fn check_wide_traversal(bvh: &Bvh, strands: &Strands, rays: &[Ray], what: &str) -> usize {
     let wide = wide::WideBvh::new(bvh, strands);
     let spans = Bounding::SpanRefs { levels: 2 };
@@ -342,8 +342,15 @@ fn check_wide_traversal(bvh: &Bvh, strands: &Strands, rays: &[Ray], what: &str) 
         .map(|s| primitive_boxes(strands, s, spans))
         .collect();
     let mut reported = 0;
+    let filter: std::collections::HashMap<u32, &wide::Primitive> =
+        wide.primitives().iter().map(|p| (p.segment, p)).collect();
     for (i, ray) in rays.iter().enumerate() {
-        let (want_t, want_set) = brute_force(&boxes, ray);
+        let crossed: Vec<(u32, Aabb)> = boxes
+            .iter()
+            .filter(|(s, _)| filter[s].crosses(ray))
+            .copied()
+            .collect();
+        let (want_t, want_set) = brute_force(&crossed, ray);
         let got_t = wide.closest(ray, |p, tfar| {
             let r = RayInv::new(&Ray { tfar, ..*ray });
             seg_boxes[p.segment as usize]
@@ -359,7 +366,10 @@ fn check_wide_traversal(bvh: &Bvh, strands: &Strands, rays: &[Ray], what: &str) 
         let mut got_set = Vec::new();
         assert!(!wide.for_each(ray, |p, _| {
             let first = strands.segment_first[p.segment as usize] as usize;
-            assert_eq!(p.control_points[..], strands.control_points[first..first + 4]);
+            assert_eq!(
+                p.control_points[..],
+                strands.control_points[first..first + 4]
+            );
             assert_eq!(p.strand, strands.segment_strand[p.segment as usize]);
             got_set.push(p.segment);
             Control::Continue
@@ -662,6 +672,7 @@ fn check_embree_hits_inside_boxes(strands: &Strands, rays: &[Ray], what: &str) -
                     ..BuildOptions::default()
                 },
             );
+            let wide = wide::WideBvh::new(&bvh, strands);
             for (i, ray) in rays.iter().enumerate() {
                 let Some(hit) = tracer.intersect(ray).expect("valid ray") else {
                     continue;
@@ -691,6 +702,27 @@ fn check_embree_hits_inside_boxes(strands: &Strands, rays: &[Ray], what: &str) -
                 assert!(
                     offered,
                     "{what}, {kind:?}, {bounding:?}: ray {i}: walk never offered embree's segment {}",
+                    hit.segment
+                );
+                // The wide tree's leaf filter (span boxes and oriented bounds) lets Embree's segment through too.
+                let mut offered = false;
+                wide.for_each(
+                    &Ray {
+                        tfar: hit.t * 1.001 + 1e-4,
+                        ..*ray
+                    },
+                    |p, _| {
+                        offered |= p.segment == hit.segment;
+                        if offered {
+                            Control::Stop
+                        } else {
+                            Control::Continue
+                        }
+                    },
+                );
+                assert!(
+                    offered,
+                    "{what}, {kind:?}, {bounding:?}: ray {i}: the wide walk never offered embree's segment {}",
                     hit.segment
                 );
                 checked += 1;

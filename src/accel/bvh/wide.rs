@@ -11,7 +11,8 @@
 //!   leaf pass the segment by. Each segment keeps its four span boxes (u ∈ [0, ¼], …, [¾, 1] from midpoint
 //!   subdivision, conservative for the swept surface, see [`super`]) and the ray–curve test runs only when the ray
 //!   crosses one of them — the role Embree's oriented leaf bounds play (Woop et al. 2014, "Exploiting local
-//!   orientation similarity for efficient ray traversal of hair and fur"), at 96 bytes per segment. (A tree built
+//!   orientation similarity for efficient ray traversal of hair and fur"), at 96 bytes per segment, each span also
+//!   with an oriented bound ([`Lines4`]: a line and a radius, 112 bytes). (A tree built
 //!   on eighth spans, `Spans { levels: 3 }`, reaches a segment only when the ray crosses both its eighth-span
 //!   union and a quarter span: still conservative.)
 //!
@@ -28,7 +29,7 @@
 use arrayvec::ArrayVec;
 use glam::Vec3;
 
-use super::build::for_each_span;
+use super::build::{for_each_span, for_each_span_points};
 use super::{Bounding, Bvh, Control, FAR_SCALE};
 use crate::hair::Strands;
 use crate::ray::Ray;
@@ -86,10 +87,94 @@ impl Boxes4 {
     }
 }
 
+/// Four oriented bounds ("capsules" without caps): per lane, a line through a span's end control points, `a + s·e`,
+/// and a radius within which the span's swept surface lies. By the convex-hull property the curve point c(u) =
+/// Σ bᵢ pᵢ and radius r(u) = Σ bᵢ rᵢ satisfy dist(c(u), line) + r(u) ≤ maxᵢ (dist(pᵢ, line) + rᵢ) (distance to
+/// a line is convex), so that maximum bounds every point of a round tube or flat ribbon. It is widened to allow
+/// the intersectors' own tolerance (the hit may lie up to one radius beyond the surface, see
+/// [`crate::accel::curves`]) and rounding. A ray whose line passes farther than that from the span's line —
+/// |(a − o)·(d × e)| > R·|d × e| — cannot hit the span; together with the span's box (which bounds it along the
+/// line and in t) this is a cheap oriented test for thin diagonal hair, where boxes are mostly empty (Woop et al.
+/// 2014 make the same observation for their oriented leaf bounds).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[repr(C, align(16))]
+pub struct Lines4 {
+    a: [[f32; 4]; 3],
+    e: [[f32; 4]; 3],
+    radius: [f32; 4],
+}
+
+impl Lines4 {
+    /// Lanes that reject nothing (radius ∞).
+    const EMPTY: Lines4 = Lines4 {
+        a: [[0.0; 4]; 3],
+        e: [[0.0; 4]; 3],
+        radius: [f32::INFINITY; 4],
+    };
+
+    /// Sets lane `lane` from a span's four control points (x, y, z, radius).
+    fn set(&mut self, lane: usize, p: [glam::Vec4; 4]) {
+        let (a, b) = (p[0].truncate(), p[3].truncate());
+        let e = b - a;
+        let len2 = e.length_squared();
+        let mut bound = 0.0f32;
+        let mut scale = 0.0f32;
+        for q in p {
+            let w = q.truncate() - a;
+            // Distance to the line; to the point a if the span has no length.
+            let d2 = if len2 > 0.0 {
+                (w - e * (w.dot(e) / len2)).length_squared()
+            } else {
+                w.length_squared()
+            };
+            bound = bound.max(d2.max(0.0).sqrt() + q.w.abs());
+            scale = scale.max(q.truncate().abs().max_element()).max(q.w.abs());
+        }
+        let max_radius = p.iter().fold(0.0f32, |m, q| m.max(q.w.abs()));
+        // Tolerance: one more radius (the intersectors accept hits that close), and rounding of the coordinates.
+        let radius = bound + max_radius + 1e-5 * scale;
+        for axis in 0..3 {
+            self.a[axis][lane] = a[axis];
+            self.e[axis][lane] = e[axis];
+        }
+        self.radius[lane] = if radius.is_finite() {
+            radius
+        } else {
+            f32::INFINITY
+        };
+    }
+
+    /// Bit mask of the lanes whose bound the ray's line may cross.
+    #[inline(always)]
+    fn test(&self, r: &WideRay) -> u32 {
+        let [ox, oy, oz] = r.origin;
+        let [dx, dy, dz] = r.dir;
+        let mut mask = 0;
+        for lane in 0..4 {
+            let (ex, ey, ez) = (self.e[0][lane], self.e[1][lane], self.e[2][lane]);
+            // n = d × e
+            let nx = dy * ez - dz * ey;
+            let ny = dz * ex - dx * ez;
+            let nz = dx * ey - dy * ex;
+            let wx = self.a[0][lane] - ox;
+            let wy = self.a[1][lane] - oy;
+            let wz = self.a[2][lane] - oz;
+            let num = wx * nx + wy * ny + wz * nz;
+            let n2 = nx * nx + ny * ny + nz * nz;
+            let rad = self.radius[lane];
+            // Rejected only when num² > R² |n|² holds: a NaN (degenerate input) keeps the lane.
+            let far = num * num > rad * rad * n2;
+            mask |= u32::from(!far) << lane;
+        }
+        mask
+    }
+}
+
 /// A ray prepared for [`Boxes4::test`].
 #[derive(Debug, Clone, Copy)]
 struct WideRay {
     origin: [f32; 3],
+    dir: [f32; 3],
     inv_dir: [f32; 3],
     tnear: f32,
     tfar: f32,
@@ -106,6 +191,7 @@ impl WideRay {
         };
         WideRay {
             origin: ray.origin.to_array(),
+            dir: ray.dir.to_array(),
             inv_dir: ray.dir.to_array().map(|d| 1.0 / safe(d)),
             tnear: ray.tnear,
             tfar: ray.tfar,
@@ -139,6 +225,8 @@ pub struct WideNode {
 pub struct Primitive {
     /// The segment's four quarter-span boxes.
     spans: Boxes4,
+    /// The same spans' oriented bounds.
+    lines: Lines4,
     /// The segment's control points (x, y, z, radius).
     pub control_points: [[f32; 4]; 4],
     /// The segment id.
@@ -147,6 +235,15 @@ pub struct Primitive {
     pub strand: u32,
     /// The strand's opacity.
     pub opacity: f32,
+}
+
+impl Primitive {
+    /// Whether the leaf filter lets `ray` through to the curve test: some span's box and oriented bound both
+    /// crossed (what the walk asks before offering the primitive).
+    pub fn crosses(&self, ray: &Ray) -> bool {
+        let r = WideRay::new(ray);
+        self.spans.test(&r).1 & self.lines.test(&r) != 0
+    }
 }
 
 /// The 4-wide tree with per-segment span boxes (see the module docs).
@@ -173,10 +270,17 @@ impl WideBvh {
                     spans.set(lane, span.lo, span.hi);
                     lane += 1;
                 });
+                let mut lines = Lines4::EMPTY;
+                let mut lane = 0;
+                for_each_span_points(strands, segment, 2, |points| {
+                    lines.set(lane, points);
+                    lane += 1;
+                });
                 let first = strands.segment_first[segment as usize] as usize;
                 let strand = strands.segment_strand[segment as usize];
                 Primitive {
                     spans,
+                    lines,
                     control_points: std::array::from_fn(|i| strands.control_points[first + i]),
                     segment,
                     strand,
@@ -199,7 +303,13 @@ impl WideBvh {
 
     /// Memory of nodes and leaf entries, bytes.
     pub fn bytes(&self) -> usize {
-        std::mem::size_of_val(self.nodes.as_slice()) + std::mem::size_of_val(self.primitives.as_slice())
+        std::mem::size_of_val(self.nodes.as_slice())
+            + std::mem::size_of_val(self.primitives.as_slice())
+    }
+
+    /// The leaf entries, leaf by leaf.
+    pub fn primitives(&self) -> &[Primitive] {
+        &self.primitives
     }
 
     /// Number of 4-wide nodes.
@@ -257,7 +367,11 @@ impl WideBvh {
     }
 
     /// The closest primitive along `ray`: [`Bvh::closest`]'s contract, the callback given the leaf entry.
-    pub fn closest<F: FnMut(&Primitive, f32) -> Option<f32>>(&self, ray: &Ray, mut hit: F) -> Option<f32> {
+    pub fn closest<F: FnMut(&Primitive, f32) -> Option<f32>>(
+        &self,
+        ray: &Ray,
+        mut hit: F,
+    ) -> Option<f32> {
         let mut r = WideRay::new(ray);
         let mut found = None;
         self.walk(&mut r, |primitive, r| {
@@ -299,7 +413,11 @@ impl WideBvh {
             if current.count > 0 {
                 let first = current.index as usize;
                 for p in &self.primitives[first..first + current.count as usize] {
-                    if p.spans.test(r).1 != 0 && primitive(p, r) == Control::Stop {
+                    let (_, boxes) = p.spans.test(r);
+                    if boxes != 0
+                        && boxes & p.lines.test(r) != 0
+                        && primitive(p, r) == Control::Stop
+                    {
                         return true;
                     }
                 }
