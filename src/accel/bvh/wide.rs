@@ -27,10 +27,10 @@
 //!   of the origin's plane.
 
 use arrayvec::ArrayVec;
-use glam::Vec3;
+use glam::{Vec3, Vec4};
 
-use super::build::{for_each_span, for_each_span_points};
-use super::{Bounding, Bvh, Control, FAR_SCALE};
+use super::build::{for_each_span_points, hull_box};
+use super::{Bvh, Control, FAR_SCALE};
 use crate::hair::Strands;
 use crate::ray::Ray;
 
@@ -41,19 +41,18 @@ const WIDE_STACK: usize = 3 * super::STACK_SIZE + 1;
 /// Smallest direction component magnitude inverted as it is (see the module docs).
 const MIN_DIRECTION: f32 = 5.421_011e-20; // 2⁻⁶⁴
 
-/// Four boxes as structure of arrays: `lo[axis][lane]`, `hi[axis][lane]`.
+/// Four boxes as structure of arrays, one SSE register per axis and side: `lo[axis]`, `hi[axis]` (lane = box).
 #[derive(Debug, Clone, Copy, PartialEq)]
-#[repr(C, align(16))]
 pub struct Boxes4 {
-    lo: [[f32; 4]; 3],
-    hi: [[f32; 4]; 3],
+    lo: [Vec4; 3],
+    hi: [Vec4; 3],
 }
 
 impl Boxes4 {
     /// No box (every lane invalid: lanes are masked by the caller).
     const EMPTY: Boxes4 = Boxes4 {
-        lo: [[f32::INFINITY; 4]; 3],
-        hi: [[f32::NEG_INFINITY; 4]; 3],
+        lo: [Vec4::INFINITY; 3],
+        hi: [Vec4::NEG_INFINITY; 3],
     };
 
     fn set(&mut self, lane: usize, lo: Vec3, hi: Vec3) {
@@ -65,25 +64,16 @@ impl Boxes4 {
 
     /// Entry distances of the four boxes and the bit mask of the lanes the ray crosses within `[tnear, tfar]`.
     #[inline(always)]
-    fn test(&self, r: &WideRay) -> ([f32; 4], u32) {
-        let mut tmin = [r.tnear; 4];
-        let mut tmax = [r.tfar; 4];
+    fn test(&self, r: &WideRay) -> (Vec4, u32) {
+        let mut tmin = Vec4::splat(r.tnear);
+        let mut tmax = Vec4::splat(r.tfar);
         for axis in 0..3 {
-            let (o, inv) = (r.origin[axis], r.inv_dir[axis]);
-            for lane in 0..4 {
-                let t0 = (self.lo[axis][lane] - o) * inv;
-                let t1 = (self.hi[axis][lane] - o) * inv;
-                let (near, far) = if t0 < t1 { (t0, t1) } else { (t1, t0) };
-                let far = far * FAR_SCALE;
-                tmin[lane] = if near > tmin[lane] { near } else { tmin[lane] };
-                tmax[lane] = if far < tmax[lane] { far } else { tmax[lane] };
-            }
+            let t0 = (self.lo[axis] - r.origin[axis]) * r.inv_dir[axis];
+            let t1 = (self.hi[axis] - r.origin[axis]) * r.inv_dir[axis];
+            tmin = tmin.max(t0.min(t1));
+            tmax = tmax.min(t0.max(t1) * FAR_SCALE);
         }
-        let mut mask = 0;
-        for lane in 0..4 {
-            mask |= u32::from(tmin[lane] <= tmax[lane]) << lane;
-        }
-        (tmin, mask)
+        (tmin, tmin.cmple(tmax).bitmask())
     }
 }
 
@@ -97,23 +87,22 @@ impl Boxes4 {
 /// line and in t) this is a cheap oriented test for thin diagonal hair, where boxes are mostly empty (Woop et al.
 /// 2014 make the same observation for their oriented leaf bounds).
 #[derive(Debug, Clone, Copy, PartialEq)]
-#[repr(C, align(16))]
 pub struct Lines4 {
-    a: [[f32; 4]; 3],
-    e: [[f32; 4]; 3],
-    radius: [f32; 4],
+    a: [Vec4; 3],
+    e: [Vec4; 3],
+    radius: Vec4,
 }
 
 impl Lines4 {
     /// Lanes that reject nothing (radius ∞).
     const EMPTY: Lines4 = Lines4 {
-        a: [[0.0; 4]; 3],
-        e: [[0.0; 4]; 3],
-        radius: [f32::INFINITY; 4],
+        a: [Vec4::ZERO; 3],
+        e: [Vec4::ZERO; 3],
+        radius: Vec4::INFINITY,
     };
 
     /// Sets lane `lane` from a span's four control points (x, y, z, radius).
-    fn set(&mut self, lane: usize, p: [glam::Vec4; 4]) {
+    fn set(&mut self, lane: usize, p: [Vec4; 4]) {
         let (a, b) = (p[0].truncate(), p[3].truncate());
         let e = b - a;
         let len2 = e.length_squared();
@@ -144,38 +133,30 @@ impl Lines4 {
         };
     }
 
-    /// Bit mask of the lanes whose bound the ray's line may cross.
+    /// Bit mask of the lanes whose bound the ray's line may cross: not |(a − o)·(d × e)|² > R²|d × e|² (a NaN
+    /// from degenerate input keeps the lane).
     #[inline(always)]
     fn test(&self, r: &WideRay) -> u32 {
-        let [ox, oy, oz] = r.origin;
         let [dx, dy, dz] = r.dir;
-        let mut mask = 0;
-        for lane in 0..4 {
-            let (ex, ey, ez) = (self.e[0][lane], self.e[1][lane], self.e[2][lane]);
-            // n = d × e
-            let nx = dy * ez - dz * ey;
-            let ny = dz * ex - dx * ez;
-            let nz = dx * ey - dy * ex;
-            let wx = self.a[0][lane] - ox;
-            let wy = self.a[1][lane] - oy;
-            let wz = self.a[2][lane] - oz;
-            let num = wx * nx + wy * ny + wz * nz;
-            let n2 = nx * nx + ny * ny + nz * nz;
-            let rad = self.radius[lane];
-            // Rejected only when num² > R² |n|² holds: a NaN (degenerate input) keeps the lane.
-            let far = num * num > rad * rad * n2;
-            mask |= u32::from(!far) << lane;
-        }
-        mask
+        let [ex, ey, ez] = self.e;
+        let nx = dy * ez - dz * ey;
+        let ny = dz * ex - dx * ez;
+        let nz = dx * ey - dy * ex;
+        let num = (self.a[0] - r.origin[0]) * nx
+            + (self.a[1] - r.origin[1]) * ny
+            + (self.a[2] - r.origin[2]) * nz;
+        let n2 = nx * nx + ny * ny + nz * nz;
+        let far = (num * num).cmpgt(self.radius * self.radius * n2);
+        !far.bitmask() & 0xf
     }
 }
 
-/// A ray prepared for [`Boxes4::test`].
+/// A ray prepared for [`Boxes4::test`] and [`Lines4::test`]: every component splatted across four lanes.
 #[derive(Debug, Clone, Copy)]
 struct WideRay {
-    origin: [f32; 3],
-    dir: [f32; 3],
-    inv_dir: [f32; 3],
+    origin: [Vec4; 3],
+    dir: [Vec4; 3],
+    inv_dir: [Vec4; 3],
     tnear: f32,
     tfar: f32,
 }
@@ -189,10 +170,11 @@ impl WideRay {
                 d
             }
         };
+        let splat = |v: [f32; 3]| v.map(Vec4::splat);
         WideRay {
-            origin: ray.origin.to_array(),
-            dir: ray.dir.to_array(),
-            inv_dir: ray.dir.to_array().map(|d| 1.0 / safe(d)),
+            origin: splat(ray.origin.to_array()),
+            dir: splat(ray.dir.to_array()),
+            inv_dir: splat(ray.dir.to_array().map(|d| 1.0 / safe(d))),
             tnear: ray.tnear,
             tfar: ray.tfar,
         }
@@ -264,15 +246,13 @@ impl WideBvh {
             .primitives()
             .par_iter()
             .map(|&segment| {
+                // The quarter spans' control points, once: their hull boxes and oriented bounds.
                 let mut spans = Boxes4::EMPTY;
-                let mut lane = 0;
-                for_each_span(strands, segment, Bounding::Spans { levels: 2 }, |span| {
-                    spans.set(lane, span.lo, span.hi);
-                    lane += 1;
-                });
                 let mut lines = Lines4::EMPTY;
                 let mut lane = 0;
                 for_each_span_points(strands, segment, 2, |points| {
+                    let b = hull_box(&points);
+                    spans.set(lane, b.lo, b.hi);
                     lines.set(lane, points);
                     lane += 1;
                 });
@@ -424,6 +404,7 @@ impl WideBvh {
             } else {
                 let node = &self.nodes[current.index as usize];
                 let (tmin, mask) = node.boxes.test(r);
+                let tmin = tmin.to_array();
                 let mut mask = mask & node.valid;
                 if mask != 0 {
                     // Hit children sorted by entry distance, nearest last (it is entered, the others stacked so
