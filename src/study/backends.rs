@@ -406,22 +406,11 @@ fn chart_figure(
             });
         }
     }
-    let stem = scene
-        .source
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let [w, h] = scene.film.resolution;
-    Ok(figures::error_time_chart(
-        &format!(
-            "{stem}: Embree vs Rust BVH, RMSE vs time, {w}×{h}, reference {} spp",
-            config.reference_spp
-        ),
-        "build + render time (s)",
-        "RMSE",
+    Ok(figures::scene_error_time_chart(
+        scene,
+        "Embree vs Rust BVH, ",
+        config.reference_spp,
         &series,
-        960,
-        640,
     )?)
 }
 

@@ -11,6 +11,7 @@ use plotters::style::RGBColor;
 
 use crate::image::Image;
 use crate::plot::{self, Axis, Figure, Label, LineChart, PlotError, Series};
+use crate::scene::Scene;
 
 /// One measured point of a chart series.
 #[derive(Debug, Clone, PartialEq)]
@@ -48,6 +49,30 @@ pub fn error_time_chart(
         &error_time_line_chart(title, x_label, y_label, series),
         "error-time",
         (width, height),
+    )
+}
+
+/// [`error_time_chart`] for a study of `scene`: RMSE against build + render time, 960 × 640, titled
+/// "`<scene file stem>: <what>RMSE vs time, W×H, reference N spp`".
+pub fn scene_error_time_chart(
+    scene: &Scene,
+    what: &str,
+    reference_spp: u32,
+    series: &[ChartSeries],
+) -> Result<Figure, PlotError> {
+    let stem = scene
+        .source
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let [w, h] = scene.film.resolution;
+    error_time_chart(
+        &format!("{stem}: {what}RMSE vs time, {w}×{h}, reference {reference_spp} spp"),
+        "build + render time (s)",
+        "RMSE",
+        series,
+        960,
+        640,
     )
 }
 

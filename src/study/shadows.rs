@@ -587,22 +587,11 @@ fn chart_figure(
             points: points(&none, &|_| String::new()),
         },
     ];
-    let name = scene
-        .source
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let [w, h] = scene.film.resolution;
-    Ok(figures::error_time_chart(
-        &format!(
-            "{name}: RMSE vs time, {w}×{h}, reference {} spp",
-            config.reference_spp
-        ),
-        "build + render time (s)",
-        "RMSE",
+    Ok(figures::scene_error_time_chart(
+        scene,
+        "",
+        config.reference_spp,
         &series,
-        960,
-        640,
     )?)
 }
 

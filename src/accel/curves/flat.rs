@@ -649,72 +649,39 @@ mod tests {
         // Rays through the bounding box of hair-like segments (what the BVH offers) and rays aimed within 3 radii
         // of the curve: the same result, bit for bit, with and without step 0; and step 0 must reject most box
         // rays, or it is not worth its cost.
-        let mut rng = Rng::new(0x5eed_f1a7);
         let (mut box_rays, mut box_misses, mut rejected, mut hits) = (0, 0, 0, 0);
-        for _ in 0..300 {
-            let mut cp = [[0.0f32; 4]; 4];
-            let mut p = Vec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), 0.0);
-            let mut heading = rng.unit_vector();
-            let r = rng.range(1e-3, 3e-2);
-            for c in &mut cp {
-                *c = [p.x, p.y, p.z, r * rng.range(0.5, 1.0)];
-                heading = (heading + 0.3 * rng.unit_vector()).normalize();
-                p += rng.range(0.2, 1.0) * heading;
+        super::super::near_rays(0x5eed_f1a7, |cp, org, dir, tnear, through_box| {
+            box_rays += usize::from(through_box);
+            let run = |reject| {
+                intersect_tessellated(
+                    org,
+                    dir,
+                    tnear,
+                    f32::INFINITY,
+                    cp,
+                    TESSELLATION_RATE,
+                    reject,
+                )
+            };
+            let (with, without) = (run(true), run(false));
+            assert_eq!(
+                with, without,
+                "cp {cp:?}, org {org}, dir {dir}, tnear {tnear}"
+            );
+            hits += usize::from(with.is_some());
+            if through_box && with.is_none() {
+                box_misses += 1;
+                // Step 0 as intersect_tessellated runs it.
+                let (rx, ry, _, _) = ray_space(dir);
+                let q = cp.map(|c| {
+                    let p = Vec3::from_slice(&c) - org;
+                    Vec3::new(rx.dot(p), ry.dot(p), 0.0)
+                });
+                let r_max = cp.iter().fold(0.0f32, |m, c| m.max(c[3]));
+                let hull = bezier_points(q).map(|p| p.truncate());
+                rejected += usize::from(origin_far_from_chord_box(hull, REJECT_RADII * r_max));
             }
-            let strands = one_segment(cp);
-            let lo = cp
-                .iter()
-                .fold(Vec3::INFINITY, |m, c| m.min(Vec3::from_slice(c)));
-            let hi = cp
-                .iter()
-                .fold(Vec3::NEG_INFINITY, |m, c| m.max(Vec3::from_slice(c)));
-            for k in 0..200 {
-                let target = if k % 2 == 0 {
-                    box_rays += 1;
-                    lo - r
-                        + Vec3::new(
-                            rng.range(0.0, 1.0),
-                            rng.range(0.0, 1.0),
-                            rng.range(0.0, 1.0),
-                        ) * (hi - lo + Vec3::splat(2.0 * r))
-                } else {
-                    let p = strands.eval(0, rng.range(-0.02, 1.02));
-                    p.position + rng.range(0.0, 3.0 * p.radius) * rng.unit_vector()
-                };
-                let dir = rng.unit_vector() * rng.range(0.5, 2.0);
-                let org = target - rng.range(1.0, 4.0) * dir;
-                let tnear = if k % 7 == 0 { 1.0 } else { 0.0 };
-                let run = |reject| {
-                    intersect_tessellated(
-                        org,
-                        dir,
-                        tnear,
-                        f32::INFINITY,
-                        cp,
-                        TESSELLATION_RATE,
-                        reject,
-                    )
-                };
-                let (with, without) = (run(true), run(false));
-                assert_eq!(
-                    with, without,
-                    "cp {cp:?}, org {org}, dir {dir}, tnear {tnear}"
-                );
-                hits += usize::from(with.is_some());
-                if k % 2 == 0 && with.is_none() {
-                    box_misses += 1;
-                    // Step 0 as intersect_tessellated runs it.
-                    let (rx, ry, _, _) = ray_space(dir);
-                    let q = cp.map(|c| {
-                        let p = Vec3::from_slice(&c) - org;
-                        Vec3::new(rx.dot(p), ry.dot(p), 0.0)
-                    });
-                    let r_max = cp.iter().fold(0.0f32, |m, c| m.max(c[3]));
-                    let hull = bezier_points(q).map(|p| p.truncate());
-                    rejected += usize::from(origin_far_from_chord_box(hull, REJECT_RADII * r_max));
-                }
-            }
-        }
+        });
         println!(
             "early reject: {box_rays} box rays, {box_misses} missing, {rejected} of those rejected by step 0; \
              {hits} hits in all"

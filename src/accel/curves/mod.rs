@@ -56,6 +56,52 @@ fn origin_far_from_chord_box(q: [Vec2; 4], radius: f32) -> bool {
     min(across) > reach || max(across) < -reach || min(along) > reach || max(along) < -reach
 }
 
+/// The rays of the early-reject tests of both intersectors: 300 hair-like random segments (unit-scale, gently
+/// curved, radius 10⁻³–3·10⁻²), each with 200 rays, the even ones through the segment's box widened by its radius
+/// (what the BVH offers), the odd ones aimed within 3 radii of the curve; every 7th starts at tnear 1. Calls
+/// `f(control points, origin, direction, tnear, through the box)`.
+#[cfg(test)]
+fn near_rays(seed: u64, mut f: impl FnMut([[f32; 4]; 4], Vec3, Vec3, f32, bool)) {
+    use crate::accel::testing::Rng;
+    let mut rng = Rng::new(seed);
+    for _ in 0..300 {
+        let mut cp = [[0.0f32; 4]; 4];
+        let mut p = Vec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), 0.0);
+        let mut heading = rng.unit_vector();
+        let r = rng.range(1e-3, 3e-2);
+        for c in &mut cp {
+            *c = [p.x, p.y, p.z, r * rng.range(0.5, 1.0)];
+            heading = (heading + 0.3 * rng.unit_vector()).normalize();
+            p += rng.range(0.2, 1.0) * heading;
+        }
+        let lo = cp
+            .iter()
+            .fold(Vec3::INFINITY, |m, c| m.min(Vec3::from_slice(c)));
+        let hi = cp
+            .iter()
+            .fold(Vec3::NEG_INFINITY, |m, c| m.max(Vec3::from_slice(c)));
+        for k in 0..200 {
+            let through_box = k % 2 == 0;
+            let target = if through_box {
+                lo - r
+                    + Vec3::new(
+                        rng.range(0.0, 1.0),
+                        rng.range(0.0, 1.0),
+                        rng.range(0.0, 1.0),
+                    ) * (hi - lo + Vec3::splat(2.0 * r))
+            } else {
+                let b = crate::hair::strands::bspline_basis(rng.range(-0.02, 1.02));
+                let c: glam::Vec4 = (0..4).map(|i| b[i] * glam::Vec4::from_array(cp[i])).sum();
+                c.truncate() + rng.range(0.0, 3.0 * c.w) * rng.unit_vector()
+            };
+            let dir = rng.unit_vector() * rng.range(0.5, 2.0);
+            let org = target - rng.range(1.0, 4.0) * dir;
+            let tnear = if k % 7 == 0 { 1.0 } else { 0.0 };
+            f(cp, org, dir, tnear, through_box);
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

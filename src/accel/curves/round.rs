@@ -1192,64 +1192,30 @@ mod tests {
         // Rays through the bounding box of hair-like segments (what the BVH offers), and rays aimed within 3 radii
         // of the curve (the band around the reject distance): the same result with and without step 0, and step 0
         // must reject most of the box rays, or it is not worth its cost.
-        let mut rng = Rng::new(0x5eed);
         let (mut box_rays, mut rejected, mut hits) = (0, 0, 0);
-        for _ in 0..300 {
-            let mut cp = [[0.0f32; 4]; 4];
-            let mut p = Vec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), 0.0);
-            let mut heading = rng.unit_vector();
-            let r = rng.range(1e-3, 3e-2);
-            for c in &mut cp {
-                *c = [p.x, p.y, p.z, r * rng.range(0.5, 1.0)];
-                heading = (heading + 0.3 * rng.unit_vector()).normalize();
-                p += rng.range(0.2, 1.0) * heading;
+        super::super::near_rays(0x5eed, |cp, org, dir, tnear, through_box| {
+            box_rays += usize::from(through_box);
+            let with = intersect_with(org, dir, tnear, f32::INFINITY, cp, PIECES, MAX_DEPTH, true);
+            let without =
+                intersect_with(org, dir, tnear, f32::INFINITY, cp, PIECES, MAX_DEPTH, false);
+            assert_eq!(
+                with, without,
+                "cp {cp:?}, org {org}, dir {dir}, tnear {tnear}"
+            );
+            hits += usize::from(with.is_some());
+            if through_box && with.is_none() {
+                let v = cp.map(Vec4::from_array);
+                let center = 0.25 * (v[0] + v[1] + v[2] + v[3]);
+                let shifted = BSpline(v.map(|p| {
+                    p - (org + (center.xyz() - org).dot(dir) / dir.dot(dir) * dir).extend(0.0)
+                }));
+                rejected += usize::from(far_from_curve(
+                    &shifted,
+                    dir,
+                    REJECT_RADII * shifted.max_radius(),
+                ));
             }
-            let curve = BSpline(cp.map(Vec4::from_array));
-            let lo = cp
-                .iter()
-                .fold(Vec3::INFINITY, |m, c| m.min(Vec3::from_slice(c)));
-            let hi = cp
-                .iter()
-                .fold(Vec3::NEG_INFINITY, |m, c| m.max(Vec3::from_slice(c)));
-            for k in 0..200 {
-                let target = if k % 2 == 0 {
-                    box_rays += 1;
-                    lo - r
-                        + Vec3::new(
-                            rng.range(0.0, 1.0),
-                            rng.range(0.0, 1.0),
-                            rng.range(0.0, 1.0),
-                        ) * (hi - lo + Vec3::splat(2.0 * r))
-                } else {
-                    let p = curve.eval(rng.range(-0.02, 1.02));
-                    p.xyz() + rng.range(0.0, 3.0 * p.w) * rng.unit_vector()
-                };
-                let dir = rng.unit_vector() * rng.range(0.5, 2.0);
-                let org = target - rng.range(1.0, 4.0) * dir;
-                let tnear = if k % 7 == 0 { 1.0 } else { 0.0 };
-                let with =
-                    intersect_with(org, dir, tnear, f32::INFINITY, cp, PIECES, MAX_DEPTH, true);
-                let without =
-                    intersect_with(org, dir, tnear, f32::INFINITY, cp, PIECES, MAX_DEPTH, false);
-                assert_eq!(
-                    with, without,
-                    "cp {cp:?}, org {org}, dir {dir}, tnear {tnear}"
-                );
-                hits += usize::from(with.is_some());
-                if k % 2 == 0 && with.is_none() {
-                    let v = cp.map(Vec4::from_array);
-                    let center = 0.25 * (v[0] + v[1] + v[2] + v[3]);
-                    let shifted = BSpline(v.map(|p| {
-                        p - (org + (center.xyz() - org).dot(dir) / dir.dot(dir) * dir).extend(0.0)
-                    }));
-                    rejected += usize::from(far_from_curve(
-                        &shifted,
-                        dir,
-                        REJECT_RADII * shifted.max_radius(),
-                    ));
-                }
-            }
-        }
+        });
         println!(
             "early reject: {box_rays} box rays, {rejected} rejected by step 0; {hits} hits in all"
         );
