@@ -325,10 +325,12 @@ fn contains_quarter_spans(bounding: Bounding) -> bool {
     )
 }
 
-/// [`wide::WideBvh`] over `bvh` against brute force over every segment's four span boxes (what its leaves test,
-/// with their oriented bounds, [`wide::Primitive::crosses`]): the same nearest entry bit for bit, and the all-hits
-/// walk reaches exactly the segments whose spans the ray crosses. Returns the segments reported.
-fn check_wide_traversal(bvh: &Bvh, strands: &Strands, rays: &[Ray], what: &str) -> usize {
+/// [`wide::WideBvh`] over `bvh` against brute force. The walk offers the entries of the leaves whose boxes the ray
+/// crosses, filtered by their capsules ([`wide::Primitive::crosses`]). So: every offered segment passes the filter;
+/// among the segments whose quarter-span boxes the ray crosses, exactly those passing the filter are offered; and
+/// the nearest of a primitive inside each swept surface (a cross-section sphere) is the one a test of every
+/// segment finds, bit for bit. Returns (rays hitting a sphere, segments reported).
+fn check_wide_traversal(bvh: &Bvh, strands: &Strands, rays: &[Ray], what: &str) -> (usize, usize) {
     let wide = wide::WideBvh::new(bvh, strands);
     let spans = Bounding::SpanRefs { levels: 2 };
     let boxes: Vec<(u32, Aabb)> = (0..strands.segment_count() as u32)
@@ -341,7 +343,7 @@ fn check_wide_traversal(bvh: &Bvh, strands: &Strands, rays: &[Ray], what: &str) 
     let seg_boxes: Vec<Vec<Aabb>> = (0..strands.segment_count() as u32)
         .map(|s| primitive_boxes(strands, s, spans))
         .collect();
-    let mut reported = 0;
+    let (mut hits, mut reported) = (0, 0);
     let filter: std::collections::HashMap<u32, &wide::Primitive> =
         wide.primitives().iter().map(|p| (p.segment, p)).collect();
     for (i, ray) in rays.iter().enumerate() {
@@ -350,19 +352,38 @@ fn check_wide_traversal(bvh: &Bvh, strands: &Strands, rays: &[Ray], what: &str) 
             .filter(|(s, _)| filter[s].crosses(ray))
             .copied()
             .collect();
-        let (want_t, want_set) = brute_force(&crossed, ray);
-        let got_t = wide.closest(ray, |p, tfar| {
-            let r = RayInv::new(&Ray { tfar, ..*ray });
-            seg_boxes[p.segment as usize]
-                .iter()
-                .filter_map(|b| b.entry(&r))
-                .min_by(f32::total_cmp)
-        });
+        let (_, want_set) = brute_force(&crossed, ray);
+        // Closest hit with a primitive inside every segment's swept surface (so inside its boxes and capsules): the
+        // sphere of the tube's cross-section at u = ½. The walk must find the nearest such sphere.
+        let curve = |cp: [[f32; 4]; 4], tfar: f32| {
+            let b = crate::hair::strands::bspline_basis(0.5);
+            let c: glam::Vec4 = (0..4).map(|k| b[k] * glam::Vec4::from_array(cp[k])).sum();
+            // Stable form: the closest approach first, so the miss distance is not lost to cancellation.
+            let dd = ray.dir.dot(ray.dir);
+            let tc = (c.truncate() - ray.origin).dot(ray.dir) / dd;
+            let miss2 = (ray.at(tc) - c.truncate()).length_squared();
+            if miss2 > c.w * c.w {
+                return None;
+            }
+            let half = ((c.w * c.w - miss2) / dd).sqrt();
+            [tc - half, tc + half]
+                .into_iter()
+                .find(|t| *t >= ray.tnear && *t <= tfar)
+        };
+        let want_t = (0..strands.segment_count())
+            .filter_map(|s| {
+                let first = strands.segment_first[s] as usize;
+                let p = &strands.control_points[first..first + 4];
+                curve([p[0], p[1], p[2], p[3]], ray.tfar)
+            })
+            .min_by(f32::total_cmp);
+        let got_t = wide.closest(ray, |p, tfar| curve(p.control_points, tfar));
         assert_eq!(
             got_t.map(f32::to_bits),
             want_t.map(f32::to_bits),
             "{what}, wide: ray {i} {ray:?}: closest {got_t:?}, brute force {want_t:?}"
         );
+        hits += usize::from(got_t.is_some());
         let mut got_set = Vec::new();
         assert!(!wide.for_each(ray, |p, _| {
             let first = strands.segment_first[p.segment as usize] as usize;
@@ -376,13 +397,25 @@ fn check_wide_traversal(bvh: &Bvh, strands: &Strands, rays: &[Ray], what: &str) 
         }));
         got_set.sort_unstable();
         got_set.dedup();
+        let inv = RayInv::new(ray);
+        for s in &got_set {
+            assert!(
+                filter[s].crosses(ray),
+                "{what}, wide: ray {i}: segment {s} offered past its filter"
+            );
+        }
+        got_set.retain(|&s| {
+            seg_boxes[s as usize]
+                .iter()
+                .any(|b| b.entry(&inv).is_some())
+        });
         assert_eq!(
             got_set, want_set,
             "{what}, wide: ray {i} {ray:?}: all-hits walk differs from brute force"
         );
         reported += want_set.len();
     }
-    reported
+    (hits, reported)
 }
 
 #[test]
@@ -484,10 +517,14 @@ fn random_bundle_builds_valid_trees_that_traverse_like_brute_force() {
             assert!(hits > rays.len() / 4, "{what}: only {hits} rays hit");
             assert!(reported > rays.len(), "{what}: {reported} boxes crossed");
             if contains_quarter_spans(bounding) {
-                let reported = check_wide_traversal(&bvh, &strands, &rays, &what);
+                let (hits, reported) = check_wide_traversal(&bvh, &strands, &rays, &what);
                 assert!(
                     reported > rays.len() / 2,
                     "{what}, wide: {reported} spans crossed"
+                );
+                assert!(
+                    hits > rays.len() / 20,
+                    "{what}, wide: only {hits} sphere hits"
                 );
             }
         }

@@ -8,20 +8,22 @@
 //!   one 128-byte node and tests four boxes where the binary tree loaded two nodes per level. 8-wide nodes (AVX
 //!   lanes, tried 1 Dec 2026) cost more instructions (bench trace ray loops, furball 96x96: round 2.78 G → 2.94 G,
 //!   flat 1.29 G → 1.45 G) for no wall-clock gain that one run could separate from noise: four it is.
-//! - **Span boxes in the leaves**: hair is thin, long and diagonal, so even the union of a segment's four span
+//! - **Span capsules in the leaves**: hair is thin, long and diagonal, so even the union of a segment's four span
 //!   boxes (what the tree is built on, [`super::Bounding::Spans`]) is mostly empty space; most rays that reach a
-//!   leaf pass the segment by. Each segment keeps its four span boxes (u ∈ [0, ¼], …, [¾, 1] from midpoint
-//!   subdivision, conservative for the swept surface, see [`super`]) and the ray–curve test runs only when the ray
-//!   crosses one of them — the role Embree's oriented leaf bounds play (Woop et al. 2014, "Exploiting local
-//!   orientation similarity for efficient ray traversal of hair and fur"), at 96 bytes per segment, each span also
-//!   with an oriented bound ([`Lines4`]: a line and a radius, 112 bytes). (A tree built
-//!   on eighth spans, `Spans { levels: 3 }`, reaches a segment only when the ray crosses both its eighth-span
-//!   union and a quarter span: still conservative.)
+//!   leaf pass the segment by. Each segment keeps its four quarter spans (u ∈ [0, ¼], …, [¾, 1] from midpoint
+//!   subdivision) as capsules ([`Capsules4`]: a chord segment and a radius, conservative for the swept surface)
+//!   and the ray–curve test runs only when the ray comes within one of them — the role Embree's oriented leaf
+//!   bounds play (Woop et al. 2014, "Exploiting local orientation similarity for efficient ray traversal of hair
+//!   and fur"), at 112 bytes per segment.
 //!
 //! Measured (callgrind, instructions inside the benchmark's ray loops, `bench trace scenes/furball.toml --threads
 //! 1 --repetitions 1 --res 96x96 --backend bvh`, same rays and figures): binary tree 8.74 G (round) / 2.98 G
-//! (flat); 4-wide with span leaves 5.30 G / 1.94 G; flat ribbon tests 1 684 010 → 203 049 calls. Replacing the
-//! zero-initialised traversal stack by an `ArrayVec`: flat 1.94 G → 1.82 G.
+//! (flat); 4-wide with span-box leaves 5.30 G / 1.94 G; flat ribbon tests 1 684 010 → 203 049 calls. Replacing
+//! the zero-initialised traversal stack by an `ArrayVec`: flat 1.94 G → 1.82 G. After faster curve tests, span
+//! boxes plus an oriented line bound per span: 2.78 G / 1.29 G at 325 bytes per segment; capsules alone (this
+//! version): 2.90 G / 1.41 G at 229 bytes per segment, the same wall time within noise (three interleaved runs of
+//! each, 1 thread, 192² furball), so the smaller leaves win. Perf shows the walk waiting on the first load of a
+//! leaf entry and of a node: memory, not arithmetic, bounds it.
 //! - **Slab test**: min/max of the two slab distances per axis (no branch on the direction's sign), far distances
 //!   scaled by Ize 2013's 1 + 2γ₃ as in [`super::Aabb::entry`]. Direction components too small to invert are
 //!   replaced by ±2⁻⁶⁴ (Embree's `rcp_safe` idea), so no 0 · ∞ = NaN can reach the comparisons: the inverse stays
@@ -31,7 +33,7 @@
 use arrayvec::ArrayVec;
 use glam::{Vec3, Vec4};
 
-use super::build::{for_each_span_points, hull_box};
+use super::build::for_each_span_points;
 use super::{Bvh, Control, FAR_SCALE};
 use crate::hair::Strands;
 use crate::ray::Ray;
@@ -79,25 +81,22 @@ impl Boxes4 {
     }
 }
 
-/// Four oriented bounds ("capsules" without caps): per lane, a line through a span's end control points, `a + s·e`,
-/// and a radius within which the span's swept surface lies. By the convex-hull property the curve point c(u) =
-/// Σ bᵢ pᵢ and radius r(u) = Σ bᵢ rᵢ satisfy dist(c(u), line) + r(u) ≤ maxᵢ (dist(pᵢ, line) + rᵢ) (distance to
-/// a line is convex), so that maximum bounds every point of a round tube or flat ribbon. It is widened to allow
-/// the intersectors' own tolerance (the hit may lie up to one radius beyond the surface, see
-/// [`crate::accel::curves`]) and rounding. A ray whose line passes farther than that from the span's line —
-/// |(a − o)·(d × e)| > R·|d × e| — cannot hit the span; together with the span's box (which bounds it along the
-/// line and in t) this is a cheap oriented test for thin diagonal hair, where boxes are mostly empty (Woop et al.
-/// 2014 make the same observation for their oriented leaf bounds).
+/// Four capsules: per lane, a chord segment a…a+e through a span's first and last control points and a radius R
+/// within which the span's swept surface lies. By the convex-hull property the curve point c(u) = Σ bᵢ pᵢ and
+/// radius r(u) = Σ bᵢ rᵢ satisfy dist(c(u), chord) + r(u) ≤ maxᵢ (dist(pᵢ, chord) + rᵢ) (distance to a segment is
+/// convex), so that maximum bounds every point of a round tube or flat ribbon. It is widened by one more radius
+/// (the intersectors accept hits up to that far beyond the surface, see [`crate::accel::curves`]) and for
+/// rounding.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Lines4 {
+pub struct Capsules4 {
     a: [Vec4; 3],
     e: [Vec4; 3],
     radius: Vec4,
 }
 
-impl Lines4 {
+impl Capsules4 {
     /// Lanes that reject nothing (radius ∞).
-    const EMPTY: Lines4 = Lines4 {
+    const EMPTY: Capsules4 = Capsules4 {
         a: [Vec4::ZERO; 3],
         e: [Vec4::ZERO; 3],
         radius: Vec4::INFINITY,
@@ -112,9 +111,10 @@ impl Lines4 {
         let mut scale = 0.0f32;
         for q in p {
             let w = q.truncate() - a;
-            // Distance to the line; to the point a if the span has no length.
+            // Distance to the chord segment a…b (to the point a if the span has no length): convex, so its
+            // maximum over the hull is at a control point.
             let d2 = if len2 > 0.0 {
-                (w - e * (w.dot(e) / len2)).length_squared()
+                (w - e * (w.dot(e) / len2).clamp(0.0, 1.0)).length_squared()
             } else {
                 w.length_squared()
             };
@@ -135,30 +135,50 @@ impl Lines4 {
         };
     }
 
-    /// Bit mask of the lanes whose bound the ray's line may cross: not |(a − o)·(d × e)|² > R²|d × e|² (a NaN
-    /// from degenerate input keeps the lane).
+    /// Bit mask of the lanes whose capsule (chord segment a…a+e, radius R) the ray may cross within
+    /// `[tnear, tfar]`. With w = a − o, u = w × d and v = e × d, the squared distance from the chord point a + s·e
+    /// to the ray's line is |u + s v|² / |d|², least at s = −(u·v)/(v·v) clamped to [0, 1]; the lane is kept
+    /// unless that exceeds R². Along the ray the capsule spans t ∈ [min(t_a, t_b) − R/|d|, max(t_a, t_b) + R/|d|]
+    /// (t_x = (x − o)·d / |d|²), which must meet `[tnear, tfar]`. Comparisons are written so that a NaN keeps the
+    /// lane.
     #[inline(always)]
     fn test(&self, r: &WideRay) -> u32 {
         let [dx, dy, dz] = r.dir;
         let [ex, ey, ez] = self.e;
-        let nx = dy * ez - dz * ey;
-        let ny = dz * ex - dx * ez;
-        let nz = dx * ey - dy * ex;
-        let num = (self.a[0] - r.origin[0]) * nx
-            + (self.a[1] - r.origin[1]) * ny
-            + (self.a[2] - r.origin[2]) * nz;
-        let n2 = nx * nx + ny * ny + nz * nz;
-        let far = (num * num).cmpgt(self.radius * self.radius * n2);
-        !far.bitmask() & 0xf
+        let wx = self.a[0] - r.origin[0];
+        let wy = self.a[1] - r.origin[1];
+        let wz = self.a[2] - r.origin[2];
+        let (ux, uy, uz) = (wy * dz - wz * dy, wz * dx - wx * dz, wx * dy - wy * dx);
+        let (vx, vy, vz) = (ey * dz - ez * dy, ez * dx - ex * dz, ex * dy - ey * dx);
+        let vv = vx * vx + vy * vy + vz * vz;
+        let uv = ux * vx + uy * vy + uz * vz;
+        // Parallel chord (vv = 0): every s is as close; s = 0.
+        let s =
+            Vec4::select(vv.cmpgt(Vec4::ZERO), -uv / vv, Vec4::ZERO).clamp(Vec4::ZERO, Vec4::ONE);
+        let (cx, cy, cz) = (ux + s * vx, uy + s * vy, uz + s * vz);
+        let dist2 = cx * cx + cy * cy + cz * cz;
+        let far = dist2.cmpgt(self.radius * self.radius * r.dd);
+        // Along the ray, in units of t·|d|².
+        let ta = wx * dx + wy * dy + wz * dz;
+        let tb = ta + (ex * dx + ey * dy + ez * dz);
+        let reach = self.radius * r.len;
+        let before = (ta.max(tb) + reach).cmplt(r.tnear_dd);
+        let after = (ta.min(tb) - reach).cmpgt(r.tfar_dd);
+        !(far | before | after).bitmask() & 0xf
     }
 }
 
-/// A ray prepared for [`Boxes4::test`] and [`Lines4::test`]: every component splatted across four lanes.
+/// A ray prepared for [`Boxes4::test`] and [`Capsules4::test`]: every component splatted across four lanes.
 #[derive(Debug, Clone, Copy)]
 struct WideRay {
     origin: [Vec4; 3],
     dir: [Vec4; 3],
     inv_dir: [Vec4; 3],
+    /// |d|², |d|, tnear·|d|², tfar·|d|² (for [`Capsules4::test`]; `tfar_dd` follows `tfar`).
+    dd: Vec4,
+    len: Vec4,
+    tnear_dd: Vec4,
+    tfar_dd: Vec4,
     tnear: f32,
     tfar: f32,
 }
@@ -173,13 +193,25 @@ impl WideRay {
             }
         };
         let splat = |v: [f32; 3]| v.map(Vec4::splat);
+        let dd = ray.dir.length_squared();
         WideRay {
             origin: splat(ray.origin.to_array()),
             dir: splat(ray.dir.to_array()),
             inv_dir: splat(ray.dir.to_array().map(|d| 1.0 / safe(d))),
+            dd: Vec4::splat(dd),
+            len: Vec4::splat(dd.sqrt()),
+            tnear_dd: Vec4::splat(ray.tnear * dd),
+            tfar_dd: Vec4::splat(ray.tfar * dd),
             tnear: ray.tnear,
             tfar: ray.tfar,
         }
+    }
+
+    /// Shortens the ray to end at `t`.
+    #[inline]
+    fn set_tfar(&mut self, t: f32) {
+        self.tfar = t;
+        self.tfar_dd = Vec4::splat(t * self.dd.x);
     }
 }
 
@@ -207,10 +239,8 @@ pub struct WideNode {
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[repr(C, align(16))]
 pub struct Primitive {
-    /// The segment's four quarter-span boxes.
-    spans: Boxes4,
-    /// The same spans' oriented bounds.
-    lines: Lines4,
+    /// The segment's four quarter spans as capsules.
+    lines: Capsules4,
     /// The segment's control points (x, y, z, radius).
     pub control_points: [[f32; 4]; 4],
     /// The segment id.
@@ -226,7 +256,7 @@ impl Primitive {
     /// crossed (what the walk asks before offering the primitive).
     pub fn crosses(&self, ray: &Ray) -> bool {
         let r = WideRay::new(ray);
-        self.spans.test(&r).1 & self.lines.test(&r) != 0
+        self.lines.test(&r) != 0
     }
 }
 
@@ -249,19 +279,15 @@ impl WideBvh {
             .par_iter()
             .map(|&segment| {
                 // The quarter spans' control points, once: their hull boxes and oriented bounds.
-                let mut spans = Boxes4::EMPTY;
-                let mut lines = Lines4::EMPTY;
+                let mut lines = Capsules4::EMPTY;
                 let mut lane = 0;
                 for_each_span_points(strands, segment, 2, |points| {
-                    let b = hull_box(&points);
-                    spans.set(lane, b.lo, b.hi);
                     lines.set(lane, points);
                     lane += 1;
                 });
                 let first = strands.segment_first[segment as usize] as usize;
                 let strand = strands.segment_strand[segment as usize];
                 Primitive {
-                    spans,
                     lines,
                     control_points: std::array::from_fn(|i| strands.control_points[first + i]),
                     segment,
@@ -359,7 +385,7 @@ impl WideBvh {
         self.walk(&mut r, |primitive, r| {
             if let Some(t) = hit(primitive, r.tfar) {
                 debug_assert!(t >= r.tnear && t <= r.tfar, "hit t = {t} outside the ray");
-                r.tfar = t;
+                r.set_tfar(t);
                 found = Some(t);
             }
             Control::Continue
@@ -395,11 +421,7 @@ impl WideBvh {
             if current.count > 0 {
                 let first = current.index as usize;
                 for p in &self.primitives[first..first + current.count as usize] {
-                    let (_, boxes) = p.spans.test(r);
-                    if boxes != 0
-                        && boxes & p.lines.test(r) != 0
-                        && primitive(p, r) == Control::Stop
-                    {
+                    if p.lines.test(r) != 0 && primitive(p, r) == Control::Stop {
                         return true;
                     }
                 }
