@@ -259,20 +259,26 @@ fn brute_force(boxes: &[(u32, Aabb)], ray: &Ray) -> (Option<f32>, Vec<u32>) {
     (nearest, hit)
 }
 
-/// Traversal with the box as primitive against brute force: the same nearest entry distance, and the all-hits
-/// walk reaches exactly the segments whose boxes the ray crosses. Returns (rays that hit, segments reported).
-fn check_traversal(bvh: &Bvh, strands: &Strands, rays: &[Ray], what: &str) -> (usize, usize) {
-    let bounding = bvh.options().bounding;
-    let boxes: Vec<(u32, Aabb)> = (0..strands.segment_count() as u32)
-        .flat_map(|s| {
-            primitive_boxes(strands, s, bounding)
-                .into_iter()
-                .map(move |b| (s, b))
-        })
-        .collect();
+/// Every (segment, box) pair, and the boxes per segment.
+type SegmentBoxes = (Vec<(u32, Aabb)>, Vec<Vec<Aabb>>);
+
+/// The primitive boxes of every segment under `bounding`: as one list of (segment, box), and per segment.
+fn all_boxes(strands: &Strands, bounding: Bounding) -> SegmentBoxes {
     let seg_boxes: Vec<Vec<Aabb>> = (0..strands.segment_count() as u32)
         .map(|s| primitive_boxes(strands, s, bounding))
         .collect();
+    let boxes = seg_boxes
+        .iter()
+        .enumerate()
+        .flat_map(|(s, b)| b.iter().map(move |b| (s as u32, *b)))
+        .collect();
+    (boxes, seg_boxes)
+}
+
+/// Traversal with the box as primitive against brute force: the same nearest entry distance, and the all-hits
+/// walk reaches exactly the segments whose boxes the ray crosses. Returns (rays that hit, segments reported).
+fn check_traversal(bvh: &Bvh, strands: &Strands, rays: &[Ray], what: &str) -> (usize, usize) {
+    let (boxes, seg_boxes) = all_boxes(strands, bvh.options().bounding);
     let (mut hits, mut reported) = (0, 0);
     for (i, ray) in rays.iter().enumerate() {
         let (want_t, want_set) = brute_force(&boxes, ray);
@@ -332,17 +338,7 @@ fn contains_quarter_spans(bounding: Bounding) -> bool {
 /// segment finds, bit for bit. Returns (rays hitting a sphere, segments reported).
 fn check_wide_traversal(bvh: &Bvh, strands: &Strands, rays: &[Ray], what: &str) -> (usize, usize) {
     let wide = wide::WideBvh::new(bvh, strands);
-    let spans = Bounding::SpanRefs { levels: 2 };
-    let boxes: Vec<(u32, Aabb)> = (0..strands.segment_count() as u32)
-        .flat_map(|s| {
-            primitive_boxes(strands, s, spans)
-                .into_iter()
-                .map(move |b| (s, b))
-        })
-        .collect();
-    let seg_boxes: Vec<Vec<Aabb>> = (0..strands.segment_count() as u32)
-        .map(|s| primitive_boxes(strands, s, spans))
-        .collect();
+    let (boxes, seg_boxes) = all_boxes(strands, Bounding::SpanRefs { levels: 2 });
     let (mut hits, mut reported) = (0, 0);
     let filter: std::collections::HashMap<u32, &wide::Primitive> =
         wide.primitives().iter().map(|p| (p.segment, p)).collect();
