@@ -194,7 +194,7 @@ impl Default for BuildOptions {
             bounding: Bounding::Spans { levels: 2 },
             max_leaf: 4,
             bins: 16,
-            // The leaves filter candidates with span boxes and oriented bounds before any curve test, so a leaf
+            // The leaves filter candidates with per-span bounds before any curve test, so a leaf
             // entry costs about one box test. Measured (callgrind, `bench trace` ray loops on furball 96x96, 1
             // thread, with the filter): cost 1 against 4: round 2.85 G -> 2.78 G instructions, flat 1.37 G ->
             // 1.29 G, and a smaller tree (325 against 358 bytes per segment).
