@@ -24,6 +24,16 @@ pub enum CurveKind {
     Flat,
 }
 
+impl CurveKind {
+    /// The scene-file name: `"round"` or `"flat"`.
+    pub fn name(self) -> &'static str {
+        match self {
+            CurveKind::Round => "round",
+            CurveKind::Flat => "flat",
+        }
+    }
+}
+
 /// Which implementation traces the strands: the two are timed against each other on identical work (issue 13).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -33,6 +43,16 @@ pub enum Backend {
     Embree,
     /// The pure-Rust BVH ([`bvh_tracer::BvhTracer`]): [`bvh`] with the ray–curve tests of [`curves`].
     Bvh,
+}
+
+impl Backend {
+    /// The scene-file name: `"embree"` or `"bvh"`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Backend::Embree => "embree",
+            Backend::Bvh => "bvh",
+        }
+    }
 }
 
 /// The closest hit of a ray with a strand.
@@ -105,6 +125,26 @@ pub fn strand_present(key: u64, strand: u32, opacity: f32) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn names_are_the_scene_names() {
+        #[derive(serde::Deserialize)]
+        struct Key {
+            curves: CurveKind,
+            backend: Backend,
+        }
+        for curves in [CurveKind::Round, CurveKind::Flat] {
+            for backend in [Backend::Embree, Backend::Bvh] {
+                let text = format!(
+                    "curves = \"{}\"\nbackend = \"{}\"",
+                    curves.name(),
+                    backend.name()
+                );
+                let key: Key = toml::from_str(&text).unwrap();
+                assert_eq!((key.curves, key.backend), (curves, backend));
+            }
+        }
+    }
 
     #[test]
     fn presence_frequency_matches_opacity() {

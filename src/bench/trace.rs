@@ -198,10 +198,6 @@ impl TraceReport {
     }
 }
 
-fn name<T: fmt::Debug>(value: T) -> String {
-    format!("{value:?}").to_lowercase()
-}
-
 impl fmt::Display for TraceReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let (major, minor, patch) = self.embree_version;
@@ -248,8 +244,8 @@ impl fmt::Display for TraceReport {
             write!(
                 f,
                 "{:<6} {:<7} {:>3} {:>20} {:>8.1}",
-                name(m.kind),
-                name(m.backend),
+                m.kind.name(),
+                m.backend.name(),
                 m.threads,
                 format!(
                     "{:.3} ({:.3}-{:.3})",
@@ -282,8 +278,8 @@ impl fmt::Display for TraceReport {
             write!(
                 f,
                 "  {} {} {} threads:",
-                name(m.kind),
-                name(m.backend),
+                m.kind.name(),
+                m.backend.name(),
                 m.threads
             )?;
             for r in &m.rays {
@@ -309,7 +305,7 @@ impl fmt::Display for TraceReport {
             write!(
                 f,
                 "bvh / embree time, {} {} threads: build {:.2}x, memory {:.2}x",
-                name(m.kind),
+                m.kind.name(),
                 m.threads,
                 m.build.median / e.build.median,
                 m.memory_bytes as f64 / e.memory_bytes.max(1) as f64
@@ -326,7 +322,7 @@ impl fmt::Display for TraceReport {
         }
         // One line per measurement for scripts: `<measure> <curves> <backend> <value> <unit> <threads>`.
         for m in &self.measurements {
-            let (kind, backend, threads) = (name(m.kind), name(m.backend), m.threads);
+            let (kind, backend, threads) = (m.kind.name(), m.backend.name(), m.threads);
             writeln!(
                 f,
                 "build {kind} {backend} {:.4} s {threads}-threads",

@@ -75,7 +75,7 @@ fn subdivide(p: [Vec4; 4], levels: u32, f: &mut impl FnMut([Vec4; 4])) {
 
 /// The box of four control points, each inflated by its own radius (w): conservative for the swept surface,
 /// see the module doc.
-pub(super) fn hull_box(p: &[Vec4; 4]) -> Aabb {
+fn hull_box(p: &[Vec4; 4]) -> Aabb {
     p.iter().fold(Aabb::EMPTY, |b, c| {
         let (x, r) = (c.truncate(), Vec3::splat(c.w.abs()));
         b.union(Aabb {

@@ -1,6 +1,6 @@
 //! The traversal structure of the pure-Rust backend: the binary SAH tree of [`Bvh`] collapsed into 4-wide nodes,
-//! with four span boxes per segment in the leaves. Both are tested four boxes at a time by one branch-free slab
-//! test over structure-of-arrays lanes, which the compiler turns into SSE instructions (safe code, no intrinsics).
+//! with four span capsules per segment in the leaves. Both are tested four at a time over structure-of-arrays
+//! lanes (glam's `Vec4`: SSE instructions from safe code, no intrinsics).
 //!
 //! - **4-wide nodes** (Wald, Benthin & Boulos 2008, "Getting rid of packets"; Dammertz et al. 2008, "Shallow
 //!   bounding volume hierarchies"; Embree's BVH4): each binary inner node is replaced by up to four descendants,
@@ -107,8 +107,7 @@ impl Capsules4 {
         let (a, b) = (p[0].truncate(), p[3].truncate());
         let e = b - a;
         let len2 = e.length_squared();
-        let mut bound = 0.0f32;
-        let mut scale = 0.0f32;
+        let (mut bound, mut scale, mut max_radius) = (0.0f32, 0.0f32, 0.0f32);
         for q in p {
             let w = q.truncate() - a;
             // Distance to the chord segment a…b (to the point a if the span has no length): convex, so its
@@ -120,8 +119,8 @@ impl Capsules4 {
             };
             bound = bound.max(d2.max(0.0).sqrt() + q.w.abs());
             scale = scale.max(q.truncate().abs().max_element()).max(q.w.abs());
+            max_radius = max_radius.max(q.w.abs());
         }
-        let max_radius = p.iter().fold(0.0f32, |m, q| m.max(q.w.abs()));
         // Tolerance: one more radius (the intersectors accept hits that close), and rounding of the coordinates.
         let radius = bound + max_radius + 1e-5 * scale;
         for axis in 0..3 {
@@ -218,7 +217,7 @@ impl WideRay {
 /// A child reference: an inner node's index, or a leaf's first entry and entry count.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 struct Child {
-    /// Inner: node index. Leaf: index of its first entry in [`WideBvh::segments`].
+    /// Inner: node index. Leaf: index of its first entry in [`WideBvh::primitives`].
     index: u32,
     /// Leaf: number of entries (> 0). Inner: 0.
     count: u32,
@@ -240,7 +239,7 @@ pub struct WideNode {
 #[repr(C, align(16))]
 pub struct Primitive {
     /// The segment's four quarter spans as capsules.
-    lines: Capsules4,
+    capsules: Capsules4,
     /// The segment's control points (x, y, z, radius).
     pub control_points: [[f32; 4]; 4],
     /// The segment id.
@@ -252,43 +251,41 @@ pub struct Primitive {
 }
 
 impl Primitive {
-    /// Whether the leaf filter lets `ray` through to the curve test: some span's box and oriented bound both
-    /// crossed (what the walk asks before offering the primitive).
+    /// Whether the leaf filter lets `ray` through to the curve test: some span's capsule may be crossed (what the
+    /// walk asks before offering the primitive).
     pub fn crosses(&self, ray: &Ray) -> bool {
-        let r = WideRay::new(ray);
-        self.lines.test(&r) != 0
+        self.capsules.test(&WideRay::new(ray)) != 0
     }
 }
 
-/// The 4-wide tree with per-segment span boxes (see the module docs).
+/// The 4-wide tree with per-segment span capsules (see the module docs).
 #[derive(Debug, Clone, PartialEq)]
 pub struct WideBvh {
     nodes: Vec<WideNode>,
     /// The leaf entries, leaf by leaf.
     primitives: Vec<Primitive>,
-    /// The root: a node, a leaf, or nothing (no segments).
-    root: Option<(Child, [f32; 3], [f32; 3])>,
+    /// The root (a node or a leaf) and its box in lane 0, or nothing (no segments).
+    root: Option<(Child, Boxes4)>,
 }
 
 impl WideBvh {
-    /// Collapses `bvh` (built over `strands`) into 4-wide nodes and stores each leaf entry's span boxes.
+    /// Collapses `bvh` (built over `strands`) into 4-wide nodes and stores each leaf entry's curve and capsules.
     pub fn new(bvh: &Bvh, strands: &Strands) -> WideBvh {
         use rayon::prelude::*;
         let primitives = bvh
             .primitives()
             .par_iter()
             .map(|&segment| {
-                // The quarter spans' control points, once: their hull boxes and oriented bounds.
-                let mut lines = Capsules4::EMPTY;
+                let mut capsules = Capsules4::EMPTY;
                 let mut lane = 0;
                 for_each_span_points(strands, segment, 2, |points| {
-                    lines.set(lane, points);
+                    capsules.set(lane, points);
                     lane += 1;
                 });
                 let first = strands.segment_first[segment as usize] as usize;
                 let strand = strands.segment_strand[segment as usize];
                 Primitive {
-                    lines,
+                    capsules,
                     control_points: std::array::from_fn(|i| strands.control_points[first + i]),
                     segment,
                     strand,
@@ -302,9 +299,10 @@ impl WideBvh {
             root: None,
         };
         let binary = bvh.nodes();
-        if !binary.is_empty() {
-            let root = wide.collapse(binary, 0);
-            wide.root = Some((root, binary[0].lo, binary[0].hi));
+        if let Some(top) = binary.first() {
+            let mut root_box = Boxes4::EMPTY;
+            root_box.set(0, Vec3::from_array(top.lo), Vec3::from_array(top.hi));
+            wide.root = Some((wide.collapse(binary, 0), root_box));
         }
         wide
     }
@@ -318,11 +316,6 @@ impl WideBvh {
     /// The leaf entries, leaf by leaf.
     pub fn primitives(&self) -> &[Primitive] {
         &self.primitives
-    }
-
-    /// Number of 4-wide nodes.
-    pub fn node_count(&self) -> usize {
-        self.nodes.len()
     }
 
     /// The wide child for binary node `i`, appending the wide nodes below it (depth first).
@@ -393,7 +386,7 @@ impl WideBvh {
         found
     }
 
-    /// Every primitive whose span boxes the ray crosses: [`Bvh::for_each`]'s contract, the callback given the leaf
+    /// Every primitive whose capsules the ray may cross: [`Bvh::for_each`]'s contract, the callback given the leaf
     /// entry.
     pub fn for_each<F: FnMut(&Primitive, f32) -> Control>(&self, ray: &Ray, mut visit: F) -> bool {
         let mut r = WideRay::new(ray);
@@ -406,11 +399,9 @@ impl WideBvh {
         r: &mut WideRay,
         mut primitive: F,
     ) -> bool {
-        let Some((root, lo, hi)) = self.root else {
+        let Some((root, root_box)) = self.root else {
             return false;
         };
-        let mut root_box = Boxes4::EMPTY;
-        root_box.set(0, Vec3::from_array(lo), Vec3::from_array(hi));
         if root_box.test(r).1 & 1 == 0 {
             return false;
         }
@@ -421,7 +412,7 @@ impl WideBvh {
             if current.count > 0 {
                 let first = current.index as usize;
                 for p in &self.primitives[first..first + current.count as usize] {
-                    if p.lines.test(r) != 0 && primitive(p, r) == Control::Stop {
+                    if p.capsules.test(r) != 0 && primitive(p, r) == Control::Stop {
                         return true;
                     }
                 }
