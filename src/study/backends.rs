@@ -28,6 +28,7 @@
 
 use std::path::{Path, PathBuf};
 
+use glam::Vec3;
 use serde::Serialize;
 
 use super::cache::{scene_key, write_text};
@@ -119,64 +120,41 @@ pub struct BackendStudyReport {
     pub diffs: Vec<PathBuf>,
 }
 
-fn name<T: std::fmt::Debug>(value: T) -> String {
-    format!("{value:?}").to_lowercase()
+/// The R, G, B values of every pixel of a render, row-major.
+fn rgb_pixels(image: &Image) -> Result<Vec<Vec3>, StudyError> {
+    let index = |c: &str| {
+        image
+            .channel_index(c)
+            .ok_or_else(|| StudyError::Config(format!("the render has no {c} channel")))
+    };
+    let [r, g, b] = [index("R")?, index("G")?, index("B")?];
+    let n = image.channels.len();
+    Ok(image
+        .data
+        .chunks_exact(n)
+        .map(|p| Vec3::new(p[r], p[g], p[b]))
+        .collect())
 }
 
 /// Per-channel means of R, G, B.
 fn means(image: &Image) -> Result<[f64; 3], StudyError> {
-    let mut out = [0.0; 3];
-    for (c, channel) in ["R", "G", "B"].iter().enumerate() {
-        let i = image
-            .channel_index(channel)
-            .ok_or_else(|| StudyError::Config(format!("the render has no {channel} channel")))?;
-        let n = image.channels.len();
-        let sum: f64 = image.data.chunks_exact(n).map(|p| f64::from(p[i])).sum();
-        out[c] = sum / (image.width * image.height).max(1) as f64;
-    }
-    Ok(out)
+    let pixels = rgb_pixels(image)?;
+    let count = (image.width * image.height).max(1) as f64;
+    Ok(std::array::from_fn(|c| {
+        pixels.iter().map(|p| f64::from(p[c])).sum::<f64>() / count
+    }))
 }
 
 /// |a − b| in RGB, scaled by `scale`, as an RGB image.
 fn difference(a: &Image, b: &Image, scale: f32) -> Result<Image, StudyError> {
-    let idx = |im: &Image| -> Result<[usize; 3], StudyError> {
-        let f = |c: &str| {
-            im.channel_index(c)
-                .ok_or_else(|| StudyError::Config(format!("the render has no {c} channel")))
-        };
-        Ok([f("R")?, f("G")?, f("B")?])
-    };
-    let (ia, ib) = (idx(a)?, idx(b)?);
     let mut out = Image::new(a.width, a.height, vec!["R".into(), "G".into(), "B".into()]);
-    for y in 0..a.height {
-        for x in 0..a.width {
-            for c in 0..3 {
-                let d = (a.get(x, y, ia[c]) - b.get(x, y, ib[c])).abs() * scale;
-                out.set(x, y, c, d);
-            }
+    for (k, (pa, pb)) in rgb_pixels(a)?.into_iter().zip(rgb_pixels(b)?).enumerate() {
+        let d = (pa - pb).abs() * scale;
+        for c in 0..3 {
+            out.set(k % a.width, k / a.width, c, d[c]);
         }
     }
     Ok(out)
-}
-
-/// The 99th percentile of the reference's largest RGB channel (the difference images' white).
-fn white_level(reference: &Image) -> f32 {
-    let idx: Vec<usize> = ["R", "G", "B"]
-        .iter()
-        .filter_map(|c| reference.channel_index(c))
-        .collect();
-    let n = reference.channels.len();
-    let mut peaks: Vec<f32> = reference
-        .data
-        .chunks_exact(n)
-        .map(|p| idx.iter().map(|&i| p[i]).fold(0.0, f32::max))
-        .collect();
-    peaks.sort_by(f32::total_cmp);
-    peaks
-        .get(peaks.len() * 99 / 100)
-        .copied()
-        .filter(|&w| w > 0.0)
-        .unwrap_or(1.0)
 }
 
 /// Runs the study on the scene file at `scene_path` (see the module docs).
@@ -240,7 +218,7 @@ pub fn run(
             &[],
             &format!(
                 "curves={};resolution={:?};spp={};seed={}",
-                name(curves),
+                curves.name(),
                 reference_scene.film.resolution,
                 reference_scene.film.spp,
                 reference_scene.film.seed
@@ -249,7 +227,7 @@ pub fn run(
         let reference_path = cache_dir.join(format!("reference-{key:016x}.exr"));
         say(format!(
             "{} reference: {} spp on embree -> {}",
-            name(curves),
+            curves.name(),
             config.reference_spp,
             reference_path.display()
         ));
@@ -283,8 +261,8 @@ pub fn run(
                         .map_err(StudyError::Config)?;
                 say(format!(
                     "{} {:<6} {spp:>4} spp: build {:.3} s, render {:.3} s, rmse {:.5}",
-                    name(curves),
-                    name(backend),
+                    curves.name(),
+                    backend.name(),
                     frame.build_seconds(),
                     stats.seconds,
                     errors.rmse
@@ -312,10 +290,16 @@ pub fn run(
         }
         let path = config
             .out_dir
-            .join(format!("backends-diff-{}.png", name(curves)));
+            .join(format!("backends-diff-{}.png", curves.name()));
         image::write(
             &path,
-            &difference(&last[0], &last[1], 1.0 / white_level(&reference))?,
+            &difference(
+                &last[0],
+                &last[1],
+                1.0 / figures::p99_largest_channel(rgb_pixels(&reference)?)
+                    .filter(|&w| w > 0.0)
+                    .unwrap_or(1.0),
+            )?,
         )?;
         diffs.push(path);
     }
@@ -342,8 +326,8 @@ pub fn run(
 /// One line of `backends.csv` ([`CSV_HEADER`]).
 #[derive(Debug, Serialize)]
 struct CsvRow {
-    curves: String,
-    backend: String,
+    curves: &'static str,
+    backend: &'static str,
     spp: u32,
     build_s: String,
     render_s: String,
@@ -362,8 +346,8 @@ pub fn to_csv(rows: &[Row]) -> Result<String, csv::Error> {
     let sci = |x: f64| format!("{x:.6e}");
     for r in rows {
         w.serialize(CsvRow {
-            curves: name(r.curves),
-            backend: name(r.backend),
+            curves: r.curves.name(),
+            backend: r.backend.name(),
             spp: r.spp,
             build_s: format!("{:.4}", r.build_s),
             render_s: format!("{:.4}", r.render_s),
@@ -392,7 +376,7 @@ fn chart_figure(
     for (i, &curves) in config.kinds.iter().enumerate() {
         for (j, backend) in [Backend::Embree, Backend::Bvh].into_iter().enumerate() {
             series.push(ChartSeries {
-                label: format!("{} {}", name(backend), name(curves)),
+                label: format!("{} {}", backend.name(), curves.name()),
                 color: colors[(2 * i + j) % colors.len()],
                 points: rows
                     .iter()

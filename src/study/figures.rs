@@ -117,6 +117,20 @@ fn error_time_line_chart(
     }
 }
 
+/// The 99th percentile of the largest channel over the finite values of `rgb` (an exposure or white level), or
+/// `None` when there are none.
+pub fn p99_largest_channel(rgb: impl IntoIterator<Item = Vec3>) -> Option<f32> {
+    let mut peaks: Vec<f32> = rgb
+        .into_iter()
+        .map(Vec3::max_element)
+        .filter(|v| v.is_finite())
+        .collect();
+    peaks.sort_by(f32::total_cmp);
+    peaks
+        .get((peaks.len() * 99 / 100).min(peaks.len().saturating_sub(1)))
+        .copied()
+}
+
 /// A labelled square crop for [`mosaic`]: `size × size` linear RGB values, row-major.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Panel {

@@ -604,16 +604,7 @@ fn crops_image(
     crops: &[Vec<Vec3>],
 ) -> Result<Image, StudyError> {
     // One exposure for every panel: the reference crop's 99th percentile (largest channel) maps to 0.9.
-    let mut peaks: Vec<f32> = reference_crop
-        .iter()
-        .map(|v| v.max_element())
-        .filter(|v| v.is_finite())
-        .collect();
-    peaks.sort_by(f32::total_cmp);
-    let p99 = peaks
-        .get((peaks.len() * 99 / 100).min(peaks.len().saturating_sub(1)))
-        .copied()
-        .unwrap_or(1.0);
+    let p99 = figures::p99_largest_channel(reference_crop.iter().copied()).unwrap_or(1.0);
     let exposure = if p99 > 0.0 {
         (0.9 / p99).clamp(0.125, 64.0)
     } else {
