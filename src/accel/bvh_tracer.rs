@@ -1,8 +1,9 @@
-//! The pure-Rust strand tracer (issue 13): [`Bvh`] traversal with the ray–curve tests of [`crate::accel::curves`],
-//! behind the [`Tracer`] trait, reproducing [`crate::accel::embree::EmbreeTracer`] query for query.
+//! The pure-Rust strand tracer (issue 13): [`WideBvh`] traversal (the [`Bvh`] build collapsed to 4-wide nodes)
+//! with the ray–curve tests of [`crate::accel::curves`], behind the [`Tracer`] trait, reproducing
+//! [`crate::accel::embree::EmbreeTracer`] query for query.
 //!
-//! - **Closest hit**: [`Bvh::closest`] with the round or flat segment test.
-//! - **Transmittance**: every segment the ray's boxes reach is offered ([`Bvh::for_each`]); a segment whose strand
+//! - **Closest hit**: [`WideBvh::closest`] with the round or flat segment test.
+//! - **Transmittance**: every segment the walk reaches is offered ([`WideBvh::for_each`]); a segment whose strand
 //!   is ignored, transparent (opacity 0) or already counted is skipped before its curve test, any other is tested
 //!   over the whole `[tnear, tfar]`. The bookkeeping is Embree's filter's (`sys::embree::filter`): ∏ (1 − aᵢ) over
 //!   distinct strands, at most [`SEEN_STRANDS`] remembered in a fixed array (one more distinct strand ends the ray
@@ -167,7 +168,7 @@ impl Seen {
 }
 
 impl Tracer for BvhTracer {
-    /// Wall time to copy the strands and build the BVH, in seconds.
+    /// Wall time to build the BVH and fill its leaves, in seconds.
     fn build_seconds(&self) -> f64 {
         self.build_seconds
     }
@@ -225,7 +226,6 @@ impl Tracer for BvhTracer {
 
 #[cfg(test)]
 mod tests {
-    use std::path::Path;
 
     use glam::Vec3;
 
@@ -254,16 +254,7 @@ mod tests {
 
     /// A model of `../shared/data/hair`, strands of opacity ½.
     fn hair_file(name: &str) -> Strands {
-        let path = &Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../shared/data/hair")
-            .join(name);
-        assert!(
-            path.exists(),
-            "missing test data {} (the tests need ../shared/data beside the repository)",
-            path.display()
-        );
-        let model = crate::hair::load(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-        let mut strands = Strands::from_model(&model);
+        let mut strands = crate::accel::testing::hair_file(name);
         strands.set_opacity(0.5);
         strands
     }

@@ -1,5 +1,6 @@
 //! Test fixtures shared by the tests of the BVH, the ray–curve intersectors and the BVH tracer: a seeded random
-//! source and a random bundle of wavy strands. Every failure reproduces from its seed.
+//! source, a random bundle of wavy strands and the real models of `../shared/data/hair`. Every failure reproduces
+//! from its seed.
 
 use glam::Vec3;
 
@@ -63,5 +64,20 @@ pub(crate) fn random_bundle(count: usize, points: usize, seed: u64) -> Strands {
         }
         model.strand_offsets.push(model.points.len() as u32);
     }
+    Strands::from_model(&model)
+}
+
+/// The hair model `name` of `../shared/data/hair` as strands. Panics naming the file when the data is missing or
+/// unreadable (the tests need `../shared/data` beside the repository, and never pass silently without it).
+pub(crate) fn hair_file(name: &str) -> Strands {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data/hair")
+        .join(name);
+    assert!(
+        path.exists(),
+        "missing test data {} (the tests need ../shared/data beside the repository)",
+        path.display()
+    );
+    let model = crate::hair::load(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     Strands::from_model(&model)
 }

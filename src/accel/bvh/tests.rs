@@ -1,13 +1,11 @@
 //! Build invariants, determinism across thread counts, traversal against brute force over the segments' boxes,
 //! degenerate input, containment of Embree's hits, and (ignored, printing) the build measurements.
 
-use std::path::{Path, PathBuf};
-
 use glam::Vec3;
 
 use super::*;
 use crate::accel::embree::EmbreeTracer;
-use crate::accel::testing::random_bundle;
+use crate::accel::testing::{hair_file, random_bundle};
 use crate::accel::{CurveKind, Tracer};
 use crate::hair::HairModel;
 use crate::util::hash::SplitMix64;
@@ -40,24 +38,6 @@ const CURVE_SAMPLES: usize = 16;
 /// Relative slack for the curve-sample containment check: `Strands::eval` and the subdivision round differently
 /// (a few ulps of the coordinates).
 const EVAL_SLACK: f32 = 1e-5;
-
-fn data_file(name: &str) -> PathBuf {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data/hair")
-        .join(name);
-    assert!(
-        path.exists(),
-        "missing test data {} (the tests need ../shared/data beside the repository)",
-        path.display()
-    );
-    path
-}
-
-fn load_strands(name: &str) -> Strands {
-    let path = data_file(name);
-    let model = crate::hair::load(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    Strands::from_model(&model)
-}
 
 /// Random rays through the box `(lo, hi)`: from outside and from inside, some with zero direction components
 /// (axis-parallel and in-plane rays) and some with a finite `[tnear, tfar]`.
@@ -529,7 +509,7 @@ fn random_bundle_builds_valid_trees_that_traverse_like_brute_force() {
 
 #[test]
 fn straight_hair_builds_a_valid_tree_that_traverses_like_brute_force() {
-    let strands = load_strands("straight.hair");
+    let strands = hair_file("straight.hair");
     let (lo, hi) = model_bounds(&strands);
     let rays = random_rays(lo, hi, FILE_RAYS, 3);
     for bounding in [Bounding::Hull, Bounding::Spans { levels: 2 }] {
@@ -602,7 +582,7 @@ fn check_deterministic(strands: &Strands, what: &str) {
 #[test]
 fn build_is_the_same_for_one_and_two_threads() {
     check_deterministic(&random_bundle(3000, 8, 5), "random bundle");
-    check_deterministic(&load_strands("straight.hair"), "straight.hair");
+    check_deterministic(&hair_file("straight.hair"), "straight.hair");
 }
 
 /// One strand of `n` copies of the same point (zero-length segments), radius `radius`.
@@ -717,42 +697,26 @@ fn check_embree_hits_inside_boxes(strands: &Strands, rays: &[Ray], what: &str) -
                     "{what}, {kind:?}, {bounding:?}: ray {i}: embree hit {p} on segment {} outside its box {b:?}",
                     hit.segment
                 );
-                let mut offered = false;
-                bvh.for_each(
-                    &Ray {
-                        tfar: hit.t * 1.001 + 1e-4,
-                        ..*ray
-                    },
-                    |s, _| {
-                        offered |= s == hit.segment;
-                        if offered {
-                            Control::Stop
-                        } else {
-                            Control::Continue
-                        }
-                    },
-                );
+                // Each walk stops at Embree's segment, so it stopped exactly when it offered it.
+                let up_to_hit = Ray {
+                    tfar: hit.t * 1.001 + 1e-4,
+                    ..*ray
+                };
+                let stop_at = |segment: u32| {
+                    if segment == hit.segment {
+                        Control::Stop
+                    } else {
+                        Control::Continue
+                    }
+                };
+                let offered = bvh.for_each(&up_to_hit, |s, _| stop_at(s));
                 assert!(
                     offered,
                     "{what}, {kind:?}, {bounding:?}: ray {i}: walk never offered embree's segment {}",
                     hit.segment
                 );
-                // The wide tree's leaf filter (span boxes and oriented bounds) lets Embree's segment through too.
-                let mut offered = false;
-                wide.for_each(
-                    &Ray {
-                        tfar: hit.t * 1.001 + 1e-4,
-                        ..*ray
-                    },
-                    |p, _| {
-                        offered |= p.segment == hit.segment;
-                        if offered {
-                            Control::Stop
-                        } else {
-                            Control::Continue
-                        }
-                    },
-                );
+                // The wide tree's leaf filter (the span capsules) lets Embree's segment through too.
+                let offered = wide.for_each(&up_to_hit, |p, _| stop_at(p.segment));
                 assert!(
                     offered,
                     "{what}, {kind:?}, {bounding:?}: ray {i}: the wide walk never offered embree's segment {}",
@@ -771,7 +735,7 @@ fn embree_hits_lie_in_the_segment_boxes() {
     let (lo, hi) = model_bounds(&bundle);
     let checked = check_embree_hits_inside_boxes(&bundle, &random_rays(lo, hi, 4000, 8), "bundle");
     assert!(checked > 1000, "bundle: only {checked} embree hits");
-    let hair = load_strands("straight.hair");
+    let hair = hair_file("straight.hair");
     let (lo, hi) = model_bounds(&hair);
     let checked =
         check_embree_hits_inside_boxes(&hair, &random_rays(lo, hi, 4000, 9), "straight.hair");
