@@ -19,6 +19,8 @@
 //! - [`marschner`]: the R lobe of Marschner et al. 2003 as importance sampled by Hery & Ramamoorthi 2012
 //!   (thesis §4.2), two R-type lobes (primary and secondary highlight, thesis §5.3.1).
 //! - [`ishair`]: Sadeghi et al. 2010's four lobes as importance sampled by Ou et al. 2012 (thesis §4.3).
+//! - [`chiang`]: Chiang et al. 2016's energy-conserving near/far-field model (d'Eon et al. 2011's M_p), the one
+//!   production renderers ship; [`chiang::Chiang::at`] gives it at an offset h across the fibre.
 //!
 //! Shared pieces sit in their own files: [`frame`] (hair frame, θ/φ conversions), [`gaussian`] (Gaussians, erf,
 //! truncated Gaussian sampling), [`cauchy`] (truncated Cauchy sampling), [`fresnel`] (dielectric Fresnel, for
@@ -29,6 +31,7 @@
 //! from `rand_pcg`'s PCG32.
 
 pub mod cauchy;
+pub mod chiang;
 pub mod frame;
 pub mod fresnel;
 pub mod gaussian;
