@@ -15,9 +15,10 @@
 //!   that ∫ M_p cos θi dθi = 1 for every θo′. Evaluated here in log space for **every** v (the paper asks it for
 //!   v < 0.1) with the exponentially scaled Bessel function: M_p = exp(ln c(v) + (cos(θi + θo′) − 1)/v) · I₀ₑ(a),
 //!   a = cos θi cos θo′/v, I₀ₑ(x) = e^{−x} I₀(x), ln c(v) = −ln v − ln(1 − e^{−2/v}). Nothing overflows for any
-//!   v ≥ 1e-7, and [`i0e`] is accurate to ~1e-12 relative over [0, ∞) (power series to convergence below 12, the
+//!   v ≥ 1e-7, and [`i0e`] is accurate to ~4e-12 relative over [0, ∞) (the power series to 32 terms below 12, the
 //!   asymptotic expansion to its smallest term above; tested against an independent quadrature to 1e-9). The
-//!   peers' truncated series lose up to ~2 % of M_p near βm ≈ 0.1 (issue 14).
+//!   peers' 10-term series misses ~2 % of I₀(12) (the terms k ≥ 10 sum to ~385 of 18948), which is where their
+//!   M_p loses energy near βm ≈ 0.1 (issue 14).
 //! - **Variances**: v₀ = (0.726 βm + 0.812 βm² + 3.7 βm²⁰)² (the paper's fit), v₁ = v₀/4, v₂ = v₃ = 4 v₀.
 //! - **Tilt α** of the cuticle scales: θo′ = θo − 2α for R, θo + α for TT, θo + 4α for TRT, θo for p ≥ 3, so the
 //!   peaks sit at θi = −θo + 2α, −θo − α, −θo − 4α (as the paper and pbrt-v4: R shifted by 2α, TT by −α, TRT by
@@ -54,7 +55,8 @@
 //!   the R peak at φ = φi − φo = −2γo < 0 (tested against a mirror reflection on the cylinder). Round curves: from
 //!   the hit's outward normal and the ray (the first formula). Flat ribbons: p − c = (2v − 1) r b with v ∈ [0, 1]
 //!   Embree's coordinate across the ribbon and b the unit vector of increasing v, so h = (2v − 1) b · (ω̂o⊥ × u);
-//!   pbrt-v4 takes h = 2v − 1 and leaves the sign to the ribbon's orientation. Not reciprocal because of h:
+//!   pbrt-v4 takes h = 2v − 1 and leaves the sign to the ribbon's orientation. [`h_from_normal`] and
+//!   [`h_from_ribbon`] compute both (tested against a ray–cylinder intersection). Not reciprocal because of h:
 //!   swapping ωo and ωi keeps the view's h.
 //!
 //! # Sampling
@@ -586,6 +588,28 @@ impl Chiang {
     }
 }
 
+/// h = sin γo for a hit on a **round** fibre: u · (n × ω̂o⊥), with `tangent` u, `normal` n the outward surface
+/// normal at the hit and ω̂o⊥ the unit projection of `wo` (towards the viewer) on the normal plane. Any frame
+/// (world or local): a triple product. Neither n nor u need be unit or exactly orthogonal (they are projected);
+/// 0 if `wo` runs along u or n along u. Clamped to [−1, 1].
+pub fn h_from_normal(tangent: Vec3, normal: Vec3, wo: Vec3) -> f32 {
+    let u = tangent.normalize_or_zero();
+    let n = normal.reject_from_normalized(u).normalize_or_zero();
+    let w = wo.reject_from_normalized(u).normalize_or_zero();
+    u.dot(n.cross(w)).clamp(-1.0, 1.0)
+}
+
+/// h = sin γo for a hit on a **flat ribbon** standing for a fibre: (2v − 1) b · (ω̂o⊥ × u), with `v` ∈ [0, 1]
+/// the hit's coordinate across the ribbon, `across` the direction b in which v grows, u the `tangent`. For a
+/// ribbon facing the viewer b · (ω̂o⊥ × u) = ±1, so |h| = |2v − 1| and the sign says which side of the fibre the
+/// hit stands for (the same h a round fibre of the ribbon's width gives at the same offset; tested).
+pub fn h_from_ribbon(v: f32, across: Vec3, tangent: Vec3, wo: Vec3) -> f32 {
+    let u = tangent.normalize_or_zero();
+    let w = wo.reject_from_normalized(u).normalize_or_zero();
+    let b = across.normalize_or_zero();
+    ((2.0 * v - 1.0) * b.dot(w.cross(u))).clamp(-1.0, 1.0)
+}
+
 /// [`Chiang`] at one offset h across the fibre: the [`Bsdf`].
 #[derive(Debug, Clone, Copy)]
 pub struct ChiangFibre<'a> {
@@ -869,9 +893,17 @@ mod tests {
         for beta_m in BETAS {
             for beta_n in BETAS {
                 let m = white(beta_m, beta_n);
-                for _ in 0..2 {
-                    let theta_o = (rng.random::<f32>() - 0.5) * 170.0;
-                    let h = 2.0 * rng.random::<f32>() - 1.0;
+                // Two pseudo-random views, and the grazing corners for the narrowest lobes.
+                let mut views: Vec<(f32, f32)> = (0..2)
+                    .map(|_| {
+                        let theta_o = (rng.random::<f32>() - 0.5) * 170.0;
+                        (theta_o, 2.0 * rng.random::<f32>() - 1.0)
+                    })
+                    .collect();
+                if beta_m == 0.1 && beta_n == 0.1 {
+                    views.extend([(85.0, 0.99), (-85.0, -0.99), (0.0, 1.0)]);
+                }
+                for (theta_o, h) in views {
                     let a = mean(testing::albedo(&m.at(h), testing::wo_at(theta_o)).sum());
                     assert!(
                         (0.999..=1.001).contains(&a),
@@ -1081,6 +1113,87 @@ mod tests {
                 "h {h}: R peaks at {best}, the mirror direction is {mirror}"
             );
         }
+    }
+
+    #[test]
+    fn h_from_a_ray_cylinder_hit_and_from_a_ribbon() {
+        // A fibre of radius r along u through c, a ray towards it from the view direction ωo at signed offset d
+        // along b = ω̂o⊥ × u: the hit's outward normal gives h = d/r (h_from_normal), and so does a ribbon facing
+        // the ray across b with v = (d/r + 1)/2 (h_from_ribbon). Frames turned arbitrarily, world space.
+        let mut rng = Pcg32::new(21, 4);
+        for _ in 0..200 {
+            let u = uniform_sphere(rng.random(), rng.random());
+            let wo = uniform_sphere(rng.random(), rng.random());
+            if u.dot(wo).abs() > 0.99 {
+                continue;
+            }
+            let (c, r) = (Vec3::new(0.3, -1.0, 2.0), 0.01 + rng.random::<f32>());
+            let w_perp = wo.reject_from_normalized(u).normalize();
+            let b = w_perp.cross(u);
+            let d = r * (2.0 * rng.random::<f32>() - 1.0) * 0.999;
+            // The ray starts far along ωo, offset by d b, and travels along −ωo: in the normal plane it meets the
+            // circle where its in-plane distance to c is r (in f64: the quadratic cancels in f32).
+            let (u64_, c64) = (u.as_dvec3(), c.as_dvec3());
+            let o = c64 + 10.0 * wo.as_dvec3() + (d * b).as_dvec3();
+            let dir = -wo.as_dvec3();
+            let (oc, dp) = (
+                (o - c64).reject_from_normalized(u64_),
+                dir.reject_from_normalized(u64_),
+            );
+            let r64 = r as f64;
+            let (qa, qb, qc) = (dp.dot(dp), 2.0 * oc.dot(dp), oc.dot(oc) - r64 * r64);
+            let t = (-qb - (qb * qb - 4.0 * qa * qc).sqrt()) / (2.0 * qa);
+            let hit = o + t * dir;
+            let n = ((hit - c64).reject_from_normalized(u64_) / r64).as_vec3();
+            let h = h_from_normal(u, n, wo);
+            assert!((h - d / r).abs() < 1e-4, "h {h} vs d/r {}", d / r);
+            let v = 0.5 * (d / r + 1.0);
+            let h_ribbon = h_from_ribbon(v, b, u, wo);
+            assert!((h_ribbon - d / r).abs() < 1e-4, "{h_ribbon} vs {}", d / r);
+            // In a local hair frame (here v along n), the outward normal's azimuth is φo − γo, γo = asin h.
+            let frame = super::super::frame::HairFrame::from_round_curve(u, n);
+            let (wo_l, n_l) = (frame.to_local(wo), frame.to_local(n));
+            let phi_n = super::super::frame::phi(n_l);
+            let gamma = wrap_phi(super::super::frame::phi(wo_l) - phi_n);
+            assert!(
+                (gamma.sin() - h).abs() < 2e-3,
+                "sin γo {} vs h {h}",
+                gamma.sin()
+            );
+        }
+    }
+
+    #[test]
+    fn tilt_moves_each_lobe_as_documented() {
+        // Narrow lobes: the θi where each lobe peaks, at h = 0 and φ at its Φ (R 0, TT π, TRT 2π ≡ 0), is
+        // −θo + 2α (R), −θo − α (TT), −θo − 4α (TRT).
+        let alpha = 5f32.to_radians();
+        let m = model(|p| {
+            p.beta_m = 0.05;
+            p.beta_n = 0.3;
+            p.alpha = alpha;
+            p.sigma_a = Vec3::ZERO;
+        });
+        let fibre = m.at(0.0);
+        let theta_o = 0.4f32;
+        let wo = from_spherical(theta_o, 0.0);
+        let peak = |phi: f32, lobe: fn(&LobeValues) -> f32| {
+            (0..20_000)
+                .map(|k| -1.5 + 3.0 * k as f32 / 20_000.0)
+                .max_by(|a, b| {
+                    let f = |t: f32| lobe(&fibre.eval_lobes(wo, from_spherical(t, phi)));
+                    f(*a).total_cmp(&f(*b))
+                })
+                .unwrap()
+        };
+        let r = peak(0.0, |l| l.r.x);
+        let tt = peak(PI, |l| l.tt.x);
+        let trt = peak(0.0, |l| l.trt.x);
+        println!("chiang tilt 5°: R peak {r:.4}, TT {tt:.4}, TRT {trt:.4} (θo {theta_o})");
+        // f = M_p A_p N_p / cos θi peaks within ~v tan θi of the lobe's centre (v₀ = 1.5e-3, v₂ = 5.9e-3 here).
+        assert!((r - (-theta_o + 2.0 * alpha)).abs() < 3e-3, "R {r}");
+        assert!((tt - (-theta_o - alpha)).abs() < 3e-3, "TT {tt}");
+        assert!((trt - (-theta_o - 4.0 * alpha)).abs() < 1e-2, "TRT {trt}");
     }
 
     #[test]
