@@ -321,8 +321,8 @@ const I0_ASYMPTOTIC: [f64; 32] = [
     0.0,
 ];
 
-/// I₀ₑ(x) = e^{−|x|} I₀(x), the exponentially scaled modified Bessel function of order 0, relative error ~1e-12
-/// for every finite x.
+/// I₀ₑ(x) = e^{−|x|} I₀(x), the exponentially scaled modified Bessel function of order 0: within 4e-12 relative of
+/// an independent quadrature over [1e-3, 2e4] (tested), for every finite x by construction.
 #[inline]
 pub fn i0e(x: f64) -> f64 {
     let x = x.abs();
