@@ -114,6 +114,9 @@ struct PlotArgs {
     /// Directions drawn for the histogram.
     #[arg(long, default_value_t = 1_000_000)]
     samples: usize,
+    /// Offset h = sin γo across the fibre, in [-1, 1], for models that depend on it (chiang); 0 = the centre.
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    h: f32,
 }
 
 /// Model names for `plot-bsdf --material`.
@@ -125,6 +128,8 @@ enum MaterialName {
     Marschner,
     /// Ou et al. 2012 (thesis §4.3).
     Ishair,
+    /// Chiang et al. 2016 (issue 14), at offset `--h`.
+    Chiang,
 }
 
 #[derive(Subcommand)]
@@ -327,10 +332,14 @@ fn plot_command(args: PlotArgs) -> Result<()> {
                 MaterialName::KajiyaKay => "kajiya-kay",
                 MaterialName::Marschner => "marschner",
                 MaterialName::Ishair => "ishair",
+                MaterialName::Chiang => "chiang",
             };
             MaterialConfig::named(name).context("building the default material")?
         }
     };
+    if !(args.h.is_finite() && args.h.abs() <= 1.0) {
+        bail!("--h must be in [-1, 1], got {}", args.h);
+    }
     let material = config.build().map_err(anyhow::Error::msg)?;
     let options = cuticle::plot::bsdf::PlotOptions {
         theta_o_deg: args.theta_o,
@@ -339,12 +348,8 @@ fn plot_command(args: PlotArgs) -> Result<()> {
         samples: args.samples,
         ..Default::default()
     };
-    let paths = cuticle::plot::bsdf::write_plots(
-        material.bsdf.as_ref(),
-        material.name,
-        &args.out,
-        &options,
-    )?;
+    let paths =
+        cuticle::plot::bsdf::write_plots(&material.at(args.h), material.name, &args.out, &options)?;
     for p in paths {
         println!("wrote {}", p.display());
     }

@@ -1,15 +1,94 @@
 //! A fibre material ready to shade: the scattering model of a scene's `[material]`, built once per frame.
+//!
+//! # Models that depend on the hit
+//!
+//! Marschner, ISHair and Kajiya-Kay are one [`Bsdf`] for every hit. Chiang et al. 2016 also depends on the offset
+//! h = sin γo of the hit across the fibre ([`super::chiang`]), which the [`Bsdf`] trait does not carry. Rather than
+//! widen the trait, a [`Material`] hands the integrator a per-hit [`HitBsdf`] from [`Material::at`]: for the fixed
+//! models a borrowed reference to the one model (no work), for Chiang the model at h
+//! ([`super::chiang::Chiang::at`]: an arcsine and a square root, on the stack). Nothing is allocated per hit or per
+//! sample, and the integrator computes h only when [`Material::uses_offset`] says the model reads it.
 
-use super::Bsdf;
+use super::chiang::{Chiang, ChiangFibre};
+use super::{Bsdf, BsdfSample, LobeValues};
+use glam::Vec3;
+
+/// The scattering model of a [`Material`].
+pub enum Scattering {
+    /// A model that is the same at every hit (Kajiya-Kay, Marschner, ISHair).
+    Fixed(Box<dyn Bsdf + Send + Sync>),
+    /// Chiang et al. 2016, which depends on the hit's offset h across the fibre.
+    Chiang(Chiang),
+}
 
 /// A material ready to shade: the model and whether the strand colour tints its diffuse lobe.
 pub struct Material {
     /// The scattering model, in the local hair frame.
-    pub bsdf: Box<dyn Bsdf + Send + Sync>,
+    pub scattering: Scattering,
     /// `true` when the scene gave no diffuse `color`: the diffuse lobe is multiplied by each strand's colour.
     pub tint_diffuse_by_strand: bool,
     /// The model's scene name, for messages and summaries.
     pub name: &'static str,
+}
+
+impl Material {
+    /// Whether [`Material::at`] reads h (so the integrator need not compute it otherwise).
+    #[inline]
+    pub fn uses_offset(&self) -> bool {
+        matches!(self.scattering, Scattering::Chiang(_))
+    }
+
+    /// The [`Bsdf`] at a hit of offset `h` = sin γo ∈ [−1, 1] across the fibre (ignored by the fixed models).
+    #[inline]
+    pub fn at(&self, h: f32) -> HitBsdf<'_> {
+        match &self.scattering {
+            Scattering::Fixed(b) => HitBsdf::Fixed(b.as_ref()),
+            Scattering::Chiang(c) => HitBsdf::Chiang(c.at(h)),
+        }
+    }
+}
+
+/// The [`Bsdf`] of one hit ([`Material::at`]); a plain value, no allocation.
+#[derive(Clone, Copy)]
+pub enum HitBsdf<'a> {
+    /// A model that is the same at every hit.
+    Fixed(&'a (dyn Bsdf + Send + Sync)),
+    /// Chiang et al. at the hit's h.
+    Chiang(ChiangFibre<'a>),
+}
+
+impl Bsdf for HitBsdf<'_> {
+    #[inline]
+    fn eval_lobes(&self, wo: Vec3, wi: Vec3) -> LobeValues {
+        match self {
+            HitBsdf::Fixed(b) => b.eval_lobes(wo, wi),
+            HitBsdf::Chiang(c) => c.eval_lobes(wo, wi),
+        }
+    }
+
+    #[inline]
+    fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        match self {
+            HitBsdf::Fixed(b) => b.eval(wo, wi),
+            HitBsdf::Chiang(c) => c.eval(wo, wi),
+        }
+    }
+
+    #[inline]
+    fn sample(&self, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
+        match self {
+            HitBsdf::Fixed(b) => b.sample(wo, u),
+            HitBsdf::Chiang(c) => c.sample(wo, u),
+        }
+    }
+
+    #[inline]
+    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        match self {
+            HitBsdf::Fixed(b) => b.pdf(wo, wi),
+            HitBsdf::Chiang(c) => c.pdf(wo, wi),
+        }
+    }
 }
 
 impl std::fmt::Debug for Material {
@@ -18,5 +97,43 @@ impl std::fmt::Debug for Material {
             .field("name", &self.name)
             .field("tint_diffuse_by_strand", &self.tint_diffuse_by_strand)
             .finish()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bsdf::chiang::ChiangParams;
+    use crate::bsdf::kajiya_kay::{KajiyaKay, KajiyaKayParams};
+
+    #[test]
+    fn chiang_material_depends_on_h_and_fixed_does_not() {
+        let (wo, wi) = (
+            Vec3::new(0.3, 0.8, 0.2).normalize(),
+            Vec3::new(-0.2, 0.1, 0.9).normalize(),
+        );
+        let chiang = Material {
+            scattering: Scattering::Chiang(Chiang::new(ChiangParams::default()).unwrap()),
+            tint_diffuse_by_strand: false,
+            name: "chiang",
+        };
+        assert!(chiang.uses_offset());
+        let (a, b) = (chiang.at(-0.6).eval(wo, wi), chiang.at(0.6).eval(wo, wi));
+        assert!(
+            (a - b).abs().max_element() > 1e-3 * a.max_element(),
+            "{a} {b}"
+        );
+        // The per-hit value is exactly the model at that h.
+        let model = Chiang::new(ChiangParams::default()).unwrap();
+        assert_eq!(chiang.at(0.6).eval(wo, wi), model.at(0.6).eval(wo, wi));
+        let kk = Material {
+            scattering: Scattering::Fixed(Box::new(
+                KajiyaKay::from_params(KajiyaKayParams::default()).unwrap(),
+            )),
+            tint_diffuse_by_strand: true,
+            name: "kajiya-kay",
+        };
+        assert!(!kk.uses_offset());
+        assert_eq!(kk.at(-0.6).eval(wo, wi), kk.at(0.6).eval(wo, wi));
     }
 }

@@ -46,7 +46,7 @@ mod testing;
 
 use glam::Vec3;
 
-pub use material::Material;
+pub use material::{HitBsdf, Material, Scattering};
 
 /// A fibre scattering model in the local hair frame (see the module docs for axes and conventions).
 ///

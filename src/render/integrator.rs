@@ -35,8 +35,9 @@
 use glam::Vec3;
 
 use crate::accel::{CurveKind, Tracer};
+use crate::bsdf::chiang::{h_from_normal, h_from_ribbon};
 use crate::bsdf::frame::{sin_cos_theta, strand_noise, HairFrame};
-use crate::bsdf::{Lobe, LobeValues, Material};
+use crate::bsdf::{Bsdf, HitBsdf, Lobe, LobeValues, Material};
 use crate::hair::Strands;
 use crate::light::{Distribution1D, Light};
 use crate::ray::Ray;
@@ -142,6 +143,9 @@ enum Surface {
         strand: u32,
         /// Fibre radius at the hit.
         radius: f32,
+        /// Offset h = sin γo of the hit across the fibre, for models that read it ([`Material::uses_offset`];
+        /// 0 otherwise).
+        h: f32,
     },
     Lambert {
         /// The normal on the side the light leaves towards (facing ωo).
@@ -268,6 +272,20 @@ impl<'a> Integrator<'a> {
             CurveKind::Round => HairFrame::from_round_curve(tangent, hit.ng),
             CurveKind::Flat => HairFrame::from_ribbon(tangent, strand_noise(hit.strand)),
         };
+        // h for Chiang et al. (bsdf::chiang's docs): round tubes from the outward normal (frame.v) and the view;
+        // ribbons from Embree's v ∈ [−1, 1], which grows along D̂ × u = u × ωo across the ray-facing quad
+        // (accel::curves::flat, steps 4-5: v = −1 on the p + w n side, n = (d_y, −d_x) in ray space), so
+        // h = −v for the fibre the ribbon stands for (tested in tests/integrator.rs against a round tube).
+        let h = if !self.material.uses_offset() {
+            0.0
+        } else {
+            match self.curves {
+                CurveKind::Round => h_from_normal(frame.u, frame.v, wo),
+                CurveKind::Flat => {
+                    h_from_ribbon(0.5 * (hit.v + 1.0), frame.u.cross(wo), frame.u, wo)
+                }
+            }
+        };
         let tint = if self.material.tint_diffuse_by_strand {
             Vec3::from(self.strands.color[hit.strand as usize])
         } else {
@@ -281,14 +299,15 @@ impl<'a> Integrator<'a> {
                 tint,
                 strand: hit.strand,
                 radius: point.radius,
+                h,
             },
         }
     }
 
     /// f · cos θi per lobe of the hair material, in the local frame, the diffuse lobe tinted.
     #[inline]
-    fn hair_fcos(&self, tint: Vec3, wo_l: Vec3, wi_l: Vec3) -> LobeValues {
-        let mut lobes = self.material.bsdf.eval_lobes(wo_l, wi_l);
+    fn hair_fcos(&self, bsdf: &HitBsdf, tint: Vec3, wo_l: Vec3, wi_l: Vec3) -> LobeValues {
+        let mut lobes = bsdf.eval_lobes(wo_l, wi_l);
         lobes.diffuse *= tint;
         lobes.scaled(sin_cos_theta(wi_l).1)
     }
@@ -297,11 +316,12 @@ impl<'a> Integrator<'a> {
     #[inline]
     fn eval(&self, v: &Vertex, wi: Vec3) -> (LobeValues, f32) {
         match v.surface {
-            Surface::Hair { frame, tint, .. } => {
+            Surface::Hair { frame, tint, h, .. } => {
                 let (wo_l, wi_l) = (frame.to_local(v.wo), frame.to_local(wi));
+                let bsdf = self.material.at(h);
                 (
-                    self.hair_fcos(tint, wo_l, wi_l),
-                    self.material.bsdf.pdf(wo_l, wi_l),
+                    self.hair_fcos(&bsdf, tint, wo_l, wi_l),
+                    bsdf.pdf(wo_l, wi_l),
                 )
             }
             Surface::Lambert { normal, albedo } => {
@@ -322,11 +342,12 @@ impl<'a> Integrator<'a> {
     #[inline]
     fn sample_material(&self, v: &Vertex, u: [f32; 3]) -> Option<(Vec3, LobeValues, f32)> {
         match v.surface {
-            Surface::Hair { frame, tint, .. } => {
+            Surface::Hair { frame, tint, h, .. } => {
                 let wo_l = frame.to_local(v.wo);
-                let s = self.material.bsdf.sample(wo_l, u)?;
+                let bsdf = self.material.at(h);
+                let s = bsdf.sample(wo_l, u)?;
                 // The sample's pdf is the mixture pdf already; only the per-lobe split (and the tint) is new.
-                let lobes = self.hair_fcos(tint, wo_l, s.wi);
+                let lobes = self.hair_fcos(&bsdf, tint, wo_l, s.wi);
                 Some((frame.to_world(s.wi).normalize(), lobes, s.pdf))
             }
             Surface::Lambert { normal, .. } => {

@@ -3,7 +3,7 @@
 //!
 //! ```toml
 //! [material]
-//! model = "marschner"        # or "ishair", "kajiya-kay"
+//! model = "marschner"        # or "ishair", "kajiya-kay", "chiang"
 //! color = [0.4, 0.25, 0.12]  # diffuse colour; absent ⇒ each strand's colour from the hair file
 //! beta_1 = 7.5               # degrees; every width must be > 0
 //! sampling = "importance"    # or "published" (marschner only), "uniform"
@@ -14,6 +14,12 @@
 //! Defaults are the model files' defaults ([`MarschnerParams::default`], [`IsHairParams::default`]), which cite the
 //! papers they come from; this file only converts units, so there is one source of truth for each number.
 //!
+//! `model = "chiang"` (Chiang et al. 2016, [`crate::bsdf::chiang`]) takes `sigma_a` (RGB, per unit fibre
+//! *radius*), **or** `eumelanin` / `pheomelanin` (concentrations), **or** `color` (the target colour of a volume of
+//! hair, inverted to σa with the paper's eq. 9 at `beta_n`), at most one of the three ways; with none, pbrt-v4's
+//! default σa (eumelanin 1.3). Then `beta_m`, `beta_n` (0.3, 0.3; in [0.001, 1]), `alpha` (2 degrees; |α| ≤ 22.5)
+//! and `eta` (1.55; in (1, 10]). Its `color` is not a diffuse colour: the strand colours of the file are unused.
+//!
 //! **Strand colour.** Without `color`, the renderer multiplies the *diffuse* lobe by the strand's colour from the
 //! hair file (the other lobes keep their explicit colours: the cuticle's reflection R is not pigmented, and TT/TRT
 //! colours are parameters of the models).
@@ -21,10 +27,11 @@
 use glam::Vec3;
 use serde::Deserialize;
 
+use crate::bsdf::chiang::{self, Chiang, ChiangParams};
 use crate::bsdf::ishair::{IsHair, IsHairParams, LobeSelection};
 use crate::bsdf::kajiya_kay::{KajiyaKay, KajiyaKayParams};
 use crate::bsdf::marschner::{Marschner, MarschnerParams};
-use crate::bsdf::{Balance, Bsdf, Material, Sampling};
+use crate::bsdf::{Balance, Bsdf, BsdfError, Material, Sampling, Scattering};
 
 /// `[material]`, tagged by `model`.
 #[derive(Debug, Clone, Deserialize)]
@@ -36,6 +43,8 @@ pub enum MaterialConfig {
     Marschner(MarschnerConfig),
     /// Ou et al. 2012's ISHair: Sadeghi et al. 2010's R, TT, TRT − g and glint lobes (thesis §4.3, §5.3.2).
     Ishair(IsHairConfig),
+    /// Chiang et al. 2016's energy-conserving near/far-field model (issue 14).
+    Chiang(ChiangConfig),
 }
 
 impl Default for MaterialConfig {
@@ -52,6 +61,7 @@ impl MaterialConfig {
             "kajiya-kay" => MaterialConfig::KajiyaKay(KajiyaKayConfig::default()),
             "marschner" => MaterialConfig::Marschner(MarschnerConfig::default()),
             "ishair" => MaterialConfig::Ishair(IsHairConfig::default()),
+            "chiang" => MaterialConfig::Chiang(ChiangConfig::default()),
             _ => return None,
         })
     }
@@ -259,6 +269,106 @@ impl Default for IsHairConfig {
     }
 }
 
+/// `model = "chiang"`: the paper's names; colour given one of three ways (none ⇒ the model's default σa).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ChiangConfig {
+    /// σa, absorption per unit fibre radius, RGB.
+    pub sigma_a: Option<[f32; 3]>,
+    /// Eumelanin concentration (with `pheomelanin`; an absent one is 0).
+    pub eumelanin: Option<f32>,
+    /// Pheomelanin concentration.
+    pub pheomelanin: Option<f32>,
+    /// Target colour of a volume of such hair, per channel in (0, 1] (Chiang et al. eq. 9).
+    pub color: Option<[f32; 3]>,
+    /// βm, longitudinal roughness, in [0.001, 1].
+    pub beta_m: f32,
+    /// βn, azimuthal roughness, in [0.001, 1].
+    pub beta_n: f32,
+    /// α, cuticle scale tilt, degrees (> 0 moves R towards the tip).
+    pub alpha: f32,
+    /// η, the fibre's index of refraction.
+    pub eta: f32,
+}
+
+impl Default for ChiangConfig {
+    fn default() -> Self {
+        let p = ChiangParams::default();
+        ChiangConfig {
+            sigma_a: None,
+            eumelanin: None,
+            pheomelanin: None,
+            color: None,
+            beta_m: p.beta_m,
+            beta_n: p.beta_n,
+            alpha: p.alpha.to_degrees(),
+            eta: p.eta,
+        }
+    }
+}
+
+/// A model's parameter error as the user wrote the key: `material.beta_m must be in [1e-3, 1], got 0`.
+fn keyed(e: BsdfError) -> String {
+    match e {
+        BsdfError::Parameter {
+            key,
+            requirement,
+            value,
+            ..
+        } => format!("material.{key} must be {requirement}, got {value}"),
+        other => format!("material: {other}"),
+    }
+}
+
+impl ChiangConfig {
+    /// The checked parameters: at most one colour way, α in degrees, then the model's own ranges.
+    fn params(&self) -> Result<ChiangParams, String> {
+        let ways: Vec<&str> = [
+            self.sigma_a.map(|_| "sigma_a"),
+            (self.eumelanin.is_some() || self.pheomelanin.is_some())
+                .then_some("eumelanin/pheomelanin"),
+            self.color.map(|_| "color"),
+        ]
+        .into_iter()
+        .flatten()
+        .collect();
+        if ways.len() > 1 {
+            return Err(format!(
+                "material: give the chiang colour one way (material.sigma_a, material.eumelanin/pheomelanin or \
+                 material.color), got {}",
+                ways.join(" and ")
+            ));
+        }
+        if !(self.alpha.is_finite() && self.alpha.abs() <= 22.5) {
+            return Err(format!(
+                "material.alpha must be in [-22.5, 22.5] degrees, got {}",
+                self.alpha
+            ));
+        }
+        let defaults = ChiangParams::default();
+        let sigma_a = if let Some(s) = self.sigma_a {
+            Vec3::from(s)
+        } else if let Some(c) = self.color {
+            chiang::sigma_a_from_color(Vec3::from(c), self.beta_n).map_err(keyed)?
+        } else if self.eumelanin.is_some() || self.pheomelanin.is_some() {
+            chiang::sigma_a_from_melanin(
+                self.eumelanin.unwrap_or(0.0),
+                self.pheomelanin.unwrap_or(0.0),
+            )
+            .map_err(keyed)?
+        } else {
+            defaults.sigma_a
+        };
+        Ok(ChiangParams {
+            sigma_a,
+            beta_m: self.beta_m,
+            beta_n: self.beta_n,
+            alpha: rad(self.alpha),
+            eta: self.eta,
+        })
+    }
+}
+
 /// Checks that the widths in degrees are positive and finite, naming the key (`material.beta_1 must be > 0
 /// degrees, got 0`): the models' own checks speak radians, which is not what the user wrote.
 fn check_widths(widths: &[(&str, f32)]) -> Result<(), String> {
@@ -281,6 +391,7 @@ impl MaterialConfig {
             MaterialConfig::KajiyaKay(_) => "kajiya-kay",
             MaterialConfig::Marschner(_) => "marschner",
             MaterialConfig::Ishair(_) => "ishair",
+            MaterialConfig::Chiang(_) => "chiang",
         }
     }
 
@@ -289,7 +400,10 @@ impl MaterialConfig {
         // The models name their own parameters; prefix with the table so the user finds the key.
         let named = |e: crate::bsdf::BsdfError| format!("material: {e}");
         let white = |c: Option<[f32; 3]>| c.map_or(Vec3::ONE, Vec3::from);
-        let (bsdf, color): (Box<dyn Bsdf + Send + Sync>, _) = match self {
+        let fixed = |b: Box<dyn Bsdf + Send + Sync>, color: Option<[f32; 3]>| {
+            (Scattering::Fixed(b), color.is_none())
+        };
+        let (scattering, tint_diffuse_by_strand) = match self {
             MaterialConfig::KajiyaKay(c) => {
                 if c.diffuse < 0.0 || c.specular < 0.0 || c.diffuse + c.specular > 1.0 {
                     return Err(format!(
@@ -305,7 +419,7 @@ impl MaterialConfig {
                     sampling: c.sampling.into(),
                 })
                 .map_err(named)?;
-                (Box::new(model), c.color)
+                fixed(Box::new(model), c.color)
             }
             MaterialConfig::Marschner(c) => {
                 check_widths(&[("beta_1", c.beta_1), ("beta_2", c.beta_2)])?;
@@ -321,7 +435,7 @@ impl MaterialConfig {
                     sampling: c.sampling.into(),
                 })
                 .map_err(named)?;
-                (Box::new(model), c.color)
+                fixed(Box::new(model), c.color)
             }
             MaterialConfig::Ishair(c) => {
                 check_widths(&[
@@ -354,12 +468,17 @@ impl MaterialConfig {
                     },
                 })
                 .map_err(named)?;
-                (Box::new(model), c.color)
+                fixed(Box::new(model), c.color)
             }
+            // No diffuse lobe: the strand colours of the file are unused.
+            MaterialConfig::Chiang(c) => (
+                Scattering::Chiang(Chiang::new(c.params()?).map_err(keyed)?),
+                false,
+            ),
         };
         Ok(Material {
-            bsdf,
-            tint_diffuse_by_strand: color.is_none(),
+            scattering,
+            tint_diffuse_by_strand,
             name: self.name(),
         })
     }
@@ -371,14 +490,17 @@ mod tests {
 
     #[test]
     fn named_defaults_are_what_the_model_key_alone_gives() {
-        for name in ["kajiya-kay", "marschner", "ishair"] {
+        for name in MODELS {
             let parsed: MaterialConfig = toml::from_str(&format!("model = \"{name}\"")).unwrap();
             let named = MaterialConfig::named(name).unwrap();
             assert_eq!(format!("{named:?}"), format!("{parsed:?}"));
             assert_eq!(named.name(), name);
         }
-        assert!(MaterialConfig::named("chiang").is_none());
+        assert!(MaterialConfig::named("phong").is_none());
     }
+
+    /// Every model name a scene accepts.
+    const MODELS: [&str; 4] = ["kajiya-kay", "marschner", "ishair", "chiang"];
 
     fn parse(text: &str) -> Result<MaterialConfig, String> {
         #[derive(Deserialize)]
@@ -392,7 +514,7 @@ mod tests {
 
     #[test]
     fn every_model_builds_with_defaults() {
-        for model in ["kajiya-kay", "marschner", "ishair"] {
+        for model in MODELS {
             let m = parse(&format!("[material]\nmodel = \"{model}\"\n")).unwrap();
             assert_eq!(m.name(), model);
             m.build().unwrap();
@@ -410,6 +532,92 @@ mod tests {
         let p = IsHairParams::default();
         assert!((rad(c.phi_g) - p.phi_g).abs() < 1e-7);
         assert!((rad(c.gamma_tt) - p.gamma_tt).abs() < 1e-7);
+        let c = ChiangConfig::default();
+        assert_eq!(c.params().unwrap(), ChiangParams::default());
+    }
+
+    fn chiang_params(keys: &str) -> Result<ChiangParams, String> {
+        match parse(&format!("[material]\nmodel = \"chiang\"\n{keys}\n"))? {
+            MaterialConfig::Chiang(c) => {
+                let params = c.params()?;
+                MaterialConfig::Chiang(c).build()?;
+                Ok(params)
+            }
+            other => panic!("parsed {other:?}"),
+        }
+    }
+
+    #[test]
+    fn chiang_takes_its_colour_three_ways() {
+        let p = chiang_params("sigma_a = [0.1, 0.2, 0.3]\nalpha = -3.0").unwrap();
+        assert_eq!(p.sigma_a, Vec3::new(0.1, 0.2, 0.3));
+        assert!((p.alpha - (-3f32).to_radians()).abs() < 1e-7);
+        let p = chiang_params("eumelanin = 0.5").unwrap();
+        assert_eq!(p.sigma_a, chiang::sigma_a_from_melanin(0.5, 0.0).unwrap());
+        let p = chiang_params("pheomelanin = 2.0").unwrap();
+        assert_eq!(p.sigma_a, chiang::sigma_a_from_melanin(0.0, 2.0).unwrap());
+        // The colour is inverted at the scene's beta_n (eq. 9 depends on it), and comes back.
+        let p = chiang_params("color = [0.5, 0.3, 0.1]\nbeta_n = 0.6").unwrap();
+        let back = chiang::color_from_sigma_a(p.sigma_a, 0.6);
+        assert!(
+            (back - Vec3::new(0.5, 0.3, 0.1)).abs().max_element() < 1e-4,
+            "{back}"
+        );
+        // No colour key: the model's default.
+        assert_eq!(
+            chiang_params("").unwrap().sigma_a,
+            ChiangParams::default().sigma_a
+        );
+        // The material has no diffuse lobe for strand colours to tint.
+        let m = parse("[material]\nmodel = \"chiang\"\n").unwrap();
+        assert!(!m.build().unwrap().tint_diffuse_by_strand);
+    }
+
+    #[test]
+    fn chiang_refuses_two_colour_ways_naming_the_keys() {
+        for (keys, named) in [
+            (
+                "sigma_a = [0.1, 0.2, 0.3]\ncolor = [0.5, 0.5, 0.5]",
+                ["sigma_a", "color"],
+            ),
+            (
+                "sigma_a = [0.1, 0.2, 0.3]\neumelanin = 1.0",
+                ["sigma_a", "eumelanin"],
+            ),
+            (
+                "pheomelanin = 1.0\ncolor = [0.5, 0.5, 0.5]",
+                ["pheomelanin", "color"],
+            ),
+        ] {
+            let err = chiang_params(keys).unwrap_err();
+            for key in named {
+                assert!(err.contains(key), "{keys}: {err}");
+            }
+        }
+    }
+
+    #[test]
+    fn chiang_bad_values_name_the_key() {
+        for (keys, key) in [
+            ("beta_m = 0.0", "material.beta_m"),
+            ("beta_m = 1.5", "material.beta_m"),
+            ("beta_n = -0.1", "material.beta_n"),
+            ("alpha = 30.0", "material.alpha"),
+            ("alpha = nan", "material.alpha"),
+            ("eta = 1.0", "material.eta"),
+            ("sigma_a = [0.1, -0.2, 0.3]", "material.sigma_a"),
+            ("eumelanin = -1.0", "material.eumelanin"),
+            ("pheomelanin = inf", "material.pheomelanin"),
+            ("color = [0.5, 0.0, 0.5]", "material.color"),
+            ("color = [0.5, 1.5, 0.5]", "material.color"),
+            ("color = [0.5, 0.5, 0.5]\nbeta_n = 0.0", "material.beta_n"),
+        ] {
+            let err = chiang_params(keys).unwrap_err();
+            assert!(err.starts_with(key), "{keys}: {err}");
+        }
+        // Marschner's keys are not chiang's.
+        let err = chiang_params("beta_1 = 5.0").unwrap_err();
+        assert!(err.contains("beta_1"), "{err}");
     }
 
     #[test]
