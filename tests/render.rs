@@ -109,8 +109,10 @@ fn every_material_renders_and_its_lobes_add_up_to_the_beauty() {
     let nc = CHANNELS.len();
     let (alpha, layer) = (channel("A"), |name: &str| channel(name));
     let lobe_layers = ["diffuse", "lobe_R", "lobe_TT", "lobe_TRT", "lobe_glint"];
-    for model in ["kajiya-kay", "marschner", "ishair"] {
+    for model in ["kajiya-kay", "marschner", "ishair", "chiang"] {
         let scene = with_material(model);
+        // Energy per lobe layer (green channel), for the models whose lobes are known.
+        let mut per_lobe = [0.0f64; 5];
         let data = render_with_threads(&scene, 2);
         let mut hair_pixels = 0;
         let mut specular_energy = 0.0f64;
@@ -132,6 +134,18 @@ fn every_material_renders_and_its_lobes_add_up_to_the_beauty() {
                 );
             }
             specular_energy += f64::from(p[layer("lobe_R.G")]);
+            for (e, l) in per_lobe.iter_mut().zip(lobe_layers) {
+                *e += f64::from(p[layer(&format!("{l}.G"))]);
+            }
+        }
+        if model == "chiang" {
+            // R → lobe_R, TT → lobe_TT, TRT and the residual → lobe_TRT; no diffuse, no glint.
+            let [diffuse, r, tt, trt, glint] = per_lobe;
+            assert!(
+                r > 0.0 && tt > 0.0 && trt > 0.0,
+                "chiang lobes {per_lobe:?}"
+            );
+            assert_eq!((diffuse, glint), (0.0, 0.0), "chiang lobes {per_lobe:?}");
         }
         assert!(hair_pixels > 100, "{model}: {hair_pixels} hair pixels");
         assert!(specular_energy > 0.0, "{model}: no R highlight at all");
