@@ -74,15 +74,9 @@ path_length = 0
         Path::new("."),
     );
     let image = render_scene(&scene, 2);
-    let alpha = channel(&image, "A");
     for name in ["R", "G", "B"] {
         // Pixels (almost) only covered by hair; the background would be 1 trivially.
-        let values: Vec<f64> = channel(&image, name)
-            .iter()
-            .zip(&alpha)
-            .filter(|(_, a)| **a >= 0.9)
-            .map(|(v, _)| f64::from(*v))
-            .collect();
+        let values = hair_pixels(&image, name);
         assert!(
             values.len() > 300,
             "{} pixels covered by hair",

@@ -19,8 +19,9 @@
 //!   thesis did (§5.3.1), v is the Gram-Schmidt orthogonalisation of a per-strand noise vector against u
 //!   ([`strand_noise`]). The azimuth φ is then arbitrary per strand (fixed along a strand, random across
 //!   strands). Every model in this module depends on φr and φi only through φ = φr − φi, so that arbitrary
-//!   rotation changes nothing they compute; it would matter to a model that uses the offset h across the
-//!   fibre or an elliptical cross-section (neither is implemented).
+//!   rotation changes nothing they compute. [`super::chiang`] also uses the offset h across the fibre, which the
+//!   integrator takes from the hit (Embree's v across the ribbon), not from this frame, so it is unaffected too;
+//!   an elliptical cross-section would not be (not implemented).
 
 use crate::util::hash::{hash64, unit_f32};
 use crate::util::sampling::uniform_sphere;
