@@ -14,7 +14,9 @@
 //!   presence test), the renderer's default shadow query.
 //!
 //! Directions come from a hash of the ray's index, so the rays do not depend on threads. **Timing**: each
-//! measurement is repeated (3 times by default) after one untimed warm-up run and reported as median (min–max).
+//! measurement is repeated (3 times by default) after one untimed warm-up run and reported as median (min–max);
+//! the backends take turns within each repetition (builds and ray types alike), so that the VM's slow spells fall
+//! on both and the ratios between them hold.
 //! Builds are timed by the tracers themselves ([`Tracer::build_seconds`]), on a rayon pool of the thread count
 //! (the BVH) or an Embree device configured with it. Ray generation and scene loading are not timed. Every
 //! throughput is printed beside a correctness figure (hits, mean transmittance, unoccluded fraction) that must
@@ -530,41 +532,57 @@ pub fn trace(strands: &Strands, config: &TraceConfig) -> Result<TraceReport, Ben
                 .num_threads(threads)
                 .build()
                 .map_err(|source| BenchError::ThreadPool { threads, source })?;
-            for &backend in &config.backends {
-                let mut tracer = build(backend, strands, kind, threads, &pool)?;
-                let mut build_seconds = Vec::new();
-                for _ in 0..repetitions {
-                    drop(tracer);
-                    tracer = build(backend, strands, kind, threads, &pool)?;
-                    build_seconds.push(tracer.build_seconds());
+            // Every backend's tracer lives through the whole measurement, and each repetition times the backends
+            // one after the other: a slow spell of this noisy VM then slows both alike instead of one backend's
+            // whole series, so the ratios hold (before, runs of one backend after the other's gave ratios that
+            // moved by up to 2x between runs).
+            let mut tracers = Vec::new();
+            let mut build_seconds = vec![Vec::new(); config.backends.len()];
+            for _ in 0..repetitions {
+                tracers.clear();
+                for (b, &backend) in config.backends.iter().enumerate() {
+                    let tracer = build(backend, strands, kind, threads, &pool)?;
+                    build_seconds[b].push(tracer.build_seconds());
+                    tracers.push(tracer);
                 }
-                let tracer = &*tracer;
-                let rays = rays
-                    .get_or_insert_with(|| pool.install(|| Rays::new(tracer, &camera, to_light)));
-                let reports = RayType::ALL
+            }
+            let rays = rays
+                .get_or_insert_with(|| pool.install(|| Rays::new(&*tracers[0], &camera, to_light)));
+            let mut reports: Vec<Vec<RayReport>> = vec![Vec::new(); tracers.len()];
+            for &ray in &RayType::ALL {
+                let count = rays.count(ray);
+                // The warm-up run gives the correctness figure.
+                let figures: Vec<f64> = tracers
                     .iter()
-                    .map(|&ray| {
-                        // The warm-up run gives the correctness figure.
-                        let figure = pool.install(|| rays.trace(tracer, ray));
-                        let seconds = time(&pool, repetitions, || rays.trace(tracer, ray));
-                        let count = rays.count(ray);
-                        RayReport {
-                            ray,
-                            throughput: Throughput {
-                                rays: count,
-                                seconds,
-                            },
-                            figure: figure / count.max(1) as f64,
-                        }
-                    })
+                    .map(|t| pool.install(|| rays.trace(&**t, ray)))
                     .collect();
+                let mut seconds = vec![Vec::new(); tracers.len()];
+                for _ in 0..repetitions {
+                    for (b, tracer) in tracers.iter().enumerate() {
+                        let start = Instant::now();
+                        std::hint::black_box(pool.install(|| rays.trace(&**tracer, ray)));
+                        seconds[b].push(start.elapsed().as_secs_f64());
+                    }
+                }
+                for (b, samples) in seconds.into_iter().enumerate() {
+                    reports[b].push(RayReport {
+                        ray,
+                        throughput: Throughput {
+                            rays: count,
+                            seconds: Timing::from_samples(samples),
+                        },
+                        figure: figures[b] / count.max(1) as f64,
+                    });
+                }
+            }
+            for (b, ray_reports) in reports.into_iter().enumerate() {
                 measurements.push(Measurement {
                     kind,
-                    backend,
+                    backend: config.backends[b],
                     threads,
-                    build: Timing::from_samples(build_seconds),
-                    memory_bytes: tracer.memory_bytes(),
-                    rays: reports,
+                    build: Timing::from_samples(std::mem::take(&mut build_seconds[b])),
+                    memory_bytes: tracers[b].memory_bytes(),
+                    rays: ray_reports,
                 });
             }
         }
@@ -581,20 +599,4 @@ pub fn trace(strands: &Strands, config: &TraceConfig) -> Result<TraceReport, Ben
         measurements,
         peak_rss_bytes: peak_rss_bytes(),
     })
-}
-
-/// Times `repetitions` runs of `work` inside `pool`.
-fn time<R: Send>(
-    pool: &rayon::ThreadPool,
-    repetitions: usize,
-    work: impl Fn() -> R + Sync + Send,
-) -> Timing {
-    let seconds = (0..repetitions)
-        .map(|_| {
-            let start = Instant::now();
-            std::hint::black_box(pool.install(&work));
-            start.elapsed().as_secs_f64()
-        })
-        .collect();
-    Timing::from_samples(seconds)
 }
