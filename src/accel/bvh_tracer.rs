@@ -21,6 +21,7 @@ use std::time::Instant;
 
 use super::bvh::wide::{Primitive, WideBvh};
 use super::bvh::{BuildOptions, Bvh, Control};
+use super::curves::flat::RibbonRay;
 use super::curves::{flat, round, CurveHit};
 use super::{strand_present, CurveKind, Hit, Tracer};
 use crate::hair::Strands;
@@ -66,13 +67,24 @@ impl BvhTracer {
         &self.bvh
     }
 
-    /// The ray–curve test of one leaf entry over `[ray.tnear, tfar]`.
+    /// The ray–curve test of one leaf entry over `[ray.tnear, tfar]`; `ribbon` is `ray` prepared for flat curves.
     #[inline]
-    fn test(&self, ray: &Ray, p: &Primitive, tfar: f32) -> Option<CurveHit> {
+    fn test(&self, ray: &Ray, ribbon: &RibbonRay, p: &Primitive, tfar: f32) -> Option<CurveHit> {
         let cp = p.control_points;
         match self.kind {
             CurveKind::Round => round::intersect(ray.origin, ray.dir, ray.tnear, tfar, cp),
-            CurveKind::Flat => flat::intersect(ray.origin, ray.dir, ray.tnear, tfar, cp),
+            CurveKind::Flat => flat::intersect_prepared(ribbon, ray.tnear, tfar, cp),
+        }
+    }
+
+    /// Whether the ray hits the leaf entry's curve in `[ray.tnear, tfar]` (the answer of [`Self::test`], found
+    /// sooner on round curves: their search ends at the first root).
+    #[inline]
+    fn occludes(&self, ray: &Ray, ribbon: &RibbonRay, p: &Primitive, tfar: f32) -> bool {
+        let cp = p.control_points;
+        match self.kind {
+            CurveKind::Round => round::occludes(ray.origin, ray.dir, ray.tnear, tfar, cp),
+            CurveKind::Flat => flat::intersect_prepared(ribbon, ray.tnear, tfar, cp).is_some(),
         }
     }
 
@@ -83,12 +95,13 @@ impl BvhTracer {
         accept: impl Fn(u32, f32) -> bool,
     ) -> Result<Option<Hit>, InvalidRay> {
         let (traced, scale) = traced_ray(ray)?;
+        let ribbon = RibbonRay::new(traced.origin, traced.dir);
         let mut best = None;
         self.bvh.closest(&traced, |p, tfar| {
             if !accept(p.strand, p.opacity) {
                 return None;
             }
-            let hit = self.test(&traced, p, tfar)?;
+            let hit = self.test(&traced, &ribbon, p, tfar)?;
             best = Some((p.segment, p.strand, hit));
             Some(hit.t)
         });
@@ -184,9 +197,10 @@ impl Tracer for BvhTracer {
 
     fn transmittance(&self, ray: &Ray, ignore_strand: Option<u32>) -> Result<f32, InvalidRay> {
         let (traced, _) = traced_ray(ray)?;
+        let ribbon = RibbonRay::new(traced.origin, traced.dir);
         let mut seen = Seen::new(ignore_strand);
         self.bvh.for_each(&traced, |p, tfar| {
-            if seen.skips(p.strand, p.opacity) || self.test(&traced, p, tfar).is_none() {
+            if seen.skips(p.strand, p.opacity) || !self.occludes(&traced, &ribbon, p, tfar) {
                 return Control::Continue;
             }
             seen.count(p.strand, p.opacity)
@@ -212,10 +226,11 @@ impl Tracer for BvhTracer {
         key: u64,
     ) -> Result<bool, InvalidRay> {
         let (traced, _) = traced_ray(ray)?;
+        let ribbon = RibbonRay::new(traced.origin, traced.dir);
         Ok(self.bvh.for_each(&traced, |p, tfar| {
             let present =
                 Some(p.strand) != ignore_strand && strand_present(key, p.strand, p.opacity);
-            if present && self.test(&traced, p, tfar).is_some() {
+            if present && self.occludes(&traced, &ribbon, p, tfar) {
                 Control::Stop
             } else {
                 Control::Continue

@@ -192,12 +192,16 @@ impl Default for BuildOptions {
     fn default() -> Self {
         BuildOptions {
             bounding: Bounding::Spans { levels: 2 },
-            max_leaf: 4,
+            // One segment per leaf: the wide tree's lanes (oriented where that is tighter, see `wide`) then bound
+            // each segment on its own, and a curve test runs only for a segment whose own box the ray crosses,
+            // as Embree's hair BVH bounds each curve. Measured with oriented nodes (callgrind with cache
+            // simulation, `bench trace` ray loops, furball 96x96, 1 thread; estimated cycles = instructions + 10
+            // per L1 miss + 200 per last-level miss): max_leaf 4 -> 1, flat 1.60 G -> 1.35 G, round 3.08 G ->
+            // 2.74 G.
+            max_leaf: 1,
             bins: 16,
-            // The leaves filter candidates with per-span bounds before any curve test, so a leaf
-            // entry costs about one box test. Measured (callgrind, `bench trace` ray loops on furball 96x96, 1
-            // thread, with the filter): cost 1 against 4: round 2.85 G -> 2.78 G instructions, flat 1.37 G ->
-            // 1.29 G, and a smaller tree (325 against 358 bytes per segment).
+            // Matters for max_leaf > 1 only. Measured with max_leaf 4 and span-capsule leaves (callgrind, same
+            // loops): cost 1 against 4: round 2.85 G -> 2.78 G instructions, flat 1.37 G -> 1.29 G.
             intersect_cost: 1.0,
         }
     }

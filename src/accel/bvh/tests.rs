@@ -300,42 +300,22 @@ fn check_traversal(bvh: &Bvh, strands: &Strands, rays: &[Ray], what: &str) -> (u
     (hits, reported)
 }
 
-/// Whether the tree's boxes contain the four quarter-span boxes the wide leaves test (midpoint subdivision nests:
-/// hull ⊇ halves ⊇ quarters), so that the wide walk reaches a segment exactly when the ray crosses a quarter span.
-/// Eighth spans are tighter than quarters: then a segment is reached only when the ray crosses both, which
-/// [`check_wide_traversal`]'s brute force does not model.
-fn contains_quarter_spans(bounding: Bounding) -> bool {
-    !matches!(
-        bounding,
-        Bounding::Spans { levels: 3 } | Bounding::SpanRefs { levels: 3 }
-    )
+/// The cross-section spheres of a segment at u = 0, ¼, ½, ¾, 1 (centre c(u), radius r(u)): primitives inside its
+/// swept surface, so inside every bound the trees keep for it.
+fn cross_sections(cp: [[f32; 4]; 4]) -> [glam::Vec4; 5] {
+    [0.0, 0.25, 0.5, 0.75, 1.0].map(|u| {
+        let b = crate::hair::strands::bspline_basis(u);
+        (0..4).map(|k| b[k] * glam::Vec4::from_array(cp[k])).sum()
+    })
 }
 
-/// [`wide::WideBvh`] over `bvh` against brute force. The walk offers the entries of the leaves whose boxes the ray
-/// crosses, filtered by their capsules ([`wide::Primitive::crosses`]). So: every offered segment passes the filter;
-/// among the segments whose quarter-span boxes the ray crosses, exactly those passing the filter are offered; and
-/// the nearest of a primitive inside each swept surface (a cross-section sphere) is the one a test of every
-/// segment finds, bit for bit. Returns (rays hitting a sphere, segments reported).
-fn check_wide_traversal(bvh: &Bvh, strands: &Strands, rays: &[Ray], what: &str) -> (usize, usize) {
-    let wide = wide::WideBvh::new(bvh, strands);
-    let (boxes, seg_boxes) = all_boxes(strands, Bounding::SpanRefs { levels: 2 });
-    let (mut hits, mut reported) = (0, 0);
-    let filter: std::collections::HashMap<u32, &wide::Primitive> =
-        wide.primitives().iter().map(|p| (p.segment, p)).collect();
-    for (i, ray) in rays.iter().enumerate() {
-        let crossed: Vec<(u32, Aabb)> = boxes
-            .iter()
-            .filter(|(s, _)| filter[s].crosses(ray))
-            .copied()
-            .collect();
-        let (_, want_set) = brute_force(&crossed, ray);
-        // Closest hit with a primitive inside every segment's swept surface (so inside its boxes and capsules): the
-        // sphere of the tube's cross-section at u = ½. The walk must find the nearest such sphere.
-        let curve = |cp: [[f32; 4]; 4], tfar: f32| {
-            let b = crate::hair::strands::bspline_basis(0.5);
-            let c: glam::Vec4 = (0..4).map(|k| b[k] * glam::Vec4::from_array(cp[k])).sum();
+/// The nearest entry of `ray` in `[ray.tnear, tfar]` into the spheres.
+fn sphere_hit(ray: &Ray, spheres: &[glam::Vec4], tfar: f32) -> Option<f32> {
+    let dd = ray.dir.dot(ray.dir);
+    spheres
+        .iter()
+        .filter_map(|c| {
             // Stable form: the closest approach first, so the miss distance is not lost to cancellation.
-            let dd = ray.dir.dot(ray.dir);
             let tc = (c.truncate() - ray.origin).dot(ray.dir) / dd;
             let miss2 = (ray.at(tc) - c.truncate()).length_squared();
             if miss2 > c.w * c.w {
@@ -345,22 +325,41 @@ fn check_wide_traversal(bvh: &Bvh, strands: &Strands, rays: &[Ray], what: &str) 
             [tc - half, tc + half]
                 .into_iter()
                 .find(|t| *t >= ray.tnear && *t <= tfar)
-        };
-        let want_t = (0..strands.segment_count())
-            .filter_map(|s| {
-                let first = strands.segment_first[s] as usize;
-                let p = &strands.control_points[first..first + 4];
-                curve([p[0], p[1], p[2], p[3]], ray.tfar)
-            })
+        })
+        .min_by(f32::total_cmp)
+}
+
+/// [`wide::WideBvh`] over `bvh` against brute force, with each segment's [`cross_sections`] as its primitive: the
+/// nearest sphere the walk finds is the one a test of every segment finds, bit for bit; the all-hits walk offers
+/// every segment with a sphere on the ray, each with its own control points and strand, and offers a segment once
+/// unless the tree references it once per span. Returns (rays hitting a sphere, segments offered).
+fn check_wide_traversal(bvh: &Bvh, strands: &Strands, rays: &[Ray], what: &str) -> (usize, usize) {
+    let wide = wide::WideBvh::new(bvh, strands);
+    let once = !matches!(bvh.options().bounding, Bounding::SpanRefs { .. });
+    wide.check_bounds(strands, once);
+    let spheres: Vec<[glam::Vec4; 5]> = (0..strands.segment_count())
+        .map(|s| {
+            let first = strands.segment_first[s] as usize;
+            let p = &strands.control_points[first..first + 4];
+            cross_sections([p[0], p[1], p[2], p[3]])
+        })
+        .collect();
+    let (mut hits, mut offered) = (0, 0);
+    for (i, ray) in rays.iter().enumerate() {
+        let want_t = spheres
+            .iter()
+            .filter_map(|s| sphere_hit(ray, s, ray.tfar))
             .min_by(f32::total_cmp);
-        let got_t = wide.closest(ray, |p, tfar| curve(p.control_points, tfar));
+        let got_t = wide.closest(ray, |p, tfar| {
+            sphere_hit(ray, &cross_sections(p.control_points), tfar)
+        });
         assert_eq!(
             got_t.map(f32::to_bits),
             want_t.map(f32::to_bits),
             "{what}, wide: ray {i} {ray:?}: closest {got_t:?}, brute force {want_t:?}"
         );
         hits += usize::from(got_t.is_some());
-        let mut got_set = Vec::new();
+        let mut got = Vec::new();
         assert!(!wide.for_each(ray, |p, _| {
             let first = strands.segment_first[p.segment as usize] as usize;
             assert_eq!(
@@ -368,30 +367,27 @@ fn check_wide_traversal(bvh: &Bvh, strands: &Strands, rays: &[Ray], what: &str) 
                 strands.control_points[first..first + 4]
             );
             assert_eq!(p.strand, strands.segment_strand[p.segment as usize]);
-            got_set.push(p.segment);
+            got.push(p.segment);
             Control::Continue
         }));
-        got_set.sort_unstable();
-        got_set.dedup();
-        let inv = RayInv::new(ray);
-        for s in &got_set {
-            assert!(
-                filter[s].crosses(ray),
-                "{what}, wide: ray {i}: segment {s} offered past its filter"
-            );
-        }
-        got_set.retain(|&s| {
-            seg_boxes[s as usize]
-                .iter()
-                .any(|b| b.entry(&inv).is_some())
-        });
-        assert_eq!(
-            got_set, want_set,
-            "{what}, wide: ray {i} {ray:?}: all-hits walk differs from brute force"
+        got.sort_unstable();
+        let all = got.len();
+        got.dedup();
+        assert!(
+            !once || all == got.len(),
+            "{what}, wide: ray {i}: a segment offered twice"
         );
-        reported += want_set.len();
+        for (s, spheres) in spheres.iter().enumerate() {
+            if sphere_hit(ray, spheres, ray.tfar).is_some() {
+                assert!(
+                    got.binary_search(&(s as u32)).is_ok(),
+                    "{what}, wide: ray {i} {ray:?}: segment {s} has a sphere on the ray but was never offered"
+                );
+            }
+        }
+        offered += got.len();
     }
-    (hits, reported)
+    (hits, offered)
 }
 
 #[test]
@@ -492,17 +488,15 @@ fn random_bundle_builds_valid_trees_that_traverse_like_brute_force() {
             // Guard against a vacuous test: most rays must hit something.
             assert!(hits > rays.len() / 4, "{what}: only {hits} rays hit");
             assert!(reported > rays.len(), "{what}: {reported} boxes crossed");
-            if contains_quarter_spans(bounding) {
-                let (hits, reported) = check_wide_traversal(&bvh, &strands, &rays, &what);
-                assert!(
-                    reported > rays.len() / 2,
-                    "{what}, wide: {reported} spans crossed"
-                );
-                assert!(
-                    hits > rays.len() / 20,
-                    "{what}, wide: only {hits} sphere hits"
-                );
-            }
+            let (hits, offered) = check_wide_traversal(&bvh, &strands, &rays, &what);
+            assert!(
+                offered > rays.len() / 2,
+                "{what}, wide: {offered} segments offered"
+            );
+            assert!(
+                hits > rays.len() / 20,
+                "{what}, wide: only {hits} sphere hits"
+            );
         }
     }
 }
@@ -633,9 +627,7 @@ fn degenerate_input_builds_and_traverses() {
             let what = format!("{what}, {bounding:?}");
             check_invariants(&bvh, strands, &what);
             check_traversal(&bvh, strands, &rays, &what);
-            if contains_quarter_spans(bounding) {
-                check_wide_traversal(&bvh, strands, &rays, &what);
-            }
+            check_wide_traversal(&bvh, strands, &rays, &what);
         }
     }
     // A ray through the coincident point's box hits it: the traversal handles zero-size boxes.
@@ -715,7 +707,7 @@ fn check_embree_hits_inside_boxes(strands: &Strands, rays: &[Ray], what: &str) -
                     "{what}, {kind:?}, {bounding:?}: ray {i}: walk never offered embree's segment {}",
                     hit.segment
                 );
-                // The wide tree's leaf filter (the span capsules) lets Embree's segment through too.
+                // The wide tree's bounds (aligned and oriented) let Embree's segment through too.
                 let offered = wide.for_each(&up_to_hit, |p, _| stop_at(p.segment));
                 assert!(
                     offered,

@@ -1,29 +1,37 @@
 //! The traversal structure of the pure-Rust backend: the binary SAH tree of [`Bvh`] collapsed into 4-wide nodes,
-//! with four span capsules per segment in the leaves. Both are tested four at a time over structure-of-arrays
-//! lanes (glam's `Vec4`: SSE instructions from safe code, no intrinsics).
+//! whose lanes hold axis-aligned boxes or, near the leaves, oriented boxes. Both kinds are tested four at a time
+//! over structure-of-arrays lanes (glam's `Vec4`: SSE instructions from safe code, no intrinsics).
 //!
 //! - **4-wide nodes** (Wald, Benthin & Boulos 2008, "Getting rid of packets"; Dammertz et al. 2008, "Shallow
 //!   bounding volume hierarchies"; Embree's BVH4): each binary inner node is replaced by up to four descendants,
 //!   opening the child of largest surface area first (Embree's and pbrt's "collapse" heuristic), so a ray loads
-//!   one 128-byte node and tests four boxes where the binary tree loaded two nodes per level. 8-wide nodes (AVX
-//!   lanes, tried 1 Dec 2026) cost more instructions (bench trace ray loops, furball 96x96: round 2.78 G → 2.94 G,
-//!   flat 1.29 G → 1.45 G) for no wall-clock gain that one run could separate from noise: four it is.
-//! - **Span capsules in the leaves**: hair is thin, long and diagonal, so even the union of a segment's four span
-//!   boxes (what the tree is built on, [`super::Bounding::Spans`]) is mostly empty space; most rays that reach a
-//!   leaf pass the segment by. Each segment keeps its four quarter spans (u ∈ [0, ¼], …, [¾, 1] from midpoint
-//!   subdivision) as capsules ([`Capsules4`]: a chord segment and a radius, conservative for the swept surface)
-//!   and the ray–curve test runs only when the ray comes within one of them — the role Embree's oriented leaf
-//!   bounds play (Woop et al. 2014, "Exploiting local orientation similarity for efficient ray traversal of hair
-//!   and fur"), at 112 bytes per segment.
+//!   one node and tests four boxes where the binary tree loaded two nodes per level. 8-wide nodes (AVX lanes,
+//!   tried 1 Dec 2026) cost more instructions (bench trace ray loops, furball 96x96: round 2.78 G → 2.94 G, flat
+//!   1.29 G → 1.45 G) for no wall-clock gain that one run could separate from noise: four it is.
+//! - **Oriented nodes** (Woop et al. 2014, "Exploiting local orientation similarity for efficient ray traversal
+//!   of hair and fur", the idea behind Embree's hair BVH): hair is thin, long and diagonal, so an axis-aligned box
+//!   around a few segments of a strand is mostly empty space. For each child of at most [`OBB_MAX`] segments the
+//!   collapse also bounds the segments' quarter spans in a frame whose third axis is their mean chord direction
+//!   ([`Obb`]); a node whose children's oriented boxes have at most [`OBB_AREA`] of the aligned boxes' surface
+//!   area stores them ([`Obbs4`]: per lane the affine map onto the cube [−1, 1]³, a child for which the aligned
+//!   box is smaller keeping it in the identity frame), and the walk transforms the ray into each lane's frame.
+//!   Our trees are still built by the aligned SAH (Woop et al. also split in the oriented frame: not done), so
+//!   oriented nodes appear only where the aligned tree already groups a strand's neighbouring segments: 97 800 of
+//!   the fur ball's 118 443 nodes with four segments per leaf. With one segment per leaf
+//!   ([`super::BuildOptions::default`]) the oriented lanes bound each segment on its own, which replaced the
+//!   per-segment span capsules the leaves used to test (112 bytes per segment): 229 → 138 bytes per segment
+//!   (Embree: 143), last-level cache misses in the ray loops ÷ 5.
+//! - **Leaves** hold each segment's control points, ids and opacity in one 80-byte entry ([`Primitive`]), so a
+//!   curve test reads one place, as Embree's curve leaves also store their control points.
 //!
-//! Measured (callgrind, instructions inside the benchmark's ray loops, `bench trace scenes/furball.toml --threads
-//! 1 --repetitions 1 --res 96x96 --backend bvh`, same rays and figures): binary tree 8.74 G (round) / 2.98 G
-//! (flat); 4-wide with span-box leaves 5.30 G / 1.94 G; flat ribbon tests 1 684 010 → 203 049 calls. Replacing
-//! the zero-initialised traversal stack by an `ArrayVec`: flat 1.94 G → 1.82 G. After faster curve tests, span
-//! boxes plus an oriented line bound per span: 2.78 G / 1.29 G at 325 bytes per segment; capsules alone (this
-//! version): 2.90 G / 1.41 G at 229 bytes per segment, the same wall time within noise (three interleaved runs of
-//! each, 1 thread, 192² furball), so the smaller leaves win. Perf shows the walk waiting on the first load of a
-//! leaf entry and of a node: memory, not arithmetic, bounds it.
+//! Measured (callgrind, inside the benchmark's ray loops, `bench trace scenes/furball.toml --threads 1
+//! --repetitions 1 --res 96x96 --backend bvh`, same rays and figures): binary tree 8.74 G instructions (round) /
+//! 2.98 G (flat); 4-wide with span-box leaves 5.30 G / 1.94 G; `ArrayVec` stack: flat 1.82 G; after faster curve
+//! tests, span capsules in the leaves: 2.90 G / 1.41 G. Then, with cache simulation (estimated cycles =
+//! instructions + 10 per L1 miss + 200 per last-level miss; Embree on the same rays: round 1.41 G, flat 0.71 G):
+//! capsule leaves 3.27 G / 1.80 G; oriented nodes 3.12 G / 1.66 G; oriented nodes without capsules 3.08 G /
+//! 1.60 G; and one segment per leaf 2.74 G / 1.35 G. Perf shows the walk waiting on the first load of a node
+//! and of a leaf entry: memory more than arithmetic bounds it.
 //! - **Slab test**: min/max of the two slab distances per axis (no branch on the direction's sign), far distances
 //!   scaled by Ize 2013's 1 + 2γ₃ as in [`super::Aabb::entry`]. Direction components too small to invert are
 //!   replaced by ±2⁻⁶⁴ (Embree's `rcp_safe` idea), so no 0 · ∞ = NaN can reach the comparisons: the inverse stays
@@ -31,6 +39,7 @@
 //!   of the origin's plane.
 
 use arrayvec::ArrayVec;
+
 use glam::{Vec3, Vec4};
 
 use super::build::for_each_span_points;
@@ -81,103 +90,119 @@ impl Boxes4 {
     }
 }
 
-/// Four capsules: per lane, a chord segment a…a+e through a span's first and last control points and a radius R
-/// within which the span's swept surface lies. By the convex-hull property the curve point c(u) = Σ bᵢ pᵢ and
-/// radius r(u) = Σ bᵢ rᵢ satisfy dist(c(u), chord) + r(u) ≤ maxᵢ (dist(pᵢ, chord) + rᵢ) (distance to a segment is
-/// convex), so that maximum bounds every point of a round tube or flat ribbon. It is widened by one more radius
-/// (the intersectors accept hits up to that far beyond the surface, see [`crate::accel::curves`]) and for
-/// rounding.
+/// Four oriented boxes as structure of arrays: per lane, the map x ↦ A (x − c) that takes the box onto the cube
+/// [−1, 1]³, A's rows being an orthonormal frame's axes divided by the box's half-extents along them. An
+/// axis-aligned box is the identity frame, so any child can sit in an oriented node's lane.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Capsules4 {
-    a: [Vec4; 3],
-    e: [Vec4; 3],
-    radius: Vec4,
+pub struct Obbs4 {
+    rows: [[Vec4; 3]; 3],
+    centre: [Vec4; 3],
 }
 
-impl Capsules4 {
-    /// Lanes that reject nothing (radius ∞).
-    const EMPTY: Capsules4 = Capsules4 {
-        a: [Vec4::ZERO; 3],
-        e: [Vec4::ZERO; 3],
-        radius: Vec4::INFINITY,
+impl Obbs4 {
+    const EMPTY: Obbs4 = Obbs4 {
+        rows: [[Vec4::ZERO; 3]; 3],
+        centre: [Vec4::ZERO; 3],
     };
 
-    /// Sets lane `lane` from a span's four control points (x, y, z, radius).
-    fn set(&mut self, lane: usize, p: [Vec4; 4]) {
-        let (a, b) = (p[0].truncate(), p[3].truncate());
-        let e = b - a;
-        let len2 = e.length_squared();
-        let (mut bound, mut scale, mut max_radius) = (0.0f32, 0.0f32, 0.0f32);
-        for q in p {
-            let w = q.truncate() - a;
-            // Distance to the chord segment a…b (to the point a if the span has no length): convex, so its
-            // maximum over the hull is at a control point.
-            let d2 = if len2 > 0.0 {
-                (w - e * (w.dot(e) / len2).clamp(0.0, 1.0)).length_squared()
-            } else {
-                w.length_squared()
-            };
-            bound = bound.max(d2.max(0.0).sqrt() + q.w.abs());
-            scale = scale.max(q.truncate().abs().max_element()).max(q.w.abs());
-            max_radius = max_radius.max(q.w.abs());
+    fn set(&mut self, lane: usize, obb: &Obb) {
+        for i in 0..3 {
+            let row = obb.axes[i] / obb.half[i];
+            for j in 0..3 {
+                self.rows[i][j][lane] = row[j];
+            }
+            self.centre[i][lane] = obb.centre[i];
         }
-        // Tolerance: one more radius (the intersectors accept hits that close), and rounding of the coordinates.
-        let radius = bound + max_radius + 1e-5 * scale;
-        for axis in 0..3 {
-            self.a[axis][lane] = a[axis];
-            self.e[axis][lane] = e[axis];
-        }
-        self.radius[lane] = if radius.is_finite() {
-            radius
-        } else {
-            f32::INFINITY
-        };
     }
 
-    /// Bit mask of the lanes whose capsule (chord segment a…a+e, radius R) the ray may cross within
-    /// `[tnear, tfar]`. With w = a − o, u = w × d and v = e × d, the squared distance from the chord point a + s·e
-    /// to the ray's line is |u + s v|² / |d|², least at s = −(u·v)/(v·v) clamped to [0, 1]; the lane is kept
-    /// unless that exceeds R². Along the ray the capsule spans t ∈ [min(t_a, t_b) − R/|d|, max(t_a, t_b) + R/|d|]
-    /// (t_x = (x − o)·d / |d|²), which must meet `[tnear, tfar]`. Comparisons are written so that a NaN keeps the
-    /// lane.
+    /// Entry distances and the mask of lanes crossed within `[tnear, tfar]` (as [`Boxes4::test`]).
     #[inline(always)]
-    fn test(&self, r: &WideRay) -> u32 {
-        let [dx, dy, dz] = r.dir;
-        let [ex, ey, ez] = self.e;
-        let wx = self.a[0] - r.origin[0];
-        let wy = self.a[1] - r.origin[1];
-        let wz = self.a[2] - r.origin[2];
-        let (ux, uy, uz) = (wy * dz - wz * dy, wz * dx - wx * dz, wx * dy - wy * dx);
-        let (vx, vy, vz) = (ey * dz - ez * dy, ez * dx - ex * dz, ex * dy - ey * dx);
-        let vv = vx * vx + vy * vy + vz * vz;
-        let uv = ux * vx + uy * vy + uz * vz;
-        // Parallel chord (vv = 0): every s is as close; s = 0.
-        let s =
-            Vec4::select(vv.cmpgt(Vec4::ZERO), -uv / vv, Vec4::ZERO).clamp(Vec4::ZERO, Vec4::ONE);
-        let (cx, cy, cz) = (ux + s * vx, uy + s * vy, uz + s * vz);
-        let dist2 = cx * cx + cy * cy + cz * cz;
-        let far = dist2.cmpgt(self.radius * self.radius * r.dd);
-        // Along the ray, in units of t·|d|².
-        let ta = wx * dx + wy * dy + wz * dz;
-        let tb = ta + (ex * dx + ey * dy + ez * dz);
-        let reach = self.radius * r.len;
-        let before = (ta.max(tb) + reach).cmplt(r.tnear_dd);
-        let after = (ta.min(tb) - reach).cmpgt(r.tfar_dd);
-        !(far | before | after).bitmask() & 0xf
+    fn test(&self, r: &WideRay) -> (Vec4, u32) {
+        let w = [
+            r.origin[0] - self.centre[0],
+            r.origin[1] - self.centre[1],
+            r.origin[2] - self.centre[2],
+        ];
+        let mut tmin = Vec4::splat(r.tnear);
+        let mut tmax = Vec4::splat(r.tfar);
+        for row in &self.rows {
+            let o = row[0] * w[0] + row[1] * w[1] + row[2] * w[2];
+            let d = row[0] * r.dir[0] + row[1] * r.dir[1] + row[2] * r.dir[2];
+            let tiny = d.abs().cmplt(Vec4::splat(MIN_DIRECTION));
+            let d = Vec4::select(tiny, Vec4::splat(MIN_DIRECTION).copysign(d), d);
+            let inv = Vec4::ONE / d;
+            let t0 = (Vec4::NEG_ONE - o) * inv;
+            let t1 = (Vec4::ONE - o) * inv;
+            tmin = tmin.max(t0.min(t1));
+            tmax = tmax.min(t0.max(t1) * FAR_SCALE);
+        }
+        (tmin, tmin.cmple(tmax).bitmask())
     }
 }
 
-/// A ray prepared for [`Boxes4::test`] and [`Capsules4::test`]: every component splatted across four lanes.
+/// One oriented box: centre, orthonormal axes and half-extents along them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Obb {
+    centre: Vec3,
+    axes: [Vec3; 3],
+    half: Vec3,
+}
+
+impl Obb {
+    fn area(&self) -> f32 {
+        let h = self.half;
+        8.0 * (h.x * h.y + h.y * h.z + h.z * h.x)
+    }
+
+    /// The box in frame `axes` around the spans of `segments`, padded for rounding.
+    fn around(strands: &Strands, segments: &[u32], axes: [Vec3; 3]) -> Obb {
+        let mut lo = Vec3::INFINITY;
+        let mut hi = Vec3::NEG_INFINITY;
+        let mut scale = 0.0f32;
+        for &segment in segments {
+            for_each_span_points(strands, segment, 2, |points| {
+                for q in points {
+                    let x = q.truncate();
+                    let p = Vec3::new(axes[0].dot(x), axes[1].dot(x), axes[2].dot(x));
+                    let r = q.w.abs();
+                    lo = lo.min(p - r);
+                    hi = hi.max(p + r);
+                    scale = scale.max(x.abs().max_element() + r);
+                }
+            });
+        }
+        let mid = 0.5 * (lo + hi);
+        let pad = 1e-5 * scale + f32::MIN_POSITIVE;
+        Obb {
+            centre: axes[0] * mid.x + axes[1] * mid.y + axes[2] * mid.z,
+            axes,
+            half: (0.5 * (hi - lo)).max(Vec3::ZERO) + Vec3::splat(pad),
+        }
+    }
+
+    /// The box oriented along the segments' mean chord direction (Woop et al. 2014), or `None` without one.
+    fn oriented(strands: &Strands, segments: &[u32]) -> Option<Obb> {
+        let mut axis = Vec3::ZERO;
+        for &segment in segments {
+            let first = strands.segment_first[segment as usize] as usize;
+            let a = Vec3::from_slice(&strands.control_points[first][..3]);
+            let b = Vec3::from_slice(&strands.control_points[first + 3][..3]);
+            let chord = (b - a).normalize_or_zero();
+            axis += if chord.dot(axis) < 0.0 { -chord } else { chord };
+        }
+        let axis = axis.try_normalize()?;
+        let (x, y) = axis.any_orthonormal_pair();
+        let obb = Obb::around(strands, segments, [x, y, axis]);
+        obb.half.is_finite().then_some(obb)
+    }
+}
+
+/// A ray prepared for [`Boxes4::test`] and [`Obbs4::test`]: every component splatted across four lanes.
 #[derive(Debug, Clone, Copy)]
 struct WideRay {
     origin: [Vec4; 3],
     dir: [Vec4; 3],
     inv_dir: [Vec4; 3],
-    /// |d|², |d|, tnear·|d|², tfar·|d|² (for [`Capsules4::test`]; `tfar_dd` follows `tfar`).
-    dd: Vec4,
-    len: Vec4,
-    tnear_dd: Vec4,
-    tfar_dd: Vec4,
     tnear: f32,
     tfar: f32,
 }
@@ -192,15 +217,10 @@ impl WideRay {
             }
         };
         let splat = |v: [f32; 3]| v.map(Vec4::splat);
-        let dd = ray.dir.length_squared();
         WideRay {
             origin: splat(ray.origin.to_array()),
             dir: splat(ray.dir.to_array()),
             inv_dir: splat(ray.dir.to_array().map(|d| 1.0 / safe(d))),
-            dd: Vec4::splat(dd),
-            len: Vec4::splat(dd.sqrt()),
-            tnear_dd: Vec4::splat(ray.tnear * dd),
-            tfar_dd: Vec4::splat(ray.tfar * dd),
             tnear: ray.tnear,
             tfar: ray.tfar,
         }
@@ -210,9 +230,18 @@ impl WideRay {
     #[inline]
     fn set_tfar(&mut self, t: f32) {
         self.tfar = t;
-        self.tfar_dd = Vec4::splat(t * self.dd.x);
     }
 }
+
+/// [`Child::count`] of an oriented inner node.
+const ORIENTED: u32 = u32::MAX;
+
+/// Largest subtree (segments) given an oriented box.
+const OBB_MAX: u32 = 8192;
+
+/// An oriented node replaces an aligned one when its children's oriented boxes have at most this fraction of the
+/// aligned boxes' surface area.
+const OBB_AREA: f32 = 0.8;
 
 /// A child reference: an inner node's index, or a leaf's first entry and entry count.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -238,8 +267,6 @@ pub struct WideNode {
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[repr(C, align(16))]
 pub struct Primitive {
-    /// The segment's four quarter spans as capsules.
-    capsules: Capsules4,
     /// The segment's control points (x, y, z, radius).
     pub control_points: [[f32; 4]; 4],
     /// The segment id.
@@ -250,18 +277,19 @@ pub struct Primitive {
     pub opacity: f32,
 }
 
-impl Primitive {
-    /// Whether the leaf filter lets `ray` through to the curve test: some span's capsule may be crossed (what the
-    /// walk asks before offering the primitive).
-    pub fn crosses(&self, ray: &Ray) -> bool {
-        self.capsules.test(&WideRay::new(ray)) != 0
-    }
+/// A 4-wide node with oriented boxes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OrientedNode {
+    boxes: Obbs4,
+    children: [Child; 4],
+    valid: u32,
 }
 
-/// The 4-wide tree with per-segment span capsules (see the module docs).
+/// The 4-wide tree with aligned and oriented nodes (see the module docs).
 #[derive(Debug, Clone, PartialEq)]
 pub struct WideBvh {
     nodes: Vec<WideNode>,
+    oriented: Vec<OrientedNode>,
     /// The leaf entries, leaf by leaf.
     primitives: Vec<Primitive>,
     /// The root (a node or a leaf) and its box in lane 0, or nothing (no segments).
@@ -269,23 +297,17 @@ pub struct WideBvh {
 }
 
 impl WideBvh {
-    /// Collapses `bvh` (built over `strands`) into 4-wide nodes and stores each leaf entry's curve and capsules.
+    /// Collapses `bvh` (built over `strands`) into 4-wide nodes, oriented where that is tighter, and stores each
+    /// leaf entry's curve.
     pub fn new(bvh: &Bvh, strands: &Strands) -> WideBvh {
         use rayon::prelude::*;
         let primitives = bvh
             .primitives()
             .par_iter()
             .map(|&segment| {
-                let mut capsules = Capsules4::EMPTY;
-                let mut lane = 0;
-                for_each_span_points(strands, segment, 2, |points| {
-                    capsules.set(lane, points);
-                    lane += 1;
-                });
                 let first = strands.segment_first[segment as usize] as usize;
                 let strand = strands.segment_strand[segment as usize];
                 Primitive {
-                    capsules,
                     control_points: std::array::from_fn(|i| strands.control_points[first + i]),
                     segment,
                     strand,
@@ -295,6 +317,7 @@ impl WideBvh {
             .collect();
         let mut wide = WideBvh {
             nodes: Vec::new(),
+            oriented: Vec::new(),
             primitives,
             root: None,
         };
@@ -302,7 +325,10 @@ impl WideBvh {
         if let Some(top) = binary.first() {
             let mut root_box = Boxes4::EMPTY;
             root_box.set(0, Vec3::from_array(top.lo), Vec3::from_array(top.hi));
-            wide.root = Some((wide.collapse(binary, 0), root_box));
+            wide.root = Some((
+                wide.collapse(binary, 0, strands, bvh.primitives()),
+                root_box,
+            ));
         }
         wide
     }
@@ -310,6 +336,7 @@ impl WideBvh {
     /// Memory of nodes and leaf entries, bytes.
     pub fn bytes(&self) -> usize {
         std::mem::size_of_val(self.nodes.as_slice())
+            + std::mem::size_of_val(self.oriented.as_slice())
             + std::mem::size_of_val(self.primitives.as_slice())
     }
 
@@ -319,7 +346,13 @@ impl WideBvh {
     }
 
     /// The wide child for binary node `i`, appending the wide nodes below it (depth first).
-    fn collapse(&mut self, binary: &[super::Node], i: usize) -> Child {
+    fn collapse(
+        &mut self,
+        binary: &[super::Node],
+        i: usize,
+        strands: &Strands,
+        segments: &[u32],
+    ) -> Child {
         let node = &binary[i];
         if node.is_leaf() {
             return Child {
@@ -347,22 +380,78 @@ impl WideBvh {
             let c = open[k];
             open.splice(k..=k, [c + 1, binary[c].offset as usize]);
         }
-        let me = self.nodes.len();
-        self.nodes.push(WideNode {
-            boxes: Boxes4::EMPTY,
-            children: [Child { index: 0, count: 0 }; 4],
-            valid: 0,
-        });
-        let mut wide = self.nodes[me];
+        // Oriented boxes for small subtrees, where the strands share a direction.
+        let obbs: Vec<Option<Obb>> = open
+            .iter()
+            .map(|&c| {
+                let (first, count) = range(binary, c);
+                (count <= OBB_MAX)
+                    .then(|| {
+                        Obb::oriented(strands, &segments[first as usize..(first + count) as usize])
+                    })
+                    .flatten()
+            })
+            .collect();
+        let aligned_area: f32 = open.iter().map(|&c| binary[c].bounds().area()).sum();
+        let oriented_area: f32 = open
+            .iter()
+            .zip(&obbs)
+            .map(|(&c, o)| {
+                o.map_or(binary[c].bounds().area(), |o| {
+                    o.area().min(binary[c].bounds().area())
+                })
+            })
+            .sum();
+        let children: Vec<Child> = open
+            .iter()
+            .map(|&c| self.collapse(binary, c, strands, segments))
+            .collect();
+        let mut valid = 0;
+        let mut kids = [Child { index: 0, count: 0 }; 4];
+        for (lane, &c) in children.iter().enumerate() {
+            kids[lane] = c;
+            valid |= 1 << lane;
+        }
+        if oriented_area < OBB_AREA * aligned_area {
+            let mut boxes = Obbs4::EMPTY;
+            for (lane, (&c, o)) in open.iter().zip(&obbs).enumerate() {
+                let b = binary[c].bounds();
+                let aligned = Obb {
+                    centre: b.centroid(),
+                    axes: [Vec3::X, Vec3::Y, Vec3::Z],
+                    half: 0.5 * (b.hi - b.lo)
+                        + Vec3::splat(
+                            1e-5 * b.lo.abs().max(b.hi.abs()).max_element() + f32::MIN_POSITIVE,
+                        ),
+                };
+                let obb = match o {
+                    Some(o) if o.area() < aligned.area() => *o,
+                    _ => aligned,
+                };
+                boxes.set(lane, &obb);
+            }
+            self.oriented.push(OrientedNode {
+                boxes,
+                children: kids,
+                valid,
+            });
+            return Child {
+                index: self.oriented.len() as u32 - 1,
+                count: ORIENTED,
+            };
+        }
+        let mut boxes = Boxes4::EMPTY;
         for (lane, &c) in open.iter().enumerate() {
             let b = binary[c].bounds();
-            wide.boxes.set(lane, b.lo, b.hi);
-            wide.children[lane] = self.collapse(binary, c);
-            wide.valid |= 1 << lane;
+            boxes.set(lane, b.lo, b.hi);
         }
-        self.nodes[me] = wide;
+        self.nodes.push(WideNode {
+            boxes,
+            children: kids,
+            valid,
+        });
         Child {
-            index: me as u32,
+            index: self.nodes.len() as u32 - 1,
             count: 0,
         }
     }
@@ -386,7 +475,7 @@ impl WideBvh {
         found
     }
 
-    /// Every primitive whose capsules the ray may cross: [`Bvh::for_each`]'s contract, the callback given the leaf
+    /// Every primitive in a leaf whose bounds the ray crosses: [`Bvh::for_each`]'s contract, the callback given the leaf
     /// entry.
     pub fn for_each<F: FnMut(&Primitive, f32) -> Control>(&self, ray: &Ray, mut visit: F) -> bool {
         let mut r = WideRay::new(ray);
@@ -409,18 +498,25 @@ impl WideBvh {
         let mut stack = ArrayVec::<(Child, f32), WIDE_STACK>::new();
         let mut current = root;
         loop {
-            if current.count > 0 {
+            if current.count > 0 && current.count != ORIENTED {
                 let first = current.index as usize;
                 for p in &self.primitives[first..first + current.count as usize] {
-                    if p.capsules.test(r) != 0 && primitive(p, r) == Control::Stop {
+                    if primitive(p, r) == Control::Stop {
                         return true;
                     }
                 }
             } else {
-                let node = &self.nodes[current.index as usize];
-                let (tmin, mask) = node.boxes.test(r);
+                let (tmin, mask, children) = if current.count == 0 {
+                    let node = &self.nodes[current.index as usize];
+                    let (t, m) = node.boxes.test(r);
+                    (t, m & node.valid, &node.children)
+                } else {
+                    let node = &self.oriented[current.index as usize];
+                    let (t, m) = node.boxes.test(r);
+                    (t, m & node.valid, &node.children)
+                };
                 let tmin = tmin.to_array();
-                let mut mask = mask & node.valid;
+                let mut mask = mask;
                 if mask != 0 {
                     // Hit children sorted by entry distance, nearest last (it is entered, the others stacked so
                     // that the nearer are popped first).
@@ -429,7 +525,7 @@ impl WideBvh {
                     while mask != 0 {
                         let lane = mask.trailing_zeros() as usize;
                         mask &= mask - 1;
-                        let entry = (node.children[lane], tmin[lane]);
+                        let entry = (children[lane], tmin[lane]);
                         let mut j = n;
                         while j > 0 && hits[j - 1].1 < entry.1 {
                             hits[j] = hits[j - 1];
@@ -456,4 +552,94 @@ impl WideBvh {
             }
         }
     }
+}
+
+#[cfg(test)]
+impl WideBvh {
+    /// Asserts that every lane's box, aligned or oriented, holds the eighth spans of every segment below it
+    /// (their control points, each inflated by its radius), up to 10⁻⁵ of the coordinates' scale: the culling is
+    /// conservative, and the walk can only skip segments the ray cannot hit. `whole_segments: false` (a tree
+    /// whose leaves reference spans, [`super::Bounding::SpanRefs`]) checks nothing, since a lane's aligned box
+    /// holds only the spans referenced below it.
+    pub fn check_bounds(&self, strands: &Strands, whole_segments: bool) {
+        let Some((root, _)) = self.root else {
+            return;
+        };
+        self.check_child(root, strands, whole_segments);
+    }
+
+    /// The segments below `child`, after checking the boxes of its inner nodes.
+    fn check_child(&self, child: Child, strands: &Strands, whole_segments: bool) -> Vec<u32> {
+        let (children, valid) = match child.count {
+            0 => {
+                let n = &self.nodes[child.index as usize];
+                (n.children, n.valid)
+            }
+            ORIENTED => {
+                let n = &self.oriented[child.index as usize];
+                (n.children, n.valid)
+            }
+            count => {
+                let first = child.index as usize;
+                return self.primitives[first..first + count as usize]
+                    .iter()
+                    .map(|p| p.segment)
+                    .collect();
+            }
+        };
+        let mut all = Vec::new();
+        for (lane, &below) in children.iter().enumerate() {
+            if valid & (1 << lane) == 0 {
+                continue;
+            }
+            let segments = self.check_child(below, strands, whole_segments);
+            for &s in segments.iter().filter(|_| whole_segments) {
+                // Eighth spans: inside the hull of any coarser subdivision, so every box the build can make
+                // (segment hull, 2, 4 or 8 spans) and every oriented box (around quarter spans) holds them.
+                for_each_span_points(strands, s, 3, |points| {
+                    for q in points {
+                        let x = q.truncate();
+                        let tolerance = 1e-5 * (x.abs().max_element() + q.w.abs()) + 1e-30;
+                        assert!(
+                            self.lane_holds(child, lane, x, q.w.abs(), tolerance),
+                            "segment {s}: point {q} outside its box in lane {lane} of node {child:?}"
+                        );
+                    }
+                });
+            }
+            all.extend(segments);
+        }
+        all
+    }
+
+    /// Whether lane `lane` of inner node `node` holds the sphere of radius `r` around `x`, up to `tolerance`.
+    fn lane_holds(&self, node: Child, lane: usize, x: Vec3, r: f32, tolerance: f32) -> bool {
+        if node.count == 0 {
+            let b = &self.nodes[node.index as usize].boxes;
+            return (0..3).all(|a| {
+                x[a] - r >= b.lo[a][lane] - tolerance && x[a] + r <= b.hi[a][lane] + tolerance
+            });
+        }
+        let b = &self.oriented[node.index as usize].boxes;
+        let c = Vec3::new(b.centre[0][lane], b.centre[1][lane], b.centre[2][lane]);
+        (0..3).all(|i| {
+            let row = Vec3::new(b.rows[i][0][lane], b.rows[i][1][lane], b.rows[i][2][lane]);
+            // |row| = 1 / half-extent: r and the tolerance in the cube's units.
+            row.dot(x - c).abs() + (r - tolerance) * row.length() <= 1.0
+        })
+    }
+}
+
+/// First leaf entry and number of entries below binary node `i` (a subtree's entries are contiguous).
+fn range(binary: &[super::Node], i: usize) -> (u32, u32) {
+    let mut lo = i;
+    while !binary[lo].is_leaf() {
+        lo += 1;
+    }
+    let mut hi = i;
+    while !binary[hi].is_leaf() {
+        hi = binary[hi].offset as usize;
+    }
+    let first = binary[lo].offset;
+    (first, binary[hi].offset + binary[hi].count - first)
 }

@@ -92,6 +92,27 @@ fn ribbon_normal(d: Vec3) -> Vec3 {
     (n / n.length()).extend(0.0)
 }
 
+/// A ray with its ray space (step 1) worked out once, for the many segments a ray is tested against.
+#[derive(Debug, Clone, Copy)]
+pub struct RibbonRay {
+    org: Vec3,
+    /// Rows x̂, ŷ and s d̂ of [`ray_space`], and s.
+    rows: (Vec3, Vec3, Vec3),
+    depth_scale: f32,
+}
+
+impl RibbonRay {
+    /// The ray `org + t·dir` (valid: finite, `dir` non-zero).
+    pub fn new(org: Vec3, dir: Vec3) -> Self {
+        let (rx, ry, rz, depth_scale) = ray_space(dir);
+        RibbonRay {
+            org,
+            rows: (rx, ry, rz),
+            depth_scale,
+        }
+    }
+}
+
 /// Ray space (step 1): rows x̂, ŷ and s d̂, so that `row · (P − O)` gives (x, y, t).
 fn ray_space(dir: Vec3) -> (Vec3, Vec3, Vec3, f32) {
     let depth_scale = 1.0 / dir.dot(dir).sqrt();
@@ -156,21 +177,31 @@ pub fn intersect(
     tfar: f32,
     cp: [[f32; 4]; 4],
 ) -> Option<CurveHit> {
-    intersect_tessellated(org, dir, tnear, tfar, cp, TESSELLATION_RATE, true)
+    intersect_prepared(&RibbonRay::new(org, dir), tnear, tfar, cp)
+}
+
+/// [`intersect`] for a ray whose ray space is already worked out (the same result, bit for bit): the BVH tracer
+/// prepares each ray once for all the segments it meets.
+pub fn intersect_prepared(
+    ray: &RibbonRay,
+    tnear: f32,
+    tfar: f32,
+    cp: [[f32; 4]; 4],
+) -> Option<CurveHit> {
+    intersect_tessellated(ray, tnear, tfar, cp, TESSELLATION_RATE, true)
 }
 
 /// [`intersect`] with `rate` quads per segment instead of Embree's (the tests show that the rate matters);
 /// `early_reject: false` skips step 0 (the tests check that it changes nothing).
 fn intersect_tessellated(
-    org: Vec3,
-    dir: Vec3,
+    ray: &RibbonRay,
     tnear: f32,
     tfar: f32,
     cp: [[f32; 4]; 4],
     rate: usize,
     early_reject: bool,
 ) -> Option<CurveHit> {
-    let (rx, ry, rz, depth_scale) = ray_space(dir);
+    let (org, (rx, ry, rz), depth_scale) = (ray.org, ray.rows, ray.depth_scale);
     let mut q = [Vec4::ZERO; 4];
     let mut extent = 0.0f32;
     for (qi, c) in q.iter_mut().zip(&cp) {
@@ -431,9 +462,14 @@ mod tests {
                 strands.control_points[f + 2],
                 strands.control_points[f + 3],
             ];
-            if let Some(h) =
-                intersect_tessellated(ray.origin, ray.dir, ray.tnear, ray.tfar, cp, rate, true)
-            {
+            if let Some(h) = intersect_tessellated(
+                &RibbonRay::new(ray.origin, ray.dir),
+                ray.tnear,
+                ray.tfar,
+                cp,
+                rate,
+                true,
+            ) {
                 if best.map_or(true, |b| h.t < b.0) {
                     best = Some((h.t, segment as u32, h.u, h.v, h.ng));
                 }
@@ -654,8 +690,7 @@ mod tests {
             box_rays += usize::from(through_box);
             let run = |reject| {
                 intersect_tessellated(
-                    org,
-                    dir,
+                    &RibbonRay::new(org, dir),
                     tnear,
                     f32::INFINITY,
                     cp,

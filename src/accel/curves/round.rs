@@ -94,11 +94,18 @@ pub fn intersect(
     tfar: f32,
     cp: [[f32; 4]; 4],
 ) -> Option<CurveHit> {
-    intersect_with(org, dir, tnear, tfar, cp, PIECES, MAX_DEPTH, true)
+    intersect_with(org, dir, tnear, tfar, cp, PIECES, MAX_DEPTH, true, false)
+}
+
+/// Whether [`intersect`] would find a hit: the same search, ended at the first accepted root instead of going on
+/// for a closer one (what shadow queries need; a root [`intersect`] accepts is accepted here too, and the first
+/// one it finds is the same, so both answer alike).
+pub fn occludes(org: Vec3, dir: Vec3, tnear: f32, tfar: f32, cp: [[f32; 4]; 4]) -> bool {
+    intersect_with(org, dir, tnear, tfar, cp, PIECES, MAX_DEPTH, true, true).is_some()
 }
 
 /// [`intersect`] with `pieces` per level (at most 7) and `max_depth` levels: Embree's SSE kernels use (3, 3);
-/// `early_reject: false` skips step 0 (the tests check that it changes nothing).
+/// `early_reject: false` skips step 0 (the tests check that it changes nothing); `any` stops at the first hit.
 #[allow(clippy::too_many_arguments)]
 fn intersect_with(
     org: Vec3,
@@ -109,6 +116,7 @@ fn intersect_with(
     pieces: usize,
     max_depth: u32,
     early_reject: bool,
+    any: bool,
 ) -> Option<CurveHit> {
     debug_assert!((1..MAX_POINTS).contains(&pieces));
     let v = cp.map(Vec4::from_array);
@@ -134,6 +142,7 @@ fn intersect_with(
         r_max,
         pieces,
         best: None,
+        any,
     };
     search.run(max_depth);
     search.best
@@ -529,6 +538,8 @@ struct Search {
     r_max: f32,
     pieces: usize,
     best: Option<CurveHit>,
+    /// Stop at the first accepted hit.
+    any: bool,
 }
 
 /// Index of the smallest `values[i]` among the bits of `mask` (the lowest index on ties); `mask` is not empty.
@@ -555,6 +566,9 @@ impl Search {
         let mut len = 0;
         let mut next = Some((0.0, 1.0, 1));
         loop {
+            if self.any && self.best.is_some() {
+                return;
+            }
             let (u0, u1, depth) = match next.take() {
                 Some(piece) => piece,
                 None => {
@@ -777,6 +791,9 @@ impl Search {
     /// Newton iterations on (u, t) for f = g = 0 (module docs) from (`u`, `t`), t relative to the moved origin.
     /// Records the hit and shortens tfar when a root in range is found.
     fn newton(&mut self, mut u: f32, mut t: f32) {
+        if self.any && self.best.is_some() {
+            return;
+        }
         let dir = self.dir;
         let dir_len = dir.length();
         for _ in 0..NEWTON_ITERATIONS {
@@ -973,7 +990,7 @@ mod tests {
             let cp = [0, 1, 2, 3].map(|k| strands.control_points[first + k]);
             let tfar = best.map_or(ray.tfar, |(_, h)| h.t);
             if let Some(h) = intersect_with(
-                ray.origin, ray.dir, ray.tnear, tfar, cp, pieces, max_depth, true,
+                ray.origin, ray.dir, ray.tnear, tfar, cp, pieces, max_depth, true, false,
             ) {
                 best = Some((s as u32, h));
             }
@@ -1195,9 +1212,35 @@ mod tests {
         let (mut box_rays, mut rejected, mut hits) = (0, 0, 0);
         super::super::near_rays(0x5eed, |cp, org, dir, tnear, through_box| {
             box_rays += usize::from(through_box);
-            let with = intersect_with(org, dir, tnear, f32::INFINITY, cp, PIECES, MAX_DEPTH, true);
-            let without =
-                intersect_with(org, dir, tnear, f32::INFINITY, cp, PIECES, MAX_DEPTH, false);
+            let search = |early, any| {
+                intersect_with(
+                    org,
+                    dir,
+                    tnear,
+                    f32::INFINITY,
+                    cp,
+                    PIECES,
+                    MAX_DEPTH,
+                    early,
+                    any,
+                )
+            };
+            let (with, without) = (search(true, false), search(false, false));
+            // The any-hit search answers alike (and, ending at the first root, at no larger t).
+            let any = search(true, true);
+            assert_eq!(
+                any.is_some(),
+                with.is_some(),
+                "cp {cp:?}, org {org}, dir {dir}"
+            );
+            if let (Some(a), Some(w)) = (any, with) {
+                assert!(
+                    a.t >= w.t,
+                    "cp {cp:?}, org {org}, dir {dir}: any-hit t {} < closest {}",
+                    a.t,
+                    w.t
+                );
+            }
             assert_eq!(
                 with, without,
                 "cp {cp:?}, org {org}, dir {dir}, tnear {tnear}"
