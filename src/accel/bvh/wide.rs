@@ -322,13 +322,23 @@ impl WideBvh {
             root: None,
         };
         let binary = bvh.nodes();
+        // Every small subtree's oriented box, in parallel (most of the collapse's work; done inside it, serially,
+        // the build took 3x Embree's on 2 threads).
+        let segments = bvh.primitives();
+        let obbs: Vec<Option<Obb>> = (0..binary.len())
+            .into_par_iter()
+            .map(|i| {
+                let (first, count) = range(binary, i);
+                let below = &segments[first as usize..(first + count) as usize];
+                (count <= OBB_MAX)
+                    .then(|| Obb::oriented(strands, below))
+                    .flatten()
+            })
+            .collect();
         if let Some(top) = binary.first() {
             let mut root_box = Boxes4::EMPTY;
             root_box.set(0, Vec3::from_array(top.lo), Vec3::from_array(top.hi));
-            wide.root = Some((
-                wide.collapse(binary, 0, strands, bvh.primitives()),
-                root_box,
-            ));
+            wide.root = Some((wide.collapse(binary, 0, &obbs), root_box));
         }
         wide
     }
@@ -346,13 +356,8 @@ impl WideBvh {
     }
 
     /// The wide child for binary node `i`, appending the wide nodes below it (depth first).
-    fn collapse(
-        &mut self,
-        binary: &[super::Node],
-        i: usize,
-        strands: &Strands,
-        segments: &[u32],
-    ) -> Child {
+    /// `obbs[k]` is binary node k's oriented box, if it has one.
+    fn collapse(&mut self, binary: &[super::Node], i: usize, obbs: &[Option<Obb>]) -> Child {
         let node = &binary[i];
         if node.is_leaf() {
             return Child {
@@ -381,30 +386,18 @@ impl WideBvh {
             open.splice(k..=k, [c + 1, binary[c].offset as usize]);
         }
         // Oriented boxes for small subtrees, where the strands share a direction.
-        let obbs: Vec<Option<Obb>> = open
-            .iter()
-            .map(|&c| {
-                let (first, count) = range(binary, c);
-                (count <= OBB_MAX)
-                    .then(|| {
-                        Obb::oriented(strands, &segments[first as usize..(first + count) as usize])
-                    })
-                    .flatten()
-            })
-            .collect();
         let aligned_area: f32 = open.iter().map(|&c| binary[c].bounds().area()).sum();
         let oriented_area: f32 = open
             .iter()
-            .zip(&obbs)
-            .map(|(&c, o)| {
-                o.map_or(binary[c].bounds().area(), |o| {
+            .map(|&c| {
+                obbs[c].map_or(binary[c].bounds().area(), |o| {
                     o.area().min(binary[c].bounds().area())
                 })
             })
             .sum();
         let children: Vec<Child> = open
             .iter()
-            .map(|&c| self.collapse(binary, c, strands, segments))
+            .map(|&c| self.collapse(binary, c, obbs))
             .collect();
         let mut valid = 0;
         let mut kids = [Child { index: 0, count: 0 }; 4];
@@ -414,7 +407,8 @@ impl WideBvh {
         }
         if oriented_area < OBB_AREA * aligned_area {
             let mut boxes = Obbs4::EMPTY;
-            for (lane, (&c, o)) in open.iter().zip(&obbs).enumerate() {
+            for (lane, &c) in open.iter().enumerate() {
+                let o = &obbs[c];
                 let b = binary[c].bounds();
                 let aligned = Obb {
                     centre: b.centroid(),
