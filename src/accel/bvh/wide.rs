@@ -19,8 +19,8 @@
 //!   oriented nodes appear only where the aligned tree already groups a strand's neighbouring segments: 97 800 of
 //!   the fur ball's 118 443 nodes with four segments per leaf. With one segment per leaf
 //!   ([`super::BuildOptions::default`]) the oriented lanes bound each segment on its own, which replaced the
-//!   per-segment span capsules the leaves used to test (112 bytes per segment): 229 → 138 bytes per segment
-//!   (Embree: 143), last-level cache misses in the ray loops ÷ 5.
+//!   per-segment span capsules the leaves used to test (112 bytes per segment): 229 → 193 bytes per segment
+//!   (Embree: 143; 138 with four segments per leaf), last-level cache misses in the ray loops ÷ 2.5.
 //! - **Leaves** hold each segment's control points, ids and opacity in one 80-byte entry ([`Primitive`]), so a
 //!   curve test reads one place, as Embree's curve leaves also store their control points.
 //!
