@@ -11,7 +11,7 @@
 //! densities, w = (n_m p_m)² / ((n_m p_m)² + (n_l p_l)²) (Veach 1997, §9.2.4). Deeper vertices take one light,
 //! chosen in proportion to power, and one material sample. The first material sample at each vertex also
 //! continues the path (`path_length` bounces; 0 = direct light only), with Russian roulette before each vertex after
-//! the second; at the last vertex under MIS the light sample takes the whole weight and no material ray is traced.
+//! the second; the last vertex keeps MIS (its material ray only looks for a light; see `mis`).
 //!
 //! # Hair transparency
 //!
@@ -603,7 +603,7 @@ impl<'a> Integrator<'a> {
     }
 
     /// Step 4 at one deeper vertex `v` (number `b` ≥ 1): one light chosen ∝ power and one material sample,
-    /// weighted by [`Mis::deeper_vertex`] (at the last vertex, under the last-vertex rule, the light sample alone).
+    /// weighted by [`Mis::deeper_vertex`] (at the last vertex under light sampling alone, the light sample only).
     /// Returns the radiance `v` sends back along ωo, and the continuation (the next vertex and f cos θi / p_m) if
     /// the material sample found a surface.
     fn deeper_vertex(

@@ -10,8 +10,12 @@
 //! - a **delta light** (a distant light of zero angular radius) can only be found by light sampling: its light
 //!   sample takes weight 1, and its density for a material sample is 0;
 //! - **single strategies** (`strategy = "light"` / `"material"`) give their own strategy weight 1 and the other 0;
-//! - at the **last vertex** of a path under MIS or light sampling, the light sample takes the whole weight and a
-//!   material sample none, so the integrator traces no material ray there (still unbiased; one ray less per path).
+//! - at the **last vertex** of a path under light sampling alone no material ray is traced (its weight would be 0).
+//!   Under MIS the last vertex keeps both strategies, like every other vertex. Giving the light sample the whole
+//!   weight there is unbiased and saves a ray, and it was cuticle's rule until 1 Dec 2026, but for narrow lobes
+//!   under an environment it is the poor strategy: the Chiang peer scene at 64 spp was covered in orange
+//!   single-pixel fireflies (a uniformly sampled environment direction landing in a narrow TT lobe at the second
+//!   vertex) where Mitsuba 3, which keeps MIS there, was smooth.
 
 use glam::Vec3;
 
@@ -74,12 +78,12 @@ impl Mis {
         }
     }
 
-    /// The last-vertex rule: at the path's last vertex under MIS or light sampling only the light sample counts
-    /// (weight 1; a material sample's weight is 0, so none is traced). Under material sampling the material
-    /// sample still carries the non-delta lights there.
+    /// Whether no material sample is needed at this vertex: the path's last vertex under light sampling alone
+    /// (a material sample would weigh 0 there). Under MIS the last vertex keeps its material sample (see the
+    /// module docs); under material sampling it carries the non-delta lights.
     #[inline]
     pub(super) fn light_only(&self) -> bool {
-        self.last && self.strategy != Strategy::Material
+        self.last && self.strategy == Strategy::Light
     }
 
     /// Whether the light strategy samples a light at all: not a non-delta light under material-only sampling
@@ -227,16 +231,16 @@ mod tests {
     }
 
     #[test]
-    fn the_last_vertex_gives_the_light_sample_the_whole_weight() {
-        // Densities at which MIS gives the light sample 1 / 10 and a material sample's emitter hit 9 / 10 ...
+    fn the_last_vertex_keeps_mis_and_light_sampling_traces_no_material_ray_there() {
+        // Densities at which MIS gives the light sample 1 / 10 and a material sample's emitter hit 9 / 10, at an
+        // inner vertex and at the last one alike (the material ray is traced there too).
         let densities = (1.0, 1.0, 3.0);
         let inner = Mis::deeper_vertex(Strategy::Mis, false);
         assert!(!inner.light_only());
         check("mis, inner vertex", inner, densities, (0.1, 0.9));
-        // ... give the light sample everything at the last vertex (no material ray is traced there).
         let last = Mis::deeper_vertex(Strategy::Mis, true);
-        assert!(last.light_only());
-        check("mis, last vertex", last, densities, (1.0, 0.0));
+        assert!(!last.light_only());
+        check("mis, last vertex", last, densities, (0.1, 0.9));
         // Light sampling alone: the same, last or not.
         let light = Mis::deeper_vertex(Strategy::Light, true);
         assert!(light.light_only());
