@@ -67,25 +67,15 @@ impl BvhTracer {
         &self.bvh
     }
 
-    /// The ray–curve test of one leaf entry over `[ray.tnear, tfar]`; `ribbon` is `ray` prepared for flat curves.
-    #[inline]
-    fn test(&self, ray: &Ray, ribbon: &RibbonRay, p: &Primitive, tfar: f32) -> Option<CurveHit> {
-        let cp = p.control_points;
-        match self.kind {
-            CurveKind::Round => round::intersect(ray.origin, ray.dir, ray.tnear, tfar, cp),
-            CurveKind::Flat => flat::intersect_prepared(ribbon, ray.tnear, tfar, cp),
-        }
-    }
-
-    /// Whether the ray hits the leaf entry's curve in `[ray.tnear, tfar]` (the answer of [`Self::test`], found
-    /// sooner on round curves: their search ends at the first root).
-    #[inline]
-    fn occludes(&self, ray: &Ray, ribbon: &RibbonRay, p: &Primitive, tfar: f32) -> bool {
-        let cp = p.control_points;
-        match self.kind {
-            CurveKind::Round => round::occludes(ray.origin, ray.dir, ray.tnear, tfar, cp),
-            CurveKind::Flat => flat::intersect_prepared(ribbon, ray.tnear, tfar, cp).is_some(),
-        }
+    /// The query ray as the walk and the curve tests take it ([`traced_ray`]), with its ray space worked out once
+    /// when the curves are flat ribbons.
+    fn query(&self, ray: &Ray) -> Result<Query, InvalidRay> {
+        let (ray, scale) = traced_ray(ray)?;
+        let ribbon = match self.kind {
+            CurveKind::Round => None,
+            CurveKind::Flat => Some(RibbonRay::new(ray.origin, ray.dir)),
+        };
+        Ok(Query { ray, scale, ribbon })
     }
 
     /// The closest hit on a strand accepted by `accept(strand, opacity)`, with `t` in the caller's units.
@@ -94,25 +84,55 @@ impl BvhTracer {
         ray: &Ray,
         accept: impl Fn(u32, f32) -> bool,
     ) -> Result<Option<Hit>, InvalidRay> {
-        let (traced, scale) = traced_ray(ray)?;
-        let ribbon = RibbonRay::new(traced.origin, traced.dir);
+        let q = self.query(ray)?;
         let mut best = None;
-        self.bvh.closest(&traced, |p, tfar| {
+        self.bvh.closest(&q.ray, |p, tfar| {
             if !accept(p.strand, p.opacity) {
                 return None;
             }
-            let hit = self.test(&traced, &ribbon, p, tfar)?;
+            let hit = q.test(p, tfar)?;
             best = Some((p.segment, p.strand, hit));
             Some(hit.t)
         });
         Ok(best.map(|(segment, strand, h)| Hit {
-            t: h.t / scale,
+            t: h.t / q.scale,
             segment,
             strand,
             u: h.u,
             v: h.v,
             ng: h.ng,
         }))
+    }
+}
+
+/// A query's ray ([`BvhTracer::query`]): the traced ray, the factor its direction was scaled down by, and for
+/// flat curves its ray space (`None`: round curves).
+struct Query {
+    ray: Ray,
+    scale: f32,
+    ribbon: Option<RibbonRay>,
+}
+
+impl Query {
+    /// The ray–curve test of one leaf entry over `[ray.tnear, tfar]`.
+    #[inline]
+    fn test(&self, p: &Primitive, tfar: f32) -> Option<CurveHit> {
+        let (r, cp) = (&self.ray, p.control_points);
+        match &self.ribbon {
+            None => round::intersect(r.origin, r.dir, r.tnear, tfar, cp),
+            Some(ribbon) => flat::intersect_prepared(ribbon, r.tnear, tfar, cp),
+        }
+    }
+
+    /// Whether the ray hits the leaf entry's curve in `[ray.tnear, tfar]` (the answer of [`Query::test`], found
+    /// sooner on round curves: their search ends at the first root).
+    #[inline]
+    fn occludes(&self, p: &Primitive, tfar: f32) -> bool {
+        let (r, cp) = (&self.ray, p.control_points);
+        match &self.ribbon {
+            None => round::occludes(r.origin, r.dir, r.tnear, tfar, cp),
+            Some(ribbon) => flat::intersect_prepared(ribbon, r.tnear, tfar, cp).is_some(),
+        }
     }
 }
 
@@ -196,11 +216,10 @@ impl Tracer for BvhTracer {
     }
 
     fn transmittance(&self, ray: &Ray, ignore_strand: Option<u32>) -> Result<f32, InvalidRay> {
-        let (traced, _) = traced_ray(ray)?;
-        let ribbon = RibbonRay::new(traced.origin, traced.dir);
+        let q = self.query(ray)?;
         let mut seen = Seen::new(ignore_strand);
-        self.bvh.for_each(&traced, |p, tfar| {
-            if seen.skips(p.strand, p.opacity) || !self.occludes(&traced, &ribbon, p, tfar) {
+        self.bvh.for_each(&q.ray, |p, tfar| {
+            if seen.skips(p.strand, p.opacity) || !q.occludes(p, tfar) {
                 return Control::Continue;
             }
             seen.count(p.strand, p.opacity)
@@ -225,12 +244,11 @@ impl Tracer for BvhTracer {
         ignore_strand: Option<u32>,
         key: u64,
     ) -> Result<bool, InvalidRay> {
-        let (traced, _) = traced_ray(ray)?;
-        let ribbon = RibbonRay::new(traced.origin, traced.dir);
-        Ok(self.bvh.for_each(&traced, |p, tfar| {
+        let q = self.query(ray)?;
+        Ok(self.bvh.for_each(&q.ray, |p, tfar| {
             let present =
                 Some(p.strand) != ignore_strand && strand_present(key, p.strand, p.opacity);
-            if present && self.occludes(&traced, &ribbon, p, tfar) {
+            if present && q.occludes(p, tfar) {
                 Control::Stop
             } else {
                 Control::Continue
