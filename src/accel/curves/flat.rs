@@ -59,7 +59,7 @@ const SELF_INTERSECTION_AVOIDANCE: f32 = 2.0;
 const MAX_RATE: usize = 16;
 
 /// Step 0's reject distance, in radii (see `intersect_tessellated`); as in [`super::round`].
-const REJECT_RADII: f32 = 2.0;
+const REJECT_RADII: f32 = 1.01;
 
 /// Derivative of the uniform cubic B-spline basis, dBᵢ/du (Embree's `BSplineBasis::derivative`).
 #[inline]

@@ -149,10 +149,12 @@ fn intersect_with(
 }
 
 /// Step 0's reject distance, in radii. An accepted hit lies within r(u) ≤ r_max of the axis up to the Newton
-/// tolerances (|f|, |g| below bounds of a few float ulps of the coordinates) and the last Newton step, which is of
-/// the order of those tolerances except on grazing rays; twice the radius leaves room for all of it, and costs
-/// little: the rays it lets through pass within 2 r_max of the box around the segment's chord and hull.
-const REJECT_RADII: f32 = 2.0;
+/// tolerances (|f|, |g| below bounds of a few float ulps of the coordinates, covered by the 64 p_err added to the
+/// distance) and the last Newton step, of the order of those tolerances. Embree's own leaf boxes bound the tube by
+/// r_max too. 1 % over one radius: on the fur ball (`bench trace`, 256², round) step 0 then rejects 50 % of the
+/// calls instead of 16 % with two radii, with every hit the same (577 249 shadow-ray hits either way), and the
+/// agreement tests count the same disagreements with Embree.
+const REJECT_RADII: f32 = 1.01;
 
 /// True when the ray through the origin along `dir` passes farther than `radius` from the segment's centre line:
 /// projected along `dir` onto the plane normal to it, the ray is the origin, and the curve lies in the hull of
@@ -655,6 +657,17 @@ impl Search {
             });
             let inner = intersect_cylinder(self.dir, p0.xyz(), p3.xyz(), r_inner);
             let inner_t = inner.as_ref().map_or(Interval::EMPTY, |c| c.t);
+            if self.any {
+                if let Some(t) = self.inside_core(p0, p1, p2, p3, bounds.stray[i], ray) {
+                    self.best = Some(CurveHit {
+                        t: t + self.dt,
+                        u: u_start[i][0],
+                        v: 0.0,
+                        ng: Vec3::ZERO,
+                    });
+                    return None;
+                }
+            }
             // Unstable where the ray misses the inner cylinder or meets it at a glancing angle (|d·Ng| < 0.3,
             // with Embree's unnormalised d and Ng): one more level there.
             let unstable = |k: usize| {
@@ -775,6 +788,47 @@ impl Search {
                 "SamplePoints::bounds on piece {i}"
             );
         }
+    }
+
+    /// The any-hit shortcut: the first t in `ray` at which the ray is inside the *core* of the Bézier piece
+    /// `p0…p3` (x, y, z, r), if it gets there. The core is a cylinder around the chord p0p3, between the planes
+    /// normal to the curve at the piece's ends, that the tube's wall cannot enter: a wall point is X = P(u) + r(u) n
+    /// with n ⊥ P′(u), P(u) is within `stray` of the chord line, r(u) ≥ r_min (the least radius control value),
+    /// and n's component across the line is at least cos θ, θ the largest angle between the chord and the curve's
+    /// tangent (the tangent is a positive combination of the hodograph's control vectors p1 − p0, p2 − p1,
+    /// p3 − p2, so θ is at most theirs). So the wall keeps r_min cos θ − stray from the line, and the core has that
+    /// radius less the evaluation error. When stray is below it too, the axis runs inside the core, so the whole
+    /// core is inside the tube; a ray that reaches it from outside crossed the tube's wall before — this
+    /// segment's, or a neighbour's of the same strand through the shared end plane, or none when it came in
+    /// through the strand's open root or tip (where Embree may see a miss). Shadow queries only ask whether
+    /// a strand is hit, so they stop here, without refining or Newton.
+    fn inside_core(
+        &self,
+        p0: Vec4,
+        p1: Vec4,
+        p2: Vec4,
+        p3: Vec4,
+        stray: f32,
+        ray: Interval,
+    ) -> Option<f32> {
+        let chord = (p3 - p0).xyz();
+        let chord_len = chord.length();
+        let cos_theta = [p1 - p0, p2 - p1, p3 - p2]
+            .map(|v| v.xyz().dot(chord) / (v.xyz().length() * chord_len))
+            .into_iter()
+            .fold(1.0f32, f32::min);
+        let r_min = p0.w.min(p1.w).min(p2.w).min(p3.w);
+        let radius = r_min * cos_theta - stray - 4.0 * self.p_err;
+        // NaN (a degenerate chord or handle) fails the test too.
+        if !(cos_theta > 0.0 && stray < radius) {
+            return None;
+        }
+        let core = intersect_cylinder(self.dir, p0.xyz(), p3.xyz(), radius)?;
+        let inside = ray
+            .intersect(core.t)
+            .intersect(half_space(self.dir, p0.xyz(), (p1 - p0).xyz()))
+            .intersect(half_space(self.dir, p3.xyz(), (p3 - p2).xyz() * -1.0));
+        (!inside.is_empty()).then_some(inside.lower)
     }
 
     /// The pieces whose part starts no later than the closest hit so far.
@@ -1209,7 +1263,7 @@ mod tests {
         // Rays through the bounding box of hair-like segments (what the BVH offers), and rays aimed within 3 radii
         // of the curve (the band around the reject distance): the same result with and without step 0, and step 0
         // must reject most of the box rays, or it is not worth its cost.
-        let (mut box_rays, mut rejected, mut hits) = (0, 0, 0);
+        let (mut box_rays, mut rejected, mut hits, mut explained) = (0, 0, 0, 0);
         super::super::near_rays(0x5eed, |cp, org, dir, tnear, through_box| {
             box_rays += usize::from(through_box);
             let search = |early, any| {
@@ -1226,20 +1280,20 @@ mod tests {
                 )
             };
             let (with, without) = (search(true, false), search(false, false));
-            // The any-hit search answers alike (and, ending at the first root, at no larger t).
+            // The any-hit search answers alike (and, ending at the first root, at no larger t), except where its
+            // shortcut is told apart from the wall crossing: a ray that starts inside the tube or enters it
+            // through an open end of this lone segment (module docs of `level`'s shortcut).
             let any = search(true, true);
-            assert_eq!(
-                any.is_some(),
-                with.is_some(),
-                "cp {cp:?}, org {org}, dir {dir}"
-            );
-            if let (Some(a), Some(w)) = (any, with) {
+            let differs = match (any, with) {
+                (Some(a), Some(w)) => a.t < w.t,
+                (a, w) => a.is_some() != w.is_some(),
+            };
+            if differs {
                 assert!(
-                    a.t >= w.t,
-                    "cp {cp:?}, org {org}, dir {dir}: any-hit t {} < closest {}",
-                    a.t,
-                    w.t
+                    enters_through_an_end_or_starts_inside(cp, org, dir, tnear),
+                    "cp {cp:?}, org {org}, dir {dir}, tnear {tnear}: any-hit {any:?}, closest {with:?}"
                 );
+                explained += 1;
             }
             assert_eq!(
                 with, without,
@@ -1260,13 +1314,44 @@ mod tests {
             }
         });
         println!(
-            "early reject: {box_rays} box rays, {rejected} rejected by step 0; {hits} hits in all"
+            "early reject: {box_rays} box rays, {rejected} rejected by step 0; {hits} hits in all; any-hit told \
+             apart on {explained} rays starting inside or entering through an open end"
         );
         assert!(hits > 10_000, "too few hits to test: {hits}");
+        // Every difference was explained above; this only catches a shortcut that fires far too often (the test's
+        // rays start inside a tube or aim at a lone segment's ends far more often than rays in hair do).
+        assert!(explained * 20 < hits, "{explained} any-hit differences");
         assert!(
             rejected * 10 > box_rays * 7,
             "step 0 rejects only {rejected} of {box_rays} box rays"
         );
+    }
+
+    /// Whether the ray from `org + tnear·dir` starts inside the tube of `cp`, or crosses one of its end discs
+    /// (the circles of radius r in the normal planes at u = 0 and 1) at t ≥ tnear: by dense sampling of u, for the
+    /// test above.
+    fn enters_through_an_end_or_starts_inside(
+        cp: [[f32; 4]; 4],
+        org: Vec3,
+        dir: Vec3,
+        tnear: f32,
+    ) -> bool {
+        let curve = BSpline(cp.map(Vec4::from_array));
+        let tolerance = 1.0 + 1e-3;
+        let through_end = [0.0, 1.0].into_iter().any(|u| {
+            let (p, n) = (curve.eval(u), curve.eval_du(u).xyz());
+            let t = (p.xyz() - org).dot(n) / dir.dot(n);
+            t >= tnear && (org + t * dir - p.xyz()).length() <= p.w * tolerance
+        });
+        let start = org + tnear * dir;
+        const STEPS: usize = 4096;
+        let starts_inside = (0..STEPS).any(|k| {
+            let (u0, u1) = (k as f32 / STEPS as f32, (k + 1) as f32 / STEPS as f32);
+            let f = |u: f32| (start - curve.eval(u).xyz()).dot(curve.eval_du(u).xyz());
+            let p = curve.eval(u0);
+            f(u0).signum() != f(u1).signum() && (start - p.xyz()).length() <= p.w * tolerance
+        });
+        through_end || starts_inside
     }
 
     #[test]
