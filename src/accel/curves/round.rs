@@ -657,16 +657,15 @@ impl Search {
             });
             let inner = intersect_cylinder(self.dir, p0.xyz(), p3.xyz(), r_inner);
             let inner_t = inner.as_ref().map_or(Interval::EMPTY, |c| c.t);
-            if self.any {
-                if let Some(t) = self.inside_core(p0, p1, p2, p3, bounds.stray[i], ray) {
-                    self.best = Some(CurveHit {
-                        t: t + self.dt,
-                        u: u_start[i][0],
-                        v: 0.0,
-                        ng: Vec3::ZERO,
-                    });
-                    return None;
-                }
+            let core = self.inside_core(p0, p1, p2, p3, bounds.stray[i], ray);
+            if let (true, Some(t)) = (self.any, core) {
+                self.best = Some(CurveHit {
+                    t: t + self.dt,
+                    u: u_start[i][0],
+                    v: 0.0,
+                    ng: Vec3::ZERO,
+                });
+                return None;
             }
             // Unstable where the ray misses the inner cylinder or meets it at a glancing angle (|d·Ng| < 0.3,
             // with Embree's unnormalised d and Ng): one more level there.
@@ -680,6 +679,25 @@ impl Search {
                 lower: tp.lower,
                 upper: tp.upper.min(inner_t.lower),
             };
+            // Closest-hit shortcut: a ray that reaches the piece's core at t_core crossed the wall before it, in the
+            // front part (`inside_core`). Newton from the front part's start, as at the last level; a root at or
+            // before t_core is that crossing, found without refining. Otherwise the piece is refined as usual.
+            if let Some(t_core) = core {
+                let term_depth = if unstable(0) {
+                    max_depth + 1
+                } else {
+                    max_depth
+                };
+                if !front.is_empty() && depth < term_depth {
+                    if let Some(hit) = self.solve(u_start[i][0], front.lower) {
+                        if hit.t - self.dt <= t_core {
+                            self.best = Some(hit);
+                            self.tfar = hit.t;
+                            continue;
+                        }
+                    }
+                }
+            }
             let back = Interval {
                 lower: tp.lower.max(inner_t.upper),
                 upper: tp.upper,
@@ -844,10 +862,19 @@ impl Search {
 
     /// Newton iterations on (u, t) for f = g = 0 (module docs) from (`u`, `t`), t relative to the moved origin.
     /// Records the hit and shortens tfar when a root in range is found.
-    fn newton(&mut self, mut u: f32, mut t: f32) {
+    fn newton(&mut self, u: f32, t: f32) {
         if self.any && self.best.is_some() {
             return;
         }
+        if let Some(hit) = self.solve(u, t) {
+            self.best = Some(hit);
+            self.tfar = hit.t;
+        }
+    }
+
+    /// The Newton iterations of [`Search::newton`] without recording: the root they converge to from (`u`, `t`),
+    /// if it lies in [tnear, tfar] with u ∈ [0, 1].
+    fn solve(&self, mut u: f32, mut t: f32) -> Option<CurveHit> {
         let dir = self.dir;
         let dir_len = dir.length();
         for _ in 0..NEWTON_ITERATIONS {
@@ -894,22 +921,21 @@ impl Search {
                 let t_hit = t + self.dt;
                 // Written so that NaNs are rejected.
                 if !((self.tnear..=self.tfar).contains(&t_hit) && (0.0..=1.0).contains(&u)) {
-                    return;
+                    return None;
                 }
                 // Ng = (P′ × R̂) × (P′ + r′ R̂): outward, tilted by the taper.
                 let r_hat = (q - p.xyz()).normalize();
                 let along = d1 + dpdu.w * r_hat;
                 let around = d1.cross(r_hat);
-                self.best = Some(CurveHit {
+                return Some(CurveHit {
                     t: t_hit,
                     u,
                     v: 0.0,
                     ng: around.cross(along),
                 });
-                self.tfar = t_hit;
-                return;
             }
         }
+        None
     }
 }
 
