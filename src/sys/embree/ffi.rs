@@ -25,6 +25,20 @@ pub(super) const RTC_INVALID_GEOMETRY_ID: u32 = u32::MAX;
 /// The query context Embree hands to filter functions: `RTCIntersectContext` in Embree 3.
 #[cfg(not(embree4))]
 pub(super) type QueryContext = RTCIntersectContext;
+/// Mirrors `rtcInitIntersectContext` (`embree3/rtcore_common.h`, an inline function).
+///
+/// Starting from the zeroed `Default` also sets `instStackSize` and `minWidthDistanceFactor` to 0 in builds that
+/// have them (`RTC_MAX_INSTANCE_LEVEL_COUNT > 1`, `RTC_MIN_WIDTH`), as the header does.
+#[cfg(not(embree4))]
+#[allow(clippy::field_reassign_with_default)] // which fields exist depends on Embree's build options
+pub(super) fn init_query_context() -> QueryContext {
+    let mut context = RTCIntersectContext::default();
+    context.flags = RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+    context.filter = None;
+    context.instID.fill(RTC_INVALID_GEOMETRY_ID);
+    context
+}
+
 /// The query context Embree hands to filter functions: `RTCRayQueryContext` in Embree 4, followed by room for the
 /// `instPrimID[RTC_MAX_INSTANCE_LEVEL_COUNT]` that Embree ≥ 4.3 built with instance arrays appends to it.
 ///
@@ -135,5 +149,15 @@ mod tests {
         let context = init_query_context();
         assert_eq!(context.raw.instID, [RTC_INVALID_GEOMETRY_ID; 1]);
         assert_eq!(context.inst_prim_id, [RTC_INVALID_GEOMETRY_ID; 1]);
+    }
+
+    #[test]
+    fn the_library_is_embree_4() {
+        let device = super::super::Device::new().expect("device");
+        assert_eq!(
+            device.version().0,
+            4,
+            "built with Embree 4 headers, linked to {device:?}"
+        );
     }
 }
