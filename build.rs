@@ -3,7 +3,7 @@
 //! packages to install.
 
 use std::env;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 const APT_HINT: &str =
     "sudo apt-get install libembree-dev libopenimageio-dev libclang-dev clang pkg-config";
@@ -20,6 +20,29 @@ struct Embree {
 }
 
 fn find_embree() -> Embree {
+    // `EMBREE_DIR` (an install prefix with `include/embree{4,3}/rtcore.h` and `lib/`) wins when set, so a custom
+    // Embree (e.g. `scripts/embree4.sh DIR`) is used even where the system has another one.
+    if let Some(dir) = env::var_os("EMBREE_DIR") {
+        let dir = PathBuf::from(dir);
+        let lib = dir.join("lib");
+        for major in [4, 3] {
+            let include = dir.join("include");
+            if include.join(format!("embree{major}/rtcore.h")).exists() {
+                println!("cargo:rustc-link-search=native={}", lib.display());
+                // The binaries find the library where they were linked against it, without LD_LIBRARY_PATH.
+                println!("cargo:rustc-link-arg=-Wl,-rpath,{}", lib.display());
+                println!("cargo:rustc-link-lib=embree{major}");
+                return Embree {
+                    major,
+                    include_dirs: vec![include],
+                };
+            }
+        }
+        fail(&format!(
+            "EMBREE_DIR={} has neither include/embree4/rtcore.h nor include/embree3/rtcore.h",
+            dir.display()
+        ));
+    }
     // Embree 4 ships a pkg-config file; Debian 12's Embree 3.13.5 ships none, so fall back to the header location.
     if let Ok(lib) = pkg_config::Config::new()
         .atleast_version("4.0")
@@ -30,11 +53,7 @@ fn find_embree() -> Embree {
             include_dirs: lib.include_paths,
         };
     }
-    let mut roots: Vec<PathBuf> = Vec::new();
-    if let Some(dir) = env::var_os("EMBREE_DIR") {
-        roots.push(PathBuf::from(dir).join("include"));
-    }
-    roots.extend(["/usr/include", "/usr/local/include"].map(PathBuf::from));
+    let roots = ["/usr/include", "/usr/local/include"].map(PathBuf::from);
     for root in &roots {
         if root.join("embree4/rtcore.h").exists() {
             println!("cargo:rustc-link-lib=embree4");
@@ -52,12 +71,6 @@ fn find_embree() -> Embree {
     }
     for root in &roots {
         if root.join("embree3/rtcore.h").exists() {
-            if let Some(dir) = env::var_os("EMBREE_DIR") {
-                println!(
-                    "cargo:rustc-link-search=native={}",
-                    Path::new(&dir).join("lib").display()
-                );
-            }
             println!("cargo:rustc-link-lib=embree3");
             return Embree {
                 major: 3,

@@ -25,10 +25,6 @@ pub(super) const RTC_INVALID_GEOMETRY_ID: u32 = u32::MAX;
 /// The query context Embree hands to filter functions: `RTCIntersectContext` in Embree 3.
 #[cfg(not(embree4))]
 pub(super) type QueryContext = RTCIntersectContext;
-/// The query context Embree hands to filter functions: `RTCRayQueryContext` in Embree 4.
-#[cfg(embree4)]
-pub(super) type QueryContext = RTCRayQueryContext;
-
 /// Mirrors `rtcInitIntersectContext` (`embree3/rtcore_common.h`, an inline function).
 ///
 /// Starting from the zeroed `Default` also sets `instStackSize` and `minWidthDistanceFactor` to 0 in builds that
@@ -43,22 +39,48 @@ pub(super) fn init_query_context() -> QueryContext {
     context
 }
 
-/// Mirrors `rtcInitRayQueryContext` (`embree4/rtcore_common.h`, an inline function).
+/// The query context Embree hands to filter functions: `RTCRayQueryContext` in Embree 4, followed by room for the
+/// `instPrimID[RTC_MAX_INSTANCE_LEVEL_COUNT]` that Embree ≥ 4.3 built with instance arrays appends to it.
 ///
-/// Embree ≥ 4.3 built with instance arrays also has `instPrimID[]`, which the header sets to
-/// `RTC_INVALID_GEOMETRY_ID`; it is left zeroed here because only instance-array traversal reads it and cuticle
-/// creates no instances. (Not compiled on Embree 3 machines; see the module docs.)
+/// Headers older than the library (4.2's with a 4.4 library, as `scripts/embree4.sh` lays out) lack that field,
+/// but the library reads it when it records a hit; with this layout it reads cuticle's own
+/// `RTC_INVALID_GEOMETRY_ID`s, not the payload that follows the context. With headers that have the field it is
+/// spare.
+#[cfg(embree4)]
+#[repr(C)]
+#[derive(Debug, Clone, Copy)]
+pub(super) struct QueryContext {
+    raw: RTCRayQueryContext,
+    inst_prim_id: [u32; RTC_MAX_INSTANCE_LEVEL_COUNT as usize],
+}
+
+/// Mirrors `rtcInitRayQueryContext` (`embree4/rtcore_common.h`, an inline function): every `instID` (and, in
+/// Embree ≥ 4.3 with instance arrays, every `instPrimID`) `RTC_INVALID_GEOMETRY_ID`. Starting from the zeroed
+/// `Default` also sets `instStackSize` to 0 in builds that have it (`RTC_MAX_INSTANCE_LEVEL_COUNT > 1`).
 #[cfg(embree4)]
 #[allow(clippy::field_reassign_with_default)] // which fields exist depends on Embree's build options
 pub(super) fn init_query_context() -> QueryContext {
-    let mut context = RTCRayQueryContext::default();
-    context.instID.fill(RTC_INVALID_GEOMETRY_ID);
-    context
+    let mut raw = RTCRayQueryContext::default();
+    raw.instID.fill(RTC_INVALID_GEOMETRY_ID);
+    QueryContext {
+        raw,
+        inst_prim_id: [RTC_INVALID_GEOMETRY_ID; RTC_MAX_INSTANCE_LEVEL_COUNT as usize],
+    }
 }
 
-/// Mirrors `rtcInitOccludedArguments` (`embree4/rtcore_scene.h`, an inline function): incoherent rays, all
+/// Mirrors `rtcInitIntersectArguments` (`embree4/rtcore_scene.h`, an inline function): incoherent rays, all
 /// features, no context, no filter, no user-geometry callback, `minWidthDistanceFactor` 0 (zeroed by `Default`).
-/// (Not compiled on Embree 3 machines; see the module docs.)
+#[cfg(embree4)]
+#[allow(clippy::field_reassign_with_default)] // which fields exist depends on Embree's build options
+pub(super) fn init_intersect_arguments() -> RTCIntersectArguments {
+    let mut args = RTCIntersectArguments::default();
+    args.flags = RTC_RAY_QUERY_FLAG_INCOHERENT;
+    args.feature_mask = RTC_FEATURE_FLAG_ALL;
+    args
+}
+
+/// Mirrors `rtcInitOccludedArguments` (`embree4/rtcore_scene.h`, an inline function): as
+/// [`init_intersect_arguments`].
 #[cfg(embree4)]
 #[allow(clippy::field_reassign_with_default)] // which fields exist depends on Embree's build options
 pub(super) fn init_occluded_arguments() -> RTCOccludedArguments {
@@ -66,6 +88,40 @@ pub(super) fn init_occluded_arguments() -> RTCOccludedArguments {
     args.flags = RTC_RAY_QUERY_FLAG_INCOHERENT;
     args.feature_mask = RTC_FEATURE_FLAG_ALL;
     args
+}
+
+/// An `RTCRayHit` followed by room for `RTCHit.instPrimID[RTC_MAX_INSTANCE_LEVEL_COUNT]`, the field Embree ≥ 4.3
+/// built with instance arrays appends to the hit (`RTC_GEOMETRY_INSTANCE_ARRAY`, `rtcore_ray.h`).
+#[cfg(embree4)]
+#[repr(C)]
+struct RayHitStorage {
+    rayhit: RTCRayHit,
+    inst_prim_id: [u32; RTC_MAX_INSTANCE_LEVEL_COUNT as usize],
+}
+
+/// `rtcIntersect1` on a copy of `rayhit` with room for `instPrimID` behind it, copied back after the call.
+///
+/// Measured: Embree 4.4 (the `embreex` wheel) writes `instPrimID[0]` at byte 80 of every hit record, right after the
+/// 80-byte `RTCRayHit` of Embree 4.2's headers (the newest on crates.io); its own `RTCRayHit` is 96 bytes. Passing
+/// a bare `RTCRayHit` would let it overwrite whatever follows on the caller's stack. `RayHitStorage` is 96 bytes
+/// with 4.2's headers, and only larger than needed with headers that have the field.
+///
+/// # Safety
+/// As `rtcIntersect1`: `scene` is a live committed scene, `args` null or valid arguments (with a context that lives
+/// through the call), and the ray within Embree's limits.
+#[cfg(embree4)]
+pub(super) unsafe fn intersect1(
+    scene: RTCScene,
+    rayhit: &mut RTCRayHit,
+    args: *mut RTCIntersectArguments,
+) {
+    let mut storage = RayHitStorage {
+        rayhit: *rayhit,
+        inst_prim_id: [RTC_INVALID_GEOMETRY_ID; RTC_MAX_INSTANCE_LEVEL_COUNT as usize],
+    };
+    // SAFETY: the caller's contract, and `storage` has room for every field Embree 4.x writes into a hit.
+    unsafe { rtcIntersect1(scene, &mut storage.rayhit, args) };
+    *rayhit = storage.rayhit;
 }
 
 /// Mirrors `RTCHitN_primID` (`rtcore_ray.h`, Embree 3 and 4; a C++-only inline accessor): the hit packet of width
@@ -77,4 +133,31 @@ pub(super) unsafe fn hit_n_prim_id(hit: *const RTCHitN, n: u32, i: u32) -> u32 {
     let index = 5 * n as usize + i as usize;
     // SAFETY: the caller guarantees a packet of width `n`, whose sixth row of `n` u32s holds primID, and `i < n`.
     unsafe { *hit.cast::<u32>().add(index) }
+}
+
+#[cfg(all(test, embree4))]
+mod tests {
+    use super::*;
+    use std::mem::size_of;
+
+    #[test]
+    fn hit_and_context_have_room_for_inst_prim_id() {
+        // Embree 4.4 built with instance arrays, one instance level: RTCRayHit is 96 bytes (a 48-byte ray and a
+        // 36-byte hit padded to 48) and RTCRayQueryContext 8 (instID[1], instPrimID[1]).
+        assert!(size_of::<RayHitStorage>() >= 96);
+        assert!(size_of::<QueryContext>() >= size_of::<RTCRayQueryContext>() + 4);
+        let context = init_query_context();
+        assert_eq!(context.raw.instID, [RTC_INVALID_GEOMETRY_ID; 1]);
+        assert_eq!(context.inst_prim_id, [RTC_INVALID_GEOMETRY_ID; 1]);
+    }
+
+    #[test]
+    fn the_library_is_embree_4() {
+        let device = super::super::Device::new().expect("device");
+        assert_eq!(
+            device.version().0,
+            4,
+            "built with Embree 4 headers, linked to {device:?}"
+        );
+    }
 }

@@ -2,8 +2,8 @@
 //!
 //! Embree 3.13 (Debian 12) is the version this module is built and tested against. When `build.rs` finds Embree 4
 //! it sets `cfg(embree4)`; the Embree 4 paths below (`#[cfg(embree4)]`) follow the Embree 4 headers
-//! (`rtcore_common.h`, `rtcore_ray.h`, `rtcore_scene.h`) but have **never been compiled** on the machines this crate
-//! is developed on, which have no Embree 4: expect to fix small type mismatches the first time they are built.
+//! (`rtcore_common.h`, `rtcore_ray.h`, `rtcore_scene.h`) and are built and tested against Embree 4.4 with 4.2's
+//! headers (`scripts/embree4.sh`, run by `.ci/run`); `ffi.rs` leaves room for the fields 4.3+ added.
 //!
 //! # Objects and who owns what
 //! - [`Device`]: one Embree device. Its error callback and memory monitor write into a boxed state that the device

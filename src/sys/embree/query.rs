@@ -122,7 +122,7 @@ impl CommittedScene {
         #[cfg(embree4)]
         {
             let mut args = init_occluded_arguments();
-            args.context = context;
+            args.context = context.cast::<RTCRayQueryContext>();
             args.filter = Some(stochastic_filter::<P>);
             args.flags |= RTC_RAY_QUERY_FLAG_INVOKE_ARGUMENT_FILTER;
             // SAFETY: as for Embree 3, with the filter passed in the arguments.
@@ -162,17 +162,15 @@ impl CommittedScene {
         {
             match query {
                 Some(q) => {
-                    let mut args = RTCIntersectArguments::default();
-                    args.flags =
-                        RTC_RAY_QUERY_FLAG_INCOHERENT | RTC_RAY_QUERY_FLAG_INVOKE_ARGUMENT_FILTER;
-                    args.feature_mask = RTC_FEATURE_FLAG_ALL;
-                    args.context = ptr::from_mut(q).cast::<QueryContext>();
+                    let mut args = init_intersect_arguments();
+                    args.flags |= RTC_RAY_QUERY_FLAG_INVOKE_ARGUMENT_FILTER;
+                    args.context = ptr::from_mut(q).cast::<RTCRayQueryContext>();
                     args.filter = Some(stochastic_filter::<P>);
                     // SAFETY: as for Embree 3, with the filter passed in the arguments.
-                    unsafe { rtcIntersect1(self.raw(), &mut rayhit, &mut args) };
+                    unsafe { intersect1(self.raw(), &mut rayhit, &mut args) };
                 }
                 // SAFETY: as for Embree 3; null arguments select Embree's defaults (no filter).
-                None => unsafe { rtcIntersect1(self.raw(), &mut rayhit, ptr::null_mut()) },
+                None => unsafe { intersect1(self.raw(), &mut rayhit, ptr::null_mut()) },
             }
         }
         let hit = rayhit.hit;
@@ -213,7 +211,7 @@ impl CommittedScene {
         #[cfg(embree4)]
         {
             let mut args = init_occluded_arguments();
-            args.context = context;
+            args.context = context.cast::<RTCRayQueryContext>();
             args.filter = Some(transmittance_filter);
             args.flags |= RTC_RAY_QUERY_FLAG_INVOKE_ARGUMENT_FILTER;
             // SAFETY: as for Embree 3, with the filter passed in the arguments (scene flag
