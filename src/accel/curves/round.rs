@@ -28,7 +28,7 @@
 //!
 //! 1. Move the ray origin to the point of the ray nearest the control points' centroid (t offset `dt`), so the
 //!    numbers stay small. (Ours, not Embree's, which culls with the BVH's oriented boxes:) return no hit if the
-//!    ray passes farther than 2 r_max from the box along the chord of the segment's Bézier control points,
+//!    ray passes farther than 1.01 r_max from the box along the chord of the segment's Bézier control points,
 //!    seen along the ray (`origin_far_from_chord_box` in `curves`): most calls the BVH makes are such near misses.
 //! 2. Split [u0, u1] into [`PIECES`] pieces; each piece is the Bézier curve of its end points and end
 //!    derivatives. Bound it by an *outer* cylinder around the chord (max radius plus the Bézier handles' distance
