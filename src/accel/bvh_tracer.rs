@@ -125,13 +125,13 @@ impl Query {
     }
 
     /// Whether the ray hits the leaf entry's curve in `[ray.tnear, tfar]` (the answer of [`Query::test`], found
-    /// sooner on round curves: their search ends at the first root).
+    /// sooner: both searches end at the first hit).
     #[inline]
     fn occludes(&self, p: &Primitive, tfar: f32) -> bool {
         let (r, cp) = (&self.ray, p.control_points);
         match &self.ribbon {
             None => round::occludes(r.origin, r.dir, r.tnear, tfar, cp),
-            Some(ribbon) => flat::intersect_prepared(ribbon, r.tnear, tfar, cp).is_some(),
+            Some(ribbon) => flat::occludes_prepared(ribbon, r.tnear, tfar, cp),
         }
     }
 }

@@ -188,11 +188,18 @@ pub fn intersect_prepared(
     tfar: f32,
     cp: [[f32; 4]; 4],
 ) -> Option<CurveHit> {
-    intersect_tessellated(ray, tnear, tfar, cp, TESSELLATION_RATE, true)
+    intersect_tessellated(ray, tnear, tfar, cp, TESSELLATION_RATE, true, false)
+}
+
+/// Whether [`intersect_prepared`] would find a hit: the same quads, ended at the first quad hit instead of going on
+/// for the closest (what shadow queries need).
+pub fn occludes_prepared(ray: &RibbonRay, tnear: f32, tfar: f32, cp: [[f32; 4]; 4]) -> bool {
+    intersect_tessellated(ray, tnear, tfar, cp, TESSELLATION_RATE, true, true).is_some()
 }
 
 /// [`intersect`] with `rate` quads per segment instead of Embree's (the tests show that the rate matters);
-/// `early_reject: false` skips step 0 (the tests check that it changes nothing).
+/// `early_reject: false` skips step 0 (the tests check that it changes nothing); `any` returns the first quad hit
+/// found rather than the closest.
 fn intersect_tessellated(
     ray: &RibbonRay,
     tnear: f32,
@@ -200,6 +207,7 @@ fn intersect_tessellated(
     cp: [[f32; 4]; 4],
     rate: usize,
     early_reject: bool,
+    any: bool,
 ) -> Option<CurveHit> {
     let (org, (rx, ry, rz), depth_scale) = (ray.org, ray.rows, ray.depth_scale);
     let mut q = [Vec4::ZERO; 4];
@@ -273,6 +281,9 @@ fn intersect_tessellated(
         }
         if best.map_or(true, |(bt, _, _)| t < bt) {
             best = Some((t, (j as f32 + u) / n, v));
+            if any {
+                break;
+            }
         }
     }
 
@@ -469,6 +480,7 @@ mod tests {
                 cp,
                 rate,
                 true,
+                false,
             ) {
                 if best.map_or(true, |b| h.t < b.0) {
                     best = Some((h.t, segment as u32, h.u, h.v, h.ng));
@@ -688,7 +700,7 @@ mod tests {
         let (mut box_rays, mut box_misses, mut rejected, mut hits) = (0, 0, 0, 0);
         super::super::near_rays(0x5eed_f1a7, |cp, org, dir, tnear, through_box| {
             box_rays += usize::from(through_box);
-            let run = |reject| {
+            let run = |reject, any| {
                 intersect_tessellated(
                     &RibbonRay::new(org, dir),
                     tnear,
@@ -696,13 +708,24 @@ mod tests {
                     cp,
                     TESSELLATION_RATE,
                     reject,
+                    any,
                 )
             };
-            let (with, without) = (run(true), run(false));
+            let (with, without) = (run(true, false), run(false, false));
             assert_eq!(
                 with, without,
                 "cp {cp:?}, org {org}, dir {dir}, tnear {tnear}"
             );
+            // The any-hit search answers alike, at no smaller t than the closest hit.
+            let any = run(true, true);
+            assert_eq!(
+                any.is_some(),
+                with.is_some(),
+                "cp {cp:?}, org {org}, dir {dir}"
+            );
+            if let (Some(a), Some(w)) = (any, with) {
+                assert!(a.t >= w.t, "cp {cp:?}, org {org}, dir {dir}");
+            }
             hits += usize::from(with.is_some());
             if through_box && with.is_none() {
                 box_misses += 1;
