@@ -38,6 +38,7 @@ use crate::accel::{CurveKind, Tracer};
 use crate::bsdf::chiang::{h_from_normal, h_from_ribbon};
 use crate::bsdf::frame::{sin_cos_theta, strand_noise, HairFrame};
 use crate::bsdf::{Bsdf, HitBsdf, Lobe, LobeValues, Material};
+use crate::hair::strands::tube_exit;
 use crate::hair::Strands;
 use crate::light::{Distribution1D, Light};
 use crate::ray::Ray;
@@ -141,6 +142,8 @@ enum Surface {
         /// Multiplies the diffuse lobe (the strand colour, or 1).
         tint: Vec3,
         strand: u32,
+        /// The fibre's axis point at the hit (the curve's centre line at the hit's u).
+        axis: Vec3,
         /// Fibre radius at the hit.
         radius: f32,
         /// Offset h = sin γo of the hit across the fibre, for models that read it ([`Material::uses_offset`];
@@ -223,6 +226,9 @@ pub struct Integrator<'a> {
     /// Whether a material sample can add direct light: false when the strategy is light-only or every light is a
     /// delta light (then material samples are traced only to continue paths).
     material_finds_light: bool,
+    /// Every strand is opaque (opacity 1): rays leaving a fibre start past its local tube ([`tube_exit`]) instead
+    /// of ignoring the whole strand, so that the tracer can trace them without a filter.
+    skip_by_tube: bool,
 }
 
 /// Adds `weights ⊙ scale` lobe by lobe.
@@ -256,6 +262,7 @@ impl<'a> Integrator<'a> {
             maps,
             material_finds_light: settings.strategy != Strategy::Light
                 && lights.iter().any(|l| !l.is_delta()),
+            skip_by_tube: frame.strands.all_opaque(),
         }
     }
 
@@ -298,6 +305,7 @@ impl<'a> Integrator<'a> {
                 frame,
                 tint,
                 strand: hit.strand,
+                axis: point.position,
                 radius: point.radius,
                 h,
             },
@@ -363,18 +371,36 @@ impl<'a> Integrator<'a> {
         }
     }
 
-    /// Origin and strand to skip for rays leaving `v` along `wi`.
+    /// Origin, tnear and strand to skip for rays leaving `v` along `wi`. A hair ray skips its own fibre: past the
+    /// local tube when every strand is opaque and [`tube_exit`] is defined (the tracer then needs no filter; the
+    /// strand can still shadow itself where it curls back, as in the peers), otherwise by ignoring the strand.
     #[inline]
-    fn spawn(&self, v: &Vertex, wi: Vec3) -> (Vec3, Option<u32>) {
+    fn spawn(&self, v: &Vertex, wi: Vec3) -> (Vec3, f32, Option<u32>) {
         match v.surface {
-            Surface::Hair { strand, .. } => (v.p, Some(strand)),
+            Surface::Hair {
+                strand,
+                frame,
+                axis,
+                radius,
+                ..
+            } => {
+                let exit = if self.skip_by_tube {
+                    tube_exit(v.p, wi, axis, frame.u, radius)
+                } else {
+                    None
+                };
+                match exit {
+                    Some(t) => (v.p, t, None),
+                    None => (v.p, 0.0, Some(strand)),
+                }
+            }
             Surface::Lambert { normal, .. } => {
                 let side = if normal.dot(wi) >= 0.0 {
                     normal
                 } else {
                     -normal
                 };
-                (v.p + side * self.epsilon, None)
+                (v.p + side * self.epsilon, 0.0, None)
             }
         }
     }
