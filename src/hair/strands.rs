@@ -218,7 +218,9 @@ pub fn tube_exit(origin: Vec3, dir: Vec3, axis: Vec3, tangent: Vec3, radius: f32
     let w_perp = w - tangent * w.dot(tangent);
     let d_perp = dir - tangent * dir.dot(tangent);
     let a = d_perp.length_squared();
-    if !(a >= TUBE_MIN_SIN * TUBE_MIN_SIN * dir.length_squared()) || !(radius > 0.0) {
+    // Written so that NaNs fail too.
+    let defined = a >= TUBE_MIN_SIN * TUBE_MIN_SIN * dir.length_squared() && radius > 0.0;
+    if !defined {
         return None;
     }
     let r = radius * (1.0 + TUBE_MARGIN);
