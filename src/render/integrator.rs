@@ -35,7 +35,7 @@
 use glam::Vec3;
 
 use crate::accel::{CurveKind, Tracer};
-use crate::bsdf::chiang::{h_from_normal, h_from_ribbon};
+use crate::bsdf::chiang::{h_from_normal, h_from_ribbon, Chiang, ChiangView};
 use crate::bsdf::frame::{sin_cos_theta, strand_noise, HairFrame};
 use crate::bsdf::{Bsdf, HitBsdf, Lobe, LobeValues, Material};
 use crate::hair::strands::tube_exit;
@@ -135,6 +135,9 @@ pub struct PathSample {
 
 /// A shading point's scattering: a hair fibre (hair frame, strand tint on the diffuse lobe) or a two-sided Lambert
 /// surface.
+// The hair variant carries the Chiang view (~150 bytes): a vertex lives on the stack for one path step, and
+// boxing it would allocate per vertex.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, Copy)]
 enum Surface {
     Hair {
@@ -149,6 +152,9 @@ enum Surface {
         /// Offset h = sin γo of the hit across the fibre, for models that read it ([`Material::uses_offset`];
         /// 0 otherwise).
         h: f32,
+        /// Chiang et al.'s terms of this ωo and h, computed once for every light sample, material sample and pdf
+        /// of the vertex (`None` for the other models).
+        chiang: Option<ChiangView>,
     },
     Lambert {
         /// The normal on the side the light leaves towards (facing ωo).
@@ -229,6 +235,15 @@ pub struct Integrator<'a> {
     /// Every strand is opaque (opacity 1): rays leaving a fibre start past its local tube ([`tube_exit`]) instead
     /// of ignoring the whole strand, so that the tracer can trace them without a filter.
     skip_by_tube: bool,
+    /// The material's Chiang et al. model, whose per-vertex terms a vertex keeps ([`ChiangView`]).
+    chiang: Option<&'a Chiang>,
+}
+
+/// f · cos θi per lobe from f per lobe at local `wi_l`, the diffuse lobe tinted by `tint`.
+#[inline]
+fn fcos(mut lobes: LobeValues, tint: Vec3, wi_l: Vec3) -> LobeValues {
+    lobes.diffuse *= tint;
+    lobes.scaled(sin_cos_theta(wi_l).1)
 }
 
 /// Adds `weights ⊙ scale` lobe by lobe.
@@ -263,6 +278,10 @@ impl<'a> Integrator<'a> {
             material_finds_light: settings.strategy != Strategy::Light
                 && lights.iter().any(|l| !l.is_delta()),
             skip_by_tube: frame.strands.all_opaque(),
+            chiang: match frame.material.at(0.0) {
+                HitBsdf::Chiang(fibre) => Some(fibre.model()),
+                HitBsdf::Fixed(_) => None,
+            },
         }
     }
 
@@ -298,11 +317,15 @@ impl<'a> Integrator<'a> {
         } else {
             Vec3::ONE
         };
+        let chiang = self
+            .chiang
+            .map(|model| model.at(h).viewed(frame.to_local(wo)));
         Vertex {
             p: ray.at(hit.t),
             wo,
             surface: Surface::Hair {
                 frame,
+                chiang,
                 tint,
                 strand: hit.strand,
                 axis: point.position,
@@ -315,16 +338,25 @@ impl<'a> Integrator<'a> {
     /// f · cos θi per lobe of the hair material, in the local frame, the diffuse lobe tinted.
     #[inline]
     fn hair_fcos(&self, bsdf: &HitBsdf, tint: Vec3, wo_l: Vec3, wi_l: Vec3) -> LobeValues {
-        let mut lobes = bsdf.eval_lobes(wo_l, wi_l);
-        lobes.diffuse *= tint;
-        lobes.scaled(sin_cos_theta(wi_l).1)
+        fcos(bsdf.eval_lobes(wo_l, wi_l), tint, wi_l)
     }
 
     /// f · cos θi per lobe, and the material's sampling pdf, for light leaving `v` along ωo arriving from `wi`.
     #[inline]
     fn eval(&self, v: &Vertex, wi: Vec3) -> (LobeValues, f32) {
         match v.surface {
-            Surface::Hair { frame, tint, h, .. } => {
+            Surface::Hair {
+                frame,
+                tint,
+                h,
+                chiang,
+                ..
+            } => {
+                if let (Some(model), Some(view)) = (self.chiang, chiang.as_ref()) {
+                    let wi_l = frame.to_local(wi);
+                    let (lobes, pdf) = model.eval_viewed(view, wi_l);
+                    return (fcos(lobes, tint, wi_l), pdf);
+                }
                 let (wo_l, wi_l) = (frame.to_local(v.wo), frame.to_local(wi));
                 let bsdf = self.material.at(h);
                 (
@@ -350,7 +382,18 @@ impl<'a> Integrator<'a> {
     #[inline]
     fn sample_material(&self, v: &Vertex, u: [f32; 3]) -> Option<(Vec3, LobeValues, f32)> {
         match v.surface {
-            Surface::Hair { frame, tint, h, .. } => {
+            Surface::Hair {
+                frame,
+                tint,
+                h,
+                chiang,
+                ..
+            } => {
+                if let (Some(model), Some(view)) = (self.chiang, chiang.as_ref()) {
+                    let (s, lobes) = model.sample_viewed(view, u)?;
+                    let lobes = fcos(lobes, tint, s.wi);
+                    return Some((frame.to_world(s.wi).normalize(), lobes, s.pdf));
+                }
                 let wo_l = frame.to_local(v.wo);
                 let bsdf = self.material.at(h);
                 let s = bsdf.sample(wo_l, u)?;

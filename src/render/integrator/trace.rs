@@ -9,6 +9,7 @@ use super::mis::Mis;
 use super::{Integrator, RayCounts, ShadowMode, Surface, TransmittanceMode, Vertex};
 
 /// What a ray found first.
+#[allow(clippy::large_enum_variant)] // a stack value for one path step, like `Surface`
 pub(super) enum Found {
     Surface(Vertex),
     /// An area light's radiance towards the ray origin, with the light's index.
