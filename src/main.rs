@@ -136,6 +136,9 @@ enum MaterialName {
 enum BenchCommand {
     /// Wall time of a whole frame (default: furball-512, `scenes/furball.toml`), rays/s and peak memory.
     Frame(TimedRenderArgs),
+    /// The renderer's rays/s against its tracer alone on the same rays (issue 15 target 3): records every tracer
+    /// query of one frame, traces them again without shading, prints both rates and their ratio.
+    Replay(TimedRenderArgs),
     /// Shadow cost of ray-traced shadows and of deep opacity maps on one scene (default: the built-in scene; the
     /// issue-6 configuration is `scenes/furball-shadows.toml`), and the difference between their images.
     Shadows(TimedRenderArgs),
@@ -361,6 +364,11 @@ fn bench_command(command: BenchCommand) -> Result<()> {
         BenchCommand::Frame(args) => {
             let scene = args.scene()?;
             let report = cuticle::bench::frame::frame(&scene, args.threads, args.repetitions)?;
+            println!("{report}");
+        }
+        BenchCommand::Replay(args) => {
+            let scene = args.scene()?;
+            let report = cuticle::bench::replay::replay(&scene, args.threads, args.repetitions)?;
             println!("{report}");
         }
         BenchCommand::Shadows(args) => {

@@ -29,6 +29,10 @@ pub struct EmbreeTracer {
     scene: CommittedScene,
     strands: Arc<StrandTable>,
     kind: CurveKind,
+    /// Every strand has opacity 1, so the stochastic presence test always says present: a stochastic query that
+    /// ignores no strand is a plain query, traced without the filter (which Embree would call for every candidate
+    /// hit, and which costs traversal even when it accepts them all).
+    all_opaque: bool,
     build_seconds: f64,
 }
 
@@ -77,6 +81,7 @@ impl EmbreeTracer {
             scene,
             strands: table,
             kind,
+            all_opaque: strands.all_opaque(),
             build_seconds: start.elapsed().as_secs_f64(),
         })
     }
@@ -123,6 +128,9 @@ impl Tracer for EmbreeTracer {
         ignore_strand: Option<u32>,
         key: u64,
     ) -> Result<Option<Hit>, InvalidRay> {
+        if self.all_opaque && ignore_strand.is_none() {
+            return self.intersect(ray);
+        }
         Ok(self
             .scene
             .intersect1_stochastic(ray, ignore_strand, |strand, opacity| {
@@ -137,6 +145,9 @@ impl Tracer for EmbreeTracer {
         ignore_strand: Option<u32>,
         key: u64,
     ) -> Result<bool, InvalidRay> {
+        if self.all_opaque && ignore_strand.is_none() {
+            return self.scene.occluded1(ray);
+        }
         self.scene
             .occluded1_stochastic(ray, ignore_strand, |strand, opacity| {
                 strand_present(key, strand, opacity)

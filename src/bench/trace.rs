@@ -7,9 +7,12 @@
 //! - `secondary`: incoherent rays that start on strands *inside* the fur, as a path's bounces do: from each camera
 //!   hit a ray in a uniformly random direction finds a second hit (ignoring its own strand); from that second hit a
 //!   new uniformly random direction is the benchmark ray. Traced as the renderer traces bounce rays:
-//!   [`Tracer::intersect_stochastic`] ignoring the strand it starts on, strands present with their opacity.
+//!   [`Tracer::intersect_stochastic`] ignoring the strand it starts on, strands present with their opacity; when
+//!   every strand is opaque, starting past the strand's local tube instead
+//!   ([`crate::hair::strands::tube_exit`]), as the renderer does.
 //! - `shadow-exact`: from every camera hit and every inner (second) hit towards the distant light,
-//!   [`Tracer::transmittance`] ignoring the strand the ray starts on (exact product over the strands crossed).
+//!   [`Tracer::transmittance`] ignoring the strand the ray starts on (exact product over the strands crossed), or
+//!   starting past its tube as the secondary rays do.
 //! - `shadow-stochastic`: the same rays through [`Tracer::occluded_stochastic`] (any-hit with the stochastic
 //!   presence test), the renderer's default shadow query.
 //!
@@ -372,10 +375,44 @@ pub fn scene_config(
 /// The rays every backend traces for one curve type.
 struct Rays {
     camera: Vec<Ray>,
-    /// (ray, strand it starts on, presence key).
-    secondary: Vec<(Ray, u32, u64)>,
-    /// (ray, strand it starts on, presence key).
-    shadow: Vec<(Ray, u32, u64)>,
+    /// (ray, strand it ignores, presence key).
+    secondary: Vec<(Ray, Option<u32>, u64)>,
+    /// (ray, strand it ignores, presence key).
+    shadow: Vec<(Ray, Option<u32>, u64)>,
+}
+
+/// Where a hit was: point, strand, segment and curve parameter.
+#[derive(Clone, Copy)]
+struct Start {
+    p: Vec3,
+    strand: u32,
+    segment: u32,
+    u: f32,
+}
+
+impl Start {
+    fn of(ray: &Ray, hit: &crate::accel::Hit) -> Start {
+        Start {
+            p: ray.at(hit.t),
+            strand: hit.strand,
+            segment: hit.segment,
+            u: hit.u,
+        }
+    }
+
+    /// A ray leaving this hit along `dir` as the renderer spawns it: past the strand's local tube when every
+    /// strand is opaque and the exit is defined, otherwise ignoring the strand.
+    fn spawn(&self, strands: &Strands, dir: Vec3) -> (Ray, Option<u32>) {
+        let exit = if strands.all_opaque() {
+            strands.tube_exit_at(self.segment, self.u, self.p, dir)
+        } else {
+            None
+        };
+        match exit {
+            Some(t) => (Ray::segment(self.p, dir, t, f32::INFINITY), None),
+            None => (Ray::new(self.p, dir), Some(self.strand)),
+        }
+    }
 }
 
 /// A direction uniform on the sphere for ray `index` of generation `generation`.
@@ -386,39 +423,43 @@ fn random_direction(index: usize, generation: u64) -> Vec3 {
 
 impl Rays {
     /// Camera rays, then the secondary and shadow rays derived from `tracer`'s hits (see the module docs).
-    fn new(tracer: &dyn Tracer, camera: &Camera, to_light: Vec3) -> Rays {
+    fn new(tracer: &dyn Tracer, strands: &Strands, camera: &Camera, to_light: Vec3) -> Rays {
         let camera = camera.pixel_centre_rays();
-        let first: Vec<(Vec3, u32)> = camera
+        let first: Vec<Start> = camera
             .par_iter()
             .filter_map(|ray| {
                 let hit = tracer.intersect(ray).expect("camera rays are valid")?;
-                Some((ray.at(hit.t), hit.strand))
+                Some(Start::of(ray, &hit))
             })
             .collect();
-        let inner: Vec<(Vec3, u32)> = first
+        let inner: Vec<Start> = first
             .par_iter()
             .enumerate()
-            .filter_map(|(i, &(p, strand))| {
-                let ray = Ray::new(p, random_direction(i, 0));
+            .filter_map(|(i, s)| {
+                let ray = Ray::new(s.p, random_direction(i, 0));
                 let hit = tracer
-                    .intersect_stochastic(&ray, Some(strand), hash64(i as u64))
+                    .intersect_stochastic(&ray, Some(s.strand), hash64(i as u64))
                     .expect("rays from finite hit points are valid")?;
-                Some((ray.at(hit.t), hit.strand))
+                Some(Start::of(&ray, &hit))
             })
             .collect();
         let secondary = inner
             .iter()
             .enumerate()
-            .map(|(i, &(p, strand))| {
+            .map(|(i, s)| {
                 let key = hash64(!(i as u64));
-                (Ray::new(p, random_direction(i, 1)), strand, key)
+                let (ray, ignore) = s.spawn(strands, random_direction(i, 1));
+                (ray, ignore, key)
             })
             .collect();
         let shadow = first
             .iter()
             .chain(&inner)
             .enumerate()
-            .map(|(i, &(p, strand))| (Ray::new(p, to_light), strand, hash64(i as u64 ^ 0x5ad0)))
+            .map(|(i, s)| {
+                let (ray, ignore) = s.spawn(strands, to_light);
+                (ray, ignore, hash64(i as u64 ^ 0x5ad0))
+            })
             .collect();
         Rays {
             camera,
@@ -458,7 +499,7 @@ impl Rays {
                 .with_min_len(CHUNK)
                 .filter(|(r, strand, key)| {
                     tracer
-                        .intersect_stochastic(r, Some(*strand), *key)
+                        .intersect_stochastic(r, *strand, *key)
                         .expect("secondary rays are valid")
                         .is_some()
                 })
@@ -470,7 +511,7 @@ impl Rays {
                 .map(|(r, strand, _)| {
                     f64::from(
                         tracer
-                            .transmittance(r, Some(*strand))
+                            .transmittance(r, *strand)
                             .expect("shadow rays are valid"),
                     )
                 })
@@ -481,7 +522,7 @@ impl Rays {
                 .with_min_len(CHUNK)
                 .filter(|(r, strand, key)| {
                     !tracer
-                        .occluded_stochastic(r, Some(*strand), *key)
+                        .occluded_stochastic(r, *strand, *key)
                         .expect("shadow rays are valid")
                 })
                 .count() as f64,
@@ -546,8 +587,9 @@ pub fn trace(strands: &Strands, config: &TraceConfig) -> Result<TraceReport, Ben
                     tracers.push(tracer);
                 }
             }
-            let rays = rays
-                .get_or_insert_with(|| pool.install(|| Rays::new(&*tracers[0], &camera, to_light)));
+            let rays = rays.get_or_insert_with(|| {
+                pool.install(|| Rays::new(&*tracers[0], strands, &camera, to_light))
+            });
             let mut reports: Vec<Vec<RayReport>> = vec![Vec::new(); tracers.len()];
             for &ray in &RayType::ALL {
                 let count = rays.count(ray);

@@ -632,10 +632,69 @@ struct View {
     tilted: [(f64, f64); P_MAX + 1],
 }
 
+/// Everything [`ChiangFibre`]'s eval, pdf and sample share for one ωo (and h): computed once per shading point
+/// ([`ChiangFibre::viewed`]) and reused by its light samples, its material sample and their pdfs through
+/// [`Chiang::eval_viewed`] and [`Chiang::sample_viewed`], which give bit for bit what the [`Bsdf`] methods give.
+/// A plain value (no borrow), so that a shading point can keep it.
+#[derive(Debug, Clone, Copy)]
+pub struct ChiangView {
+    wo: Vec3,
+    h: f32,
+    gamma_o: f32,
+    cos_gamma_o: f32,
+    view: View,
+}
+
+impl Chiang {
+    /// The fibre of a [`ChiangView`] (no `asin`: γo was kept).
+    #[inline]
+    fn fibre_of(&self, v: &ChiangView) -> ChiangFibre<'_> {
+        ChiangFibre {
+            model: self,
+            h: v.h,
+            gamma_o: v.gamma_o,
+            cos_gamma_o: v.cos_gamma_o,
+        }
+    }
+
+    /// (f per lobe, pdf) at the view's ωo and `wi` (local frame): [`Bsdf::eval_lobes`] and [`Bsdf::pdf`] of the
+    /// fibre the view was taken at, in one evaluation.
+    #[inline]
+    pub fn eval_viewed(&self, v: &ChiangView, wi: Vec3) -> (LobeValues, f32) {
+        let (sc_i, phi) = ChiangFibre::angles(v.wo, wi);
+        self.fibre_of(v).eval_at(&v.view, sc_i, phi)
+    }
+
+    /// [`Bsdf::sample`] of the fibre the view was taken at, with f per lobe at the sampled direction (what
+    /// [`Bsdf::eval_lobes`] would give there).
+    #[inline]
+    pub fn sample_viewed(&self, v: &ChiangView, u: [f32; 3]) -> Option<(BsdfSample, LobeValues)> {
+        self.fibre_of(v).sample_with(&v.view, v.wo, u)
+    }
+}
+
+impl<'a> ChiangFibre<'a> {
+    /// The model this fibre belongs to.
+    pub fn model(&self) -> &'a Chiang {
+        self.model
+    }
+}
+
 impl ChiangFibre<'_> {
     /// The offset h = sin γo.
     pub fn h(&self) -> f32 {
         self.h
+    }
+
+    /// What eval, pdf and sample share for `wo` (local frame), to be reused ([`ChiangView`]).
+    pub fn viewed(&self, wo: Vec3) -> ChiangView {
+        ChiangView {
+            wo,
+            h: self.h,
+            gamma_o: self.gamma_o,
+            cos_gamma_o: self.cos_gamma_o,
+            view: self.view(wo),
+        }
     }
 
     fn view(&self, wo: Vec3) -> View {
@@ -728,8 +787,20 @@ impl Bsdf for ChiangFibre<'_> {
     }
 
     fn sample(&self, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
+        self.sample_with(&self.view(wo), wo, u).map(|(s, _)| s)
+    }
+
+    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        let (sc_i, phi) = Self::angles(wo, wi);
+        self.eval_at(&self.view(wo), sc_i, phi).1
+    }
+}
+
+impl ChiangFibre<'_> {
+    /// [`Bsdf::sample`] with the view of `wo` given, and f per lobe at the sampled direction.
+    #[inline]
+    fn sample_with(&self, view: &View, wo: Vec3, u: [f32; 3]) -> Option<(BsdfSample, LobeValues)> {
         let m = self.model;
-        let view = self.view(wo);
         // p by P(p); the remainder of u[0], rescaled, turns the von Mises–Fisher azimuth. Rounding can leave
         // u[0] past the sum: then the last p with P(p) > 0.
         let mut r = u[0];
@@ -763,18 +834,13 @@ impl Bsdf for ChiangFibre<'_> {
         // βm, βn ~ 1e-3 (lobes 0.02° wide) the rounding of wi and the arctangent of its azimuth (< 6e-7 rad) move
         // f by more than the drawn angles' values could be trusted to match. The view terms are reused.
         let (sc_i, phi) = Self::angles(wo, wi);
-        let (lobes, pdf) = self.eval_at(&view, sc_i, phi);
+        let (lobes, pdf) = self.eval_at(view, sc_i, phi);
         let lobe = match p {
             0 => Lobe::R,
             1 => Lobe::Tt,
             _ => Lobe::Trt,
         };
-        super::make_sample(wi, lobes.sum(), pdf, sc_i.1 as f32, Some(lobe))
-    }
-
-    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        let (sc_i, phi) = Self::angles(wo, wi);
-        self.eval_at(&self.view(wo), sc_i, phi).1
+        super::make_sample(wi, lobes.sum(), pdf, sc_i.1 as f32, Some(lobe)).map(|s| (s, lobes))
     }
 }
 

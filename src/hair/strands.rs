@@ -173,10 +173,66 @@ impl Strands {
         (lo, hi)
     }
 
+    /// Whether every strand has opacity 1 (then a stochastic presence test always says present).
+    pub fn all_opaque(&self) -> bool {
+        self.opacity.iter().all(|&a| a >= 1.0)
+    }
+
+    /// [`tube_exit`] of a ray from `origin` along `dir` leaving segment `segment` at curve parameter `u` (a hit's
+    /// `u`), from the curve's axis point, tangent and radius there; `None` where [`tube_exit`] is, or for a
+    /// degenerate tangent.
+    pub fn tube_exit_at(&self, segment: u32, u: f32, origin: Vec3, dir: Vec3) -> Option<f32> {
+        let c = self.eval(segment, u);
+        tube_exit(
+            origin,
+            dir,
+            c.position,
+            c.tangent.try_normalize()?,
+            c.radius,
+        )
+    }
+
     /// Replaces every strand's opacity (a scene override of the file's transparency).
     pub fn set_opacity(&mut self, opacity: f32) {
         self.opacity.iter_mut().for_each(|o| *o = opacity);
     }
+}
+
+/// Rays leaving a fibre within this sine of its axis keep ignoring the whole strand: the tube exit lies up to
+/// 2r / sin θ along the ray, where the straight local tube no longer stands for the curved one.
+pub const TUBE_MIN_SIN: f32 = 0.5;
+
+/// Relative margin on the fibre radius for [`tube_exit`]: the hit point Embree reports and the B-spline's swept
+/// sphere deviate from the local straight tube by float error and curvature (r/R ≈ 1e-2 on the fur ball).
+pub const TUBE_MARGIN: f32 = 0.05;
+
+/// Where a ray from `origin` (on or inside the fibre) along `dir` leaves the fibre's local tube: the straight
+/// cylinder of radius `radius` (1 + [`TUBE_MARGIN`]) around the line through `axis` along `tangent` (unit). The
+/// ray parameter of the exit, in units of `dir`; `None` where that is not a good stand-in for the curved fibre
+/// (the ray within asin [`TUBE_MIN_SIN`] of the axis, or a degenerate radius). A ray-facing ribbon of half-width
+/// `radius` lies inside the same tube, so the exit also clears the flat curve the ray would see.
+#[inline]
+pub fn tube_exit(origin: Vec3, dir: Vec3, axis: Vec3, tangent: Vec3, radius: f32) -> Option<f32> {
+    // Parts across the axis: |w⊥ + t d⊥|² = r'², the larger root.
+    let w = origin - axis;
+    let w_perp = w - tangent * w.dot(tangent);
+    let d_perp = dir - tangent * dir.dot(tangent);
+    let a = d_perp.length_squared();
+    // Written so that NaNs fail too.
+    let defined = a >= TUBE_MIN_SIN * TUBE_MIN_SIN * dir.length_squared() && radius > 0.0;
+    if !defined {
+        return None;
+    }
+    let r = radius * (1.0 + TUBE_MARGIN);
+    let b = w_perp.dot(d_perp);
+    let c = w_perp.length_squared() - r * r;
+    // c ≤ 0 for an origin inside the margin tube, so the discriminant is ≥ b²; an origin outside it (beyond the
+    // margin: not a hit on this fibre) has no well-defined exit.
+    if c > 0.0 {
+        return None;
+    }
+    let t = (-b + (b * b - a * c).sqrt()) / a;
+    t.is_finite().then_some(t.max(0.0))
 }
 
 #[cfg(test)]
@@ -239,5 +295,38 @@ mod tests {
         m.radius_from_file = true;
         let s = Strands::from_model(&m);
         assert!((s.eval(1, 1.0).radius - 0.1).abs() < 1e-6);
+    }
+
+    #[test]
+    fn tube_exit_leaves_the_tube_across_the_axis() {
+        // Fibre along x through the origin, radius 2; a ray from the top of the tube straight down crosses the
+        // whole diameter (margin included).
+        let r = 2.0;
+        let t = tube_exit(Vec3::new(0.3, r, 0.0), -Vec3::Y, Vec3::ZERO, Vec3::X, r).unwrap();
+        let r_margin = r * (1.0 + TUBE_MARGIN);
+        assert!((t - (r + r_margin)).abs() < 1e-5, "{t}");
+        // Leaving outwards: only the margin is left to cross.
+        let t = tube_exit(Vec3::new(0.3, r, 0.0), Vec3::Y, Vec3::ZERO, Vec3::X, r).unwrap();
+        assert!((t - r * TUBE_MARGIN).abs() < 1e-5, "{t}");
+        // A tilted, unnormalised direction: the exit point lies on the margin tube.
+        let (o, d) = (Vec3::new(0.0, 0.0, r), Vec3::new(1.0, 2.0, -1.0) * 3.0);
+        let t = tube_exit(o, d, Vec3::ZERO, Vec3::X, r).unwrap();
+        let p = o + t * d;
+        assert!(
+            ((p.y * p.y + p.z * p.z).sqrt() - r_margin).abs() < 1e-4,
+            "{p}"
+        );
+    }
+
+    #[test]
+    fn tube_exit_is_undefined_along_the_fibre_and_outside_it() {
+        let r = 1.0;
+        let along = Vec3::new(1.0, 0.5, 0.0); // sin θ = 0.447 < TUBE_MIN_SIN
+        assert_eq!(tube_exit(Vec3::Y, along, Vec3::ZERO, Vec3::X, r), None);
+        assert_eq!(
+            tube_exit(Vec3::Y * 1.2, -Vec3::Y, Vec3::ZERO, Vec3::X, r),
+            None
+        );
+        assert_eq!(tube_exit(Vec3::Y, -Vec3::Y, Vec3::ZERO, Vec3::X, 0.0), None);
     }
 }

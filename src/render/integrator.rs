@@ -35,9 +35,10 @@
 use glam::Vec3;
 
 use crate::accel::{CurveKind, Tracer};
-use crate::bsdf::chiang::{h_from_normal, h_from_ribbon};
+use crate::bsdf::chiang::{h_from_normal, h_from_ribbon, Chiang, ChiangView};
 use crate::bsdf::frame::{sin_cos_theta, strand_noise, HairFrame};
 use crate::bsdf::{Bsdf, HitBsdf, Lobe, LobeValues, Material};
+use crate::hair::strands::tube_exit;
 use crate::hair::Strands;
 use crate::light::{Distribution1D, Light};
 use crate::ray::Ray;
@@ -134,6 +135,9 @@ pub struct PathSample {
 
 /// A shading point's scattering: a hair fibre (hair frame, strand tint on the diffuse lobe) or a two-sided Lambert
 /// surface.
+// The hair variant carries the Chiang view (~150 bytes): a vertex lives on the stack for one path step, and
+// boxing it would allocate per vertex.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, Copy)]
 enum Surface {
     Hair {
@@ -141,11 +145,16 @@ enum Surface {
         /// Multiplies the diffuse lobe (the strand colour, or 1).
         tint: Vec3,
         strand: u32,
+        /// The fibre's axis point at the hit (the curve's centre line at the hit's u).
+        axis: Vec3,
         /// Fibre radius at the hit.
         radius: f32,
         /// Offset h = sin γo of the hit across the fibre, for models that read it ([`Material::uses_offset`];
         /// 0 otherwise).
         h: f32,
+        /// Chiang et al.'s terms of this ωo and h, computed once for every light sample, material sample and pdf
+        /// of the vertex (`None` for the other models).
+        chiang: Option<ChiangView>,
     },
     Lambert {
         /// The normal on the side the light leaves towards (facing ωo).
@@ -223,6 +232,18 @@ pub struct Integrator<'a> {
     /// Whether a material sample can add direct light: false when the strategy is light-only or every light is a
     /// delta light (then material samples are traced only to continue paths).
     material_finds_light: bool,
+    /// Every strand is opaque (opacity 1): rays leaving a fibre start past its local tube ([`tube_exit`]) instead
+    /// of ignoring the whole strand, so that the tracer can trace them without a filter.
+    skip_by_tube: bool,
+    /// The material's Chiang et al. model, whose per-vertex terms a vertex keeps ([`ChiangView`]).
+    chiang: Option<&'a Chiang>,
+}
+
+/// f · cos θi per lobe from f per lobe at local `wi_l`, the diffuse lobe tinted by `tint`.
+#[inline]
+fn fcos(mut lobes: LobeValues, tint: Vec3, wi_l: Vec3) -> LobeValues {
+    lobes.diffuse *= tint;
+    lobes.scaled(sin_cos_theta(wi_l).1)
 }
 
 /// Adds `weights ⊙ scale` lobe by lobe.
@@ -256,6 +277,11 @@ impl<'a> Integrator<'a> {
             maps,
             material_finds_light: settings.strategy != Strategy::Light
                 && lights.iter().any(|l| !l.is_delta()),
+            skip_by_tube: frame.strands.all_opaque(),
+            chiang: match frame.material.at(0.0) {
+                HitBsdf::Chiang(fibre) => Some(fibre.model()),
+                HitBsdf::Fixed(_) => None,
+            },
         }
     }
 
@@ -291,13 +317,18 @@ impl<'a> Integrator<'a> {
         } else {
             Vec3::ONE
         };
+        let chiang = self
+            .chiang
+            .map(|model| model.at(h).viewed(frame.to_local(wo)));
         Vertex {
             p: ray.at(hit.t),
             wo,
             surface: Surface::Hair {
                 frame,
+                chiang,
                 tint,
                 strand: hit.strand,
+                axis: point.position,
                 radius: point.radius,
                 h,
             },
@@ -307,16 +338,25 @@ impl<'a> Integrator<'a> {
     /// f · cos θi per lobe of the hair material, in the local frame, the diffuse lobe tinted.
     #[inline]
     fn hair_fcos(&self, bsdf: &HitBsdf, tint: Vec3, wo_l: Vec3, wi_l: Vec3) -> LobeValues {
-        let mut lobes = bsdf.eval_lobes(wo_l, wi_l);
-        lobes.diffuse *= tint;
-        lobes.scaled(sin_cos_theta(wi_l).1)
+        fcos(bsdf.eval_lobes(wo_l, wi_l), tint, wi_l)
     }
 
     /// f · cos θi per lobe, and the material's sampling pdf, for light leaving `v` along ωo arriving from `wi`.
     #[inline]
     fn eval(&self, v: &Vertex, wi: Vec3) -> (LobeValues, f32) {
         match v.surface {
-            Surface::Hair { frame, tint, h, .. } => {
+            Surface::Hair {
+                frame,
+                tint,
+                h,
+                chiang,
+                ..
+            } => {
+                if let (Some(model), Some(view)) = (self.chiang, chiang.as_ref()) {
+                    let wi_l = frame.to_local(wi);
+                    let (lobes, pdf) = model.eval_viewed(view, wi_l);
+                    return (fcos(lobes, tint, wi_l), pdf);
+                }
                 let (wo_l, wi_l) = (frame.to_local(v.wo), frame.to_local(wi));
                 let bsdf = self.material.at(h);
                 (
@@ -342,7 +382,18 @@ impl<'a> Integrator<'a> {
     #[inline]
     fn sample_material(&self, v: &Vertex, u: [f32; 3]) -> Option<(Vec3, LobeValues, f32)> {
         match v.surface {
-            Surface::Hair { frame, tint, h, .. } => {
+            Surface::Hair {
+                frame,
+                tint,
+                h,
+                chiang,
+                ..
+            } => {
+                if let (Some(model), Some(view)) = (self.chiang, chiang.as_ref()) {
+                    let (s, lobes) = model.sample_viewed(view, u)?;
+                    let lobes = fcos(lobes, tint, s.wi);
+                    return Some((frame.to_world(s.wi).normalize(), lobes, s.pdf));
+                }
                 let wo_l = frame.to_local(v.wo);
                 let bsdf = self.material.at(h);
                 let s = bsdf.sample(wo_l, u)?;
@@ -363,18 +414,36 @@ impl<'a> Integrator<'a> {
         }
     }
 
-    /// Origin and strand to skip for rays leaving `v` along `wi`.
+    /// Origin, tnear and strand to skip for rays leaving `v` along `wi`. A hair ray skips its own fibre: past the
+    /// local tube when every strand is opaque and [`tube_exit`] is defined (the tracer then needs no filter; the
+    /// strand can still shadow itself where it curls back, as in the peers), otherwise by ignoring the strand.
     #[inline]
-    fn spawn(&self, v: &Vertex, wi: Vec3) -> (Vec3, Option<u32>) {
+    fn spawn(&self, v: &Vertex, wi: Vec3) -> (Vec3, f32, Option<u32>) {
         match v.surface {
-            Surface::Hair { strand, .. } => (v.p, Some(strand)),
+            Surface::Hair {
+                strand,
+                frame,
+                axis,
+                radius,
+                ..
+            } => {
+                let exit = if self.skip_by_tube {
+                    tube_exit(v.p, wi, axis, frame.u, radius)
+                } else {
+                    None
+                };
+                match exit {
+                    Some(t) => (v.p, t, None),
+                    None => (v.p, 0.0, Some(strand)),
+                }
+            }
             Surface::Lambert { normal, .. } => {
                 let side = if normal.dot(wi) >= 0.0 {
                     normal
                 } else {
                     -normal
                 };
-                (v.p + side * self.epsilon, None)
+                (v.p + side * self.epsilon, 0.0, None)
             }
         }
     }

@@ -9,6 +9,7 @@ use super::mis::Mis;
 use super::{Integrator, RayCounts, ShadowMode, Surface, TransmittanceMode, Vertex};
 
 /// What a ray found first.
+#[allow(clippy::large_enum_variant)] // a stack value for one path step, like `Surface`
 pub(super) enum Found {
     Surface(Vertex),
     /// An area light's radiance towards the ray origin, with the light's index.
@@ -95,14 +96,19 @@ impl Integrator<'_> {
         key: u64,
         counts: &mut RayCounts,
     ) -> f32 {
-        let (origin, ignore) = self.spawn(v, wi);
+        let (origin, tnear, ignore) = self.spawn(v, wi);
         // Stop short of an area light's surface so the light itself does not occlude.
         let tfar = if distance.is_finite() {
             distance * (1.0 - 1e-4)
         } else {
             f32::INFINITY
         };
-        let ray = Ray::segment(origin, wi, 0.0, tfar);
+        // A light closer than the fibre's tube exit: ignore the strand instead.
+        let (tnear, ignore) = match (tnear < tfar, v.surface) {
+            (false, Surface::Hair { strand, .. }) => (0.0, Some(strand)),
+            _ => (tnear, ignore),
+        };
+        let ray = Ray::segment(origin, wi, tnear, tfar);
         if self.shapes.occluded(&ray, tfar) {
             counts.shadow += 1;
             return 0.0;
@@ -148,8 +154,8 @@ impl Integrator<'_> {
         key: u64,
         counts: &mut RayCounts,
     ) -> (Vec3, Found) {
-        let (origin, ignore) = self.spawn(v, wi);
-        let ray = Ray::new(origin, wi);
+        let (origin, tnear, ignore) = self.spawn(v, wi);
+        let ray = Ray::segment(origin, wi, tnear, f32::INFINITY);
         counts.material += 1;
         if self.settings.shadows == ShadowMode::None {
             // No self-shadowing: the light a material sample sees ignores hair (shapes and emitters still count),

@@ -100,6 +100,27 @@ impl CommittedScene {
         self.intersect_with(ray, Some(&mut query))
     }
 
+    /// Whether any strand blocks `ray` within `[tnear, tfar]`, every strand opaque: a plain any-hit query without a
+    /// filter, for scenes where the stochastic presence test cannot reject a hit (every opacity 1, no strand to
+    /// ignore). Rays failing [`Ray::check`] never reach Embree.
+    pub fn occluded1(&self, ray: &Ray) -> Result<bool, InvalidRay> {
+        let (mut rtc_ray, _) = embree_ray(ray)?;
+        #[cfg(not(embree4))]
+        {
+            let mut context = init_query_context();
+            // SAFETY: the scene is committed; `context` is an initialised local context without a filter; the ray
+            // passed `Ray::check` and is within Embree's limits; Embree uses both only during the call.
+            unsafe { rtcOccluded1(self.raw(), &mut context, &mut rtc_ray) };
+        }
+        #[cfg(embree4)]
+        {
+            // SAFETY: as for Embree 3; null arguments select Embree's defaults (no filter).
+            unsafe { rtcOccluded1(self.raw(), &mut rtc_ray, ptr::null_mut()) };
+        }
+        // Embree marks an occluded ray by setting tfar to −∞.
+        Ok(rtc_ray.tfar == f32::NEG_INFINITY)
+    }
+
     /// Whether any strand present for this ray (`present` as in [`CommittedScene::intersect1_stochastic`]) blocks
     /// `ray`. With a presence test that keeps each strand with probability equal to its opacity, this is an
     /// unbiased one-sample estimate of [`CommittedScene::transmittance1`] (E[not occluded] = ∏ (1 − opacity)) at
