@@ -485,7 +485,7 @@ impl WideBvh {
                     }
                 }
             } else {
-                let (tmin, mut mask, children) = if current.count == 0 {
+                let (tmin, mask, children) = if current.count == 0 {
                     let node = &self.nodes[current.index as usize];
                     let (t, m) = node.boxes.test(r);
                     (t, m & node.valid, &node.children)
@@ -496,26 +496,29 @@ impl WideBvh {
                 };
                 let tmin = tmin.to_array();
                 if mask != 0 {
-                    // Hit children sorted by entry distance, nearest last (it is entered, the others stacked so
-                    // that the nearer are popped first).
-                    let mut hits = [(Child { index: 0, count: 0 }, 0.0f32); 4];
-                    let mut n = 0;
-                    while mask != 0 {
-                        let lane = mask.trailing_zeros() as usize;
-                        mask &= mask - 1;
-                        let entry = (children[lane], tmin[lane]);
-                        let mut j = n;
-                        while j > 0 && hits[j - 1].1 < entry.1 {
-                            hits[j] = hits[j - 1];
-                            j -= 1;
-                        }
-                        hits[j] = entry;
-                        n += 1;
+                    // Hit children sorted by entry distance without data-dependent branches (a five-comparator
+                    // sorting network over the four lanes, missed lanes at +∞), then the farther ones stacked so
+                    // that the nearer are popped first, and the nearest entered.
+                    let mut t = [0.0f32; 4];
+                    for lane in 0..4 {
+                        t[lane] = if mask & (1 << lane) != 0 {
+                            tmin[lane]
+                        } else {
+                            f32::INFINITY
+                        };
                     }
-                    for &h in &hits[..n - 1] {
-                        stack.push(h);
+                    let mut order = [0usize, 1, 2, 3];
+                    for (a, b) in [(0, 1), (2, 3), (0, 2), (1, 3), (1, 2)] {
+                        let swap = t[order[b]] < t[order[a]];
+                        let (x, y) = (order[a], order[b]);
+                        order[a] = if swap { y } else { x };
+                        order[b] = if swap { x } else { y };
                     }
-                    current = hits[n - 1].0;
+                    let n = mask.count_ones() as usize;
+                    for &lane in order[1..n].iter().rev() {
+                        stack.push((children[lane], t[lane]));
+                    }
+                    current = children[order[0]];
                     continue;
                 }
             }
