@@ -32,6 +32,8 @@ enum Command {
     },
     /// Plot a fibre model's lobes (like the thesis' figure 4) and its sampled-vs-analytic pdf histograms as PNGs.
     PlotBsdf(PlotArgs),
+    /// Chart one column of a CSV table against another (PNG and SVG), one curve per value of a column.
+    PlotCsv(PlotCsvArgs),
     /// Benchmarks (not tests): print throughput figures.
     #[command(subcommand)]
     Bench(BenchCommand),
@@ -117,6 +119,48 @@ struct PlotArgs {
     /// Offset h = sin γo across the fibre, in [-1, 1], for models that depend on it (chiang); 0 = the centre.
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     h: f32,
+}
+
+#[derive(clap::Args)]
+struct PlotCsvArgs {
+    /// The CSV table (a header line, then rows).
+    file: PathBuf,
+    /// The horizontal column.
+    #[arg(long)]
+    x: String,
+    /// The vertical column. Rows where x or y is empty or not a number are left out.
+    #[arg(long)]
+    y: String,
+    /// One curve per value of this column.
+    #[arg(long)]
+    by: Option<String>,
+    /// Label each point with this column's value.
+    #[arg(long)]
+    point_label: Option<String>,
+    /// Log10 horizontal axis.
+    #[arg(long)]
+    log_x: bool,
+    /// Log10 vertical axis.
+    #[arg(long)]
+    log_y: bool,
+    /// The chart title.
+    #[arg(long, default_value = "")]
+    title: String,
+    /// The horizontal axis title (default: the column name).
+    #[arg(long)]
+    x_label: Option<String>,
+    /// The vertical axis title (default: the column name).
+    #[arg(long)]
+    y_label: Option<String>,
+    /// Directory for `<stem>.png` and `<stem>.svg` (created if needed).
+    #[arg(short, long, default_value = ".")]
+    out: PathBuf,
+    /// File name of the chart, without extension (default: the table's).
+    #[arg(long)]
+    stem: Option<String>,
+    /// Chart size WxH, pixels.
+    #[arg(long, value_parser = parse_resolution, default_value = "960x640")]
+    size: [u32; 2],
 }
 
 /// Model names for `plot-bsdf --material`.
@@ -359,6 +403,41 @@ fn plot_command(args: PlotArgs) -> Result<()> {
     Ok(())
 }
 
+fn plot_csv_command(args: PlotCsvArgs) -> Result<()> {
+    let text = std::fs::read_to_string(&args.file)
+        .with_context(|| format!("cannot read {}", args.file.display()))?;
+    let spec = cuticle::plot::CsvChart {
+        x: args.x,
+        y: args.y,
+        by: args.by,
+        point_label: args.point_label,
+        log_x: args.log_x,
+        log_y: args.log_y,
+        title: args.title,
+        x_label: args.x_label,
+        y_label: args.y_label,
+    };
+    let chart = spec
+        .line_chart(&text)
+        .with_context(|| format!("{}", args.file.display()))?;
+    let [w, h] = args.size;
+    let figure = cuticle::plot::render(&chart, "csv", (w as usize, h as usize))?;
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("cannot create {}", args.out.display()))?;
+    let stem = match args.stem {
+        Some(stem) => stem,
+        None => args
+            .file
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "chart".to_owned()),
+    };
+    for path in cuticle::plot::write_figure(&figure, &args.out, &stem)? {
+        println!("wrote {}", path.display());
+    }
+    Ok(())
+}
+
 fn bench_command(command: BenchCommand) -> Result<()> {
     match command {
         BenchCommand::Frame(args) => {
@@ -536,6 +615,7 @@ fn run() -> Result<()> {
         Command::Render(args) => render_command(args),
         Command::Info { file } => info_command(&file),
         Command::PlotBsdf(args) => plot_command(args),
+        Command::PlotCsv(args) => plot_csv_command(args),
         Command::Bench(b) => bench_command(b),
         Command::Study(s) => study_command(s),
     }

@@ -15,13 +15,15 @@
 //! The files: this one holds the errors, the style (font, sizes, colours), [`render`] and [`write_figure`], and
 //! [`annotate`]; `axis.rs` the axes ([`Axis`]); `line.rs` the line charts with their series, legend and clipping
 //! ([`LineChart`], [`Series`]); `polar.rs` the polar charts ([`PolarChart`]); `heatmap.rs` the heat maps, colour
-//! maps and colour bars ([`HeatMap`], [`Colormap`], [`ColorBar`]).
+//! maps and colour bars ([`HeatMap`], [`Colormap`], [`ColorBar`]); `table.rs` line charts from a CSV table
+//! ([`CsvChart`], for `cuticle plot-csv`).
 
 mod axis;
 pub mod bsdf;
 mod heatmap;
 mod line;
 mod polar;
+mod table;
 
 use std::path::{Path, PathBuf};
 use std::sync::Once;
@@ -34,6 +36,7 @@ pub use axis::{Axis, Scale};
 pub use heatmap::{ColorBar, Colormap, HeatMap};
 pub use line::{LineChart, Series};
 pub use polar::PolarChart;
+pub use table::{CsvChart, TableError};
 
 use crate::image::{Image, ImageError};
 use crate::util::atomic_file;

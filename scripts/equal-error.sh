@@ -1,0 +1,118 @@
+#!/usr/bin/env bash
+# Equal error, not only equal samples (issue 15, target 2): cuticle against Blender Cycles on the peer scene at
+# 256², 2 threads. Each renderer renders its own converged reference, then a sweep of sample counts with other seeds,
+# cuticle and Cycles taking turns at each point; every image's RMSE is measured against its own renderer's reference.
+# Writes docs/equal-error/equal-error.csv, a log-log chart RMSE vs wall time (equal-error.png/.svg, drawn by
+# `cuticle plot-csv`) and prints the time each renderer needs to reach RMSE 0.07, 0.05, 0.04, 0.03.
+#
+# Run from the project root after `cargo build --release`:
+#   scripts/equal-error.sh
+# Environment:
+#   REF_SPP (1024)                reference samples per pixel (lower it for a quick trial, e.g. REF_SPP=128)
+#   SPPS ("4 8 16 32 64 128 256") the sweep
+#   OUT (docs/equal-error)        where the CSV and chart go
+#   WORK (mktemp -d)              renders, logs and times
+#   BIN (./target/release/cuticle)
+#   CHART_ONLY=1                  no renders: redraw the chart and the read-out from $OUT/equal-error.csv
+#
+# Scene: cuticle `scenes/furball-peer.toml --res 256x256`; Cycles `../shared/peers/cycles_furball.py --res 256
+# --shape thick --bounces 1 --sun` with the harness' material and lights (the README's peer scene maps each setting).
+# Metric: RMS error over the beauty R, G, B of the whole image (every pixel, alpha and AOVs dropped: `oiiotool --ch
+# R,G,B`), both sides linear float EXRs (cuticle's beauty channels; Cycles' `--out *.exr`, 32-bit float, scene-linear,
+# not the view transform), computed by `oiiotool REF --ch R,G,B IMG --ch R,G,B --diff`.
+# Times: wall_s is the whole process (`/usr/bin/time -f %e`: Blender's start-up and hair conversion, cuticle's load
+# and BVH build included); render_s is each renderer's own render time (cuticle's `render X s` on stderr, Cycles'
+# CYCLES_RENDER_SECONDS: sync + BVH + sampling).
+set -euo pipefail
+REF_SPP=${REF_SPP:-1024}
+SPPS=${SPPS:-"4 8 16 32 64 128 256"}
+OUT=${OUT:-docs/equal-error}
+BIN=${BIN:-./target/release/cuticle}
+PEERS=../shared/peers
+HAIR=../shared/data/hair/furball.hair
+SCENE=scenes/furball-peer.toml
+CSV=$OUT/equal-error.csv
+REF_SEED=1000   # the sweep uses seeds 1, 2, ...: never the reference's
+mkdir -p "$OUT"
+
+if [ "${CHART_ONLY:-0}" != 1 ]; then
+  WORK=${WORK:-$(mktemp -d /tmp/equal-XXXXXX)}
+  mkdir -p "$WORK"
+  for f in "$BIN" "$SCENE" "$HAIR" "$PEERS/cycles_furball.py"; do
+    [ -e "$f" ] || { echo "missing $f (run from the project root after cargo build --release)" >&2; exit 2; }
+  done
+  echo "renders and logs in $WORK; $(nproc) cores, load $(cut -d' ' -f1-3 /proc/loadavg)"
+
+  # render NAME RENDERER SPP SEED: one image, its whole-process and own render times in $WORK/NAME.{t,log}.
+  render() {
+    local name=$1 who=$2 spp=$3 seed=$4
+    if [ "$who" = cuticle ]; then
+      /usr/bin/time -f %e -o "$WORK/$name.t" "$BIN" render "$SCENE" --res 256x256 --spp "$spp" --seed "$seed" \
+        --threads 2 --quiet -o "$WORK/$name.exr" > "$WORK/$name.log" 2>&1
+      sed -n 's/.*render \([0-9.]*\) s.*/\1/p' "$WORK/$name.log" | tail -1 > "$WORK/$name.r"
+    else
+      /usr/bin/time -f %e -o "$WORK/$name.t" blender -b --factory-startup --python "$PEERS/cycles_furball.py" -- \
+        --hair "$HAIR" --res 256 --spp "$spp" --seed "$seed" --shape thick --bounces 1 --sun --threads 2 \
+        --out "$WORK/$name.exr" > "$WORK/$name.log" 2>&1
+      sed -n 's/^CYCLES_RENDER_SECONDS=//p' "$WORK/$name.log" | tail -1 > "$WORK/$name.r"
+    fi
+    [ -s "$WORK/$name.r" ] && [ -f "$WORK/$name.exr" ] || { echo "$name failed: see $WORK/$name.log" >&2; exit 2; }
+    echo "  $name: wall $(tail -1 "$WORK/$name.t") s, render $(cat "$WORK/$name.r") s"
+  }
+  # rmse REF IMG: RMS error over R, G, B of every pixel.
+  rmse() {  # (oiiotool --diff exits 1 when the images differ, as they do)
+    { oiiotool "$1" --ch R,G,B "$2" --ch R,G,B --diff 2>&1 || true; } | sed -n 's/.*RMS error = \([0-9.eE+-]*\).*/\1/p' | head -1
+  }
+
+  echo "references, $REF_SPP spp, seed $REF_SEED"
+  for who in cuticle cycles; do render "ref_$who" "$who" "$REF_SPP" "$REF_SEED"; done
+  TMP_CSV=$WORK/equal-error.csv
+  echo "renderer,spp,seed,wall_s,render_s,rmse" > "$TMP_CSV"
+  for who in cuticle cycles; do
+    echo "$who,$REF_SPP,$REF_SEED,$(tail -1 "$WORK/ref_$who.t"),$(cat "$WORK/ref_$who.r")," >> "$TMP_CSV"
+  done
+  echo "sweep: $SPPS spp"
+  seed=0
+  for spp in $SPPS; do
+    seed=$((seed + 1))
+    for who in cuticle cycles; do
+      name="${who}_$spp"
+      render "$name" "$who" "$spp" "$seed"
+      e=$(rmse "$WORK/ref_$who.exr" "$WORK/$name.exr")
+      [ -n "$e" ] || { echo "no RMS error for $name" >&2; exit 2; }
+      echo "    rmse $e"
+      echo "$who,$spp,$seed,$(tail -1 "$WORK/$name.t"),$(cat "$WORK/$name.r"),$e" >> "$TMP_CSV"
+    done
+  done
+  cp "$TMP_CSV" "$CSV"
+  echo "wrote $CSV; load $(cut -d' ' -f1-3 /proc/loadavg)"
+fi
+
+# The chart: the sweep rows only (the references have no RMSE), from the CSV.
+"$BIN" plot-csv "$CSV" --x wall_s --y rmse --by renderer --point-label spp --log-x --log-y \
+  --title "Fur ball 256², 2 threads: RMSE against each renderer's own reference" \
+  --x-label "wall time, whole process (s)" --y-label "RMSE (linear RGB)" -o "$OUT" --stem equal-error
+
+# The read-out: time (and samples) to reach each RMSE, interpolated log-log between neighbouring sweep points.
+python3 - "$CSV" <<'EOF'
+import csv, math, sys
+rows = [r for r in csv.DictReader(open(sys.argv[1])) if r["rmse"]]
+def time_to(who, col, target):
+    pts = sorted((int(r["spp"]), float(r[col]), float(r["rmse"])) for r in rows if r["renderer"] == who)
+    for (_, t0, e0), (_, t1, e1) in zip(pts, pts[1:]):
+        if min(e0, e1) <= target <= max(e0, e1) and e0 != e1:
+            f = (math.log(target) - math.log(e0)) / (math.log(e1) - math.log(e0))
+            return math.exp(math.log(t0) + f * (math.log(t1) - math.log(t0)))
+    return None  # outside the sweep
+fmt = lambda t: "n/a" if t is None else f"{t:.2f}"
+# Samples per pixel needed as well: the sampling's share, free of this shared machine's timing noise.
+for col, what in (("wall_s", "wall time, whole process, s"), ("render_s", "own render time, s"),
+                  ("spp", "samples per pixel")):
+    print(f"\nto reach RMSE ({what}; ratio target <= 0.7):")
+    print("| RMSE | cuticle | Cycles | cuticle / Cycles |")
+    print("|---:|---:|---:|---:|")
+    for target in (0.07, 0.05, 0.04, 0.03):
+        a, b = time_to("cuticle", col, target), time_to("cycles", col, target)
+        ratio = "n/a" if a is None or b is None else f"{a / b:.2f}"
+        print(f"| {target} | {fmt(a)} | {fmt(b)} | {ratio} |")
+EOF
