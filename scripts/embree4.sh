@@ -5,7 +5,7 @@
 #   sh scripts/embree4.sh DIR     then   EMBREE_DIR=DIR cargo build --release
 #
 # - The library: Embree 4.4.0 and its TBB, from PyPI's `embreex` 4.4.0.post1 wheel (`embreex.libs/`), fetched with
-#   curl (no pip needed): the URL comes from PyPI's JSON simple index, the file is checked against a pinned sha256.
+#   curl (no pip or python needed), checked against a pinned sha256, opened with unzip.
 # - The headers: the crates.io package `embree4-sys` 0.0.12 (`lib/embree4/`), pinned by sha256. They are Embree
 #   4.2.0's, the newest any version of that crate carries (0.0.1-0.0.12 all ship 4.x <= 4.2); 4.3 and 4.4 added
 #   fields for instance arrays, which the Rust side allows for (`src/sys/embree/query.rs`).
@@ -20,6 +20,7 @@ DIR=$(cd "$1" && pwd)
 
 WHEEL=embreex-4.4.0.post1-cp311-cp311-manylinux_2_27_x86_64.manylinux_2_28_x86_64.whl
 WHEEL_SHA256=2cd0f7d5c6342e6247e31f700761689cae7829454d8c6de0c41e62124a023e1f
+WHEEL_URL=https://files.pythonhosted.org/packages/26/60/3d959f55100ce829620c132cc5c5413e71d2fbcc2ffdede251c269a5a9ef/$WHEEL
 CRATE=embree4-sys-0.0.12
 CRATE_SHA256=a1c23ca437f91a52068a03088b80395115c87a669874e54120f4552f1bedaf67
 EMBREE_VERSION=4.4.0
@@ -36,17 +37,8 @@ fetch() { # fetch FILE SHA256 URL
     mv "$DIR/$1.part" "$DIR/$1"
 }
 
-# The wheel's URL, from PyPI's JSON simple index (PEP 691).
-if have_sha "$DIR/$WHEEL" "$WHEEL_SHA256"; then
-    echo "embree4.sh: cached $WHEEL"
-else
-    url=$(curl -sSfL -H 'Accept: application/vnd.pypi.simple.v1+json' https://pypi.org/simple/embreex/ |
-        python3 -c 'import json, sys
-name = sys.argv[1]
-print(next(f["url"] for f in json.load(sys.stdin)["files"] if f["filename"] == name))' "$WHEEL") ||
-        die "could not find $WHEEL in PyPI's index for embreex"
-    fetch "$WHEEL" "$WHEEL_SHA256" "$url"
-fi
+# The wheel's permanent URL on PyPI's file host (from PyPI's simple index for embreex), checked by its sha256.
+fetch "$WHEEL" "$WHEEL_SHA256" "$WHEEL_URL"
 fetch "$CRATE.crate" "$CRATE_SHA256" "https://static.crates.io/crates/embree4-sys/$CRATE.crate"
 
 # Headers.
@@ -62,7 +54,15 @@ got=$(sed -n 's/^#define RTC_VERSION_STRING "\(.*\)"/\1/p' "$DIR/include/embree4
 
 # Library: every file of embreex.libs/ (libembree4-<hash>.so.4 and libtbb-<hash>.so.12).
 rm -rf "$DIR/wheel" "$DIR/lib"
-python3 -m zipfile -e "$DIR/$WHEEL" "$DIR/wheel"
+# A wheel is a zip: `unzip` (scripts/setup-debian.sh installs it; a fresh Debian 12 has neither it nor python3), or
+# python3's zipfile where there is no unzip.
+if command -v unzip >/dev/null 2>&1; then
+    unzip -q "$DIR/$WHEEL" 'embreex.libs/*' -d "$DIR/wheel"
+elif command -v python3 >/dev/null 2>&1; then
+    python3 -m zipfile -e "$DIR/$WHEEL" "$DIR/wheel"
+else
+    die "neither unzip nor python3 to open $WHEEL (apt-get install unzip)"
+fi
 mkdir -p "$DIR/lib"
 mv "$DIR"/wheel/embreex.libs/* "$DIR/lib/"
 rm -rf "$DIR/wheel"

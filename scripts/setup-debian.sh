@@ -1,7 +1,8 @@
 #!/bin/sh
 # Installs what cuticle needs on a fresh Debian 12 (or Ubuntu 22.04+) machine or container:
 #   - the native libraries: Embree 3 (curves), OpenImageIO (images), clang/libclang (bindgen), pkg-config, a C++
-#     compiler, and openimageio-tools (oiiotool/idiff, used by the tests);
+#     compiler, openimageio-tools (oiiotool/idiff, used by the tests) and unzip (scripts/embree4.sh, CI's Embree 4
+#     step);
 #   - a Rust toolchain >= the crate's rust-version (1.80) through rustup, unless one is already on PATH or in
 #     ~/.cargo/bin (Debian 12's own rustc is 1.63, too old).
 # Works as root without sudo (a container) or as a user with sudo. Safe to run again.
@@ -13,7 +14,7 @@ export DEBIAN_FRONTEND=noninteractive
 $SUDO apt-get update -qq
 $SUDO apt-get install -y -qq --no-install-recommends \
     ca-certificates curl git build-essential pkg-config clang libclang-dev \
-    libembree-dev libopenimageio-dev openimageio-tools >/dev/null
+    libembree-dev libopenimageio-dev openimageio-tools unzip >/dev/null
 
 need="1.80"
 PATH="$HOME/.cargo/bin:$PATH"
