@@ -400,14 +400,10 @@ impl Start {
         }
     }
 
-    /// A ray leaving this hit along `dir` as the renderer spawns it: past the strand's local tube when every
-    /// strand is opaque and the exit is defined, otherwise ignoring the strand.
-    fn spawn(&self, strands: &Strands, dir: Vec3) -> (Ray, Option<u32>) {
-        let exit = if strands.all_opaque() {
-            strands.tube_exit_at(self.segment, self.u, self.p, dir)
-        } else {
-            None
-        };
+    /// A ray leaving this hit along `dir` as the renderer spawns it: past the strand's local tube in `tube`'s
+    /// strands (given when every strand is opaque) where the exit is defined, otherwise ignoring the strand.
+    fn spawn(&self, tube: Option<&Strands>, dir: Vec3) -> (Ray, Option<u32>) {
+        let exit = tube.and_then(|strands| strands.tube_exit_at(self.segment, self.u, self.p, dir));
         match exit {
             Some(t) => (Ray::segment(self.p, dir, t, f32::INFINITY), None),
             None => (Ray::new(self.p, dir), Some(self.strand)),
@@ -425,6 +421,8 @@ impl Rays {
     /// Camera rays, then the secondary and shadow rays derived from `tracer`'s hits (see the module docs).
     fn new(tracer: &dyn Tracer, strands: &Strands, camera: &Camera, to_light: Vec3) -> Rays {
         let camera = camera.pixel_centre_rays();
+        // Checked once here, not per ray (it reads every strand's opacity).
+        let tube = strands.all_opaque().then_some(strands);
         let first: Vec<Start> = camera
             .par_iter()
             .filter_map(|ray| {
@@ -448,7 +446,7 @@ impl Rays {
             .enumerate()
             .map(|(i, s)| {
                 let key = hash64(!(i as u64));
-                let (ray, ignore) = s.spawn(strands, random_direction(i, 1));
+                let (ray, ignore) = s.spawn(tube, random_direction(i, 1));
                 (ray, ignore, key)
             })
             .collect();
@@ -457,7 +455,7 @@ impl Rays {
             .chain(&inner)
             .enumerate()
             .map(|(i, s)| {
-                let (ray, ignore) = s.spawn(strands, to_light);
+                let (ray, ignore) = s.spawn(tube, to_light);
                 (ray, ignore, hash64(i as u64 ^ 0x5ad0))
             })
             .collect();
