@@ -10,6 +10,7 @@
 //! tracer rays/s = the same count / median replay time; their ratio is target 3's figure (≥ 0.8 wanted).
 
 use std::fmt;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
@@ -72,21 +73,32 @@ impl TracedRay {
     }
 }
 
-/// A tracer that forwards every query to `inner` and records it.
+/// A tracer that forwards every query to `inner` and, while its log is recording, records it.
 struct Recorder {
     inner: Arc<dyn Tracer + Send>,
-    rays: Arc<Mutex<Vec<TracedRay>>>,
+    log: Arc<Log>,
+}
+
+/// The rays a [`Recorder`] has recorded, and whether it still records. Once recording stops the recorder only
+/// forwards: one relaxed load of a flag no thread writes, a few ns against the µs a hair ray takes.
+struct Log {
+    recording: AtomicBool,
+    rays: Mutex<Vec<TracedRay>>,
 }
 
 impl Recorder {
     fn record(&self, ray: &Ray, ignore_strand: Option<u32>, key: u64, query: Query) {
+        if !self.log.recording.load(Ordering::Relaxed) {
+            return;
+        }
         let traced = TracedRay {
             ray: *ray,
             ignore_strand,
             key,
             query,
         };
-        self.rays
+        self.log
+            .rays
             .lock()
             .unwrap_or_else(std::sync::PoisonError::into_inner)
             .push(traced);
@@ -162,55 +174,24 @@ impl Tracer for Unset {
     }
 }
 
-/// The frame's tracer shared with the replay after recording: forwards every query (one more dynamic call per
-/// query, a few ns against the µs a hair ray takes).
-struct Shared(Arc<dyn Tracer + Send>);
-
-impl Tracer for Shared {
-    fn build_seconds(&self) -> f64 {
-        self.0.build_seconds()
-    }
-    fn memory_bytes(&self) -> usize {
-        self.0.memory_bytes()
-    }
-    fn intersect(&self, ray: &Ray) -> Result<Option<Hit>, InvalidRay> {
-        self.0.intersect(ray)
-    }
-    fn transmittance(&self, ray: &Ray, ignore_strand: Option<u32>) -> Result<f32, InvalidRay> {
-        self.0.transmittance(ray, ignore_strand)
-    }
-    fn intersect_stochastic(
-        &self,
-        ray: &Ray,
-        ignore_strand: Option<u32>,
-        key: u64,
-    ) -> Result<Option<Hit>, InvalidRay> {
-        self.0.intersect_stochastic(ray, ignore_strand, key)
-    }
-    fn occluded_stochastic(
-        &self,
-        ray: &Ray,
-        ignore_strand: Option<u32>,
-        key: u64,
-    ) -> Result<bool, InvalidRay> {
-        self.0.occluded_stochastic(ray, ignore_strand, key)
-    }
-}
-
 /// Renders `frame` once with every tracer query recorded. Returns the bare tracer and the rays in the order they
-/// were issued; the frame then traces through the same tracer again, shared ([`Shared`]), without recording.
+/// were issued; the frame then traces through the same tracer again, through the recorder, no longer recording.
 pub fn record(frame: &mut Frame) -> (Arc<dyn Tracer + Send>, Vec<TracedRay>) {
     let inner: Arc<dyn Tracer + Send> =
         Arc::from(std::mem::replace(&mut frame.tracer, Box::new(Unset)));
-    let rays = Arc::new(Mutex::new(Vec::new()));
+    let log = Arc::new(Log {
+        recording: AtomicBool::new(true),
+        rays: Mutex::new(Vec::new()),
+    });
     frame.tracer = Box::new(Recorder {
         inner: Arc::clone(&inner),
-        rays: Arc::clone(&rays),
+        log: Arc::clone(&log),
     });
     frame.render(Options::default());
-    frame.tracer = Box::new(Shared(Arc::clone(&inner)));
+    log.recording.store(false, Ordering::Relaxed);
     let rays = std::mem::take(
-        &mut *rays
+        &mut *log
+            .rays
             .lock()
             .unwrap_or_else(std::sync::PoisonError::into_inner),
     );
