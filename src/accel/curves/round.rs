@@ -657,38 +657,40 @@ impl Search {
             });
             let inner = intersect_cylinder(self.dir, p0.xyz(), p3.xyz(), r_inner);
             let inner_t = inner.as_ref().map_or(Interval::EMPTY, |c| c.t);
-            let core = self.inside_core(p0, p1, p2, p3, bounds.stray[i], ray);
-            if let (true, Some(t)) = (self.any, core) {
-                self.best = Some(CurveHit {
-                    t: t + self.dt,
-                    u: u_start[i][0],
-                    v: 0.0,
-                    ng: Vec3::ZERO,
-                });
-                return None;
+            if self.any {
+                if let Some(t) = self.inside_core(p0, p1, p2, p3, bounds.stray[i], ray) {
+                    self.best = Some(CurveHit {
+                        t: t + self.dt,
+                        u: u_start[i][0],
+                        v: 0.0,
+                        ng: Vec3::ZERO,
+                    });
+                    return None;
+                }
             }
             // Unstable where the ray misses the inner cylinder or meets it at a glancing angle (|d·Ng| < 0.3,
             // with Embree's unnormalised d and Ng): one more level there.
-            let unstable = |k: usize| {
-                inner
+            let term_depth = |k: usize| {
+                let unstable = inner
                     .as_ref()
-                    .map_or(true, |c| self.dir.dot(c.ng[k]).abs() < 0.3)
+                    .map_or(true, |c| self.dir.dot(c.ng[k]).abs() < 0.3);
+                if unstable {
+                    max_depth + 1
+                } else {
+                    max_depth
+                }
             };
             // Front part: before the inner cylinder; back part: after it.
             let front = Interval {
                 lower: tp.lower,
                 upper: tp.upper.min(inner_t.lower),
             };
-            // Closest-hit shortcut: a ray that reaches the piece's core at t_core crossed the wall before it, in the
-            // front part (`inside_core`). Newton from the front part's start, as at the last level; a root at or
-            // before t_core is that crossing, found without refining. Otherwise the piece is refined as usual.
-            if let Some(t_core) = core {
-                let term_depth = if unstable(0) {
-                    max_depth + 1
-                } else {
-                    max_depth
-                };
-                if !front.is_empty() && depth < term_depth {
+            // Closest-hit shortcut, for a front part that would be refined: a ray that reaches the piece's core at
+            // t_core crossed the wall before it, in the front part (`inside_core`). Newton from the front part's
+            // start, as at the last level; a root at or before t_core is that crossing, found without refining.
+            // Otherwise the piece is refined as usual.
+            if !self.any && !front.is_empty() && depth < term_depth(0) {
+                if let Some(t_core) = self.inside_core(p0, p1, p2, p3, bounds.stray[i], ray) {
                     if let Some(hit) = self.solve(u_start[i][0], front.lower) {
                         if hit.t - self.dt <= t_core {
                             self.best = Some(hit);
@@ -711,12 +713,7 @@ impl Search {
                 if part.is_empty() {
                     continue;
                 }
-                let term_depth = if unstable(k) {
-                    max_depth + 1
-                } else {
-                    max_depth
-                };
-                if depth < term_depth {
+                if depth < term_depth(k) {
                     *refine |= 1 << i;
                 } else {
                     *newton |= 1 << i;
