@@ -231,6 +231,25 @@ fn intersect_tessellated(
         return None;
     }
 
+    let best = if rate == TESSELLATION_RATE {
+        quads4(&q, eps, depth_scale, tnear, tfar, any)
+    } else {
+        quads_one_by_one(&q, eps, depth_scale, rate, tnear, tfar, any)
+    };
+    best.map(|(t, u, v)| hit_at(&cp, t, u, v))
+}
+
+/// Steps 2 to 6 one quad at a time, for any `rate` (the tests' other rates, and the reference [`quads4`] is
+/// compared with): `q` holds the control points in ray space, as in [`quads4`].
+fn quads_one_by_one(
+    q: &[Vec4; 4],
+    eps: f32,
+    depth_scale: f32,
+    rate: usize,
+    tnear: f32,
+    tfar: f32,
+    any: bool,
+) -> Option<(f32, f32, f32)> {
     // Step 2's tessellation points, each shared by two quads.
     assert!(
         (1..=MAX_RATE).contains(&rate),
@@ -239,7 +258,7 @@ fn intersect_tessellated(
     let n = rate as f32;
     let mut points = [Vec4::ZERO; MAX_RATE + 1];
     for (k, p) in points.iter_mut().enumerate().take(rate + 1) {
-        *p = combine(bspline_basis(k as f32 / n), &q);
+        *p = combine(bspline_basis(k as f32 / n), q);
     }
     let mut best: Option<(f32, f32, f32)> = None; // (t, u along the segment, v′)
     for j in 0..rate {
@@ -259,7 +278,7 @@ fn intersect_tessellated(
 
         // Step 4: the ray-facing quad.
         let tangent = |u: f32| {
-            let d = combine(bspline_basis_derivative(u), &q).truncate();
+            let d = combine(bspline_basis_derivative(u), q).truncate();
             if d.abs().max_element() < eps {
                 chord
             } else {
@@ -287,19 +306,139 @@ fn intersect_tessellated(
         }
     }
 
-    // Step 7.
-    best.map(|(t, u, v)| {
-        let d = bspline_basis_derivative(u);
-        let ng = (0..4).fold(Vec3::ZERO, |acc, i| {
-            acc + d[i] * Vec3::new(cp[i][0], cp[i][1], cp[i][2])
-        });
-        CurveHit {
-            t,
-            u,
-            v: 2.0 * v - 1.0,
-            ng,
-        }
-    })
+    best
+}
+
+/// Step 7: the hit at ray parameter `t`, `u` along the segment and `v′` ∈ [0, 1] across the quad.
+fn hit_at(cp: &[[f32; 4]; 4], t: f32, u: f32, v: f32) -> CurveHit {
+    let d = bspline_basis_derivative(u);
+    let ng = (0..4).fold(Vec3::ZERO, |acc, i| {
+        acc + d[i] * Vec3::new(cp[i][0], cp[i][1], cp[i][2])
+    });
+    CurveHit {
+        t,
+        u,
+        v: 2.0 * v - 1.0,
+        ng,
+    }
+}
+
+/// Four lanes `[f(k₀/4)ᵢ, f((k₀+1)/4)ᵢ, f((k₀+2)/4)ᵢ, f((k₀+3)/4)ᵢ]` for each basis function i: the weights of
+/// the quads' start (k₀ = 0) or end (k₀ = 1) points at Embree's rate. Constant inputs: the compiler folds them.
+#[inline(always)]
+fn lanes(f: fn(f32) -> [f32; 4], k0: usize) -> [Vec4; 4] {
+    let b = [0, 1, 2, 3].map(|j| f((k0 + j) as f32 / TESSELLATION_RATE as f32));
+    [0, 1, 2, 3].map(|i| Vec4::new(b[0][i], b[1][i], b[2][i], b[3][i]))
+}
+
+/// Σᵢ wᵢ cᵢ over four lanes of weights and one scalar coordinate per control point, summed in the order of
+/// [`combine`] (so each lane is bit for bit the scalar loop's value).
+#[inline(always)]
+fn combine4(w: &[Vec4; 4], c: [f32; 4]) -> Vec4 {
+    w[0] * c[0] + w[1] * c[1] + w[2] * c[2] + w[3] * c[3]
+}
+
+/// Steps 2 to 6 for the [`TESSELLATION_RATE`] = 4 quads of a segment at once, one SSE lane per quad (as Embree's
+/// ribbon intersector tests its quads in SIMD lanes): the same operations in the same order as the
+/// one-quad-at-a-time loop, so the same hits bit for bit (a test compares them), but no branch per quad: the
+/// cylinder cull and the quad test become lane masks. `q` holds the control points in ray space (x, y, t, radius).
+/// Returns (t, u along the segment, v′) of the closest hit, or of the first quad hit when `any`.
+#[inline(always)]
+fn quads4(
+    q: &[Vec4; 4],
+    eps: f32,
+    depth_scale: f32,
+    tnear: f32,
+    tfar: f32,
+    any: bool,
+) -> Option<(f32, f32, f32)> {
+    let coord = |k: usize| [q[0][k], q[1][k], q[2][k], q[3][k]];
+    let (qx, qy, qz, qw) = (coord(0), coord(1), coord(2), coord(3));
+    let (b0, b1) = (lanes(bspline_basis, 0), lanes(bspline_basis, 1));
+    let (d0, d1) = (
+        lanes(bspline_basis_derivative, 0),
+        lanes(bspline_basis_derivative, 1),
+    );
+    // Step 2: each quad's end points and radii.
+    let (p0x, p0y, p0z, w0) = (
+        combine4(&b0, qx),
+        combine4(&b0, qy),
+        combine4(&b0, qz),
+        combine4(&b0, qw),
+    );
+    let (p1x, p1y, p1z, w1) = (
+        combine4(&b1, qx),
+        combine4(&b1, qy),
+        combine4(&b1, qz),
+        combine4(&b1, qw),
+    );
+
+    // Step 3: cylinder cull.
+    let (cx, cy) = (p1x - p0x, p1y - p0y);
+    let num = cx * p0y - cy * p0x;
+    let r_max = w0.max(w1);
+    let near_line = (num * num).cmple(r_max * r_max * (cx * cx + cy * cy));
+
+    // Step 4: the ray-facing quad; a tangent shorter than eps is replaced by the chord.
+    let normal = |d: &[Vec4; 4]| {
+        let (dx, dy, dz) = (combine4(d, qx), combine4(d, qy), combine4(d, qz));
+        let short = dx.abs().max(dy.abs()).max(dz.abs()).cmplt(Vec4::splat(eps));
+        let (dx, dy) = (Vec4::select(short, cx, dx), Vec4::select(short, cy, dy));
+        let (nx, ny) = (dy, -dx);
+        let length = (nx * nx + ny * ny).sqrt();
+        (nx / length, ny / length)
+    };
+    let ((n0x, n0y), (n1x, n1y)) = (normal(&d0), normal(&d1));
+    let (l0x, l0y, l0z) = (p0x + w0 * n0x, p0y + w0 * n0y, p0z + w0 * 0.0);
+    let (l1x, l1y, l1z) = (p1x + w1 * n1x, p1y + w1 * n1y, p1z + w1 * 0.0);
+    let (r0x, r0y, r0z) = (p0x - w0 * n0x, p0y - w0 * n0y, p0z - w0 * 0.0);
+    let (r1x, r1y, r1z) = (p1x - w1 * n1x, p1y - w1 * n1y, p1z - w1 * 0.0);
+
+    // Step 5 on the quad (a, b, c, d) = (L₀, L₁, R₁, R₀), split along b–d.
+    let w = r0x * (l1y - r0y) - r0y * (l1x - r0x);
+    let first = w.cmple(Vec4::ZERO);
+    let pick = |a: Vec4, c: Vec4| Vec4::select(first, a, c);
+    let (v0x, v0y, v0z) = (pick(l0x, r1x), pick(l0y, r1y), pick(l0z, r1z));
+    let (v1x, v1y, v1z) = (pick(l1x, r0x), pick(l1y, r0y), pick(l1z, r0z));
+    let (v2x, v2y, v2z) = (pick(r0x, l1x), pick(r0y, l1y), pick(r0z, l1z));
+    let (e0x, e0y, e0z) = (v2x - v0x, v2y - v0y, v2z - v0z);
+    let (e1x, e1y, e1z) = (v0x - v1x, v0y - v1y, v0z - v1z);
+    let u = v0x * e0y - v0y * e0x;
+    let v = v1x * e1y - v1y * e1x;
+    let inside = u.cmple(Vec4::ZERO) & v.cmple(Vec4::ZERO);
+    // Ng = e₁ × e₀ (glam's component order), den = Ng_z, t = (v₀ · Ng) / den.
+    let ngx = e1y * e0z - e0y * e1z;
+    let ngy = e1z * e0x - e0z * e1x;
+    let den = e1x * e0y - e0x * e1y;
+    let t = (v0x * ngx + v0y * ngy + v0z * den) / den;
+    let in_interval = Vec4::splat(tnear).cmple(t) & t.cmple(Vec4::splat(tfar));
+    let (u, v) = (u / den, v / den);
+    let (u, v) = (
+        Vec4::select(first, u, Vec4::ONE - u),
+        Vec4::select(first, v, Vec4::ONE - v),
+    );
+
+    // Step 6.
+    let r = w0 + (w1 - w0) * u;
+    let clear_of_origin = t.cmpgt(SELF_INTERSECTION_AVOIDANCE * r * depth_scale);
+    let hit = near_line & inside & in_interval & den.cmpne(Vec4::ZERO) & clear_of_origin;
+    let mask = hit.bitmask();
+    if mask == 0 {
+        return None;
+    }
+    let lane = if any {
+        mask.trailing_zeros()
+    } else {
+        // The first lane of the smallest t, as the loop's strict `t < best` keeps it.
+        let masked = Vec4::select(hit, t, Vec4::INFINITY);
+        let closest = masked.cmpeq(Vec4::splat(masked.min_element())) & hit;
+        closest.bitmask().trailing_zeros()
+    } as usize;
+    Some((
+        t[lane],
+        (lane as f32 + u[lane]) / TESSELLATION_RATE as f32,
+        v[lane],
+    ))
 }
 
 #[cfg(test)]
@@ -748,6 +887,50 @@ mod tests {
         assert!(
             rejected * 10 > box_misses * 8,
             "step 0 rejects only {rejected} of {box_misses} missing box rays"
+        );
+    }
+
+    #[test]
+    fn four_lanes_give_the_one_by_one_quads_hits_bit_for_bit() {
+        // quads4 is the one-quad loop at Embree's rate in SSE lanes: every ray of the early-reject set (box rays
+        // and rays aimed at the curve), closest and any hit, must give the same (t, u, v′) bits, or None alike.
+        let (mut compared, mut hits) = (0, 0);
+        super::super::near_rays(0x4a9e_5e75, |cp, org, dir, tnear, _| {
+            let ray = RibbonRay::new(org, dir);
+            let (rx, ry, rz) = ray.rows;
+            let q = cp.map(|c| {
+                let p = Vec3::new(c[0], c[1], c[2]) - org;
+                Vec4::new(rx.dot(p), ry.dot(p), rz.dot(p), c[3])
+            });
+            let extent = q
+                .iter()
+                .fold(0.0f32, |m, p| m.max(p.truncate().abs().max_element()));
+            let eps = 4.0 * f32::EPSILON * extent;
+            for any in [false, true] {
+                let lanes = quads4(&q, eps, ray.depth_scale, tnear, f32::INFINITY, any);
+                let loop_ = quads_one_by_one(
+                    &q,
+                    eps,
+                    ray.depth_scale,
+                    TESSELLATION_RATE,
+                    tnear,
+                    f32::INFINITY,
+                    any,
+                );
+                let bits =
+                    |h: Option<(f32, f32, f32)>| h.map(|(t, u, v)| [t, u, v].map(f32::to_bits));
+                assert_eq!(
+                    bits(lanes),
+                    bits(loop_),
+                    "any {any}, cp {cp:?}, org {org}, dir {dir}"
+                );
+                compared += 1;
+                hits += usize::from(lanes.is_some());
+            }
+        });
+        assert!(
+            hits > 10_000,
+            "too few hits to compare: {hits} of {compared}"
         );
     }
 
