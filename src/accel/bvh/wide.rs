@@ -496,29 +496,38 @@ impl WideBvh {
                 };
                 let tmin = tmin.to_array();
                 if mask != 0 {
-                    // Hit children sorted by entry distance without data-dependent branches (a five-comparator
-                    // sorting network over the four lanes, missed lanes at +∞), then the farther ones stacked so
-                    // that the nearer are popped first, and the nearest entered.
-                    let mut t = [0.0f32; 4];
-                    for lane in 0..4 {
-                        t[lane] = if mask & (1 << lane) != 0 {
+                    // Hit children sorted by entry distance without data-dependent branches: each lane's key is
+                    // its entry distance's bits (t ≥ tnear ≥ 0, and non-negative floats order as their bits do;
+                    // the sign bit is cleared for −0) with the lane number in the two lowest bits, missed lanes at +∞; a five-comparator sorting
+                    // network of integer min/max (conditional moves, where a swap of lane numbers compiled to a
+                    // branch that mispredicted 3.5 M times in the flat fur-ball benchmark, 40 % of the walk's
+                    // mispredictions) orders them. The farther ones are stacked so that the nearer are popped
+                    // first, and the nearest entered. Dropping the distances' two lowest bits only reorders
+                    // children whose entry distances agree to 2⁻²¹ relative, which changes no query's answer.
+                    if mask.is_power_of_two() {
+                        current = children[mask.trailing_zeros() as usize];
+                        continue;
+                    }
+                    let mut key = [0u32; 4];
+                    for (lane, k) in key.iter_mut().enumerate() {
+                        let t = if mask & (1 << lane) != 0 {
                             tmin[lane]
                         } else {
                             f32::INFINITY
                         };
+                        *k = (t.to_bits() & 0x7fff_fffc) | lane as u32;
                     }
-                    let mut order = [0usize, 1, 2, 3];
                     for (a, b) in [(0, 1), (2, 3), (0, 2), (1, 3), (1, 2)] {
-                        let swap = t[order[b]] < t[order[a]];
-                        let (x, y) = (order[a], order[b]);
-                        order[a] = if swap { y } else { x };
-                        order[b] = if swap { x } else { y };
+                        let (x, y) = (key[a], key[b]);
+                        key[a] = x.min(y);
+                        key[b] = x.max(y);
                     }
                     let n = mask.count_ones() as usize;
-                    for &lane in order[1..n].iter().rev() {
-                        stack.push((children[lane], t[lane]));
+                    for &k in key[1..n].iter().rev() {
+                        let lane = (k & 3) as usize;
+                        stack.push((children[lane], tmin[lane]));
                     }
-                    current = children[order[0]];
+                    current = children[(key[0] & 3) as usize];
                     continue;
                 }
             }
