@@ -657,4 +657,123 @@ mod tests {
         let err = write("frame.jpg", &Image::new(1, 1, names(&["R"]))).unwrap_err();
         assert!(err.to_string().contains("frame.jpg"), "{err}");
     }
+
+    #[test]
+    fn a_failed_writer_leaves_no_file_and_no_target() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("frame.exr");
+        let mut outputs = Outputs::new();
+        let err = outputs
+            .stage_with(
+                &path,
+                |_| {
+                    Err(OiioError {
+                        message: "disk on fire".into(),
+                    })
+                },
+                |_| Ok(()),
+            )
+            .unwrap_err();
+        assert!(
+            err.to_string().contains("frame.exr") && err.to_string().contains("disk on fire"),
+            "{err}"
+        );
+        outputs.commit().unwrap();
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+    }
+
+    #[test]
+    fn a_truncated_file_fails_verification_and_nothing_is_renamed() {
+        let dir = tempfile::tempdir().unwrap();
+        let exr = dir.path().join("frame.exr");
+        let png = dir.path().join("frame.png");
+        std::fs::write(&exr, "previous").unwrap();
+        let image = Image::new(4, 3, names(&["R", "G", "B"]));
+        let mut outputs = Outputs::new();
+        outputs.exr(&exr, &image, &ExrInfo::default()).unwrap();
+        // A writer that reports success but leaves half a file (OpenImageIO's PNG writer on a full disk).
+        let err = outputs
+            .stage_with(
+                &png,
+                |temp| {
+                    write_png_preview(temp, &image).map_err(|e| OiioError {
+                        message: e.to_string(),
+                    })?;
+                    let len = std::fs::metadata(temp).unwrap().len();
+                    std::fs::OpenOptions::new()
+                        .write(true)
+                        .open(temp)
+                        .unwrap()
+                        .set_len(len / 2)
+                        .unwrap();
+                    Ok(())
+                },
+                |temp| verify_u8(temp, 4, 3, &[0; 36]),
+            )
+            .unwrap_err();
+        assert!(
+            err.to_string()
+                .contains("frame.png: the written file is wrong"),
+            "{err}"
+        );
+        drop(outputs);
+        assert_eq!(std::fs::read(&exr).unwrap(), b"previous", "nothing renamed");
+        assert_eq!(
+            std::fs::read_dir(dir.path()).unwrap().count(),
+            1,
+            "temporaries removed"
+        );
+    }
+
+    #[test]
+    fn staged_files_are_verified_and_renamed_together() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut image = Image::new(4, 3, names(&["R", "G", "B", "depth.Z"]));
+        image.set(1, 2, 3, f32::INFINITY);
+        image.set(0, 0, 0, -0.0);
+        let mut outputs = Outputs::new();
+        let info = ExrInfo {
+            window: Some(DataWindow {
+                x: 2,
+                y: 1,
+                full_width: 8,
+                full_height: 5,
+            }),
+            attributes: vec![("cuticle:complete".into(), "1".into())],
+        };
+        outputs
+            .exr(&dir.path().join("a.exr"), &image, &info)
+            .unwrap();
+        outputs
+            .png_preview(&dir.path().join("a.png"), &image)
+            .unwrap();
+        assert_eq!(
+            std::fs::read_dir(dir.path()).unwrap().count(),
+            2,
+            "only temporaries so far"
+        );
+        assert!(!dir.path().join("a.exr").exists());
+        let written = outputs.commit().unwrap();
+        assert_eq!(written.len(), 2);
+        let (back, window, attrs) =
+            read_with_info(&dir.path().join("a.exr"), &["cuticle:complete"]).unwrap();
+        assert_eq!(window, info.window.unwrap());
+        assert_eq!(attrs[0].as_deref(), Some("1"));
+        assert_eq!(
+            back.get(1, 2, back.channel_index("depth.Z").unwrap()),
+            f32::INFINITY
+        );
+    }
+
+    #[test]
+    fn check_output_refuses_before_anything_is_written() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::create_dir(dir.path().join("d.png")).unwrap();
+        let e = check_output(&dir.path().join("d.png")).unwrap_err();
+        assert!(e.to_string().ends_with("d.png: is a directory"), "{e}");
+        assert!(check_output(&dir.path().join("x.tif")).is_err());
+        assert!(check_output(&dir.path().join("no/x.exr")).is_err());
+        check_output(&dir.path().join("x.exr")).unwrap();
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
 }
