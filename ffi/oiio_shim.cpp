@@ -62,10 +62,15 @@ bool type_desc(int format, TypeDesc *out) {
 
 extern "C" int cuticle_oiio_version(void) { return OIIO_VERSION; }
 
-extern "C" int cuticle_oiio_write(const char *path, int width, int height, int nchannels,
-                                  const char *const *channel_names, const void *pixels,
-                                  int pixel_format, int file_format, unsigned flags, char *err,
-                                  size_t err_cap) {
+namespace {
+
+// The body of cuticle_oiio_write and cuticle_oiio_write_window: `window` may be null (the data window is
+// the whole image) and `nattrs` string attributes are written as file metadata.
+int write_image(const char *path, int width, int height, int nchannels,
+                const char *const *channel_names, const void *pixels, int pixel_format,
+                int file_format, unsigned flags, const CuticleOiioWindow *window, int nattrs,
+                const char *const *attr_names, const char *const *attr_values, char *err,
+                size_t err_cap) {
     try {
         TypeDesc memory_type, file_type;
         if (!type_desc(pixel_format, &memory_type) || !type_desc(file_format, &file_type)) {
@@ -108,6 +113,31 @@ extern "C" int cuticle_oiio_write(const char *path, int width, int height, int n
         } else {
             spec.attribute("oiio:ColorSpace", "Linear");
         }
+        if (window != nullptr) {
+            if (window->full_width < width || window->full_height < height || window->x < 0 ||
+                window->y < 0 || window->x > window->full_width - width ||
+                window->y > window->full_height - height) {
+                set_error(err, err_cap, "data window lies outside the full image");
+                return 1;
+            }
+            spec.x = window->x;
+            spec.y = window->y;
+            spec.full_x = 0;
+            spec.full_y = 0;
+            spec.full_width = window->full_width;
+            spec.full_height = window->full_height;
+        }
+        if (nattrs < 0 || (nattrs > 0 && (attr_names == nullptr || attr_values == nullptr))) {
+            set_error(err, err_cap, "invalid attribute list");
+            return 1;
+        }
+        for (int i = 0; i < nattrs; ++i) {
+            if (attr_names[i] == nullptr || attr_values[i] == nullptr) {
+                set_error(err, err_cap, "null attribute name or value");
+                return 1;
+            }
+            spec.attribute(attr_names[i], attr_values[i]);
+        }
         if (!out->open(path, spec)) {
             set_error(err, err_cap, or_fallback(out->geterror(), "could not open for writing"));
             return 1;
@@ -127,6 +157,27 @@ extern "C" int cuticle_oiio_write(const char *path, int width, int height, int n
         set_exception_error(err, err_cap, "openimageio write");
         return 1;
     }
+}
+
+}  // namespace
+
+extern "C" int cuticle_oiio_write(const char *path, int width, int height, int nchannels,
+                                  const char *const *channel_names, const void *pixels,
+                                  int pixel_format, int file_format, unsigned flags, char *err,
+                                  size_t err_cap) {
+    return write_image(path, width, height, nchannels, channel_names, pixels, pixel_format,
+                       file_format, flags, nullptr, 0, nullptr, nullptr, err, err_cap);
+}
+
+extern "C" int cuticle_oiio_write_window(const char *path, int width, int height, int nchannels,
+                                         const char *const *channel_names, const void *pixels,
+                                         int pixel_format, int file_format, unsigned flags,
+                                         const CuticleOiioWindow *window, int nattrs,
+                                         const char *const *attr_names,
+                                         const char *const *attr_values, char *err,
+                                         size_t err_cap) {
+    return write_image(path, width, height, nchannels, channel_names, pixels, pixel_format,
+                       file_format, flags, window, nattrs, attr_names, attr_values, err, err_cap);
 }
 
 extern "C" CuticleOiioInput *cuticle_oiio_open(const char *path, char *err, size_t err_cap) {
@@ -178,6 +229,36 @@ extern "C" void cuticle_oiio_input_size(const CuticleOiioInput *input, int *widt
     }
     if (nchannels != nullptr) {
         *nchannels = input->spec.nchannels;
+    }
+}
+
+extern "C" void cuticle_oiio_input_window(const CuticleOiioInput *input,
+                                          CuticleOiioWindow *window) {
+    // Plain field reads: nothing here can throw.
+    if (input == nullptr || window == nullptr) {
+        return;
+    }
+    window->x = input->spec.x - input->spec.full_x;
+    window->y = input->spec.y - input->spec.full_y;
+    window->full_width = input->spec.full_width;
+    window->full_height = input->spec.full_height;
+}
+
+extern "C" int cuticle_oiio_input_attribute(const CuticleOiioInput *input, const char *name,
+                                            char *out, size_t out_cap) {
+    try {
+        if (input == nullptr || name == nullptr) {
+            return -1;
+        }
+        const OIIO::ParamValue *p = input->spec.find_attribute(name, TypeDesc::STRING);
+        if (p == nullptr) {
+            return -1;
+        }
+        const std::string value = p->get_string();
+        set_error(out, out_cap, value);
+        return value.size() < out_cap ? static_cast<int>(value.size()) : -2;
+    } catch (...) {
+        return -1;
     }
 }
 

@@ -47,6 +47,24 @@ int cuticle_oiio_write(const char *path, int width, int height, int nchannels,
                        const char *const *channel_names, const void *pixels, int pixel_format,
                        int file_format, unsigned flags, char *err, size_t err_cap);
 
+/* Where a written image sits in its full frame (an EXR data window inside the display window): pixel
+ * (0, 0) of the data lands on pixel (x, y) of a `full_width` x `full_height` frame. */
+typedef struct CuticleOiioWindow {
+    int x;
+    int y;
+    int full_width;
+    int full_height;
+} CuticleOiioWindow;
+
+/* cuticle_oiio_write with a data window (`window`; null = the whole image) and `nattrs` string
+ * attributes (`attr_names[i]` = `attr_values[i]`) written as file metadata. */
+int cuticle_oiio_write_window(const char *path, int width, int height, int nchannels,
+                              const char *const *channel_names, const void *pixels,
+                              int pixel_format, int file_format, unsigned flags,
+                              const CuticleOiioWindow *window, int nattrs,
+                              const char *const *attr_names, const char *const *attr_values,
+                              char *err, size_t err_cap);
+
 /* An open image file, read with the functions below and released with cuticle_oiio_close. */
 typedef struct CuticleOiioInput CuticleOiioInput;
 
@@ -57,6 +75,14 @@ CuticleOiioInput *cuticle_oiio_open(const char *path, char *err, size_t err_cap)
 /* The size of the image's data window and its channel count. */
 void cuticle_oiio_input_size(const CuticleOiioInput *input, int *width, int *height,
                              int *nchannels);
+
+/* The data window of the image within its full (display) window. */
+void cuticle_oiio_input_window(const CuticleOiioInput *input, CuticleOiioWindow *window);
+
+/* Copies the string attribute `name` (NUL-terminated) into `out` of `out_cap` bytes. Returns its
+ * length, -1 when the file has no such string attribute, -2 when it does not fit. */
+int cuticle_oiio_input_attribute(const CuticleOiioInput *input, const char *name, char *out,
+                                 size_t out_cap);
 
 /* The name of channel `channel` (0 <= channel < nchannels), valid until cuticle_oiio_close; null
  * when out of range. */

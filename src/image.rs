@@ -22,13 +22,21 @@
 //! directory (named `.<name>.tmp-<random>.<ext>`, keeping the extension from which OpenImageIO
 //! picks the format), flushed to disk, then renamed over the target. A reader never sees a half-written frame, and on
 //! any failure the temporary file is removed and the target is left as it was.
+//!
+//! **All or nothing** ([`Outputs`]): a run's files (EXR, PNG preview, dumped maps) are each written to a temporary
+//! file, flushed and **read back and compared** with what was meant (OpenImageIO's PNG writer reports success on a
+//! full disk), and only when every one of them is verified are they renamed into place and their directory synced.
+//! A failure names the file and, when the file system is the cause, the operating system's words ("No space left
+//! on device"). [`check_output`] checks a path before a render starts.
 
 use std::ffi::OsStr;
 use std::fs;
 use std::io;
 use std::path::{Path, PathBuf};
 
-use crate::sys::oiio::{self, FileFormat, OiioError, Pixels, WriteOptions};
+use tempfile::NamedTempFile;
+
+use crate::sys::oiio::{self, FileFormat, OiioError, Pixels, Window, WriteOptions};
 use crate::util::atomic_file;
 
 /// An image could not be written or read. Every variant names the file.
@@ -216,7 +224,7 @@ fn check_before_writing(path: &Path, image: &Image) -> Result<(), ImageError> {
         .map_err(|message| ImageError::invalid(path, message))
 }
 
-/// Writes `image` to `path`, atomically (see the [module docs](self)), in the format its extension
+/// Writes `image` to `path`, atomically and verified (see the [module docs](self)), in the format its extension
 /// names (case-insensitive):
 ///
 /// - `.exr`: every channel, 32-bit float, names as given;
@@ -225,39 +233,293 @@ fn check_before_writing(path: &Path, image: &Image) -> Result<(), ImageError> {
 /// Any other extension is an [`ImageError::Invalid`].
 pub fn write(path: impl AsRef<Path>, image: &Image) -> Result<(), ImageError> {
     let path = path.as_ref();
-    let extension = path
-        .extension()
+    let mut outputs = Outputs::new();
+    match extension(path).as_deref() {
+        Some("exr") => outputs.exr(path, image, &ExrInfo::default())?,
+        Some("png") => outputs.png_preview(path, image)?,
+        _ => return Err(bad_extension(path)),
+    }
+    outputs.commit().map(drop)
+}
+
+fn extension(path: &Path) -> Option<String> {
+    path.extension()
         .and_then(OsStr::to_str)
-        .map(str::to_ascii_lowercase);
-    match extension.as_deref() {
-        Some("exr") => write_exr(path, image),
-        Some("png") => write_png_preview(path, image),
-        _ => Err(ImageError::invalid(
+        .map(str::to_ascii_lowercase)
+}
+
+fn bad_extension(path: &Path) -> ImageError {
+    ImageError::invalid(
+        path,
+        "unsupported image extension: use .exr (all channels, float) \
+         or .png (8-bit srgb preview)",
+    )
+}
+
+/// Checks, before anything is rendered, that an image can be written at `path`: a `.exr` or `.png` extension, not
+/// a directory, in an existing directory where a file can be created (a temporary file is created and removed).
+pub fn check_output(path: &Path) -> Result<(), ImageError> {
+    if !matches!(extension(path).as_deref(), Some("exr" | "png")) {
+        return Err(bad_extension(path));
+    }
+    if path.is_dir() {
+        return Err(ImageError::invalid(path, "is a directory"));
+    }
+    let dir = match path.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() => dir,
+        _ => Path::new("."),
+    };
+    match fs::metadata(dir) {
+        Ok(m) if m.is_dir() => {}
+        Ok(_) => {
+            return Err(ImageError::invalid(
+                path,
+                "its directory is not a directory",
+            ))
+        }
+        Err(e) => return Err(ImageError::io(path, "its directory cannot be used", e)),
+    }
+    atomic_file::temp_beside(path)
+        .map(drop)
+        .map_err(|e| ImageError::io(path, "cannot create files in its directory", e.source))
+}
+
+/// Where an EXR's pixels sit in the full frame (EXR data window inside the display window), in pixels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DataWindow {
+    /// Column of the image's first pixel in the full frame.
+    pub x: usize,
+    /// Row of the image's first pixel in the full frame.
+    pub y: usize,
+    /// Width of the full frame.
+    pub full_width: usize,
+    /// Height of the full frame.
+    pub full_height: usize,
+}
+
+/// What an EXR records besides its pixels.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ExrInfo {
+    /// Where the pixels sit in a larger frame (a tile); `None`: the image is the whole frame.
+    pub window: Option<DataWindow>,
+    /// String attributes stored in the header, `(name, value)`, e.g. `("cuticle:complete", "1")`.
+    pub attributes: Vec<(String, String)>,
+}
+
+/// A run's output files, written to temporary files beside their targets and verified, then renamed into place
+/// together by [`Outputs::commit`]. Dropped without a commit, it removes every temporary file and leaves the
+/// targets as they were.
+#[derive(Debug, Default)]
+pub struct Outputs {
+    staged: Vec<(NamedTempFile, PathBuf)>,
+}
+
+impl Outputs {
+    /// No files yet.
+    pub fn new() -> Self {
+        Outputs::default()
+    }
+
+    /// Stages `image` as a float EXR at `path`, with `info` in its header.
+    pub fn exr(&mut self, path: &Path, image: &Image, info: &ExrInfo) -> Result<(), ImageError> {
+        check_before_writing(path, image)?;
+        let window = info
+            .window
+            .map(|w| -> Result<Window, ImageError> {
+                let int = |v: usize| {
+                    i32::try_from(v).map_err(|_| ImageError::invalid(path, "data window too large"))
+                };
+                Ok(Window {
+                    x: int(w.x)?,
+                    y: int(w.y)?,
+                    full_width: int(w.full_width)?,
+                    full_height: int(w.full_height)?,
+                })
+            })
+            .transpose()?;
+        let options = WriteOptions {
+            format: FileFormat::Float,
+            unassociated_alpha: false,
+        };
+        self.stage_with(
             path,
-            "unsupported image extension: use .exr (all channels, float) \
-             or .png (8-bit srgb preview)",
-        )),
+            |temp| {
+                oiio::write_image_window(
+                    temp,
+                    image.width,
+                    image.height,
+                    &image.channels,
+                    Pixels::F32(&image.data),
+                    options,
+                    window,
+                    &info.attributes,
+                )
+            },
+            |temp| verify_exr(temp, image, window),
+        )
+    }
+
+    /// Stages an 8-bit sRGB preview of `image` at `path` (see [`write_png_preview`]).
+    pub fn png_preview(&mut self, path: &Path, image: &Image) -> Result<(), ImageError> {
+        check_before_writing(path, image)?;
+        let bytes = preview_bytes(path, image)?;
+        self.stage_with(
+            path,
+            |temp| {
+                oiio::write_image(
+                    temp,
+                    image.width,
+                    image.height,
+                    &["R", "G", "B"],
+                    Pixels::U8(&bytes),
+                    WriteOptions {
+                        format: FileFormat::Uint8,
+                        unassociated_alpha: false,
+                    },
+                )
+            },
+            |temp| verify_u8(temp, image.width, image.height, &bytes),
+        )
+    }
+
+    /// Writes one file with `write_to` into a temporary file beside `path`, flushes it, and checks it with
+    /// `verify` (why it is wrong, or `Ok`). On failure the temporary file is removed; when the file system is full
+    /// (a small file cannot be written beside it either) the error is the operating system's.
+    pub(crate) fn stage_with(
+        &mut self,
+        path: &Path,
+        write_to: impl FnOnce(&Path) -> Result<(), OiioError>,
+        verify: impl FnOnce(&Path) -> Result<(), String>,
+    ) -> Result<(), ImageError> {
+        if path.is_dir() {
+            return Err(ImageError::invalid(path, "is a directory"));
+        }
+        if self.staged.iter().any(|(_, p)| p == path) {
+            return Err(ImageError::invalid(path, "is written twice in one run"));
+        }
+        let temp = atomic_file::temp_beside(path)
+            .map_err(|e| ImageError::io(path, e.context, e.source))?;
+        let written = write_to(temp.path()).map_err(|source| ImageError::Oiio {
+            path: path.to_path_buf(),
+            context: "openimageio cannot write it".to_owned(),
+            source,
+        });
+        let checked = written.and_then(|()| {
+            atomic_file::sync(temp.path())
+                .map_err(|e| ImageError::io(path, e.context, e.source))?;
+            verify(temp.path())
+                .map_err(|m| ImageError::invalid(path, format!("the written file is wrong: {m}")))
+        });
+        if let Err(e) = checked {
+            // An OS error from a full or failing disk explains the failure better than a writer that lost it.
+            return Err(match atomic_file::probe_space(temp.path()) {
+                Err(os) => ImageError::io(path, "cannot write", os),
+                Ok(()) => e,
+            });
+        }
+        self.staged.push((temp, path.to_path_buf()));
+        Ok(())
+    }
+
+    /// The targets staged so far.
+    pub fn paths(&self) -> Vec<&Path> {
+        self.staged.iter().map(|(_, p)| p.as_path()).collect()
+    }
+
+    /// Renames every staged file into place (and syncs their directories); returns their paths.
+    pub fn commit(self) -> Result<Vec<PathBuf>, ImageError> {
+        let mut done = Vec::with_capacity(self.staged.len());
+        for (temp, path) in self.staged {
+            atomic_file::persist(temp, &path)
+                .map_err(|e| ImageError::io(&path, e.context, e.source))?;
+            done.push(path);
+        }
+        Ok(done)
     }
 }
 
-/// Writes every channel of `image` as 32-bit float (the format follows the extension: `.exr`).
-fn write_exr(path: &Path, image: &Image) -> Result<(), ImageError> {
-    check_before_writing(path, image)?;
-    let options = WriteOptions {
-        format: FileFormat::Float,
-        unassociated_alpha: false,
+/// Why the EXR at `temp` does not hold `image` (every channel by name, bit for bit) at `window`, or `Ok`.
+fn verify_exr(temp: &Path, image: &Image, window: Option<Window>) -> Result<(), String> {
+    let header = oiio::read_header(temp, &[]).map_err(|e| e.message)?;
+    if let Some(w) = window {
+        if header.window != w {
+            return Err(format!("data window {:?}, meant {w:?}", header.window));
+        }
+    }
+    let back = oiio::read_image(temp).map_err(|e| e.message)?;
+    if (back.width, back.height) != (image.width, image.height) {
+        return Err(format!(
+            "reads back as {}x{}, meant {}x{}",
+            back.width, back.height, image.width, image.height
+        ));
+    }
+    let (n, m) = (image.channels.len(), back.channels.len());
+    if n != m {
+        return Err(format!("reads back with {m} channels, meant {n}"));
+    }
+    for (c, name) in image.channels.iter().enumerate() {
+        let b = back
+            .channels
+            .iter()
+            .position(|x| x == name)
+            .ok_or_else(|| format!("channel {name} is missing"))?;
+        let same = image
+            .data
+            .chunks_exact(n)
+            .zip(back.data.chunks_exact(m))
+            .all(|(p, q)| p[c].to_bits() == q[b].to_bits());
+        if !same {
+            return Err(format!("channel {name} reads back different"));
+        }
+    }
+    Ok(())
+}
+
+/// Why the 8-bit file at `temp` does not hold `bytes` (`width` × `height`, interleaved RGB), or `Ok`.
+fn verify_u8(temp: &Path, width: usize, height: usize, bytes: &[u8]) -> Result<(), String> {
+    let back = oiio::read_image(temp).map_err(|e| e.message)?;
+    if (back.width, back.height, back.data.len()) != (width, height, bytes.len()) {
+        return Err(format!(
+            "reads back as {}x{} with {} values, meant {width}x{height} with {}",
+            back.width,
+            back.height,
+            back.data.len(),
+            bytes.len()
+        ));
+    }
+    if back
+        .data
+        .iter()
+        .zip(bytes)
+        .any(|(v, b)| (v * 255.0).round() != f32::from(*b))
+    {
+        return Err("pixels read back different".to_owned());
+    }
+    Ok(())
+}
+
+/// Reads the image at `path` with where it sits in its full frame and the string attributes named in `names`
+/// (`None` where the file has none).
+pub fn read_with_info(
+    path: &Path,
+    names: &[&str],
+) -> Result<(Image, DataWindow, Vec<Option<String>>), ImageError> {
+    let image = read(path)?;
+    let header = oiio::read_header(path, names).map_err(|source| ImageError::Oiio {
+        path: path.to_path_buf(),
+        context: "openimageio cannot read its header".to_owned(),
+        source,
+    })?;
+    let w = header.window;
+    let int =
+        |v: i32| usize::try_from(v).map_err(|_| ImageError::invalid(path, "negative data window"));
+    let window = DataWindow {
+        x: int(w.x)?,
+        y: int(w.y)?,
+        full_width: int(w.full_width)?,
+        full_height: int(w.full_height)?,
     };
-    write_atomically(path, |temp| {
-        let pixels = Pixels::F32(&image.data);
-        oiio::write_image(
-            temp,
-            image.width,
-            image.height,
-            &image.channels,
-            pixels,
-            options,
-        )
-    })
+    Ok((image, window, header.attributes))
 }
 
 /// The sRGB opto-electronic transfer function (IEC 61966-2-1) of a linear value, clamped to
@@ -285,8 +547,13 @@ pub fn linear_to_srgb8(linear: f32) -> u8 {
 /// rounding ([`linear_to_srgb8`]). OpenImageIO does not sRGB-encode 8-bit output, which is why this
 /// happens here.
 pub fn write_png_preview(path: impl AsRef<Path>, image: &Image) -> Result<(), ImageError> {
-    let path = path.as_ref();
-    check_before_writing(path, image)?;
+    let mut outputs = Outputs::new();
+    outputs.png_preview(path.as_ref(), image)?;
+    outputs.commit().map(drop)
+}
+
+/// The sRGB-encoded 8-bit `R,G,B` of every pixel of `image`, interleaved.
+fn preview_bytes(path: &Path, image: &Image) -> Result<Vec<u8>, ImageError> {
     let find = |name: &str| {
         image.channel_index(name).ok_or_else(|| {
             ImageError::invalid(
@@ -300,26 +567,12 @@ pub fn write_png_preview(path: impl AsRef<Path>, image: &Image) -> Result<(), Im
         })
     };
     let rgb = [find("R")?, find("G")?, find("B")?];
-    let out_channels: &[&str] = &["R", "G", "B"];
-
     let n = image.channels.len();
-    let mut bytes = Vec::with_capacity(image.width * image.height * out_channels.len());
+    let mut bytes = Vec::with_capacity(image.width * image.height * 3);
     for pixel in image.data.chunks_exact(n) {
         bytes.extend(rgb.map(|c| linear_to_srgb8(pixel[c])));
     }
-    write_atomically(path, |temp| {
-        oiio::write_image(
-            temp,
-            image.width,
-            image.height,
-            out_channels,
-            Pixels::U8(&bytes),
-            WriteOptions {
-                format: FileFormat::Uint8,
-                unassociated_alpha: false,
-            },
-        )
-    })
+    Ok(bytes)
 }
 
 /// Reads the image at `path` (first subimage; any format OpenImageIO reads) as `f32`.
@@ -345,25 +598,6 @@ pub fn read(path: impl AsRef<Path>) -> Result<Image, ImageError> {
         channels: decoded.channels,
         data: decoded.data,
     })
-}
-
-/// Runs `write_to` on a temporary file next to `path` and renames it over `path`
-/// ([`crate::util::atomic_file`]). On any failure the temporary file is removed.
-fn write_atomically(
-    path: &Path,
-    write_to: impl FnOnce(&Path) -> Result<(), OiioError>,
-) -> Result<(), ImageError> {
-    if path.is_dir() {
-        return Err(ImageError::invalid(path, "is a directory"));
-    }
-    let io = |e: atomic_file::WriteError| ImageError::io(path, e.context, e.source);
-    let temp = atomic_file::temp_beside(path).map_err(io)?;
-    write_to(temp.path()).map_err(|source| ImageError::Oiio {
-        path: path.to_path_buf(),
-        context: "openimageio cannot write it".to_owned(),
-        source,
-    })?;
-    atomic_file::persist(temp, path).map_err(io)
 }
 
 #[cfg(test)]
@@ -422,5 +656,124 @@ mod tests {
     fn unknown_extensions_are_refused() {
         let err = write("frame.jpg", &Image::new(1, 1, names(&["R"]))).unwrap_err();
         assert!(err.to_string().contains("frame.jpg"), "{err}");
+    }
+
+    #[test]
+    fn a_failed_writer_leaves_no_file_and_no_target() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("frame.exr");
+        let mut outputs = Outputs::new();
+        let err = outputs
+            .stage_with(
+                &path,
+                |_| {
+                    Err(OiioError {
+                        message: "disk on fire".into(),
+                    })
+                },
+                |_| Ok(()),
+            )
+            .unwrap_err();
+        assert!(
+            err.to_string().contains("frame.exr") && err.to_string().contains("disk on fire"),
+            "{err}"
+        );
+        outputs.commit().unwrap();
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+    }
+
+    #[test]
+    fn a_truncated_file_fails_verification_and_nothing_is_renamed() {
+        let dir = tempfile::tempdir().unwrap();
+        let exr = dir.path().join("frame.exr");
+        let png = dir.path().join("frame.png");
+        std::fs::write(&exr, "previous").unwrap();
+        let image = Image::new(4, 3, names(&["R", "G", "B"]));
+        let mut outputs = Outputs::new();
+        outputs.exr(&exr, &image, &ExrInfo::default()).unwrap();
+        // A writer that reports success but leaves half a file (OpenImageIO's PNG writer on a full disk).
+        let err = outputs
+            .stage_with(
+                &png,
+                |temp| {
+                    write_png_preview(temp, &image).map_err(|e| OiioError {
+                        message: e.to_string(),
+                    })?;
+                    let len = std::fs::metadata(temp).unwrap().len();
+                    std::fs::OpenOptions::new()
+                        .write(true)
+                        .open(temp)
+                        .unwrap()
+                        .set_len(len / 2)
+                        .unwrap();
+                    Ok(())
+                },
+                |temp| verify_u8(temp, 4, 3, &[0; 36]),
+            )
+            .unwrap_err();
+        assert!(
+            err.to_string()
+                .contains("frame.png: the written file is wrong"),
+            "{err}"
+        );
+        drop(outputs);
+        assert_eq!(std::fs::read(&exr).unwrap(), b"previous", "nothing renamed");
+        assert_eq!(
+            std::fs::read_dir(dir.path()).unwrap().count(),
+            1,
+            "temporaries removed"
+        );
+    }
+
+    #[test]
+    fn staged_files_are_verified_and_renamed_together() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut image = Image::new(4, 3, names(&["R", "G", "B", "depth.Z"]));
+        image.set(1, 2, 3, f32::INFINITY);
+        image.set(0, 0, 0, -0.0);
+        let mut outputs = Outputs::new();
+        let info = ExrInfo {
+            window: Some(DataWindow {
+                x: 2,
+                y: 1,
+                full_width: 8,
+                full_height: 5,
+            }),
+            attributes: vec![("cuticle:complete".into(), "1".into())],
+        };
+        outputs
+            .exr(&dir.path().join("a.exr"), &image, &info)
+            .unwrap();
+        outputs
+            .png_preview(&dir.path().join("a.png"), &image)
+            .unwrap();
+        assert_eq!(
+            std::fs::read_dir(dir.path()).unwrap().count(),
+            2,
+            "only temporaries so far"
+        );
+        assert!(!dir.path().join("a.exr").exists());
+        let written = outputs.commit().unwrap();
+        assert_eq!(written.len(), 2);
+        let (back, window, attrs) =
+            read_with_info(&dir.path().join("a.exr"), &["cuticle:complete"]).unwrap();
+        assert_eq!(window, info.window.unwrap());
+        assert_eq!(attrs[0].as_deref(), Some("1"));
+        assert_eq!(
+            back.get(1, 2, back.channel_index("depth.Z").unwrap()),
+            f32::INFINITY
+        );
+    }
+
+    #[test]
+    fn check_output_refuses_before_anything_is_written() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::create_dir(dir.path().join("d.png")).unwrap();
+        let e = check_output(&dir.path().join("d.png")).unwrap_err();
+        assert!(e.to_string().ends_with("d.png: is a directory"), "{e}");
+        assert!(check_output(&dir.path().join("x.tif")).is_err());
+        assert!(check_output(&dir.path().join("no/x.exr")).is_err());
+        check_output(&dir.path().join("x.exr")).unwrap();
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
     }
 }

@@ -17,6 +17,7 @@
 pub mod accel;
 pub mod bench;
 pub mod bsdf;
+pub mod farm;
 pub mod geometry;
 pub mod hair;
 pub mod image;

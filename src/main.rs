@@ -25,6 +25,9 @@ struct Cli {
 enum Command {
     /// Render a scene to an EXR (beauty + AOVs) and a PNG preview beside it.
     Render(RenderArgs),
+    /// Assemble the tiles of `render --tile`/`--crop` into one frame (EXR + PNG preview), checking they are of one
+    /// job and cover every pixel exactly once.
+    Merge(MergeArgs),
     /// Describe a hair file: strands, points, bounds, thickness statistics, format.
     Info {
         /// A `.hair` or `.tfx` file.
@@ -92,6 +95,26 @@ struct RenderArgs {
     /// No progress bar.
     #[arg(short, long)]
     quiet: bool,
+    /// Render only the pixels x0..x1 × y0..y1 of the frame (EXR data window; same pixels as the full render).
+    #[arg(long, value_name = "X0,Y0,X1,Y1", value_parser = render::tiles::Region::parse, conflicts_with = "tile")]
+    crop: Option<render::Region>,
+    /// Render part I (from 0) of N of the frame: a band of whole rows (see `cuticle merge`).
+    #[arg(long, value_name = "I/N", value_parser = render::tiles::parse_part)]
+    tile: Option<(u32, u32)>,
+    /// Render frames A..B (inclusive) of the camera's turntable (camera.orbit_degrees_per_frame), one
+    /// `name.####.exr` each.
+    #[arg(long, value_name = "A..B", value_parser = cuticle::farm::parse_frames)]
+    frames: Option<std::ops::RangeInclusive<i32>>,
+}
+
+/// `cuticle merge`: tiles into one frame.
+#[derive(clap::Args)]
+struct MergeArgs {
+    /// The merged frame (`.exr`; a `.png` preview is written beside it).
+    output: PathBuf,
+    /// The tile EXRs of `cuticle render --tile` or `--crop`, covering the frame exactly once.
+    #[arg(required = true)]
+    tiles: Vec<PathBuf>,
 }
 
 #[derive(clap::Args)]
@@ -287,47 +310,114 @@ fn render_command(args: RenderArgs) -> Result<()> {
         lights: args.lights,
     };
     let scene = load_scene(args.scene.as_deref())?.apply(&overrides)?;
-    let extension = args
-        .output
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase);
-    if !matches!(extension.as_deref(), Some("exr") | Some("png")) {
-        bail!("{}: output must end in .exr or .png", args.output.display());
+    let description = format!("{scene:?}");
+    let frames: Vec<Option<i32>> = match &args.frames {
+        Some(r) => r.clone().map(Some).collect(),
+        None => vec![None],
+    };
+    // Every output path is checked before anything is loaded or rendered.
+    let exr_output = match args.output.extension().and_then(|e| e.to_str()) {
+        Some(e) if e.eq_ignore_ascii_case("exr") => true,
+        Some(e) if e.eq_ignore_ascii_case("png") => false,
+        _ => bail!("{}: output must end in .exr or .png", args.output.display()),
+    };
+    for &f in &frames {
+        let path = cuticle::farm::frame_path(&args.output, f);
+        cuticle::image::check_output(&path)?;
+        if exr_output {
+            cuticle::image::check_output(&path.with_extension("png"))?;
+        }
     }
+    if let Some(dir) = &args.dump_shadow_maps {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("cannot create the shadow-map directory {}", dir.display()))?;
+        cuticle::image::check_output(&dir.join("map.exr"))?;
+    }
+    let cancel = cuticle::farm::catch_signals().context("cannot catch sigint/sigterm")?;
 
     let pool = thread_pool(args.threads)?;
     let frame = Frame::load(scene.resolve()?)?;
     let settings = &frame.settings;
+    let [width, height] = settings.film.resolution;
+    let region = match (args.crop, args.tile) {
+        (Some(crop), _) => {
+            crop.check_inside(width, height)
+                .map_err(anyhow::Error::msg)?;
+            crop
+        }
+        (None, Some((i, n))) => {
+            render::Region::band(i, n, width, height).map_err(anyhow::Error::msg)?
+        }
+        (None, None) => render::Region::full(width, height),
+    };
     // Deep opacity maps are built once: for the render (in deep-opacity mode) and for --dump-shadow-maps alike.
     let deep_opacity = settings.shadows.mode == ShadowMode::DeepOpacity;
     let start = Instant::now();
     let maps = (deep_opacity || args.dump_shadow_maps.is_some())
         .then(|| pool.install(|| frame.shadow_maps(settings)));
     let maps_seconds = start.elapsed().as_secs_f64();
-    if let (Some(dir), Some(maps)) = (&args.dump_shadow_maps, &maps) {
-        std::fs::create_dir_all(dir)
-            .with_context(|| format!("cannot create the shadow-map directory {}", dir.display()))?;
-        for (name, map) in maps.maps() {
-            let path = dir.join(format!("{name}.exr"));
-            cuticle::image::write(&path, &map.to_image())?;
-            eprintln!("wrote {}", path.display());
-        }
-    }
     let options = render::Options {
         progress: !args.quiet,
     };
-    let (image, stats) =
-        pool.install(|| frame.render_with_maps(settings, maps.as_ref(), maps_seconds, options));
-
-    if extension.as_deref() == Some("exr") {
-        cuticle::image::write(&args.output, &image)?;
-        let preview = args.output.with_extension("png");
-        cuticle::image::write_png_preview(&preview, &image)?;
-        eprintln!("wrote {} and {}", args.output.display(), preview.display());
-    } else {
-        cuticle::image::write_png_preview(&args.output, &image)?;
-        eprintln!("wrote {}", args.output.display());
+    let mut stats = render::RenderStats::default();
+    for (k, &f) in frames.iter().enumerate() {
+        let mut settings = settings.clone();
+        settings.camera.frame = f.unwrap_or(0);
+        let path = cuticle::farm::frame_path(&args.output, f);
+        if !args.quiet {
+            eprintln!("rendering {}", path.display());
+        }
+        let r = pool.install(|| {
+            frame.render_region(
+                &settings,
+                maps.as_ref(),
+                maps_seconds,
+                options,
+                region,
+                Some(&cancel),
+            )
+        });
+        stats = r.stats;
+        let job = cuticle::farm::job_hash(&description, settings.camera.frame);
+        let info = cuticle::farm::render_info(
+            region,
+            width,
+            height,
+            &job,
+            settings.camera.frame,
+            r.tiles_done,
+            r.tiles_total,
+        );
+        if !r.is_complete() {
+            let signal = cancel.load(std::sync::atomic::Ordering::Relaxed) as i32;
+            let partial = (r.tiles_done > 0).then(|| cuticle::farm::partial_path(&path));
+            if let Some(p) = &partial {
+                let mut outputs = cuticle::image::Outputs::new();
+                outputs.exr(p, &r.image, &info)?;
+                outputs.commit()?;
+            }
+            let i = cuticle::farm::Interrupted { signal, partial };
+            return Err(cuticle::farm::FarmError::Interrupted(i).into());
+        }
+        let mut outputs = cuticle::image::Outputs::new();
+        if let (Some(dir), Some(maps), 0) = (&args.dump_shadow_maps, &maps, k) {
+            for (name, map) in maps.maps() {
+                outputs.exr(
+                    &dir.join(format!("{name}.exr")),
+                    &map.to_image(),
+                    &Default::default(),
+                )?;
+            }
+        }
+        if exr_output {
+            outputs.exr(&path, &r.image, &info)?;
+            outputs.png_preview(&path.with_extension("png"), &r.image)?;
+        } else {
+            outputs.png_preview(&path, &r.image)?;
+        }
+        for p in outputs.commit()? {
+            eprintln!("wrote {}", p.display());
+        }
     }
     let [w, h] = settings.film.resolution;
     eprintln!(
@@ -359,6 +449,30 @@ fn render_command(args: RenderArgs) -> Result<()> {
             "warning: {} invalid rays were rejected before tracing (a bug: please report)",
             stats.rays.rejected
         );
+    }
+    Ok(())
+}
+
+fn merge_command(args: &MergeArgs) -> Result<()> {
+    if !args
+        .output
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("exr"))
+    {
+        bail!(
+            "{}: the merged frame must end in .exr",
+            args.output.display()
+        );
+    }
+    let preview = args.output.with_extension("png");
+    cuticle::image::check_output(&args.output)?;
+    cuticle::image::check_output(&preview)?;
+    let merged = cuticle::farm::merge(&args.tiles)?;
+    let mut outputs = cuticle::image::Outputs::new();
+    outputs.exr(&args.output, &merged.image, &merged.info)?;
+    outputs.png_preview(&preview, &merged.image)?;
+    for p in outputs.commit()? {
+        eprintln!("wrote {}", p.display());
     }
     Ok(())
 }
@@ -613,6 +727,7 @@ fn run() -> Result<()> {
     let cli = Cli::parse();
     match cli.command {
         Command::Render(args) => render_command(args),
+        Command::Merge(args) => merge_command(&args),
         Command::Info { file } => info_command(&file),
         Command::PlotBsdf(args) => plot_command(args),
         Command::PlotCsv(args) => plot_csv_command(args),
@@ -655,7 +770,10 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("cuticle: error: {e:#}");
-            ExitCode::from(2)
+            match e.downcast_ref::<cuticle::farm::FarmError>() {
+                Some(cuticle::farm::FarmError::Interrupted(i)) => ExitCode::from(i.exit_code()),
+                _ => ExitCode::from(2),
+            }
         }
     }
 }

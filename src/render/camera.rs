@@ -23,6 +23,12 @@ pub struct CameraConfig {
     pub view: [f32; 3],
     /// Auto-framing margin: 1 fits the bounding sphere exactly, larger zooms out.
     pub margin: f32,
+    /// Turntable: degrees the eye turns about the `up` axis through the look-at point per animation frame
+    /// (`render --frames`), counter-clockwise seen from above; frame 0 is the camera as placed. 0: no orbit.
+    pub orbit_degrees_per_frame: f32,
+    /// The animation frame the camera is placed for (set by `render --frames`; not a scene key).
+    #[serde(skip)]
+    pub frame: i32,
 }
 
 impl Default for CameraConfig {
@@ -34,6 +40,8 @@ impl Default for CameraConfig {
             up: [0.0, 1.0, 0.0],
             view: [0.0, 0.0, -1.0],
             margin: 1.05,
+            orbit_degrees_per_frame: 0.0,
+            frame: 0,
         }
     }
 }
@@ -49,6 +57,12 @@ impl CameraConfig {
         }
         if !(self.margin.is_finite() && self.margin > 0.0) {
             return Err(format!("camera.margin must be > 0, got {}", self.margin));
+        }
+        if !self.orbit_degrees_per_frame.is_finite() {
+            return Err(format!(
+                "camera.orbit_degrees_per_frame must be finite, got {}",
+                self.orbit_degrees_per_frame
+            ));
         }
         for (key, v) in [("camera.up", self.up), ("camera.view", self.view)] {
             if !Vec3::from(v).is_finite() || Vec3::from(v).length_squared() == 0.0 {
@@ -123,6 +137,15 @@ impl Camera {
                 look_at - distance * view
             }
         };
+        // The turntable angle in f64 and reduced mod 360, so late frames keep their precision.
+        let orbit = (f64::from(config.frame) * f64::from(config.orbit_degrees_per_frame)) % 360.0;
+        let position = if orbit == 0.0 {
+            position
+        } else {
+            let axis = Vec3::from(config.up).normalize();
+            let turn = glam::Quat::from_axis_angle(axis, (orbit as f32).to_radians());
+            look_at + turn * (position - look_at)
+        };
         Camera::look_at(
             position,
             look_at,
@@ -194,6 +217,33 @@ mod tests {
             (cam.position.length() - 3f32.sqrt() / 0.5).abs() < 1e-4,
             "{:?}",
             cam.position
+        );
+    }
+
+    #[test]
+    fn the_orbit_turns_the_eye_about_up_through_the_look_at_point() {
+        let config = CameraConfig {
+            position: Some([0.0, 1.0, 5.0]),
+            look_at: Some([0.0, 1.0, 0.0]),
+            orbit_degrees_per_frame: 10.0,
+            frame: 9,
+            ..Default::default()
+        };
+        let bounds = (Vec3::splat(-1.0), Vec3::splat(1.0));
+        let cam = Camera::from_config(&config, bounds, 100, 100);
+        // 90° counter-clockwise seen from +y: +z goes to +x.
+        assert!(
+            (cam.position - Vec3::new(5.0, 1.0, 0.0)).length() < 1e-5,
+            "{:?}",
+            cam.position
+        );
+        assert!((cam.forward - Vec3::NEG_X).length() < 1e-6);
+        let still = CameraConfig { frame: 0, ..config };
+        let cam = Camera::from_config(&still, bounds, 100, 100);
+        assert_eq!(
+            cam.position,
+            Vec3::new(0.0, 1.0, 5.0),
+            "frame 0 is as placed"
         );
     }
 }

@@ -6,6 +6,7 @@
 //! [`Frame::load`] builds it. One frame can then be rendered under several settings (a benchmark's repetitions, a
 //! study's variants) without reloading anything.
 
+use std::sync::atomic::AtomicUsize;
 use std::time::Instant;
 
 use crate::accel::bvh_tracer::BvhTracer;
@@ -20,7 +21,7 @@ use crate::shadow::ShadowMaps;
 use crate::shape::Shapes;
 
 use super::settings::{RenderSettings, ShadowMode};
-use super::{render_tiles, Options, RenderStats};
+use super::{render_tiles, Options, Region, RegionRender, RenderStats};
 
 /// What a frame is made of, before anything heavy is built.
 #[derive(Debug)]
@@ -160,13 +161,36 @@ impl Frame {
         maps_seconds: f64,
         options: Options,
     ) -> (Image, RenderStats) {
+        let [width, height] = settings.film.resolution;
+        let full = Region::full(width, height);
+        let r = self.render_region(settings, maps, maps_seconds, options, full, None);
+        (r.image, r.stats)
+    }
+
+    /// [`Frame::render_with_maps`] of `region` alone (inside `settings.film.resolution`; its pixels equal the full
+    /// frame's there, bit for bit), stopping early once `cancel` holds a non-zero value: tiles not yet started
+    /// are left at zero and [`RegionRender::is_complete`] is false.
+    pub fn render_region(
+        &self,
+        settings: &RenderSettings,
+        maps: Option<&ShadowMaps>,
+        maps_seconds: f64,
+        options: Options,
+        region: Region,
+        cancel: Option<&AtomicUsize>,
+    ) -> RegionRender {
+        let [width, height] = settings.film.resolution;
+        assert!(
+            region.check_inside(width, height).is_ok() && region.width() > 0 && region.height() > 0,
+            "region {region:?} is not inside the {width}x{height} frame"
+        );
         let maps = maps.filter(|_| settings.shadows.mode == ShadowMode::DeepOpacity);
-        let (image, mut stats) = render_tiles(self, settings, maps, options);
+        let mut r = render_tiles(self, settings, maps, options, region, cancel);
         if let Some(m) = maps {
-            stats.shadow_build_seconds = maps_seconds;
-            stats.shadow_map_bytes = m.bytes();
+            r.stats.shadow_build_seconds = maps_seconds;
+            r.stats.shadow_map_bytes = m.bytes();
         }
-        (image, stats)
+        r
     }
 }
 

@@ -14,7 +14,9 @@ pub mod frame;
 pub mod integrator;
 pub mod sampler;
 pub mod settings;
+pub mod tiles;
 
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 use glam::Vec3;
@@ -35,6 +37,7 @@ pub use settings::{
     FilmConfig, IntegratorConfig, LightSelection, RenderSettings, ShadowConfig, ShadowMode,
     Strategy, TransmittanceMode,
 };
+pub use tiles::Region;
 
 /// Side of the square tiles rendered as one unit of parallel work.
 const TILE: u32 = 32;
@@ -59,13 +62,36 @@ pub struct Options {
     pub progress: bool,
 }
 
-/// The pixel loop: renders `frame` with `settings` (and `maps` in deep-opacity mode) on the current rayon pool.
+/// What [`Frame::render_region`] made: the region's pixels and how many of its tiles were rendered.
+#[derive(Debug, Clone)]
+pub struct RegionRender {
+    /// The region's pixels (its size, not the frame's); tiles never started are zero.
+    pub image: Image,
+    /// Counters of the render.
+    pub stats: RenderStats,
+    /// Tiles rendered.
+    pub tiles_done: usize,
+    /// Tiles in the region.
+    pub tiles_total: usize,
+}
+
+impl RegionRender {
+    /// Whether every tile was rendered (no cancellation).
+    pub fn is_complete(&self) -> bool {
+        self.tiles_done == self.tiles_total
+    }
+}
+
+/// The pixel loop: renders `region` of `frame` with `settings` (and `maps` in deep-opacity mode) on the current
+/// rayon pool. Once `cancel` holds a non-zero value no new tile starts (tiles already running finish).
 fn render_tiles(
     frame: &Frame,
     settings: &RenderSettings,
     maps: Option<&ShadowMaps>,
     options: Options,
-) -> (Image, RenderStats) {
+    region: Region,
+    cancel: Option<&AtomicUsize>,
+) -> RegionRender {
     let [width, height] = settings.film.resolution;
     let strands = &frame.strands;
     let tracer = frame.tracer.as_ref();
@@ -74,8 +100,8 @@ fn render_tiles(
     let filter = GaussianFilter::new(settings.film.filter_width);
     let integrator = Integrator::new(frame, settings, maps);
 
-    let tiles_x = width.div_ceil(TILE);
-    let tiles_y = height.div_ceil(TILE);
+    let tiles_x = region.width().div_ceil(TILE);
+    let tiles_y = region.height().div_ceil(TILE);
     let progress = if options.progress {
         indicatif::ProgressBar::new(u64::from(tiles_x * tiles_y))
     } else {
@@ -98,9 +124,17 @@ fn render_tiles(
         .collect();
     let rendered: Vec<(Tile, RayCounts)> = tiles
         .par_iter()
-        .map(|&(tx, ty)| {
-            let (x0, y0) = (tx * TILE, ty * TILE);
-            let mut tile = Tile::new(x0, y0, (x0 + TILE).min(width), (y0 + TILE).min(height));
+        .filter_map(|&(tx, ty)| {
+            if cancel.is_some_and(|c| c.load(Ordering::Relaxed) != 0) {
+                return None;
+            }
+            let (x0, y0) = (region.x0 + tx * TILE, region.y0 + ty * TILE);
+            let mut tile = Tile::new(
+                x0,
+                y0,
+                (x0 + TILE).min(region.x1),
+                (y0 + TILE).min(region.y1),
+            );
             let mut counts = RayCounts::default();
             for y in tile.y0..tile.y1 {
                 for x in tile.x0..tile.x1 {
@@ -128,7 +162,7 @@ fn render_tiles(
                 }
             }
             progress.inc(1);
-            (tile, counts)
+            Some((tile, counts))
         })
         .collect();
     progress.finish_and_clear();
@@ -137,13 +171,31 @@ fn render_tiles(
     for (_, counts) in &rendered {
         rays.add(counts);
     }
-    let tiles: Vec<Tile> = rendered.into_iter().map(|(t, _)| t).collect();
-    let image = film::assemble(width, height, &tiles);
+    let tiles_done = rendered.len();
+    // Tiles were rendered in frame coordinates; the image holds the region alone.
+    let tiles: Vec<Tile> = rendered
+        .into_iter()
+        .map(|(mut t, _)| {
+            (t.x0, t.x1, t.y0, t.y1) = (
+                t.x0 - region.x0,
+                t.x1 - region.x0,
+                t.y0 - region.y0,
+                t.y1 - region.y0,
+            );
+            t
+        })
+        .collect();
+    let image = film::assemble(region.width(), region.height(), &tiles);
     let stats = RenderStats {
         seconds: start.elapsed().as_secs_f64(),
         rays,
         shadow_build_seconds: 0.0,
         shadow_map_bytes: 0,
     };
-    (image, stats)
+    RegionRender {
+        image,
+        stats,
+        tiles_done,
+        tiles_total: tiles_x as usize * tiles_y as usize,
+    }
 }

@@ -45,6 +45,33 @@ mod ffi {
             err: *mut c_char,
             err_cap: usize,
         ) -> c_int;
+        pub fn cuticle_oiio_write_window(
+            path: *const c_char,
+            width: c_int,
+            height: c_int,
+            nchannels: c_int,
+            channel_names: *const *const c_char,
+            pixels: *const c_void,
+            pixel_format: c_int,
+            file_format: c_int,
+            flags: c_uint,
+            window: *const super::Window,
+            nattrs: c_int,
+            attr_names: *const *const c_char,
+            attr_values: *const *const c_char,
+            err: *mut c_char,
+            err_cap: usize,
+        ) -> c_int;
+        pub fn cuticle_oiio_input_window(
+            input: *const CuticleOiioInput,
+            window: *mut super::Window,
+        );
+        pub fn cuticle_oiio_input_attribute(
+            input: *const CuticleOiioInput,
+            name: *const c_char,
+            out: *mut c_char,
+            out_cap: usize,
+        ) -> c_int;
         pub fn cuticle_oiio_open(
             path: *const c_char,
             err: *mut c_char,
@@ -261,6 +288,203 @@ pub fn write_image<S: AsRef<str>>(
     }
 }
 
+/// Where an image's pixels sit in a larger frame (`CuticleOiioWindow` of `ffi/oiio_shim.h`; EXR's data window
+/// inside its display window): pixel (0, 0) of the data is pixel (`x`, `y`) of a `full_width` × `full_height`
+/// frame.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Window {
+    /// Column of the data's first pixel in the full frame.
+    pub x: c_int,
+    /// Row of the data's first pixel in the full frame.
+    pub y: c_int,
+    /// Width of the full frame.
+    pub full_width: c_int,
+    /// Height of the full frame.
+    pub full_height: c_int,
+}
+
+/// Longest string attribute [`read_header`] returns, bytes.
+const ATTRIBUTE_CAPACITY: usize = 4096;
+
+/// [`write_image`] with the data placed at `window` in a larger frame (`None`: the image is the whole frame) and
+/// string `attributes` (name, value) stored as file metadata (EXR header attributes).
+#[allow(clippy::too_many_arguments)]
+pub fn write_image_window<S: AsRef<str>>(
+    path: &Path,
+    width: usize,
+    height: usize,
+    channels: &[S],
+    pixels: Pixels<'_>,
+    options: WriteOptions,
+    window: Option<Window>,
+    attributes: &[(String, String)],
+) -> Result<(), OiioError> {
+    let expected = width
+        .checked_mul(height)
+        .and_then(|n| n.checked_mul(channels.len()))
+        .ok_or_else(|| OiioError::new("image size overflows"))?;
+    if expected == 0 || pixels.len() != expected {
+        return Err(OiioError::new(format!(
+            "pixel buffer holds {} values, {width}x{height}x{} needs {expected}",
+            pixels.len(),
+            channels.len()
+        )));
+    }
+    let c_string =
+        |s: &str| CString::new(s).map_err(|_| OiioError::new(format!("{s:?} contains a NUL byte")));
+    let c_path = path_cstring(path)?;
+    let names = channels
+        .iter()
+        .map(|n| c_string(n.as_ref()))
+        .collect::<Result<Vec<_>, _>>()?;
+    let name_ptrs: Vec<*const c_char> = names.iter().map(|n| n.as_ptr()).collect();
+    let keys = attributes
+        .iter()
+        .map(|(k, _)| c_string(k))
+        .collect::<Result<Vec<_>, _>>()?;
+    let values = attributes
+        .iter()
+        .map(|(_, v)| c_string(v))
+        .collect::<Result<Vec<_>, _>>()?;
+    let key_ptrs: Vec<*const c_char> = keys.iter().map(|k| k.as_ptr()).collect();
+    let value_ptrs: Vec<*const c_char> = values.iter().map(|v| v.as_ptr()).collect();
+    let (pixel_ptr, pixel_format) = pixels.raw();
+    let (c_width, c_height) = (to_c_int(width, "width")?, to_c_int(height, "height")?);
+    let c_nchannels = to_c_int(channels.len(), "channel count")?;
+    let c_nattrs = to_c_int(attributes.len(), "attribute count")?;
+    let flags = if options.unassociated_alpha {
+        ffi::UNASSOCIATED_ALPHA
+    } else {
+        0
+    };
+    let window_ptr = window
+        .as_ref()
+        .map_or(std::ptr::null(), |w| w as *const Window);
+    let mut err = [0u8; ERROR_CAPACITY];
+    // SAFETY: as in `write_image`; in addition `window_ptr` is null or points to a `Window` that outlives the
+    // call, and `key_ptrs`/`value_ptrs` hold `attributes.len()` NUL-terminated strings each, alive until after it.
+    let status = unsafe {
+        ffi::cuticle_oiio_write_window(
+            c_path.as_ptr(),
+            c_width,
+            c_height,
+            c_nchannels,
+            name_ptrs.as_ptr(),
+            pixel_ptr,
+            pixel_format,
+            options.format.raw(),
+            flags,
+            window_ptr,
+            c_nattrs,
+            key_ptrs.as_ptr(),
+            value_ptrs.as_ptr(),
+            err.as_mut_ptr().cast(),
+            err.len(),
+        )
+    };
+    if status == 0 {
+        Ok(())
+    } else {
+        Err(OiioError::from_buffer(&err))
+    }
+}
+
+/// What [`read_header`] finds in a file's header, without reading its pixels.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Header {
+    /// Width of the data window, in pixels.
+    pub width: usize,
+    /// Height of the data window, in pixels.
+    pub height: usize,
+    /// Channel names in the order OpenImageIO reports them.
+    pub channels: Vec<String>,
+    /// Where the data window sits in the full frame.
+    pub window: Window,
+    /// The value of each string attribute asked for, `None` when the file has none of that name.
+    pub attributes: Vec<Option<String>>,
+}
+
+/// Reads the header of `path`: its size, channels, data window, and the string attributes named in `names`.
+pub fn read_header(path: &Path, names: &[&str]) -> Result<Header, OiioError> {
+    let c_path = path_cstring(path)?;
+    let mut err = [0u8; ERROR_CAPACITY];
+    // SAFETY: `c_path` is NUL-terminated and outlives the call; `err` is writable for its length.
+    let raw =
+        unsafe { ffi::cuticle_oiio_open(c_path.as_ptr(), err.as_mut_ptr().cast(), err.len()) };
+    let input = Input(NonNull::new(raw).ok_or_else(|| OiioError::from_buffer(&err))?);
+    let (mut width, mut height, mut nchannels): (c_int, c_int, c_int) = (0, 0, 0);
+    // SAFETY: `input` is an open handle and the three out-pointers are valid, distinct locals.
+    unsafe {
+        ffi::cuticle_oiio_input_size(input.0.as_ptr(), &mut width, &mut height, &mut nchannels)
+    };
+    let mut window = Window {
+        x: 0,
+        y: 0,
+        full_width: 0,
+        full_height: 0,
+    };
+    // SAFETY: `input` is an open handle and `window` a valid local the shim fills.
+    unsafe { ffi::cuticle_oiio_input_window(input.0.as_ptr(), &mut window) };
+    let (Ok(width), Ok(height), Ok(nchannels)) = (
+        usize::try_from(width),
+        usize::try_from(height),
+        usize::try_from(nchannels),
+    ) else {
+        return Err(OiioError::new("image reports a negative size"));
+    };
+    let mut channels = Vec::with_capacity(nchannels);
+    for c in 0..nchannels {
+        let c = to_c_int(c, "channel index")?;
+        // SAFETY: `input` is open; the shim bounds-checks `c` (null when out of range).
+        let name = unsafe { ffi::cuticle_oiio_input_channel_name(input.0.as_ptr(), c) };
+        if name.is_null() {
+            return Err(OiioError::new(format!("channel {c} has no name")));
+        }
+        // SAFETY: a non-null name is NUL-terminated and lives until `input` is closed (after this copy).
+        channels.push(
+            unsafe { CStr::from_ptr(name) }
+                .to_string_lossy()
+                .into_owned(),
+        );
+    }
+    let mut attributes = Vec::with_capacity(names.len());
+    for name in names {
+        let c_name = CString::new(*name)
+            .map_err(|_| OiioError::new(format!("attribute name {name:?} contains a NUL byte")))?;
+        let mut buffer = vec![0u8; ATTRIBUTE_CAPACITY];
+        // SAFETY: `input` is open, `c_name` is NUL-terminated, `buffer` is writable for its length; all outlive
+        // the call.
+        let n = unsafe {
+            ffi::cuticle_oiio_input_attribute(
+                input.0.as_ptr(),
+                c_name.as_ptr(),
+                buffer.as_mut_ptr().cast(),
+                buffer.len(),
+            )
+        };
+        attributes.push(match n {
+            -1 => None,
+            n if n < 0 => {
+                return Err(OiioError::new(format!(
+                    "attribute {name:?} is longer than {ATTRIBUTE_CAPACITY} bytes"
+                )))
+            }
+            n => {
+                buffer.truncate(n as usize);
+                Some(String::from_utf8_lossy(&buffer).into_owned())
+            }
+        });
+    }
+    Ok(Header {
+        width,
+        height,
+        channels,
+        window,
+        attributes,
+    })
+}
+
 /// An image read by [`read_image`]: interleaved `f32` pixels, top row first.
 #[derive(Clone, Debug, PartialEq)]
 pub struct DecodedImage {
@@ -379,6 +603,77 @@ mod tests {
         )
         .unwrap_err();
         assert!(err.message.contains("holds 3 values"), "{err}");
+    }
+
+    #[test]
+    fn window_layout_matches_the_c_struct() {
+        assert_eq!(
+            std::mem::size_of::<Window>(),
+            4 * std::mem::size_of::<c_int>()
+        );
+        assert_eq!(
+            std::mem::align_of::<Window>(),
+            std::mem::align_of::<c_int>()
+        );
+        assert_eq!(std::mem::offset_of!(Window, full_height), 12);
+    }
+
+    #[test]
+    fn a_window_and_attributes_are_read_back() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("tile.exr");
+        let window = Window {
+            x: 3,
+            y: 2,
+            full_width: 10,
+            full_height: 8,
+        };
+        let attributes = [("cuticle:scene".to_owned(), "abc".to_owned())];
+        write_image_window(
+            &path,
+            2,
+            1,
+            &["R"],
+            Pixels::F32(&[1.0, 2.0]),
+            WriteOptions {
+                format: FileFormat::Float,
+                unassociated_alpha: false,
+            },
+            Some(window),
+            &attributes,
+        )
+        .unwrap();
+        let header = read_header(&path, &["cuticle:scene", "cuticle:missing"]).unwrap();
+        assert_eq!((header.width, header.height), (2, 1));
+        assert_eq!(header.window, window);
+        assert_eq!(header.attributes, [Some("abc".to_owned()), None]);
+        assert_eq!(read_image(&path).unwrap().data, [1.0, 2.0]);
+    }
+
+    #[test]
+    fn a_window_outside_the_frame_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let window = Window {
+            x: 9,
+            y: 0,
+            full_width: 10,
+            full_height: 8,
+        };
+        let err = write_image_window(
+            &dir.path().join("tile.exr"),
+            2,
+            1,
+            &["R"],
+            Pixels::F32(&[1.0, 2.0]),
+            WriteOptions {
+                format: FileFormat::Float,
+                unassociated_alpha: false,
+            },
+            Some(window),
+            &[],
+        )
+        .unwrap_err();
+        assert!(err.message.contains("outside"), "{err}");
     }
 
     #[test]

@@ -36,10 +36,7 @@ pub fn temp_beside(path: &Path) -> Result<NamedTempFile, WriteError> {
         context: "not a file name",
         source: io::Error::from(io::ErrorKind::InvalidInput),
     })?;
-    let dir = match path.parent() {
-        Some(dir) if !dir.as_os_str().is_empty() => dir,
-        _ => Path::new("."),
-    };
+    let dir = parent(path);
     let mut prefix = OsString::from(".");
     prefix.push(name);
     prefix.push(".tmp-");
@@ -59,15 +56,57 @@ pub fn temp_beside(path: &Path) -> Result<NamedTempFile, WriteError> {
         .map_err(fail("cannot create a temporary file in its directory"))
 }
 
-/// Flushes what was written to `temp` (through its path: a writer may have replaced the file) to disk and renames
-/// it over `path`. On failure `temp` is removed.
+/// Flushes what was written to `temp` (through its path: a writer may have replaced the file) to disk, renames
+/// it over `path`, and syncs the directory so the rename itself survives a crash. On failure `temp` is removed.
 pub fn persist(temp: NamedTempFile, path: &Path) -> Result<(), WriteError> {
-    File::open(temp.path())
-        .and_then(|f| f.sync_all())
-        .map_err(fail("cannot flush the written file to disk"))?;
+    sync(temp.path())?;
     temp.persist(path)
         .map_err(|e| fail("cannot rename the temporary file over it")(e.error))?;
-    Ok(())
+    sync_dir(parent(path))
+}
+
+/// Flushes the file at `path` to disk.
+pub fn sync(path: &Path) -> Result<(), WriteError> {
+    File::open(path)
+        .and_then(|f| f.sync_all())
+        .map_err(fail("cannot flush the written file to disk"))
+}
+
+/// Flushes the directory `dir` (its entries: a rename or a new name) to disk.
+pub fn sync_dir(dir: &Path) -> Result<(), WriteError> {
+    #[cfg(unix)]
+    {
+        File::open(dir)
+            .and_then(|d| d.sync_all())
+            .map_err(fail("cannot flush its directory to disk"))
+    }
+    #[cfg(not(unix))]
+    {
+        // Directories cannot be opened as files elsewhere; the rename is as durable as the platform makes it.
+        let _ = dir;
+        Ok(())
+    }
+}
+
+/// Bytes [`probe_space`] writes.
+const PROBE_BYTES: usize = 64 * 1024;
+
+/// Whether a small file (64 KiB) can still be written and flushed beside `path`: the operating system's error
+/// (e.g. "No space left on device") when not. Used to explain a writer that failed, or lost the error.
+pub fn probe_space(path: &Path) -> io::Result<()> {
+    let mut probe = Builder::new()
+        .prefix(".cuticle-probe.tmp-")
+        .tempfile_in(parent(path))?;
+    probe.write_all(&[0u8; PROBE_BYTES])?;
+    probe.as_file().sync_all()
+}
+
+/// The directory of `path` (`.` for a bare file name).
+fn parent(path: &Path) -> &Path {
+    match path.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() => dir,
+        _ => Path::new("."),
+    }
 }
 
 /// Writes `bytes` to `path` atomically.

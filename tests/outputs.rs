@@ -1,0 +1,228 @@
+//! Section 1 of issue 16: a run's outputs are never lost or half written. Paths are checked before the render;
+//! SIGINT leaves no temporary file, keeps the previous frame and writes the finished tiles as a partial EXR marked
+//! incomplete; a full disk is reported with the operating system's words and replaces nothing.
+
+use std::io::{BufRead, BufReader};
+use std::path::Path;
+use std::process::{Command, Output, Stdio};
+use std::time::Duration;
+
+const EXE: &str = env!("CARGO_BIN_EXE_cuticle");
+
+fn cuticle(args: &[&str]) -> Output {
+    Command::new(EXE).args(args).output().expect("run cuticle")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn listing(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
+}
+
+#[test]
+fn output_paths_are_checked_before_the_render() {
+    let dir = tempfile::tempdir().unwrap();
+    let exr = dir.path().join("frame.exr");
+    std::fs::write(&exr, "previous frame").unwrap();
+    std::fs::create_dir(dir.path().join("frame.png")).unwrap();
+    let o = cuticle(&[
+        "render",
+        "-q",
+        "-o",
+        exr.to_str().unwrap(),
+        "--res",
+        "8x8",
+        "--spp",
+        "1",
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    let e = stderr(&o);
+    assert!(e.contains("frame.png: is a directory"), "{e}");
+    assert!(!e.contains("strands"), "refused before loading: {e}");
+    assert_eq!(std::fs::read(&exr).unwrap(), b"previous frame");
+
+    let missing = dir.path().join("missing").join("frame.exr");
+    let o = cuticle(&[
+        "render",
+        "-q",
+        "-o",
+        missing.to_str().unwrap(),
+        "--res",
+        "8x8",
+    ]);
+    let e = stderr(&o);
+    assert!(
+        e.contains("missing/frame.exr") && e.contains("No such file"),
+        "{e}"
+    );
+    assert_eq!(e.lines().count(), 1, "one line: {e}");
+}
+
+#[cfg(unix)]
+#[test]
+fn sigint_writes_a_partial_exr_and_keeps_the_previous_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let exr = dir.path().join("frame.exr");
+    // A previous complete frame, which an interrupted render must leave alone.
+    let o = cuticle(&[
+        "render",
+        "-q",
+        "-o",
+        exr.to_str().unwrap(),
+        "--res",
+        "16x16",
+        "--spp",
+        "1",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let before = std::fs::read(&exr).unwrap();
+
+    // About 3 s of work on one thread: long enough to be interrupted after it starts.
+    let mut child = Command::new(EXE)
+        .args([
+            "render",
+            "-o",
+            exr.to_str().unwrap(),
+            "--res",
+            "160x120",
+            "--spp",
+            "16",
+        ])
+        .args(["--threads", "1"])
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut lines = BufReader::new(child.stderr.take().unwrap()).lines();
+    for line in lines.by_ref() {
+        if line.unwrap().starts_with("rendering ") {
+            break;
+        }
+    }
+    std::thread::sleep(Duration::from_millis(500));
+    let pid = child.id().to_string();
+    assert!(Command::new("kill")
+        .args(["-INT", &pid])
+        .status()
+        .unwrap()
+        .success());
+    let rest: Vec<String> = lines.map(|l| l.unwrap()).collect();
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(130), "{rest:?}");
+    let message = rest.join("\n");
+    assert!(message.contains("interrupted by sigint"), "{message}");
+
+    assert_eq!(
+        std::fs::read(&exr).unwrap(),
+        before,
+        "the previous frame is untouched"
+    );
+    assert_eq!(
+        listing(dir.path()),
+        ["frame.exr", "frame.partial.exr", "frame.png"],
+        "no temporary file is left"
+    );
+    let partial = dir.path().join("frame.partial.exr");
+    let (image, _, attrs) =
+        cuticle::image::read_with_info(&partial, &["cuticle:complete", "cuticle:tiles"]).unwrap();
+    assert_eq!((image.width, image.height), (160, 120));
+    assert_eq!(attrs[0].as_deref(), Some("0"), "marked incomplete");
+    let tiles = attrs[1].clone().unwrap();
+    let (done, total) = tiles.split_once('/').unwrap();
+    let (done, total): (u32, u32) = (done.parse().unwrap(), total.parse().unwrap());
+    assert!(done >= 1 && done < total, "{tiles}");
+}
+
+/// Mounts a `size` tmpfs on a new directory (we are root in CI), or says why not.
+#[cfg(target_os = "linux")]
+fn small_tmpfs(size: &str) -> Result<tempfile::TempDir, String> {
+    let dir = tempfile::tempdir().unwrap();
+    let o = Command::new("mount")
+        .args(["-t", "tmpfs", "-o", &format!("size={size}"), "none"])
+        .arg(dir.path())
+        .output()
+        .map_err(|e| e.to_string())?;
+    if o.status.success() {
+        Ok(dir)
+    } else {
+        Err(stderr(&o))
+    }
+}
+
+#[cfg(target_os = "linux")]
+#[test]
+fn a_full_disk_is_reported_and_replaces_nothing() {
+    let disk = match small_tmpfs("64k") {
+        Ok(d) => d,
+        Err(why) => {
+            eprintln!("SKIPPED: cannot mount a small tmpfs (needs root): {why}");
+            return;
+        }
+    };
+    let unmount = |d: &Path| {
+        let _ = Command::new("umount").arg(d).status();
+    };
+    let png = disk.path().join("frame.png");
+    let o = cuticle(&[
+        "render",
+        "-q",
+        "-o",
+        png.to_str().unwrap(),
+        "--res",
+        "8x8",
+        "--spp",
+        "1",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let good = std::fs::read(&png).unwrap();
+    // Fill the disk, leaving less than a PNG of 64x64.
+    let filler = std::fs::File::create(disk.path().join("filler")).unwrap();
+    let mut w = std::io::BufWriter::new(filler);
+    let _ = std::io::copy(&mut std::io::repeat(7).take_bytes(1 << 20), &mut w);
+    drop(w);
+
+    for out in ["frame.png", "frame.exr"] {
+        let path = disk.path().join(out);
+        let o = cuticle(&[
+            "render",
+            "-q",
+            "-o",
+            path.to_str().unwrap(),
+            "--res",
+            "64x64",
+            "--spp",
+            "1",
+        ]);
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{e}");
+        assert!(
+            e.contains(out) && e.contains("No space left on device"),
+            "{e}"
+        );
+        assert_eq!(e.lines().count(), 1, "{e}");
+        assert_eq!(
+            std::fs::read(&png).unwrap(),
+            good,
+            "the previous png is untouched"
+        );
+        assert_eq!(
+            listing(disk.path()),
+            ["filler", "frame.png"],
+            "no temporary file left"
+        );
+    }
+    unmount(disk.path());
+}
+
+trait TakeBytes: std::io::Read + Sized {
+    fn take_bytes(self, n: u64) -> std::io::Take<Self> {
+        self.take(n)
+    }
+}
+impl<R: std::io::Read> TakeBytes for R {}
