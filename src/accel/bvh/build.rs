@@ -424,7 +424,7 @@ fn best_plane(refs: &[PrimRef], centroids: &Aabb, bins: usize) -> Option<Plane> 
                 continue;
             }
             let cost = acc.area() * n as f32 + right_cost[i];
-            if best.map_or(true, |b| cost < b.cost) {
+            if best.is_none_or(|b| cost < b.cost) {
                 best = Some(Plane {
                     axis,
                     bin: i,
