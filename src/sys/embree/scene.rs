@@ -31,6 +31,19 @@ impl BuildQuality {
     }
 }
 
+/// How Embree lays out the BVH's leaves (`RTC_SCENE_FLAG_COMPACT`). For curves, Embree 3.13 on AVX2 builds
+/// `bvh8obb.virtualcurve8v` (each leaf holds a copy of its segments' control points) by default and
+/// `bvh4obb.virtualcurve8i` (leaves hold indices into the vertex buffer) when compact (`Scene::createHairAccel`);
+/// the build quality does not change the curve builder.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Layout {
+    /// Embree's default: control points copied into the leaves, fastest to trace.
+    #[default]
+    Fast,
+    /// `RTC_SCENE_FLAG_COMPACT`: leaves index the vertex buffer; less memory per segment.
+    Compact,
+}
+
 /// Scene flags for every scene: per-query filter functions on (the transparent-shadow filter is passed with the
 /// query); robust traversal off (it costs speed, and the brute-force tests in `tests/embree.rs` match without it);
 /// not dynamic (hair is built once); not compact (compact layouts trade speed for memory).
@@ -62,6 +75,19 @@ impl fmt::Debug for Scene {
 impl Scene {
     /// An empty static scene with per-query filter functions enabled and robust traversal off.
     pub fn new(device: &Device, quality: BuildQuality) -> Result<Scene, EmbreeError> {
+        Self::with_layout(device, quality, Layout::Fast)
+    }
+
+    /// [`Scene::new`] with a choice of BVH [`Layout`].
+    pub fn with_layout(
+        device: &Device,
+        quality: BuildQuality,
+        layout: Layout,
+    ) -> Result<Scene, EmbreeError> {
+        let flags = match layout {
+            Layout::Fast => SCENE_FLAGS,
+            Layout::Compact => SCENE_FLAGS | RTC_SCENE_FLAG_COMPACT,
+        };
         let handle = &device.inner;
         let raw = handle.call("create scene", || {
             // SAFETY: `handle.raw` is a live device.
@@ -79,8 +105,8 @@ impl Scene {
             geometries: Vec::new(),
         };
         scene.device.call("configure scene", || {
-            // SAFETY: `raw` is a live scene and `SCENE_FLAGS` a combination of the header's flags.
-            unsafe { rtcSetSceneFlags(raw, SCENE_FLAGS) };
+            // SAFETY: `raw` is a live scene and `flags` a combination of the header's flags.
+            unsafe { rtcSetSceneFlags(raw, flags) };
             // SAFETY: `raw` is a live scene and the quality one of the header's constants.
             unsafe { rtcSetSceneBuildQuality(raw, quality.raw()) };
         })?;
