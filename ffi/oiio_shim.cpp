@@ -10,6 +10,7 @@
 #include <exception>
 #include <memory>
 #include <string>
+#include <string_view>
 
 using OIIO::ImageInput;
 using OIIO::ImageOutput;
@@ -23,24 +24,42 @@ struct CuticleOiioInput {
 
 namespace {
 
-// Copies `message` into the caller's buffer, truncated and always NUL-terminated.
-void set_error(char *err, size_t err_cap, const std::string &message) noexcept {
+// Appends `part` to the NUL-terminated message in the caller's buffer, truncated and always NUL-terminated.
+// Allocates nothing, so it cannot throw.
+void append_error(char *err, size_t err_cap, std::string_view part) noexcept {
     if (err == nullptr || err_cap == 0) {
         return;
     }
-    const size_t n = message.size() < err_cap - 1 ? message.size() : err_cap - 1;
-    std::memcpy(err, message.data(), n);
-    err[n] = '\0';
+    const size_t used = strnlen(err, err_cap - 1);
+    const size_t room = err_cap - 1 - used;
+    const size_t n = part.size() < room ? part.size() : room;
+    std::memcpy(err + used, part.data(), n);
+    err[used + n] = '\0';
 }
 
-// Reports the exception being handled; call only inside a catch block.
+// Copies `message` into the caller's buffer, truncated and always NUL-terminated. Allocates nothing (a
+// `string_view` of a literal or of a `std::string` the caller built), so it cannot throw.
+void set_error(char *err, size_t err_cap, std::string_view message) noexcept {
+    if (err == nullptr || err_cap == 0) {
+        return;
+    }
+    err[0] = '\0';
+    append_error(err, err_cap, message);
+}
+
+// Reports the exception being handled; call only inside a catch block. The message is assembled in the caller's
+// buffer without allocating: this runs after an exception, which may be std::bad_alloc, and an exception leaving
+// this noexcept function would terminate the process.
 void set_exception_error(char *err, size_t err_cap, const char *what_failed) noexcept {
+    set_error(err, err_cap, what_failed);
+    append_error(err, err_cap, ": ");
     try {
         throw;
     } catch (const std::exception &e) {
-        set_error(err, err_cap, std::string(what_failed) + ": " + e.what());
+        const char *what = e.what();
+        append_error(err, err_cap, what != nullptr ? what : "unknown C++ exception");
     } catch (...) {
-        set_error(err, err_cap, std::string(what_failed) + ": unknown C++ exception");
+        append_error(err, err_cap, "unknown C++ exception");
     }
 }
 
@@ -298,12 +317,14 @@ extern "C" int cuticle_oiio_read_float(CuticleOiioInput *input, float *out, size
 }
 
 extern "C" void cuticle_oiio_close(CuticleOiioInput *input) {
-    // Owned here so that `input` is freed even if close() throws.
-    std::unique_ptr<CuticleOiioInput> owned(input);
     try {
+        // Owned inside the `try`, so that `input` is freed even if close() throws and so that the ImageInput's
+        // destructor (which closes the file again) runs inside the `try` as well.
+        std::unique_ptr<CuticleOiioInput> owned(input);
         if (owned) {
             owned->input->close();
         }
+        owned.reset();
     } catch (...) {
         // Nothing to report to: the pixels are read already, and unwinding into Rust is not allowed.
     }

@@ -230,6 +230,28 @@ enum BenchCommand {
         #[arg(long, default_value_t = 3)]
         repetitions: usize,
     },
+    /// Build time, bytes per segment and peak memory of each backend on procedural grooms of 16-point strands
+    /// (`scenes/groom-1m.toml`'s fur ball), e.g. `--strands 100000,1000000`.
+    Build {
+        /// Strand counts, one groom each.
+        #[arg(long, value_delimiter = ',', default_value = "100000,1000000")]
+        strands: Vec<u32>,
+        /// Backends to measure (default: embree,bvh).
+        #[arg(long, value_delimiter = ',', value_parser = scene_name::<Backend>, default_value = "embree,bvh")]
+        backend: Vec<Backend>,
+        /// Curve types to measure (default: round,flat).
+        #[arg(long, value_delimiter = ',', value_parser = scene_name::<CurveKind>, default_value = "round,flat")]
+        curves: Vec<CurveKind>,
+        /// Embree build qualities to measure, e.g. `--embree-quality low,medium` (the renderer uses medium).
+        #[arg(long, value_delimiter = ',', value_parser = cuticle::bench::build::parse_quality, default_value = "medium")]
+        embree_quality: Vec<cuticle::accel::embree::BuildQuality>,
+        /// Embree leaf layouts to measure, e.g. `--embree-layout fast,compact` (RTC_SCENE_FLAG_COMPACT).
+        #[arg(long, value_delimiter = ',', value_parser = cuticle::bench::build::parse_layout, default_value = "fast,compact")]
+        embree_layout: Vec<cuticle::accel::embree::Layout>,
+        /// Threads of the rayon pool (the Rust BVH build; Embree's builder uses every core).
+        #[arg(long, default_value_t = 2)]
+        threads: usize,
+    },
 }
 
 /// A benchmark that renders a scene several times.
@@ -588,6 +610,27 @@ fn bench_command(command: BenchCommand) -> Result<()> {
             config.repetitions = repetitions;
             let report = cuticle::bench::trace(&strands, &config)?;
             println!("{report}");
+        }
+        BenchCommand::Build {
+            strands,
+            backend,
+            curves,
+            embree_quality,
+            embree_layout,
+            threads,
+        } => {
+            if threads == 0 {
+                bail!("--threads must be at least 1");
+            }
+            let config = cuticle::bench::build::BuildConfig {
+                strands,
+                backends: backend,
+                kinds: curves,
+                embree_qualities: embree_quality,
+                embree_layouts: embree_layout,
+                threads,
+            };
+            println!("{}", cuticle::bench::build::build(&config)?);
         }
     }
     Ok(())

@@ -12,10 +12,10 @@ use super::{strand_present, CurveKind, Hit, Tracer};
 use crate::hair::Strands;
 use crate::ray::{InvalidRay, Ray};
 use crate::sys::embree::{
-    BuildQuality, CommittedScene, CurveBasis, CurveGeometry, Scene, StrandTable, Transmittance,
+    CommittedScene, CurveBasis, CurveGeometry, Scene, StrandTable, Transmittance,
 };
 
-pub use crate::sys::embree::{Cutoff, Device, EmbreeError};
+pub use crate::sys::embree::{BuildQuality, Cutoff, Device, EmbreeError, Layout};
 
 /// BVH quality for hair: Embree's SAH build. On furball.hair (455k segments, Embree 3.13.5, 2 threads) `High`
 /// built a BVH of the same size and traced camera and shadow rays no faster (differences within run-to-run
@@ -49,6 +49,17 @@ impl EmbreeTracer {
         strands: &Strands,
         kind: CurveKind,
     ) -> Result<Self, EmbreeError> {
+        Self::with_build(device, strands, kind, HAIR_BUILD_QUALITY, Layout::Fast)
+    }
+
+    /// [`EmbreeTracer::with_device`] with an explicit BVH build quality and leaf layout (for `bench build`).
+    pub fn with_build(
+        device: &Device,
+        strands: &Strands,
+        kind: CurveKind,
+        quality: BuildQuality,
+        layout: Layout,
+    ) -> Result<Self, EmbreeError> {
         if !device.supports_filter_functions() {
             return Err(EmbreeError {
                 code: crate::sys::embree::ErrorCode::InvalidOperation,
@@ -73,7 +84,7 @@ impl EmbreeTracer {
             &strands.segment_first,
             Arc::clone(&table),
         )?;
-        let mut scene = Scene::new(device, HAIR_BUILD_QUALITY)?;
+        let mut scene = Scene::with_layout(device, quality, layout)?;
         scene.attach(geometry)?;
         let scene = scene.commit()?;
         Ok(EmbreeTracer {

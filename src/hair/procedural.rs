@@ -22,7 +22,8 @@
 //!
 //! Generation is deterministic: the same parameters and `seed` give bit-identical points on one machine. Random
 //! numbers come from [`SplitMix64`] (Steele, Lea & Flood 2014) keyed by (seed, stream, index), so strand `i` does not
-//! depend on how many strands come before it.
+//! depend on how many strands come before it; strands are generated in parallel (rayon), each into its own slice
+//! of the point arrays, so the thread count changes nothing either (tested).
 //!
 //! Radii are explicit per point (the taper is part of the design), so models come out with `radius_from_file`
 //! set: [`Strands::from_model`](super::Strands::from_model) uses them as they are.
@@ -31,6 +32,7 @@ use std::f32::consts::{PI, TAU};
 use std::path::{Path, PathBuf};
 
 use glam::{Vec2, Vec3};
+use rayon::prelude::*;
 use serde::Deserialize;
 
 use super::{HairError, HairModel};
@@ -222,7 +224,7 @@ impl FurBall {
         // Golden angle: successive lattice points turn by it, which spreads them evenly (Fibonacci sphere).
         let golden = PI * (3.0 - 5f32.sqrt());
         let down = Vec3::NEG_Y;
-        for i in 0..n {
+        let strand = |i: usize, points: &mut [Vec3], radius: &mut [f32]| {
             let mut rng = SplitMix64::new(self.seed, STREAM_STRAND + i as u64);
             // Fibonacci lattice: uniform in y (= uniform in area), jittered by a fraction of the spacing.
             let y = (1.0
@@ -249,11 +251,11 @@ impl FurBall {
                 // Helix around the stem, in the root's tangent plane, growing from zero at the root.
                 let angle = curl_phase + TAU * CURL_TURNS * t;
                 let offset = curl_radius * t * (angle.cos() * u + angle.sin() * v);
-                model.points.push(stem + offset);
-                model.radius.push(tapered(self.fiber_radius, self.taper, t));
+                points[k] = stem + offset;
+                radius[k] = tapered(self.fiber_radius, self.taper, t);
             }
-            model.strand_offsets.push(model.points.len() as u32);
-        }
+        };
+        fill_strands(&mut model, n, m, strand);
         finish(&mut model, self.transparency, self.color);
         Ok(model)
     }
@@ -306,7 +308,7 @@ impl WavyPatch {
 
         let mut model = empty_model(n, m, "procedural wavy patch");
         let two_pi_over_wavelength = TAU / self.wavelength;
-        for i in 0..n {
+        let strand = |i: usize, points: &mut [Vec3], radius: &mut [f32]| {
             let mut rng = SplitMix64::new(self.seed, STREAM_STRAND + i as u64);
             let root = in_square(&mut rng);
             let len = self.length * (1.0 + self.length_variation * (2.0 * rng.next_f32() - 1.0));
@@ -335,13 +337,11 @@ impl WavyPatch {
                 // Waves fade in over the first wavelength, so the hair leaves the scalp straight.
                 let ramp = smoothstep(s / self.wavelength);
                 let wave = self.wave_amplitude * ramp * (two_pi_over_wavelength * s + phase).sin();
-                model
-                    .points
-                    .push(Vec3::new(xz.x, -s, xz.y) + wave * direction);
-                model.radius.push(tapered(self.fiber_radius, self.taper, t));
+                points[k] = Vec3::new(xz.x, -s, xz.y) + wave * direction;
+                radius[k] = tapered(self.fiber_radius, self.taper, t);
             }
-            model.strand_offsets.push(model.points.len() as u32);
-        }
+        };
+        fill_strands(&mut model, n, m, strand);
         finish(&mut model, self.transparency, self.color);
         Ok(model)
     }
@@ -372,6 +372,26 @@ fn empty_model(n: usize, m: usize, format: &str) -> HairModel {
         format: format.to_owned(),
         info: String::new(),
     }
+}
+
+/// Generates `n` strands of `m` points in parallel: `strand(i, points, radius)` writes strand `i` into its own
+/// `m`-long slices, so the result does not depend on the thread count or order. Sets the strand offsets.
+fn fill_strands(
+    model: &mut HairModel,
+    n: usize,
+    m: usize,
+    strand: impl Fn(usize, &mut [Vec3], &mut [f32]) + Sync,
+) {
+    model.points.resize(n * m, Vec3::ZERO);
+    model.radius.resize(n * m, 0.0);
+    model
+        .points
+        .par_chunks_mut(m)
+        .zip(model.radius.par_chunks_mut(m))
+        .enumerate()
+        .for_each(|(i, (points, radius))| strand(i, points, radius));
+    // `check_counts` keeps n · m within u32.
+    model.strand_offsets.extend((1..=n).map(|i| (i * m) as u32));
 }
 
 /// Fills the uniform per-point arrays.
@@ -473,6 +493,43 @@ fn color(path: &Path, c: [f32; 3]) -> Result<(), HairError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Parallel generation gives the same bits whatever the thread count (strand i depends only on i).
+    #[test]
+    fn generation_does_not_depend_on_the_thread_count() {
+        let models = [
+            Procedural::FurBall(FurBall {
+                strands: 3000,
+                ..FurBall::default()
+            }),
+            Procedural::WavyPatch(WavyPatch {
+                strands: 1000,
+                ..WavyPatch::default()
+            }),
+        ];
+        for model in models {
+            let with = |threads| {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap();
+                pool.install(|| model.generate().unwrap())
+            };
+            let (one, four) = (with(1), with(4));
+            let bits = |m: &HairModel| -> Vec<u32> {
+                m.points
+                    .iter()
+                    .flat_map(|p| p.to_array())
+                    .chain(m.radius.iter().copied())
+                    .map(f32::to_bits)
+                    .collect()
+            };
+            assert_eq!(bits(&one), bits(&four), "{}", model.kind());
+            assert_eq!(one.strand_offsets, four.strand_offsets);
+            let m = one.points.len() / one.strand_count();
+            assert_eq!(one.strand_offsets[1] as usize, m);
+        }
+    }
 
     #[test]
     fn fur_ball_roots_lie_on_the_sphere() {

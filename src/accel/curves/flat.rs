@@ -298,7 +298,7 @@ fn quads_one_by_one(
         if !clear_of_origin {
             continue;
         }
-        if best.map_or(true, |(bt, _, _)| t < bt) {
+        if best.is_none_or(|(bt, _, _)| t < bt) {
             best = Some((t, (j as f32 + u) / n, v));
             if any {
                 break;
@@ -621,7 +621,7 @@ mod tests {
                 true,
                 false,
             ) {
-                if best.map_or(true, |b| h.t < b.0) {
+                if best.is_none_or(|b| h.t < b.0) {
                     best = Some((h.t, segment as u32, h.u, h.v, h.ng));
                 }
             }

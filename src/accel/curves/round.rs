@@ -673,7 +673,7 @@ impl Search {
             let term_depth = |k: usize| {
                 let unstable = inner
                     .as_ref()
-                    .map_or(true, |c| self.dir.dot(c.ng[k]).abs() < 0.3);
+                    .is_none_or(|c| self.dir.dot(c.ng[k]).abs() < 0.3);
                 if unstable {
                     max_depth + 1
                 } else {

@@ -59,9 +59,17 @@ enum Verdict {
 }
 
 impl TransmittanceQuery {
+    /// A payload whose context carries [`transmittance_filter`] (Embree 3; Embree 4 takes the filter in the query
+    /// arguments).
     pub(super) fn new(ignore_strand: Option<u32>) -> Self {
+        #[allow(unused_mut)]
+        let mut context = init_query_context();
+        #[cfg(not(embree4))]
+        {
+            context.filter = Some(transmittance_filter);
+        }
         TransmittanceQuery {
-            context: init_query_context(),
+            context,
             ignore_strand: ignore_strand.unwrap_or(NO_STRAND),
             transmittance: 1.0,
             cutoff: None,

@@ -171,10 +171,11 @@ impl CurveGeometry {
             CurveBasis::FlatBSpline => RTC_GEOMETRY_TYPE_FLAT_BSPLINE_CURVE,
         };
         let handle = &device.inner;
-        // SAFETY: `handle.raw` is a live device and `kind` a geometry type from the header.
-        let raw = unsafe { rtcNewGeometry(handle.raw, kind) };
+        let raw = handle.call("create curve geometry", || {
+            // SAFETY: `handle.raw` is a live device and `kind` a geometry type from the header.
+            unsafe { rtcNewGeometry(handle.raw, kind) }
+        })?;
         if raw.is_null() {
-            handle.check("create curve geometry")?;
             return Err(EmbreeError {
                 code: ErrorCode::Unknown,
                 message: "create curve geometry: embree returned no geometry".into(),
@@ -199,12 +200,13 @@ impl CurveGeometry {
             "index",
         )?;
         let user = Arc::as_ptr(&geometry.strands).cast_mut().cast::<c_void>();
-        // SAFETY: `raw` is live; the table behind `user` is kept alive by `geometry.strands` for as long as the
-        // geometry exists, and a scene keeps every geometry attached to it (`Scene::geometries`).
-        unsafe { rtcSetGeometryUserData(raw, user) };
-        // SAFETY: `raw` is live and both of its buffers are set.
-        unsafe { rtcCommitGeometry(raw) };
-        geometry.device.check("commit curve geometry")?;
+        geometry.device.call("commit curve geometry", || {
+            // SAFETY: `raw` is live; the table behind `user` is kept alive by `geometry.strands` for as long as
+            // the geometry exists, and a scene keeps every geometry attached to it (`Scene::geometries`).
+            unsafe { rtcSetGeometryUserData(raw, user) };
+            // SAFETY: `raw` is live and both of its buffers are set.
+            unsafe { rtcCommitGeometry(raw) };
+        })?;
         Ok(geometry)
     }
 
@@ -217,10 +219,11 @@ impl CurveGeometry {
         name: &str,
     ) -> Result<(), EmbreeError> {
         let stride = std::mem::size_of::<T>();
-        // SAFETY: `self.raw` is live; Embree allocates (and owns) a buffer of `data.len()` items of `stride` bytes,
-        // padded for its SIMD loads, or returns null after reporting an error.
-        let dst = unsafe { rtcSetNewGeometryBuffer(self.raw, kind, 0, format, stride, data.len()) };
-        self.device.check(&format!("create {name} buffer"))?;
+        let dst = self.device.call(&format!("create {name} buffer"), || {
+            // SAFETY: `self.raw` is live; Embree allocates (and owns) a buffer of `data.len()` items of `stride`
+            // bytes, padded for its SIMD loads, or returns null after reporting an error.
+            unsafe { rtcSetNewGeometryBuffer(self.raw, kind, 0, format, stride, data.len()) }
+        })?;
         if data.is_empty() {
             return Ok(());
         }
@@ -244,9 +247,11 @@ impl CurveGeometry {
 
 impl Drop for CurveGeometry {
     fn drop(&mut self) {
-        // SAFETY: we own one reference to `raw` and give it up exactly once; a scene it is attached to holds its
-        // own reference.
-        unsafe { rtcReleaseGeometry(self.raw) };
+        self.device.release("release curve geometry", || {
+            // SAFETY: we own one reference to `raw` and give it up exactly once; a scene it is attached to holds
+            // its own reference.
+            unsafe { rtcReleaseGeometry(self.raw) }
+        });
     }
 }
 

@@ -63,4 +63,4 @@ pub use error::{EmbreeError, ErrorCode};
 pub use filter::{Cutoff, SEEN_STRANDS, TRANSMITTANCE_CUTOFF};
 pub use geometry::{CurveBasis, CurveGeometry, StrandTable};
 pub use query::{RayHit, Transmittance};
-pub use scene::{BuildQuality, CommittedScene, Scene};
+pub use scene::{BuildQuality, CommittedScene, Layout, Scene};

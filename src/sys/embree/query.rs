@@ -6,8 +6,6 @@ use std::ptr;
 use glam::Vec3;
 
 use super::ffi::*;
-#[cfg(not(embree4))]
-use super::filter::transmittance_filter;
 #[cfg(embree4)]
 use super::filter::{stochastic_filter, transmittance_filter};
 use super::filter::{Cutoff, StochasticQuery, TransmittanceQuery};
@@ -117,6 +115,7 @@ impl CommittedScene {
             // SAFETY: as for Embree 3; null arguments select Embree's defaults (no filter).
             unsafe { rtcOccluded1(self.raw(), &mut rtc_ray, ptr::null_mut()) };
         }
+        self.device().after_query();
         // Embree marks an occluded ray by setting tfar to −∞.
         Ok(rtc_ray.tfar == f32::NEG_INFINITY)
     }
@@ -149,6 +148,7 @@ impl CommittedScene {
             // SAFETY: as for Embree 3, with the filter passed in the arguments.
             unsafe { rtcOccluded1(self.raw(), &mut rtc_ray, &mut args) };
         }
+        self.device().after_query();
         // Embree marks an occluded ray by setting tfar to −∞.
         Ok(rtc_ray.tfar == f32::NEG_INFINITY)
     }
@@ -194,6 +194,7 @@ impl CommittedScene {
                 None => unsafe { intersect1(self.raw(), &mut rayhit, ptr::null_mut()) },
             }
         }
+        self.device().after_query();
         let hit = rayhit.hit;
         if hit.geomID == RTC_INVALID_GEOMETRY_ID {
             return Ok(None);
@@ -218,12 +219,14 @@ impl CommittedScene {
         ignore_strand: Option<u32>,
     ) -> Result<Transmittance, InvalidRay> {
         let (mut rtc_ray, _) = embree_ray(ray)?;
+        // Embree 3: the payload's context carries the filter from construction, so nothing writes to `query`
+        // through the local while Embree and the filter use the pointer below (a write through the local would
+        // invalidate that pointer under Stacked Borrows).
         let mut query = TransmittanceQuery::new(ignore_strand);
         // Derived from the whole payload (not from `query.context`) so the filter may reach every field.
         let context = ptr::addr_of_mut!(query).cast::<QueryContext>();
         #[cfg(not(embree4))]
         {
-            query.context.filter = Some(transmittance_filter);
             // SAFETY: the scene is committed with `RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION`; `context` points at the
             // payload, which outlives the call and which only the filter touches during it; the ray passed
             // `Ray::check` and is within Embree's limits.
@@ -239,6 +242,7 @@ impl CommittedScene {
             // `RTC_SCENE_FLAG_FILTER_FUNCTION_IN_ARGUMENTS`).
             unsafe { rtcOccluded1(self.raw(), &mut rtc_ray, &mut args) };
         }
+        self.device().after_query();
         // Embree sets tfar to −∞ when a hit was accepted; only the filter accepts hits, and it zeroes the
         // transmittance when it does.
         debug_assert!(rtc_ray.tfar != f32::NEG_INFINITY || query.transmittance == 0.0);

@@ -31,6 +31,19 @@ impl BuildQuality {
     }
 }
 
+/// How Embree lays out the BVH's leaves (`RTC_SCENE_FLAG_COMPACT`). For curves, Embree 3.13 on AVX2 builds
+/// `bvh8obb.virtualcurve8v` (each leaf holds a copy of its segments' control points) by default and
+/// `bvh4obb.virtualcurve8i` (leaves hold indices into the vertex buffer) when compact (`Scene::createHairAccel`);
+/// the build quality does not change the curve builder.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Layout {
+    /// Embree's default: control points copied into the leaves, fastest to trace.
+    #[default]
+    Fast,
+    /// `RTC_SCENE_FLAG_COMPACT`: leaves index the vertex buffer; less memory per segment.
+    Compact,
+}
+
 /// Scene flags for every scene: per-query filter functions on (the transparent-shadow filter is passed with the
 /// query); robust traversal off (it costs speed, and the brute-force tests in `tests/embree.rs` match without it);
 /// not dynamic (hair is built once); not compact (compact layouts trade speed for memory).
@@ -62,11 +75,25 @@ impl fmt::Debug for Scene {
 impl Scene {
     /// An empty static scene with per-query filter functions enabled and robust traversal off.
     pub fn new(device: &Device, quality: BuildQuality) -> Result<Scene, EmbreeError> {
+        Self::with_layout(device, quality, Layout::Fast)
+    }
+
+    /// [`Scene::new`] with a choice of BVH [`Layout`].
+    pub fn with_layout(
+        device: &Device,
+        quality: BuildQuality,
+        layout: Layout,
+    ) -> Result<Scene, EmbreeError> {
+        let flags = match layout {
+            Layout::Fast => SCENE_FLAGS,
+            Layout::Compact => SCENE_FLAGS | RTC_SCENE_FLAG_COMPACT,
+        };
         let handle = &device.inner;
-        // SAFETY: `handle.raw` is a live device.
-        let raw = unsafe { rtcNewScene(handle.raw) };
+        let raw = handle.call("create scene", || {
+            // SAFETY: `handle.raw` is a live device.
+            unsafe { rtcNewScene(handle.raw) }
+        })?;
         if raw.is_null() {
-            handle.check("create scene")?;
             return Err(EmbreeError {
                 code: ErrorCode::Unknown,
                 message: "create scene: embree returned no scene".into(),
@@ -77,11 +104,12 @@ impl Scene {
             device: Arc::clone(handle),
             geometries: Vec::new(),
         };
-        // SAFETY: `raw` is a live scene and `SCENE_FLAGS` a combination of the header's flags.
-        unsafe { rtcSetSceneFlags(raw, SCENE_FLAGS) };
-        // SAFETY: `raw` is a live scene and the quality one of the header's constants.
-        unsafe { rtcSetSceneBuildQuality(raw, quality.raw()) };
-        scene.device.check("configure scene")?;
+        scene.device.call("configure scene", || {
+            // SAFETY: `raw` is a live scene and `flags` a combination of the header's flags.
+            unsafe { rtcSetSceneFlags(raw, flags) };
+            // SAFETY: `raw` is a live scene and the quality one of the header's constants.
+            unsafe { rtcSetSceneBuildQuality(raw, quality.raw()) };
+        })?;
         Ok(scene)
     }
 
@@ -89,27 +117,31 @@ impl Scene {
     ///
     /// Embree itself rejects a geometry created on another device (`invalid argument`).
     pub fn attach(&mut self, geometry: CurveGeometry) -> Result<u32, EmbreeError> {
-        // SAFETY: both handles are live; Embree checks that they belong to the same device.
-        let id = unsafe { rtcAttachGeometry(self.raw, geometry.raw) };
-        self.device.check("attach geometry")?;
+        let id = self.device.call("attach geometry", || {
+            // SAFETY: both handles are live; Embree checks that they belong to the same device.
+            unsafe { rtcAttachGeometry(self.raw, geometry.raw) }
+        })?;
         self.geometries.push(geometry);
         Ok(id)
     }
 
     /// Builds the BVH. Only a committed scene can be traced.
     pub fn commit(self) -> Result<CommittedScene, EmbreeError> {
-        // SAFETY: `raw` is a live scene whose geometries are all committed.
-        unsafe { rtcCommitScene(self.raw) };
-        self.device.check("commit scene")?;
+        self.device.call("commit scene", || {
+            // SAFETY: `raw` is a live scene whose geometries are all committed.
+            unsafe { rtcCommitScene(self.raw) }
+        })?;
         Ok(CommittedScene { scene: self })
     }
 }
 
 impl Drop for Scene {
     fn drop(&mut self) {
-        // SAFETY: we own one reference to `raw` and give it up exactly once, before the geometries (and their
-        // strand tables) are dropped.
-        unsafe { rtcReleaseScene(self.raw) };
+        self.device.release("release scene", || {
+            // SAFETY: we own one reference to `raw` and give it up exactly once, before the geometries (and their
+            // strand tables) are dropped.
+            unsafe { rtcReleaseScene(self.raw) }
+        });
     }
 }
 
@@ -127,6 +159,11 @@ unsafe impl Sync for CommittedScene {}
 impl CommittedScene {
     pub(super) fn raw(&self) -> RTCScene {
         self.scene.raw
+    }
+
+    /// The device the scene lives on (for [`DeviceHandle::after_query`]).
+    pub(super) fn device(&self) -> &DeviceHandle {
+        &self.scene.device
     }
 
     /// The geometries in the scene, in the order they were attached.
