@@ -3,7 +3,7 @@
 #   - the native libraries: Embree 3 (curves), OpenImageIO (images), clang/libclang (bindgen), pkg-config, a C++
 #     compiler, openimageio-tools (oiiotool/idiff, used by the tests) and unzip (scripts/embree4.sh, CI's Embree 4
 #     step);
-#   - a Rust toolchain >= the crate's rust-version (1.80) through rustup, unless one is already on PATH or in
+#   - a Rust toolchain >= the crate's rust-version (1.85) through rustup, unless one is already on PATH or in
 #     ~/.cargo/bin (Debian 12's own rustc is 1.63, too old).
 # Works as root without sudo (a container) or as a user with sudo. Safe to run again.
 set -eu
@@ -16,7 +16,7 @@ $SUDO apt-get install -y -qq --no-install-recommends \
     ca-certificates curl git build-essential pkg-config clang libclang-dev \
     libembree-dev libopenimageio-dev openimageio-tools unzip >/dev/null
 
-need="1.80"
+need="1.85"
 PATH="$HOME/.cargo/bin:$PATH"
 have=$(cargo --version 2>/dev/null | sed -n 's/^cargo \([0-9]*\.[0-9]*\).*/\1/p')
 if [ -n "$have" ] && [ "$(printf '%s\n%s\n' "$need" "$have" | sort -V | head -n1)" = "$need" ]; then
