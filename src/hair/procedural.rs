@@ -421,13 +421,18 @@ fn check_counts(path: &Path, strands: u32, points: u32) -> Result<(), HairError>
 /// inside what rays can be traced from (checked again on the points by [`HairModel::validate`]).
 fn positive(path: &Path, key: &str, v: f32) -> Result<(), HairError> {
     let max = crate::ray::MAX_SCENE_COORD / 16.0;
-    if v.is_finite() && v > 0.0 && v <= max {
-        Ok(())
-    } else {
+    if !(v.is_finite() && v > 0.0) {
         Err(HairError::invalid(
             path,
-            format!("{key} must be in (0, {max:e}] model units, got {v}"),
+            format!("{key} must be > 0, got {v}"),
         ))
+    } else if v > max {
+        Err(HairError::invalid(
+            path,
+            format!("{key} must be at most {max:e} model units, got {v:e}"),
+        ))
+    } else {
+        Ok(())
     }
 }
 

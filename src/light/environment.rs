@@ -884,7 +884,7 @@ mod tests {
     fn missing_file_names_the_path() {
         let path = format!("{ENVMAP_DIR}/no-such-map.exr");
         let e = Environment::load(&path, 1.0, 0.0, Vec3::Y).unwrap_err();
-        assert!(matches!(e, LightError::EnvironmentMap { .. }));
+        assert!(matches!(e, LightError::EnvironmentFile { .. }));
         assert!(e.to_string().contains(&path), "{e}");
         let (path, _) = smallest_map();
         let env = Environment::load(path, 1.0, 0.0, Vec3::Y).unwrap();
