@@ -89,6 +89,10 @@ struct RenderArgs {
     /// integrator.lights).
     #[arg(long, value_parser = scene_name::<LightSelection>)]
     lights: Option<LightSelection>,
+    /// Refuse the frame before building it when its estimated memory exceeds this size (e.g. 4G, 512M; default:
+    /// 3/4 of physical memory).
+    #[arg(long, value_name = "SIZE", value_parser = render::budget::parse_size)]
+    max_memory: Option<u64>,
     /// Also write every deep opacity map (z0 and per-layer transmittance) as an EXR into this directory.
     #[arg(long, value_name = "DIR")]
     dump_shadow_maps: Option<PathBuf>,
@@ -357,10 +361,27 @@ fn render_command(args: RenderArgs) -> Result<()> {
     }
     let cancel = cuticle::farm::catch_signals().context("cannot catch sigint/sigterm")?;
 
-    let pool = thread_pool(args.threads)?;
-    let frame = Frame::load(scene.resolve()?)?;
+    let threads = args
+        .threads
+        .map(render::budget::check_threads)
+        .transpose()
+        .map_err(anyhow::Error::msg)?;
+    let pool = thread_pool(threads)?;
+    let spec = scene.resolve()?;
+    let (limit, limit_source) = match args.max_memory {
+        Some(bytes) => (bytes, "--max-memory".to_owned()),
+        None => render::budget::default_limit(),
+    };
+    render::budget::estimate_frame(&spec, pool.current_num_threads())?
+        .check(limit, &limit_source)?;
+    let frame = Frame::load(spec)?;
     let settings = &frame.settings;
     let [width, height] = settings.film.resolution;
+    settings
+        .camera
+        .camera(frame.strands.bounds(), width, height)
+        .map_err(|m| anyhow::anyhow!("{}: {m}", scene.source.display()))?;
+    let dropped_before = render::film::dropped_samples();
     let region = match (args.crop, args.tile) {
         (Some(crop), _) => {
             crop.check_inside(width, height)
@@ -441,9 +462,8 @@ fn render_command(args: RenderArgs) -> Result<()> {
             eprintln!("wrote {}", p.display());
         }
     }
-    let [w, h] = settings.film.resolution;
     eprintln!(
-        "{} strands ({:?} curves, {:?} backend), {w}x{h}, {} spp, {} threads: load {:.2} s, build {:.2} s, render {:.2} s \
+        "{} strands ({:?} curves, {:?} backend), {width}x{height}, {} spp, {} threads: load {:.2} s, build {:.2} s, render {:.2} s \
          ({:.2} Mrays/s: {} camera, {} shadow, {} material rays)",
         frame.strands.strand_count(),
         frame.curves,
@@ -464,6 +484,13 @@ fn render_command(args: RenderArgs) -> Result<()> {
             stats.shadow_build_seconds,
             stats.shadow_map_bytes as f64 / 1e6,
             stats.rays.map_lookups
+        );
+    }
+    let dropped = render::film::dropped_samples() - dropped_before;
+    if dropped > 0 {
+        eprintln!(
+            "warning: {dropped} camera samples were not finite and were left out of their pixels (a bug: please \
+             report)"
         );
     }
     if stats.rays.rejected > 0 {
@@ -812,7 +839,10 @@ fn main() -> ExitCode {
     match run() {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("cuticle: error: {e:#}");
+            eprintln!(
+                "cuticle: error: {}",
+                cuticle::util::report::chain(e.as_ref())
+            );
             match e.downcast_ref::<cuticle::farm::FarmError>() {
                 Some(cuticle::farm::FarmError::Interrupted(i)) => ExitCode::from(i.exit_code()),
                 _ => ExitCode::from(2),

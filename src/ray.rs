@@ -9,6 +9,12 @@ use glam::Vec3;
 /// Origins farther than this from the world origin are rejected (Embree 3 asserts at 1e19; leave headroom).
 pub const MAX_ORIGIN: f32 = 1e18;
 
+/// Largest |coordinate| a scene may place anything a ray starts from or ends at (hair points plus their radius,
+/// light and shape corners, the camera): [`MAX_ORIGIN`] / 1000. Rays start on surfaces and are offset from them by
+/// small multiples of the scene's size, so a scene inside this bound never produces an origin [`Ray::check`]
+/// rejects; scenes are refused at load beyond it (naming the file or key) instead of rendering only background.
+pub const MAX_SCENE_COORD: f32 = 1e15;
+
 /// A ray segment: points `origin + t·dir` for `t` in `[tnear, tfar]`. `dir` need not be unit length.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Ray {

@@ -50,14 +50,6 @@ fn f32_at(b: &[u8], offset: usize) -> f32 {
     f32::from_bits(u32_at(b, offset))
 }
 
-/// The whole of `path`, or an [`HairError::Io`] naming it.
-fn read_bytes(path: &Path) -> Result<Vec<u8>, HairError> {
-    std::fs::read(path).map_err(|source| HairError::Io {
-        path: path.to_path_buf(),
-        source,
-    })
-}
-
 impl HairError {
     /// An [`HairError::Invalid`] for `path`.
     pub fn invalid(path: &Path, message: impl Into<String>) -> Self {
@@ -66,6 +58,38 @@ impl HairError {
             message: message.into(),
         }
     }
+}
+
+/// Largest strand colour channel (a reflectance-like tint; see [`HairModel::validate`]).
+pub const MAX_COLOR: f32 = 1.0;
+
+/// Checks that every point, inflated by its radius × `radius_scale`, lies within [`crate::ray::MAX_SCENE_COORD`] of
+/// the origin, so every ray that starts on a strand passes [`crate::ray::Ray::check`]. `what` is appended to the
+/// message (e.g. " with hair.radius_scale = 1e30").
+pub(crate) fn check_extent(
+    path: &Path,
+    points: &[Vec3],
+    radius: &[f32],
+    radius_scale: f32,
+    what: &str,
+) -> Result<(), HairError> {
+    let max = crate::ray::MAX_SCENE_COORD;
+    let far = points.iter().zip(radius).position(|(p, r)| {
+        let reach = p.abs().max_element() + r * radius_scale;
+        !(..=max).contains(&reach)
+    });
+    if let Some(i) = far {
+        return Err(HairError::invalid(
+            path,
+            format!(
+                "point {i} at {:?} with radius {:e} reaches farther than {max:e} from the origin{what}: rays from \
+                 it could not be traced in single precision (scale the model down)",
+                points[i].to_array(),
+                radius[i] * radius_scale
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// A hair model as polylines: the common form of every reader and generator, before B-spline conversion.
@@ -167,6 +191,23 @@ impl HairModel {
                 ),
             ));
         }
+        check_extent(path, &self.points, &self.radius, 1.0, "")?;
+        // A strand colour tints the diffuse lobe like a reflectance: above 1 a strand would reflect more light than
+        // reaches it, and a huge finite colour (1e38) overflows the film's sums to infinity. [0, 1] is what every
+        // real file stores (straight.hair: 0.57 to 1).
+        if let Some(i) = self
+            .color
+            .iter()
+            .position(|c| !c.iter().all(|x| (0.0..=MAX_COLOR).contains(x)))
+        {
+            return Err(HairError::invalid(
+                path,
+                format!(
+                    "point {i} has colour {:?} (every channel must be in [0, {MAX_COLOR}])",
+                    self.color[i]
+                ),
+            ));
+        }
         if let Some(i) = self
             .transparency
             .iter()
@@ -184,19 +225,61 @@ impl HairModel {
     }
 }
 
-/// Loads a hair model by file extension: `.hair` (Cem Yuksel) or `.tfx` (TressFX 4 guide strands).
-pub fn load(path: &Path) -> Result<HairModel, HairError> {
+/// The strands and points a hair file declares, from its header alone (the file is opened, at most a header's
+/// bytes are read, and its size is checked against the header as [`load`] would): what
+/// [`crate::render::budget`] estimates a frame's memory from before the file is read.
+pub fn declared_counts(path: &Path) -> Result<(u64, u64), HairError> {
+    use std::io::Read;
+    let io = |source| HairError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let format = format_of(path)?;
+    let (file, file_len) = crate::util::input_file::open_regular(path).map_err(io)?;
+    let mut head = Vec::new();
+    file.take(tfx::HEADER_SIZE.max(yuksel::HEADER_SIZE) as u64)
+        .read_to_end(&mut head)
+        .map_err(io)?;
+    match format {
+        Format::Yuksel => {
+            let h = yuksel::Header::parse(path, &head)?;
+            h.check_file_len(path, file_len)?;
+            Ok((u64::from(h.strand_count), u64::from(h.point_count)))
+        }
+        Format::Tfx => {
+            let h = tfx::Header::parse(path, &head)?;
+            h.check_file_len(path, file_len)?;
+            let strands = u64::from(h.strand_count);
+            Ok((strands, strands * u64::from(h.vertices_per_strand)))
+        }
+    }
+}
+
+enum Format {
+    Yuksel,
+    Tfx,
+}
+
+fn format_of(path: &Path) -> Result<Format, HairError> {
     match path
         .extension()
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase)
         .as_deref()
     {
-        Some("hair") => yuksel::read(path),
-        Some("tfx") => tfx::read(path),
+        Some("hair") => Ok(Format::Yuksel),
+        Some("tfx") => Ok(Format::Tfx),
         _ => Err(HairError::invalid(
             path,
             "unknown hair format (expected a .hair or .tfx file)",
         )),
+    }
+}
+
+/// Loads a hair model by file extension: `.hair` (Cem Yuksel) or `.tfx` (TressFX 4 guide strands).
+pub fn load(path: &Path) -> Result<HairModel, HairError> {
+    match format_of(path)? {
+        Format::Yuksel => yuksel::read(path),
+        Format::Tfx => tfx::read(path),
     }
 }

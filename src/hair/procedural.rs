@@ -68,6 +68,16 @@ impl Procedural {
         PathBuf::from(format!("procedural:{}", self.kind()))
     }
 
+    /// Strands and points in all (strands × points per strand), known before generating: what
+    /// [`crate::render::budget`] estimates a frame's memory from.
+    pub fn counts(&self) -> (u64, u64) {
+        let (strands, points) = match self {
+            Procedural::FurBall(f) => (f.strands, f.points),
+            Procedural::WavyPatch(w) => (w.strands, w.points),
+        };
+        (u64::from(strands), u64::from(strands) * u64::from(points))
+    }
+
     /// Checks the parameters and generates the model. Errors name the offending key.
     pub fn generate(&self) -> Result<HairModel, HairError> {
         let path = self.source();
@@ -108,6 +118,7 @@ pub struct FurBall {
     /// Transparency of every point, in [0, 1]. Default 0.
     pub transparency: f32,
     /// Linear RGB colour, each channel in [0, 1]. Default a light brown.
+    #[serde(deserialize_with = "crate::util::exact_array::array")]
     pub color: [f32; 3],
 }
 
@@ -161,6 +172,7 @@ pub struct WavyPatch {
     /// Transparency of every point, in [0, 1]. Default 0.
     pub transparency: f32,
     /// Linear RGB colour, each channel in [0, 1]. Default a light brown.
+    #[serde(deserialize_with = "crate::util::exact_array::array")]
     pub color: [f32; 3],
 }
 
@@ -424,14 +436,23 @@ fn check_counts(path: &Path, strands: u32, points: u32) -> Result<(), HairError>
     Ok(())
 }
 
+/// Every positive parameter is a length in model units. A model is a few such lengths across (sphere + length ×
+/// (1 + curl), patch size + length), so bounding each by [`crate::ray::MAX_SCENE_COORD`] / 16 keeps the generated points
+/// inside what rays can be traced from (checked again on the points by [`HairModel::validate`]).
 fn positive(path: &Path, key: &str, v: f32) -> Result<(), HairError> {
-    if v.is_finite() && v > 0.0 {
-        Ok(())
-    } else {
+    let max = crate::ray::MAX_SCENE_COORD / 16.0;
+    if !(v.is_finite() && v > 0.0) {
         Err(HairError::invalid(
             path,
             format!("{key} must be > 0, got {v}"),
         ))
+    } else if v > max {
+        Err(HairError::invalid(
+            path,
+            format!("{key} must be at most {max:e} model units, got {v:e}"),
+        ))
+    } else {
+        Ok(())
     }
 }
 

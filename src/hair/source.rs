@@ -16,6 +16,14 @@ pub enum HairSource {
 }
 
 impl HairSource {
+    /// The file, or `procedural:<kind>`: how errors name this source.
+    pub fn name(&self) -> PathBuf {
+        match self {
+            HairSource::File(path) => path.clone(),
+            HairSource::Procedural(p) => p.source(),
+        }
+    }
+
     /// Reads or generates the model.
     pub fn model(&self) -> Result<HairModel, HairError> {
         match self {
@@ -39,7 +47,17 @@ pub struct HairSpec {
 impl HairSpec {
     /// Loads the model and converts it to B-spline strands with the radius scale and opacity applied.
     pub fn load(&self) -> Result<Strands, HairError> {
-        let mut strands = Strands::from_model(&self.source.model()?);
+        let model = self.source.model()?;
+        if self.radius_scale != 1.0 {
+            super::check_extent(
+                &self.source.name(),
+                &model.points,
+                &model.radius,
+                self.radius_scale,
+                &format!(" with hair.radius_scale = {:e}", self.radius_scale),
+            )?;
+        }
+        let mut strands = Strands::from_model(&model);
         if self.radius_scale != 1.0 {
             strands
                 .control_points

@@ -137,82 +137,127 @@ impl Header {
         Ok(header)
     }
 
-    /// The arrays present, with their byte ranges (u64: counts come from the file and may be huge).
-    fn layout(&self) -> Vec<(&'static str, Range<u64>)> {
+    /// The arrays present, with their byte ranges, in header order. Sizes are computed in u64 with checked
+    /// arithmetic: counts come from the file, and a product that overflows is reported against the counts that
+    /// caused it (not as a bogus overlap or truncation further on).
+    fn layout(&self, path: &Path) -> Result<Vec<(&'static str, Range<u64>)>, HairError> {
         let strands = u64::from(self.strand_count);
+        // Cannot overflow: both factors are u32.
         let vertices = strands * u64::from(self.vertices_per_strand);
-        ARRAYS
-            .iter()
-            .zip(self.offsets)
-            .enumerate()
-            .filter(|(i, (_, offset))| *i == 0 || *offset != 0)
-            .map(|(_, (&(name, per_strand, size), offset))| {
-                let count = if per_strand { strands } else { vertices };
-                let start = u64::from(offset);
-                (name, start..start + count * size)
-            })
-            .collect()
+        let mut out = Vec::with_capacity(ARRAYS.len());
+        for (i, (&(name, per_strand, size), offset)) in ARRAYS.iter().zip(self.offsets).enumerate()
+        {
+            if i != 0 && offset == 0 {
+                continue;
+            }
+            let count = if per_strand { strands } else { vertices };
+            let start = u64::from(offset);
+            let end = count
+                .checked_mul(size)
+                .and_then(|bytes| bytes.checked_add(start))
+                .ok_or_else(|| {
+                    HairError::invalid(
+                        path,
+                        format!(
+                            "the header's counts ({} strands × {} vertices per strand) make the {name} array \
+                             larger than any file can be",
+                            self.strand_count, self.vertices_per_strand
+                        ),
+                    )
+                })?;
+            out.push((name, start..end));
+        }
+        Ok(out)
     }
-}
 
-/// Reads a `.tfx` file into memory and parses it with [`parse`].
-pub fn read(path: &Path) -> Result<HairModel, HairError> {
-    parse(path, &super::read_bytes(path)?)
-}
-
-/// Parses the bytes of a `.tfx` file; `path` names it in errors.
-pub fn parse(path: &Path, bytes: &[u8]) -> Result<HairModel, HairError> {
-    let header = Header::parse(path, bytes)?;
-    let file_len = bytes.len() as u64;
-    let mut layout = header.layout();
-    let describe = format!(
-        "header: {} strands × {} vertices",
-        header.strand_count, header.vertices_per_strand
-    );
-    let positions = layout[0].1.clone();
-    // In file order, so the first problem reported is the first one in the file. Overlaps come before truncation:
-    // a wrong count makes an array run into the next one, and the file then looks truncated only as a consequence.
-    layout.sort_by_key(|(_, r)| r.start);
-    if let Some((name, range)) = layout.iter().find(|(_, r)| r.start < HEADER_SIZE as u64) {
-        return Err(HairError::invalid(
-            path,
-            format!(
-                "the {name} array starts at byte {}, inside the {HEADER_SIZE}-byte header",
-                range.start
-            ),
-        ));
-    }
-    for pair in layout.windows(2) {
-        let ((a, ra), (b, rb)) = (&pair[0], &pair[1]);
-        if rb.start < ra.end {
+    /// Checks the arrays' placement against the header and a file of `file_len` bytes, without reading them:
+    /// inside the header, overlapping, truncated, trailing data. Returns the byte range of the positions.
+    pub fn check_file_len(&self, path: &Path, file_len: u64) -> Result<Range<u64>, HairError> {
+        let mut layout = self.layout(path)?;
+        let describe = format!(
+            "header: {} strands × {} vertices",
+            self.strand_count, self.vertices_per_strand
+        );
+        let positions = layout[0].1.clone();
+        // In file order, so the first problem reported is the first one in the file. Overlaps come before
+        // truncation: a wrong count makes an array run into the next one, and the file then looks truncated only
+        // as a consequence.
+        layout.sort_by_key(|(_, r)| r.start);
+        if let Some((name, range)) = layout.iter().find(|(_, r)| r.start < HEADER_SIZE as u64) {
             return Err(HairError::invalid(
                 path,
                 format!(
-                    "the {a} array (bytes {}..{}) overlaps the {b} array (bytes {}..{}) ({describe})",
-                    ra.start, ra.end, rb.start, rb.end
+                    "the {name} array starts at byte {}, inside the {HEADER_SIZE}-byte header",
+                    range.start
                 ),
             ));
         }
+        for pair in layout.windows(2) {
+            let ((a, ra), (b, rb)) = (&pair[0], &pair[1]);
+            if rb.start < ra.end {
+                return Err(HairError::invalid(
+                    path,
+                    format!(
+                        "the {a} array (bytes {}..{}) overlaps the {b} array (bytes {}..{}) ({describe})",
+                        ra.start, ra.end, rb.start, rb.end
+                    ),
+                ));
+            }
+        }
+        if let Some((name, range)) = layout.iter().find(|(_, r)| r.end > file_len) {
+            return Err(HairError::invalid(
+                path,
+                format!(
+                    "truncated in the {name} array: it needs bytes {}..{} but the file has {file_len} bytes ({describe})",
+                    range.start, range.end
+                ),
+            ));
+        }
+        let end = layout.iter().map(|(_, r)| r.end).max().unwrap_or(0);
+        if file_len > end {
+            return Err(HairError::invalid(
+                path,
+                format!(
+                    "{} bytes of trailing data: the file has {file_len} bytes but its arrays end at byte {end} ({describe})",
+                    file_len - end
+                ),
+            ));
+        }
+        Ok(positions)
     }
-    if let Some((name, range)) = layout.iter().find(|(_, r)| r.end > file_len) {
-        return Err(HairError::invalid(
-            path,
-            format!(
-                "truncated in the {name} array: it needs bytes {}..{} but the file has {file_len} bytes ({describe})",
-                range.start, range.end
-            ),
-        ));
-    }
-    let end = layout.iter().map(|(_, r)| r.end).max().unwrap_or(0);
-    if file_len > end {
-        return Err(HairError::invalid(
-            path,
-            format!(
-                "{} bytes of trailing data: the file has {file_len} bytes but its arrays end at byte {end} ({describe})",
-                file_len - end
-            ),
-        ));
-    }
+}
+
+/// Reads a `.tfx` file and parses it with [`parse`]. Only a regular file is read, and only once its size agrees
+/// with its header: huge declared counts or trailing gigabytes are refused after reading 160 bytes.
+pub fn read(path: &Path) -> Result<HairModel, HairError> {
+    use std::io::Read;
+    let io = |source| HairError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let (mut file, file_len) = crate::util::input_file::open_regular(path).map_err(io)?;
+    let mut bytes = Vec::with_capacity(HEADER_SIZE);
+    (&mut file)
+        .take(HEADER_SIZE as u64)
+        .read_to_end(&mut bytes)
+        .map_err(io)?;
+    let header = Header::parse(path, &bytes)?;
+    header.check_file_len(path, file_len)?;
+    let rest = crate::util::input_file::read_at_most(
+        file,
+        file_len - bytes.len() as u64,
+        file_len - bytes.len() as u64,
+    )
+    .map_err(io)?;
+    bytes.extend_from_slice(&rest);
+    parse(path, &bytes)
+}
+
+/// Parses the bytes of a `.tfx` file; `path` names it in errors. Nothing is allocated for the arrays before their
+/// sizes are checked against `bytes`, so any byte string (a fuzzer's) is safe to pass.
+pub fn parse(path: &Path, bytes: &[u8]) -> Result<HairModel, HairError> {
+    let header = Header::parse(path, bytes)?;
+    let positions = header.check_file_len(path, bytes.len() as u64)?;
 
     // Positions: x, y, z of each f32×4; w (inverse mass) is for simulation.
     let points: Vec<Vec3> = bytes[positions.start as usize..positions.end as usize]

@@ -218,80 +218,137 @@ impl Header {
     }
 }
 
-/// Reads a `.hair` file into memory and parses it with [`parse`].
+/// Reads a `.hair` file and parses it with [`parse`]. Only a regular file is read, and only once its size is what
+/// its header declares: a header claiming 2³² strands or a file with gigabytes of trailing data is refused after
+/// reading 128 bytes, before anything is allocated for it.
 pub fn read(path: &Path) -> Result<HairModel, HairError> {
-    parse(path, &super::read_bytes(path)?)
+    use std::io::Read;
+    let io = |source| HairError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let (mut file, file_len) = crate::util::input_file::open_regular(path).map_err(io)?;
+    let mut head = Vec::with_capacity(HEADER_SIZE);
+    (&mut file)
+        .take(HEADER_SIZE as u64)
+        .read_to_end(&mut head)
+        .map_err(io)?;
+    let header = Header::parse(path, &head)?;
+    header.check_file_len(path, file_len)?;
+    // The size matches the header, so the file is exactly `file_len` bytes of declared arrays.
+    let mut bytes = head;
+    crate::util::input_file::read_at_most(file, file_len - HEADER_SIZE as u64, file_len)
+        .map(|rest| bytes.extend_from_slice(&rest))
+        .map_err(io)?;
+    parse(path, &bytes)
 }
 
-/// Parses the bytes of a `.hair` file; `path` names it in errors.
-pub fn parse(path: &Path, bytes: &[u8]) -> Result<HairModel, HairError> {
-    let header = Header::parse(path, bytes)?;
-    let layout = header.layout();
-    let file_len = bytes.len() as u64;
-    let expected_len = layout.last().map_or(HEADER_SIZE as u64, |(_, r)| r.end);
-    let truncated = |name: &str, range: &std::ops::Range<u64>| {
-        HairError::invalid(
-            path,
-            format!(
-                "truncated in the {name} array: it needs bytes {}..{} but the file has {file_len} bytes \
-                 (header: {}; expected {expected_len} bytes in all)",
-                range.start,
-                range.end,
-                header.describe()
-            ),
-        )
-    };
-    let section = |name: &str| -> Result<Option<&[u8]>, HairError> {
-        match layout.iter().find(|(n, _)| *n == name) {
-            None => Ok(None),
-            Some((_, r)) if r.end > file_len => Err(truncated(name, r)),
-            Some((_, r)) => Ok(Some(&bytes[r.start as usize..r.end as usize])),
-        }
-    };
+impl Header {
+    /// The file size the header and flags imply.
+    pub fn expected_len(&self) -> u64 {
+        self.layout()
+            .last()
+            .map_or(HEADER_SIZE as u64, |(_, r)| r.end)
+    }
 
-    // Strand lengths first: a point count that disagrees with them is the root cause of any size mismatch.
-    let segments: Vec<u32> = match section("segments")? {
-        Some(b) => b
-            .chunks_exact(2)
-            .map(|c| u32::from(u16::from_le_bytes([c[0], c[1]])))
-            .collect(),
-        None => vec![header.default_segments; header.strand_count as usize],
-    };
-    let points_in_strands: u64 = segments.iter().map(|&k| u64::from(k) + 1).sum();
-    if points_in_strands != u64::from(header.point_count) {
-        let how = if header.flags & HAS_SEGMENTS != 0 {
+    /// The points the strands hold by the header alone (strands × (default segments + 1)), when there is no
+    /// segments array.
+    fn default_points(&self) -> Option<u64> {
+        (self.flags & HAS_SEGMENTS == 0)
+            .then(|| u64::from(self.strand_count) * (u64::from(self.default_segments) + 1))
+    }
+
+    fn point_count_mismatch(&self, path: &Path, points_in_strands: u64) -> HairError {
+        let how = if self.flags & HAS_SEGMENTS != 0 {
             format!(
                 "the segments array implies {points_in_strands} points (segments + 1 per strand)"
             )
         } else {
             format!(
                 "{} strands × ({} default segments + 1) = {points_in_strands} points",
-                header.strand_count, header.default_segments
+                self.strand_count, self.default_segments
             )
         };
-        return Err(HairError::invalid(
+        HairError::invalid(
             path,
             format!(
                 "point count mismatch: the header declares {} points but {how}",
-                header.point_count
+                self.point_count
             ),
-        ));
+        )
     }
-    for (name, range) in &layout {
-        if range.end > file_len {
-            return Err(truncated(name, range));
+
+    /// Checks a file of `file_len` bytes against the header alone (nothing read or allocated): the default
+    /// segments against the point count, then every array against the file's end, then trailing bytes.
+    pub fn check_file_len(&self, path: &Path, file_len: u64) -> Result<(), HairError> {
+        if let Some(n) = self.default_points() {
+            if n != u64::from(self.point_count) {
+                return Err(self.point_count_mismatch(path, n));
+            }
+        }
+        let expected_len = self.expected_len();
+        if let Some((name, range)) = self.layout().into_iter().find(|(_, r)| r.end > file_len) {
+            return Err(HairError::invalid(
+                path,
+                format!(
+                    "truncated in the {name} array: it needs bytes {}..{} but the file has {file_len} bytes \
+                     (header: {}; expected {expected_len} bytes in all)",
+                    range.start,
+                    range.end,
+                    self.describe()
+                ),
+            ));
+        }
+        if file_len > expected_len {
+            return Err(HairError::invalid(
+                path,
+                format!(
+                    "{} bytes of trailing data: the file has {file_len} bytes but the header ({}) accounts for {expected_len} bytes",
+                    file_len - expected_len,
+                    self.describe()
+                ),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Parses the bytes of a `.hair` file; `path` names it in errors. Nothing proportional to the header's counts is
+/// allocated before the byte count is checked against them, so any byte string (a fuzzer's) is safe to pass.
+pub fn parse(path: &Path, bytes: &[u8]) -> Result<HairModel, HairError> {
+    let header = Header::parse(path, bytes)?;
+    let layout = header.layout();
+    let file_len = bytes.len() as u64;
+    let section = |name: &str| -> Option<&[u8]> {
+        layout
+            .iter()
+            .find(|(n, _)| *n == name)
+            .map(|(_, r)| &bytes[r.start as usize..r.end as usize])
+    };
+
+    // Strand lengths first: a point count that disagrees with them is the root cause of any size mismatch. Summed
+    // straight from the bytes (when they are there), without allocating.
+    if let Some((_, r)) = layout.iter().find(|(n, _)| *n == "segments") {
+        if r.end <= file_len {
+            let b = &bytes[r.start as usize..r.end as usize];
+            let points_in_strands: u64 = b
+                .chunks_exact(2)
+                .map(|c| u64::from(u16::from_le_bytes([c[0], c[1]])) + 1)
+                .sum();
+            if points_in_strands != u64::from(header.point_count) {
+                return Err(header.point_count_mismatch(path, points_in_strands));
+            }
         }
     }
-    if file_len > expected_len {
-        return Err(HairError::invalid(
-            path,
-            format!(
-                "{} bytes of trailing data: the file has {file_len} bytes but the header ({}) accounts for {expected_len} bytes",
-                file_len - expected_len,
-                header.describe()
-            ),
-        ));
-    }
+    header.check_file_len(path, file_len)?;
+    // From here on every array is inside `bytes`: allocations are bounded by the input's length.
+    let segments: Vec<u32> = match section("segments") {
+        Some(b) => b
+            .chunks_exact(2)
+            .map(|c| u32::from(u16::from_le_bytes([c[0], c[1]])))
+            .collect(),
+        None => vec![header.default_segments; header.strand_count as usize],
+    };
 
     let n = header.point_count as usize;
     let vec3s = |b: &[u8]| -> Vec<[f32; 3]> {
@@ -301,12 +358,12 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<HairModel, HairError> {
     };
     let floats = |b: &[u8]| -> Vec<f32> { b.chunks_exact(4).map(|c| f32_at(c, 0)).collect() };
 
-    let points: Vec<Vec3> = vec3s(section("points")?.unwrap_or_default())
+    let points: Vec<Vec3> = vec3s(section("points").unwrap_or_default())
         .into_iter()
         .map(Vec3::from)
         .collect();
     let radius_from_file = header.flags & HAS_THICKNESS != 0;
-    let radius = match section("thickness")? {
+    let radius = match section("thickness") {
         Some(b) => floats(b).into_iter().map(|t| 0.5 * t).collect(),
         None => {
             let t = header.default_thickness;
@@ -319,7 +376,7 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<HairModel, HairError> {
             vec![0.5 * t; n]
         }
     };
-    let transparency = match section("transparency")? {
+    let transparency = match section("transparency") {
         Some(b) => floats(b),
         None => {
             let t = header.default_transparency;
@@ -334,7 +391,7 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<HairModel, HairError> {
             vec![t; n]
         }
     };
-    let color = match section("colors")? {
+    let color = match section("colors") {
         Some(b) => {
             let color = vec3s(b);
             if let Some(i) = color.iter().position(|c| !c.iter().all(|x| x.is_finite())) {

@@ -80,6 +80,11 @@ struct LatLong {
 /// The label used in errors for [`Environment::from_image`], which has no file.
 const IN_MEMORY: &str = "<in-memory image>";
 
+/// Largest environment map file read: 1 GiB. A 16K × 8K lat-long map in half-float RGB is 768 MiB uncompressed;
+/// anything larger is not a map a frame can use (its decoded texels and sampling tables would exceed a machine's
+/// memory before the render starts).
+pub const MAX_MAP_BYTES: u64 = 1 << 30;
+
 impl Environment {
     /// A sky of constant `radiance` (RGB, every channel finite and ≥ 0) in every direction.
     pub fn constant(radiance: Vec3) -> Result<Environment, LightError> {
@@ -111,6 +116,23 @@ impl Environment {
         up: Vec3,
     ) -> Result<Environment, LightError> {
         let path = path.as_ref();
+        // Before OpenImageIO sees it: a FIFO would block its open forever and `/dev/zero` never ends.
+        let (_, len) = crate::util::input_file::open_regular(path).map_err(|source| {
+            LightError::EnvironmentFile {
+                path: path.to_path_buf(),
+                source,
+            }
+        })?;
+        if len > MAX_MAP_BYTES {
+            return Err(LightError::EnvironmentContent {
+                path: path.to_path_buf(),
+                message: format!(
+                    "the file is {}, more than the {} an environment map may be",
+                    crate::util::input_file::human_bytes(len),
+                    crate::util::input_file::human_bytes(MAX_MAP_BYTES)
+                ),
+            });
+        }
         let image = read(path).map_err(|source| LightError::EnvironmentMap {
             path: path.to_path_buf(),
             source,
@@ -185,9 +207,12 @@ impl Environment {
                 })) * intensity
             })
             .collect();
-        if !texels.iter().all(|t| t.is_finite()) {
+        let brightest = texels.iter().fold(0.0f32, |m, t| m.max(t.max_element()));
+        if !(..=super::MAX_RADIANCE).contains(&brightest) {
             return Err(content(format!(
-                "intensity {intensity} times the brightest texel overflows f32"
+                "intensity {intensity} times the brightest texel is {brightest}, more than the {:e} a radiance may \
+                 be (environment.intensity is probably in the wrong units)",
+                super::MAX_RADIANCE
             )));
         }
         let mut weights = Vec::with_capacity(width * height);
@@ -859,7 +884,7 @@ mod tests {
     fn missing_file_names_the_path() {
         let path = format!("{ENVMAP_DIR}/no-such-map.exr");
         let e = Environment::load(&path, 1.0, 0.0, Vec3::Y).unwrap_err();
-        assert!(matches!(e, LightError::EnvironmentMap { .. }));
+        assert!(matches!(e, LightError::EnvironmentFile { .. }));
         assert!(e.to_string().contains(&path), "{e}");
         let (path, _) = smallest_map();
         let env = Environment::load(path, 1.0, 0.0, Vec3::Y).unwrap();

@@ -165,6 +165,14 @@ pub enum LightError {
         /// Why it could not be read.
         source: ImageError,
     },
+    /// The environment map file is not a regular file or cannot be opened.
+    #[error("environment map {}: {source}", path.display())]
+    EnvironmentFile {
+        /// The file asked for.
+        path: PathBuf,
+        /// Why it cannot be opened.
+        source: std::io::Error,
+    },
     /// The environment map was read but cannot be used as one (no colour channel, no pixels).
     #[error("environment map {}: {message}", path.display())]
     EnvironmentContent {
@@ -196,14 +204,24 @@ pub(crate) fn check(
     }
 }
 
-/// Checks an RGB radiance or irradiance: every channel finite and ≥ 0.
+/// Largest radiance or irradiance a light may have, per channel: 10¹⁰. The sun's disk, the brightest thing a scene
+/// holds in physical units, is 1.6·10⁹ cd/m²; above this a value is a typo or a unit error, and it leaves 10²⁸ of
+/// f32 headroom for BSDF values over sampling pdfs and sums over 65 536 samples, so no product overflows to
+/// infinity (and then NaN) on the way to the film.
+pub const MAX_RADIANCE: f32 = 1e10;
+
+/// Checks an RGB radiance or irradiance: every channel finite, ≥ 0 and ≤ [`MAX_RADIANCE`].
 pub(crate) fn check_color(
     light: &'static str,
     key: &'static str,
     c: Vec3,
 ) -> Result<(), LightError> {
     let worst = if c.is_finite() {
-        c.min_element()
+        if c.min_element() < 0.0 {
+            c.min_element()
+        } else {
+            c.max_element()
+        }
     } else {
         c.to_array()
             .into_iter()
@@ -214,8 +232,8 @@ pub(crate) fn check_color(
         light,
         key,
         worst,
-        ">= 0 and finite in every channel",
-        c.is_finite() && c.min_element() >= 0.0,
+        "in [0, 1e10] in every channel",
+        c.is_finite() && c.min_element() >= 0.0 && c.max_element() <= MAX_RADIANCE,
     )
 }
 

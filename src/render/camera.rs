@@ -4,7 +4,7 @@ use glam::Vec3;
 
 use serde::Deserialize;
 
-use crate::ray::Ray;
+use crate::ray::{Ray, MAX_ORIGIN, MAX_SCENE_COORD};
 
 /// `[camera]`: a pinhole camera. Without `position` the camera is placed automatically so the model's bounding
 /// sphere fills the frame, looking along `view` at the model's centre.
@@ -14,12 +14,16 @@ pub struct CameraConfig {
     /// Vertical field of view, degrees, in (0, 180).
     pub fov: f32,
     /// Eye position, world space.
+    #[serde(default, deserialize_with = "crate::util::exact_array::option_array")]
     pub position: Option<[f32; 3]>,
     /// Point looked at (default: the model's bounding-box centre).
+    #[serde(default, deserialize_with = "crate::util::exact_array::option_array")]
     pub look_at: Option<[f32; 3]>,
     /// Up vector.
+    #[serde(deserialize_with = "crate::util::exact_array::array")]
     pub up: [f32; 3],
     /// Viewing direction used by auto-framing (from the eye towards the model).
+    #[serde(deserialize_with = "crate::util::exact_array::array")]
     pub view: [f32; 3],
     /// Auto-framing margin: 1 fits the bounding sphere exactly, larger zooms out.
     pub margin: f32,
@@ -69,7 +73,91 @@ impl CameraConfig {
                 return Err(format!("{key} must be a non-zero finite vector, got {v:?}"));
             }
         }
+        for (key, p) in [
+            ("camera.position", self.position),
+            ("camera.look_at", self.look_at),
+        ] {
+            if let Some(p) = p {
+                let max = MAX_SCENE_COORD;
+                if !p.iter().all(|x| x.abs() <= max) {
+                    return Err(format!(
+                        "{key} must be finite and within {max:e} of the origin on every axis, got {p:?} (rays \
+                         from farther away cannot be traced in single precision)"
+                    ));
+                }
+            }
+        }
+        if let (Some(p), Some(l)) = (self.position, self.look_at) {
+            if p == l {
+                return Err(format!(
+                    "camera.look_at must differ from camera.position, both are {p:?}"
+                ));
+            }
+        }
+        // Without look_at, a placed camera looks at the model's centre: checked by `camera`, with the bounds.
+        let forward = match (self.position, self.look_at) {
+            (Some(p), Some(l)) => Some((
+                Vec3::from(l) - Vec3::from(p),
+                "the view direction (camera.look_at - camera.position)",
+            )),
+            (None, _) => Some((Vec3::from(self.view), "camera.view")),
+            (Some(_), None) => None,
+        };
+        if let Some((forward, along)) = forward.filter(|(f, _)| parallel(*f, Vec3::from(self.up))) {
+            return Err(format!(
+                "camera.up {:?} is parallel to {along} {:?}: the image's vertical is undefined",
+                self.up,
+                forward.to_array()
+            ));
+        }
         Ok(())
+    }
+
+    /// The camera of a frame whose hair has `bounds` (min, max), as [`Camera::from_config`] places it, refused
+    /// when its position would make camera rays invalid ([`crate::ray::Ray::check`]: an auto-framed eye moves
+    /// far away for a tiny `fov` or a huge `margin`), when the view direction is undefined (a position equal to
+    /// the model's centre), or when `up` is parallel to it. Messages name the keys.
+    pub fn camera(&self, bounds: (Vec3, Vec3), width: u32, height: u32) -> Result<Camera, String> {
+        self.validate()?;
+        let camera = Camera::from_config(self, bounds, width, height);
+        let keys = if self.position.is_some() {
+            "camera.position"
+        } else {
+            "the auto-framed camera (camera.fov, camera.margin and the model's size)"
+        };
+        if !(..MAX_ORIGIN).contains(&camera.position.abs().max_element()) {
+            return Err(format!(
+                "{keys} puts the eye at {:?}, farther than {MAX_ORIGIN:e} from the origin: no camera ray could be \
+                 traced",
+                camera.position.to_array()
+            ));
+        }
+        let centre = 0.5 * (bounds.0 + bounds.1);
+        let look_at = self.look_at.map(Vec3::from).unwrap_or(centre);
+        let forward = look_at - camera.position;
+        if !forward.is_finite() || forward.length_squared() <= 0.0 {
+            return Err(format!(
+                "camera.position {:?} is the point looked at (camera.look_at, or the model's centre without it)",
+                camera.position.to_array()
+            ));
+        }
+        if parallel(forward, Vec3::from(self.up)) {
+            return Err(format!(
+                "camera.up {:?} is parallel to the view direction {:?}: the image's vertical is undefined",
+                self.up,
+                forward.to_array()
+            ));
+        }
+        Ok(camera)
+    }
+}
+
+/// Whether `a` and `b` (non-zero) are parallel within a float tolerance: the cross product of the unit vectors is
+/// shorter than 1e-6 (an angle under 0.2 arc seconds).
+fn parallel(a: Vec3, b: Vec3) -> bool {
+    match (a.try_normalize(), b.try_normalize()) {
+        (Some(a), Some(b)) => a.cross(b).length() < 1e-6,
+        _ => false,
     }
 }
 

@@ -4,6 +4,8 @@
 //! Channels are found by name ([`channel`], evaluated at compile time), never by a hand-kept index, so adding or
 //! reordering a channel in [`CHANNELS`] cannot silently write one pass into another.
 
+use std::sync::atomic::{AtomicU64, Ordering};
+
 use glam::Vec3;
 
 use crate::bsdf::{Lobe, LobeValues};
@@ -110,9 +112,25 @@ mod at {
     pub const STRAND: usize = channel("strand.id");
 }
 
+/// Camera samples with a NaN or infinite value, left out of their pixels since the process started.
+static DROPPED: AtomicU64 = AtomicU64::new(0);
+
+/// How many camera samples had a NaN or infinite value in any channel and were left out of their pixel, since the
+/// process started (read it before and after a render for that render's count; `render` prints it as a warning).
+///
+/// The guard behind the validation bounds: scene and file parameters are bounded so that no sample should ever be
+/// non-finite, but one that is would turn its whole pixel (and, through the filter, its neighbours) into NaN in
+/// every output. Such a sample is dropped and the pixel averages the samples that remain, a bias far smaller
+/// than a NaN pixel and counted so it is never silent.
+pub fn dropped_samples() -> u64 {
+    DROPPED.load(Ordering::Relaxed)
+}
+
 /// The film accumulators of one pixel (sums over its camera samples).
 #[derive(Default)]
 pub(super) struct PixelSums {
+    /// Samples left out because a value was not finite.
+    dropped: u32,
     beauty: Vec3,
     alpha: f32,
     lobes: LobeValues,
@@ -126,6 +144,18 @@ pub(super) struct PixelSums {
 impl PixelSums {
     /// Adds one camera sample.
     pub(super) fn add(&mut self, s: &PathSample) {
+        let l = &s.lobes;
+        let finite = [
+            s.beauty, s.direct, s.indirect, s.albedo, l.r, l.tt, l.trt, l.glint, l.diffuse,
+        ]
+        .iter()
+        .all(|v| v.is_finite())
+            && (s.alpha + s.lit + s.unshadowed).is_finite();
+        if !finite {
+            self.dropped += 1;
+            DROPPED.fetch_add(1, Ordering::Relaxed);
+            return;
+        }
         self.beauty += s.beauty;
         self.alpha += s.alpha;
         for lobe in Lobe::ALL {
@@ -141,7 +171,9 @@ impl PixelSums {
     /// Writes the averaged pixel into `pixel` (all of [`CHANNELS`]; the pixel-centre channels are
     /// [`write_centre`]'s).
     pub(super) fn write(&self, spp: u32, pixel: &mut [f32]) {
-        let k = 1.0 / spp as f32;
+        // The mean of the samples kept (all of them but in a bug: see `dropped_samples`).
+        let kept = spp.saturating_sub(self.dropped);
+        let k = if kept > 0 { 1.0 / kept as f32 } else { 0.0 };
         let l = self.lobes.scaled(k);
         let specular = l.r + l.tt + l.trt + l.glint;
         let shadow = if self.unshadowed > 0.0 {
@@ -275,6 +307,29 @@ mod tests {
             (get("depth.Z"), get("tangent.X"), get("strand.id")),
             (7.0, 1.0, 3.0)
         );
+    }
+
+    #[test]
+    fn a_non_finite_sample_is_dropped_counted_and_the_rest_averaged() {
+        let good = PathSample {
+            beauty: Vec3::splat(2.0),
+            alpha: 1.0,
+            ..Default::default()
+        };
+        let mut bad = good;
+        bad.lobes.tt = Vec3::new(0.0, f32::INFINITY, 0.0);
+        let mut nan = good;
+        nan.unshadowed = f32::NAN;
+        let before = dropped_samples();
+        let mut sums = PixelSums::default();
+        for s in [&good, &bad, &nan, &good] {
+            sums.add(s);
+        }
+        assert!(dropped_samples() - before >= 2);
+        let mut pixel = vec![0.0; CHANNELS.len()];
+        sums.write(4, &mut pixel);
+        assert!(pixel.iter().all(|v| v.is_finite()), "{pixel:?}");
+        assert_eq!((pixel[channel("R")], pixel[channel("A")]), (2.0, 1.0));
     }
 
     #[test]

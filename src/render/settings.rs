@@ -17,6 +17,7 @@ use super::integrator::{Settings, MAX_PATH_LENGTH};
 #[serde(deny_unknown_fields, default)]
 pub struct FilmConfig {
     /// Width and height in pixels.
+    #[serde(deserialize_with = "crate::util::exact_array::array")]
     pub resolution: [u32; 2],
     /// Camera samples per pixel.
     pub spp: u32,

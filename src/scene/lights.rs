@@ -37,7 +37,8 @@ use glam::Vec3;
 use serde::Deserialize;
 
 use super::{Scene, SceneError};
-use crate::light::{AreaLight, Distant, Environment, Light, LightError, Shape};
+use crate::light::{AreaLight, Distant, Environment, Light, LightError, Shape, MAX_RADIANCE};
+use crate::ray::MAX_SCENE_COORD;
 use crate::shape::{Quad, Shapes};
 
 /// One `[[light]]`, tagged by `kind`. Radiance and irradiance are a scalar times an RGB `color`.
@@ -47,12 +48,14 @@ pub enum LightConfig {
     /// A light at infinity (the sun).
     Distant {
         /// The direction light travels, world space (need not be unit length).
+        #[serde(deserialize_with = "crate::util::exact_array::array")]
         direction: [f32; 3],
         /// Irradiance on a surface facing the light.
         #[serde(default = "one")]
         irradiance: f32,
         /// Linear RGB tint, multiplied by `irradiance`.
         #[serde(default = "white")]
+        #[serde(deserialize_with = "crate::util::exact_array::array")]
         color: [f32; 3],
         /// Angular radius of the sun disk, degrees; 0 = a delta light (the real sun: 0.27°).
         #[serde(default)]
@@ -61,16 +64,20 @@ pub enum LightConfig {
     /// An emitting parallelogram `corner + s edge_u + t edge_v`.
     Quad {
         /// A corner.
+        #[serde(deserialize_with = "crate::util::exact_array::array")]
         corner: [f32; 3],
         /// First edge.
+        #[serde(deserialize_with = "crate::util::exact_array::array")]
         edge_u: [f32; 3],
         /// Second edge; the quad emits towards edge_u × edge_v.
+        #[serde(deserialize_with = "crate::util::exact_array::array")]
         edge_v: [f32; 3],
         /// Emitted radiance.
         #[serde(default = "one")]
         radiance: f32,
         /// Linear RGB tint.
         #[serde(default = "white")]
+        #[serde(deserialize_with = "crate::util::exact_array::array")]
         color: [f32; 3],
         /// Emit on both sides.
         #[serde(default)]
@@ -79,8 +86,10 @@ pub enum LightConfig {
     /// An emitting disk.
     Disk {
         /// Centre.
+        #[serde(deserialize_with = "crate::util::exact_array::array")]
         center: [f32; 3],
         /// The side that emits.
+        #[serde(deserialize_with = "crate::util::exact_array::array")]
         normal: [f32; 3],
         /// Radius.
         radius: f32,
@@ -89,6 +98,7 @@ pub enum LightConfig {
         radiance: f32,
         /// Linear RGB tint.
         #[serde(default = "white")]
+        #[serde(deserialize_with = "crate::util::exact_array::array")]
         color: [f32; 3],
         /// Emit on both sides.
         #[serde(default)]
@@ -97,6 +107,7 @@ pub enum LightConfig {
     /// An emitting sphere.
     Sphere {
         /// Centre.
+        #[serde(deserialize_with = "crate::util::exact_array::array")]
         center: [f32; 3],
         /// Radius.
         radius: f32,
@@ -105,6 +116,7 @@ pub enum LightConfig {
         radiance: f32,
         /// Linear RGB tint.
         #[serde(default = "white")]
+        #[serde(deserialize_with = "crate::util::exact_array::array")]
         color: [f32; 3],
     },
 }
@@ -126,6 +138,7 @@ fn y_up() -> [f32; 3] {
 #[serde(deny_unknown_fields, default)]
 pub struct EnvironmentConfig {
     /// Constant radiance, linear RGB (ignored when `map` is given; must then be left out).
+    #[serde(default, deserialize_with = "crate::util::exact_array::option_array")]
     pub radiance: Option<[f32; 3]>,
     /// A lat-long HDR map (EXR, HDR, anything OpenImageIO reads), relative to the scene file.
     pub map: Option<PathBuf>,
@@ -134,6 +147,7 @@ pub struct EnvironmentConfig {
     /// Turns the map about `up`, degrees, counter-clockwise seen from above.
     pub rotation: f32,
     /// The world direction of the map's top row.
+    #[serde(deserialize_with = "crate::util::exact_array::array")]
     pub up: [f32; 3],
     /// Show the environment behind the hair (alpha stays 0 there either way).
     pub visible: bool,
@@ -159,23 +173,30 @@ pub enum ShapeConfig {
     /// A parallelogram.
     Quad {
         /// A corner.
+        #[serde(deserialize_with = "crate::util::exact_array::array")]
         corner: [f32; 3],
         /// First edge.
+        #[serde(deserialize_with = "crate::util::exact_array::array")]
         edge_u: [f32; 3],
         /// Second edge.
+        #[serde(deserialize_with = "crate::util::exact_array::array")]
         edge_v: [f32; 3],
         /// Lambert albedo in [0, 1].
         #[serde(default = "grey")]
+        #[serde(deserialize_with = "crate::util::exact_array::array")]
         albedo: [f32; 3],
     },
     /// An axis-aligned box of six quads, some left open.
     Box {
         /// Lower corner.
+        #[serde(deserialize_with = "crate::util::exact_array::array")]
         min: [f32; 3],
         /// Upper corner.
+        #[serde(deserialize_with = "crate::util::exact_array::array")]
         max: [f32; 3],
         /// Lambert albedo in [0, 1].
         #[serde(default = "grey")]
+        #[serde(deserialize_with = "crate::util::exact_array::array")]
         albedo: [f32; 3],
         /// Faces left out: any of "+x", "-x", "+y", "-y", "+z", "-z".
         #[serde(default)]
@@ -192,7 +213,102 @@ fn named(i: usize, e: LightError) -> String {
     format!("light[{i}]: {e}")
 }
 
+/// `light[i].key` (a scalar radiance or irradiance) in [0, MAX_RADIANCE].
+fn check_scalar(i: usize, key: &str, v: f32) -> Result<(), String> {
+    if (0.0..=MAX_RADIANCE).contains(&v) {
+        Ok(())
+    } else {
+        Err(format!(
+            "light[{i}].{key} must be in [0, {MAX_RADIANCE:e}], got {v}"
+        ))
+    }
+}
+
+/// `light[i].color` (a tint) in [0, MAX_RADIANCE] per channel.
+fn check_tint(i: usize, c: &[f32; 3]) -> Result<(), String> {
+    if c.iter().all(|x| (0.0..=MAX_RADIANCE).contains(x)) {
+        Ok(())
+    } else {
+        Err(format!(
+            "light[{i}].color must be in [0, {MAX_RADIANCE:e}] per channel, got {c:?}"
+        ))
+    }
+}
+
+/// `key` (a position, an edge or a radius) within [`MAX_SCENE_COORD`] on every axis: points on lights and shapes
+/// start shadow and bounce rays, which [`crate::ray::Ray::check`] refuses beyond it.
+fn check_coords(key: &str, v: &[f32]) -> Result<(), String> {
+    if v.iter().all(|x| x.abs() <= MAX_SCENE_COORD) {
+        Ok(())
+    } else {
+        Err(format!(
+            "{key} must be finite and within {MAX_SCENE_COORD:e} of 0 on every axis, got {v:?} (rays from \
+             farther away cannot be traced in single precision)"
+        ))
+    }
+}
+
 impl LightConfig {
+    /// Checks each key on its own, in the units the user wrote (degrees), before [`LightConfig::build`] combines
+    /// them (a negative colour must not be reported as a bad irradiance). `i` is the table's index.
+    pub fn check_keys(&self, i: usize) -> Result<(), String> {
+        let at = |key: &str| format!("light[{i}].{key}");
+        match self {
+            LightConfig::Distant {
+                irradiance,
+                color,
+                angular_radius,
+                ..
+            } => {
+                check_scalar(i, "irradiance", *irradiance)?;
+                check_tint(i, color)?;
+                if !(0.0..=90.0).contains(angular_radius) {
+                    return Err(format!(
+                        "light[{i}].angular_radius must be in [0, 90] degrees, got {angular_radius}"
+                    ));
+                }
+            }
+            LightConfig::Quad {
+                corner,
+                edge_u,
+                edge_v,
+                radiance,
+                color,
+                ..
+            } => {
+                check_scalar(i, "radiance", *radiance)?;
+                check_tint(i, color)?;
+                check_coords(&at("corner"), corner)?;
+                check_coords(&at("edge_u"), edge_u)?;
+                check_coords(&at("edge_v"), edge_v)?;
+            }
+            LightConfig::Disk {
+                center,
+                radius,
+                radiance,
+                color,
+                ..
+            } => {
+                check_scalar(i, "radiance", *radiance)?;
+                check_tint(i, color)?;
+                check_coords(&at("center"), center)?;
+                check_coords(&at("radius"), &[*radius])?;
+            }
+            LightConfig::Sphere {
+                center,
+                radius,
+                radiance,
+                color,
+            } => {
+                check_scalar(i, "radiance", *radiance)?;
+                check_tint(i, color)?;
+                check_coords(&at("center"), center)?;
+                check_coords(&at("radius"), &[*radius])?;
+            }
+        }
+        Ok(())
+    }
+
     /// The light, with parameters checked (no files are read for these).
     pub fn build(&self) -> Result<Light, LightError> {
         let rgb = |s: f32, c: &[f32; 3]| Vec3::from(*c) * s;
@@ -259,6 +375,7 @@ impl LightConfig {
 /// Range checks of lights, environment and shapes (no files read). Messages name the key.
 pub(super) fn validate(scene: &Scene) -> Result<(), String> {
     for (i, light) in scene.lights.iter().enumerate() {
+        light.check_keys(i)?;
         light.build().map_err(|e| named(i, e))?;
     }
     let e = &scene.environment;
@@ -266,13 +383,27 @@ pub(super) fn validate(scene: &Scene) -> Result<(), String> {
         return Err("[environment] takes `map` or `radiance`, not both".into());
     }
     if let Some(r) = e.radiance {
+        if !r.iter().all(|x| (0.0..=MAX_RADIANCE).contains(x)) {
+            return Err(format!(
+                "environment.radiance must be in [0, {MAX_RADIANCE:e}] per channel, got {r:?}"
+            ));
+        }
         Environment::constant(Vec3::from(r)).map_err(|e| format!("environment.{e}"))?;
     }
-    if !(e.intensity.is_finite() && e.intensity >= 0.0) {
+    if !(0.0..=MAX_RADIANCE).contains(&e.intensity) {
         return Err(format!(
-            "environment.intensity must be >= 0, got {}",
+            "environment.intensity must be in [0, {MAX_RADIANCE:e}], got {}",
             e.intensity
         ));
+    }
+    if let Some(r) = e.radiance {
+        let product = Vec3::from(r) * e.intensity;
+        if !(..=MAX_RADIANCE).contains(&product.max_element()) {
+            return Err(format!(
+                "environment.radiance {r:?} × environment.intensity {} exceeds {MAX_RADIANCE:e}",
+                e.intensity
+            ));
+        }
     }
     if !e.rotation.is_finite() {
         return Err(format!(
@@ -288,6 +419,22 @@ pub(super) fn validate(scene: &Scene) -> Result<(), String> {
         ));
     }
     for (i, shape) in scene.shapes.iter().enumerate() {
+        match shape {
+            ShapeConfig::Quad {
+                corner,
+                edge_u,
+                edge_v,
+                ..
+            } => {
+                check_coords(&format!("shape[{i}].corner"), corner)?;
+                check_coords(&format!("shape[{i}].edge_u"), edge_u)?;
+                check_coords(&format!("shape[{i}].edge_v"), edge_v)?;
+            }
+            ShapeConfig::Box { min, max, .. } => {
+                check_coords(&format!("shape[{i}].min"), min)?;
+                check_coords(&format!("shape[{i}].max"), max)?;
+            }
+        }
         let albedo = match shape {
             ShapeConfig::Quad {
                 corner,

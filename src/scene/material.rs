@@ -127,6 +127,7 @@ pub enum SelectionName {
 #[serde(deny_unknown_fields, default)]
 pub struct KajiyaKayConfig {
     /// Diffuse colour; absent ⇒ the strand colour.
+    #[serde(default, deserialize_with = "crate::util::exact_array::option_array")]
     pub color: Option<[f32; 3]>,
     /// Weight of the diffuse term.
     pub diffuse: f32,
@@ -156,14 +157,17 @@ impl Default for KajiyaKayConfig {
 #[serde(deny_unknown_fields, default)]
 pub struct MarschnerConfig {
     /// Diffuse colour k_d; absent ⇒ the strand colour.
+    #[serde(default, deserialize_with = "crate::util::exact_array::option_array")]
     pub color: Option<[f32; 3]>,
     /// Primary highlight colour k_s,1.
+    #[serde(deserialize_with = "crate::util::exact_array::array")]
     pub k_s1: [f32; 3],
     /// Primary shift α_1, degrees.
     pub alpha_1: f32,
     /// Primary width β_1, degrees, > 0.
     pub beta_1: f32,
     /// Secondary highlight colour k_s,2.
+    #[serde(deserialize_with = "crate::util::exact_array::array")]
     pub k_s2: [f32; 3],
     /// Secondary shift α_2, degrees.
     pub alpha_2: f32,
@@ -203,12 +207,16 @@ impl Default for MarschnerConfig {
 #[serde(deny_unknown_fields, default)]
 pub struct IsHairConfig {
     /// Diffuse colour k_d; absent ⇒ the strand colour.
+    #[serde(default, deserialize_with = "crate::util::exact_array::option_array")]
     pub color: Option<[f32; 3]>,
     /// C_R.
+    #[serde(deserialize_with = "crate::util::exact_array::array")]
     pub color_r: [f32; 3],
     /// C_TT.
+    #[serde(deserialize_with = "crate::util::exact_array::array")]
     pub color_tt: [f32; 3],
     /// C_TRT.
+    #[serde(deserialize_with = "crate::util::exact_array::array")]
     pub color_trt: [f32; 3],
     /// I_g, the glints' gain.
     pub glint: f32,
@@ -274,12 +282,14 @@ impl Default for IsHairConfig {
 #[serde(deny_unknown_fields, default)]
 pub struct ChiangConfig {
     /// σa, absorption per unit fibre radius, RGB.
+    #[serde(default, deserialize_with = "crate::util::exact_array::option_array")]
     pub sigma_a: Option<[f32; 3]>,
     /// Eumelanin concentration (with `pheomelanin`; an absent one is 0).
     pub eumelanin: Option<f32>,
     /// Pheomelanin concentration.
     pub pheomelanin: Option<f32>,
     /// Target colour of a volume of such hair, per channel in (0, 1] (Chiang et al. eq. 9).
+    #[serde(default, deserialize_with = "crate::util::exact_array::option_array")]
     pub color: Option<[f32; 3]>,
     /// βm, longitudinal roughness, in [0.001, 1].
     pub beta_m: f32,
@@ -380,6 +390,31 @@ fn check_widths(widths: &[(&str, f32)]) -> Result<(), String> {
     Ok(())
 }
 
+/// Checks degree-valued keys against the models' own ranges, converted to degrees, so a bad value is reported
+/// in the unit the user wrote (the models' checks speak radians): each entry is (key, value, low, high).
+fn check_degrees(keys: &[(&str, f32, f32, f32)]) -> Result<(), String> {
+    for &(key, value, lo, hi) in keys {
+        if !(lo..=hi).contains(&value) {
+            return Err(format!(
+                "material.{key} must be in [{lo}, {hi}] degrees, got {value}"
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The narrowest lobe width the models accept ([`crate::bsdf::WIDTH_MIN`]), degrees (rounded up).
+const WIDTH_MIN_DEG: f32 = 0.0058;
+
+/// Largest Kajiya-Kay exponent p: cos^p θ at p = 10⁴ is a lobe under 1° wide, narrower than any hair highlight
+/// (the R lobe is 5–10° wide, Marschner et al. 2003), and its normalisation (p + 2)/2π and sampled pdf stay far
+/// from f32 overflow (p = 10³⁰ made them infinite, and the pixels NaN).
+pub const MAX_KK_EXPONENT: f32 = 1e4;
+
+/// Largest glint gain I_g: 100 lets glints outshine the TRT lobe they sit on by two orders of magnitude (Ou et
+/// al. 2012 use gains of a few units); larger values are a typo, and 10³⁰ overflowed the film to infinity.
+pub const MAX_GLINT: f32 = 100.0;
+
 fn rad(deg: f32) -> f32 {
     deg.to_radians()
 }
@@ -405,6 +440,12 @@ impl MaterialConfig {
         };
         let (scattering, tint_diffuse_by_strand) = match self {
             MaterialConfig::KajiyaKay(c) => {
+                if !(..=MAX_KK_EXPONENT).contains(&c.exponent) {
+                    return Err(format!(
+                        "material.exponent must be in [1, {MAX_KK_EXPONENT:e}], got {}",
+                        c.exponent
+                    ));
+                }
                 if c.diffuse < 0.0 || c.specular < 0.0 || c.diffuse + c.specular > 1.0 {
                     return Err(format!(
                         "material.diffuse and material.specular must be >= 0 with a sum <= 1, got {} and {}",
@@ -423,6 +464,12 @@ impl MaterialConfig {
             }
             MaterialConfig::Marschner(c) => {
                 check_widths(&[("beta_1", c.beta_1), ("beta_2", c.beta_2)])?;
+                check_degrees(&[
+                    ("alpha_1", c.alpha_1, -45.0, 45.0),
+                    ("alpha_2", c.alpha_2, -45.0, 45.0),
+                    ("beta_1", c.beta_1, WIDTH_MIN_DEG, 90.0),
+                    ("beta_2", c.beta_2, WIDTH_MIN_DEG, 90.0),
+                ])?;
                 let model = Marschner::new(MarschnerParams {
                     k_d: white(c.color),
                     k_s1: c.k_s1.into(),
@@ -438,12 +485,29 @@ impl MaterialConfig {
                 fixed(Box::new(model), c.color)
             }
             MaterialConfig::Ishair(c) => {
+                if !(..=MAX_GLINT).contains(&c.glint) {
+                    return Err(format!(
+                        "material.glint must be in [0, {MAX_GLINT}], got {}",
+                        c.glint
+                    ));
+                }
                 check_widths(&[
                     ("beta_r", c.beta_r),
                     ("beta_tt", c.beta_tt),
                     ("beta_trt", c.beta_trt),
                     ("gamma_tt", c.gamma_tt),
                     ("gamma_g", c.gamma_g),
+                ])?;
+                check_degrees(&[
+                    ("alpha_r", c.alpha_r, -45.0, 45.0),
+                    ("alpha_tt", c.alpha_tt, -45.0, 45.0),
+                    ("alpha_trt", c.alpha_trt, -45.0, 45.0),
+                    ("beta_r", c.beta_r, WIDTH_MIN_DEG, 90.0),
+                    ("beta_tt", c.beta_tt, WIDTH_MIN_DEG, 90.0),
+                    ("beta_trt", c.beta_trt, WIDTH_MIN_DEG, 90.0),
+                    ("gamma_tt", c.gamma_tt, WIDTH_MIN_DEG, 360.0),
+                    ("gamma_g", c.gamma_g, WIDTH_MIN_DEG, 360.0),
+                    ("phi_g", c.phi_g, 0.0, 90.0),
                 ])?;
                 let model = IsHair::new(IsHairParams {
                     k_d: white(c.color),

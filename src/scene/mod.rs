@@ -35,6 +35,7 @@ pub use crate::render::settings::{
     TransmittanceMode,
 };
 
+pub mod fuzz;
 pub mod lights;
 pub mod material;
 pub use lights::{EnvironmentConfig, LightConfig, ShapeConfig};
@@ -42,6 +43,10 @@ pub use material::MaterialConfig;
 
 /// The default scene, compiled in so `cuticle render` works from any directory with no downloaded data.
 pub const DEFAULT_SCENE: &str = include_str!("../../scenes/default.toml");
+
+/// Largest scene file read: 16 MiB. The shipped scenes are under 4 KiB; a scene is a few tables of settings, and
+/// anything larger is a wrong file (an image, `/dev/zero`) that would otherwise be read without bound.
+pub const MAX_SCENE_BYTES: u64 = 16 << 20;
 
 /// A scene could not be read or is invalid. Messages name the file and, where known, the key and line.
 #[derive(Debug, thiserror::Error)]
@@ -130,12 +135,36 @@ fn one() -> f32 {
 impl Scene {
     /// Reads and checks a scene file.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
-        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
-            path: path.into(),
-            source,
-        })?;
+        let text = crate::util::input_file::read_text_bounded(path, MAX_SCENE_BYTES).map_err(
+            |source| SceneError::Io {
+                path: path.into(),
+                source,
+            },
+        )?;
         let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
         Scene::parse(&text, path, &base)
+    }
+
+    /// Parses the bytes of a scene file as [`Scene::load`] does after reading it: at most [`MAX_SCENE_BYTES`],
+    /// UTF-8, then [`Scene::parse`].
+    pub fn parse_bytes(bytes: &[u8], source: &Path, base_dir: &Path) -> Result<Scene, SceneError> {
+        let invalid = |message: String| SceneError::Invalid {
+            path: source.into(),
+            message,
+        };
+        if bytes.len() as u64 > MAX_SCENE_BYTES {
+            return Err(invalid(format!(
+                "{} bytes, more than the {MAX_SCENE_BYTES} bytes a scene file may have",
+                bytes.len()
+            )));
+        }
+        let text = std::str::from_utf8(bytes).map_err(|e| {
+            invalid(format!(
+                "not UTF-8 text (invalid byte at offset {})",
+                e.valid_up_to()
+            ))
+        })?;
+        Scene::parse(text, source, base_dir)
     }
 
     /// The built-in default scene (a procedural fur ball; no downloaded data).

@@ -1,0 +1,376 @@
+//! A frame's memory, estimated before anything big is allocated, and the limit it must fit.
+//!
+//! Settings inside their accepted ranges can still ask for more memory than the machine has (deep opacity maps
+//! of 8192² × 256 layers want 64 GiB, 2.7·10⁸ procedural strands ~50 GB, a 32768² film 160 GiB); the allocator
+//! then aborts the process with no useful message. [`estimate`] adds up what a frame holds at its peak from the
+//! scene alone (a hair file's counts come from its header: [`hair_counts`]), and [`MemoryEstimate::check`] refuses
+//! a frame over the limit with the estimate, its largest part and the limit in the message. The estimate, not a hard
+//! cap, is what bounds procedural strand and point counts.
+//!
+//! The per-item constants were measured on this machine class (Debian 12, Embree 3.13.5, release build) with
+//! `/usr/bin/time -f %M cuticle render` on procedural fur balls of 1, 50 000 and 200 000 strands × 16 points at
+//! 64²: see [`ACCEL_BYTES_PER_SEGMENT`] and [`BASE_BYTES`]. They are upper estimates (the larger measurement,
+//! rounded up; the 200 000-strand Embree frame, measured 645 MB, is estimated at 760 MB), so a frame refused is
+//! one that would come close.
+
+use crate::accel::{Backend, CurveKind};
+use crate::hair::{HairError, HairSource};
+
+use super::film::CHANNELS;
+use super::settings::{RenderSettings, ShadowMode};
+
+/// Peak bytes per curve segment of the acceleration structure while it is built, including the curve buffers
+/// the tracer copies, indexed by (backend, curves). Measured (peak RSS of `render --res 64x64 --spp 1 --threads 2`
+/// on procedural fur balls of 16 points per strand, less the 1-strand render's 140 MB and the strands' own
+/// [`STRAND_BYTES_PER_POINT`]): Embree 3.13 round and flat 119 B (50 000 strands) and 107 B (200 000); the Rust
+/// BVH 373 B and 360 B (it keeps each segment's four control points in its leaves, and its build's scratch).
+/// Rounded up; flat Rust BVH taken as round (same leaves).
+pub const ACCEL_BYTES_PER_SEGMENT: [(Backend, CurveKind, u64); 4] = [
+    (Backend::Embree, CurveKind::Round, 140),
+    (Backend::Embree, CurveKind::Flat, 140),
+    (Backend::Bvh, CurveKind::Round, 400),
+    (Backend::Bvh, CurveKind::Flat, 400),
+];
+
+/// Bytes per point of the model as read ([`crate::hair::HairModel`]: position 12, radius 4, transparency 4,
+/// colour 12) plus the B-spline strands made from it (control point 16, segment tables 8): both are alive while
+/// the strands are converted.
+pub const STRAND_BYTES_PER_POINT: u64 = 32 + 16 + 8;
+
+/// Bytes per strand: offsets in the model and the strands, per-strand opacity and colour, the two phantom control
+/// points.
+pub const STRAND_BYTES_PER_STRAND: u64 = 4 + 4 + 4 + 12 + 2 * 16;
+
+/// Copies of the film alive at the end of a render: the finished tiles, the assembled [`crate::image::Image`], and
+/// the conversion OpenImageIO's writer makes (each all [`CHANNELS`] × f32 per pixel).
+pub const FILM_COPIES: u64 = 3;
+
+/// Per worker thread: its stack (Rust's default for spawned threads, 2 MiB) and scratch.
+pub const BYTES_PER_THREAD: u64 = 4 << 20;
+
+/// Fixed costs: the executable with Embree's, TBB's and OpenImageIO's libraries mapped, measured as the peak RSS
+/// of a 1-strand, 64×64 render (140 MB), rounded up. An environment map's decoded texels are not counted: their
+/// size is only known once OpenImageIO has read the file (whose size is bounded, see
+/// [`crate::light::environment::MAX_MAP_BYTES`]).
+pub const BASE_BYTES: u64 = 144 << 20;
+
+/// How many strands and points a hair source holds, known before it is read or generated: a file's header (a few
+/// hundred bytes read; errors as the readers report them), or a procedural model's parameters.
+pub fn hair_counts(source: &HairSource) -> Result<(u64, u64), HairError> {
+    match source {
+        HairSource::File(path) => crate::hair::declared_counts(path),
+        HairSource::Procedural(p) => Ok(p.counts()),
+    }
+}
+
+/// What a frame needs at its peak, bytes, by part.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct MemoryEstimate {
+    /// The hair model and its B-spline strands.
+    pub strands: u64,
+    /// The acceleration structure, at its build peak.
+    pub accel: u64,
+    /// The film (all channels) and its copies.
+    pub film: u64,
+    /// Deep opacity maps (0 unless the shadow mode uses them).
+    pub shadow_maps: u64,
+    /// Worker threads.
+    pub threads: u64,
+    /// Fixed costs ([`BASE_BYTES`]).
+    pub base: u64,
+}
+
+/// Why a frame was refused before it was built.
+#[derive(Debug, thiserror::Error)]
+pub enum BudgetError {
+    /// The estimate exceeds the limit.
+    #[error(
+        "this frame needs about {} ({}), more than the memory limit of {} ({}); lower the largest part or raise \
+         --max-memory",
+        human(estimate.total()),
+        estimate.parts(),
+        human(*limit),
+        limit_source
+    )]
+    TooBig {
+        /// The estimate.
+        estimate: MemoryEstimate,
+        /// The limit, bytes.
+        limit: u64,
+        /// Where the limit came from ("--max-memory", "3/4 of the 8.0 GiB of this machine").
+        limit_source: String,
+    },
+}
+
+fn human(n: u64) -> String {
+    crate::util::input_file::human_bytes(n)
+}
+
+impl MemoryEstimate {
+    /// The sum of the parts, saturating (a sum past u64 is over any limit anyway).
+    pub fn total(&self) -> u64 {
+        [
+            self.strands,
+            self.accel,
+            self.film,
+            self.shadow_maps,
+            self.threads,
+            self.base,
+        ]
+        .iter()
+        .fold(0u64, |a, &b| a.saturating_add(b))
+    }
+
+    /// The non-zero parts, largest first: "acceleration structure 3.0 GiB, strands 840 MiB, film 25 MiB".
+    pub fn parts(&self) -> String {
+        let mut parts = [
+            ("strands", self.strands),
+            ("acceleration structure", self.accel),
+            ("film and AOVs", self.film),
+            ("deep opacity maps", self.shadow_maps),
+            ("threads", self.threads),
+            ("program", self.base),
+        ];
+        parts.sort_by_key(|p| std::cmp::Reverse(p.1));
+        parts
+            .iter()
+            .filter(|(_, n)| *n > 0)
+            .map(|(name, n)| format!("{name} {}", human(*n)))
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+
+    /// `Ok` when the estimate fits `limit`; `limit_source` says where the limit came from, for the message.
+    pub fn check(&self, limit: u64, limit_source: &str) -> Result<(), BudgetError> {
+        if self.total() <= limit {
+            Ok(())
+        } else {
+            Err(BudgetError::TooBig {
+                estimate: *self,
+                limit,
+                limit_source: limit_source.to_owned(),
+            })
+        }
+    }
+}
+
+/// The estimate for a frame of `strands` strands holding `points` points in all, traced by `backend` as
+/// `curves`, rendered with `settings` on `threads` workers, with `lights` lights (each gets a deep opacity map in
+/// deep-opacity mode). Saturating arithmetic throughout: inputs come from files and users.
+pub fn estimate(
+    (strands, points): (u64, u64),
+    backend: Backend,
+    curves: CurveKind,
+    settings: &RenderSettings,
+    lights: usize,
+    threads: usize,
+) -> MemoryEstimate {
+    // Segments: control points (points + 2 phantoms per strand) − 3 per strand = points − strands.
+    let segments = points.saturating_sub(strands);
+    let per_segment = ACCEL_BYTES_PER_SEGMENT
+        .iter()
+        .find(|(b, c, _)| *b == backend && *c == curves)
+        .map_or(200, |e| e.2);
+    let [w, h] = settings.film.resolution;
+    let pixels = u64::from(w) * u64::from(h);
+    let film = pixels
+        .saturating_mul(CHANNELS.len() as u64 * 4)
+        .saturating_mul(FILM_COPIES);
+    let shadow_maps = if settings.shadows.mode == ShadowMode::DeepOpacity {
+        let d = &settings.shadows.deep_opacity;
+        let texels = u64::from(d.resolution) * u64::from(d.resolution);
+        // Per texel: the cumulative layers, z0 and the layer bounds (shadow::deep_opacity::map), f32 each.
+        texels
+            .saturating_mul((u64::from(d.layers) + 2) * 4)
+            .saturating_mul(lights.max(1) as u64)
+    } else {
+        0
+    };
+    MemoryEstimate {
+        strands: points
+            .saturating_mul(STRAND_BYTES_PER_POINT)
+            .saturating_add(strands.saturating_mul(STRAND_BYTES_PER_STRAND)),
+        accel: segments.saturating_mul(per_segment),
+        film,
+        shadow_maps,
+        threads: (threads as u64).saturating_mul(BYTES_PER_THREAD),
+        base: BASE_BYTES,
+    }
+}
+
+/// The estimate for the frame `spec` describes, rendered with its own settings on `threads` workers. Reads only
+/// a hair file's header.
+pub fn estimate_frame(
+    spec: &super::FrameSpec,
+    threads: usize,
+) -> Result<MemoryEstimate, HairError> {
+    let counts = hair_counts(&spec.hair.source)?;
+    Ok(estimate(
+        counts,
+        spec.backend,
+        spec.curves,
+        &spec.settings,
+        spec.lights.len(),
+        threads,
+    ))
+}
+
+/// Fraction of physical memory a frame may use by default: 3/4, leaving room for the system and the other
+/// processes of a shared machine (the OOM killer acts before 100 %).
+pub const DEFAULT_FRACTION: (u64, u64) = (3, 4);
+
+/// The machine's physical memory in bytes (`MemTotal` of `/proc/meminfo`), if it can be read.
+pub fn physical_memory() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    parse_mem_total(&text)
+}
+
+fn parse_mem_total(meminfo: &str) -> Option<u64> {
+    let line = meminfo.lines().find(|l| l.starts_with("MemTotal:"))?;
+    let mut fields = line["MemTotal:".len()..].split_whitespace();
+    let value: u64 = fields.next()?.parse().ok()?;
+    match fields.next() {
+        Some("kB") => value.checked_mul(1024),
+        None => Some(value),
+        Some(_) => None,
+    }
+}
+
+/// The default limit and its description: [`DEFAULT_FRACTION`] of [`physical_memory`], or 4 GiB when it
+/// cannot be read (not Linux).
+pub fn default_limit() -> (u64, String) {
+    let (num, den) = DEFAULT_FRACTION;
+    match physical_memory() {
+        Some(total) => (
+            total / den * num,
+            format!("{num}/{den} of the {} of this machine", human(total)),
+        ),
+        None => (
+            4 << 30,
+            "the default when physical memory is unknown".to_owned(),
+        ),
+    }
+}
+
+/// Parses a `--max-memory` value: bytes, or a number with a binary suffix `K`, `M`, `G`, `T` (optionally
+/// followed by `iB` or `B`, all powers of 1024): `512M`, `8G`, `1.5GiB`.
+pub fn parse_size(s: &str) -> Result<u64, String> {
+    let t = s.trim();
+    let split = t
+        .find(|c: char| !(c.is_ascii_digit() || c == '.'))
+        .unwrap_or(t.len());
+    let (number, unit) = t.split_at(split);
+    let scale: u64 = match unit.trim().to_ascii_uppercase().as_str() {
+        "" | "B" => 1,
+        "K" | "KB" | "KIB" => 1 << 10,
+        "M" | "MB" | "MIB" => 1 << 20,
+        "G" | "GB" | "GIB" => 1 << 30,
+        "T" | "TB" | "TIB" => 1 << 40,
+        _ => return Err(format!("expected a size like 512M or 8G, got `{s}`")),
+    };
+    let value: f64 = number
+        .parse()
+        .map_err(|_| format!("expected a size like 512M or 8G, got `{s}`"))?;
+    let bytes = value * scale as f64;
+    if !(bytes.is_finite() && bytes >= 1.0 && bytes < u64::MAX as f64) {
+        return Err(format!("a memory size must be at least 1 byte, got `{s}`"));
+    }
+    Ok(bytes as u64)
+}
+
+/// Most worker threads a render starts. Threads beyond the cores only add switching; each costs a stack
+/// ([`BYTES_PER_THREAD`]); and the operating system fails or stalls long before 10⁸ of them. 1024 is above
+/// any machine a frame runs on today and far below where thread creation fails.
+pub const MAX_THREADS: usize = 1024;
+
+/// Checks a `--threads` value: refused above [`MAX_THREADS`] (a typo, not a wish: clamping would silently run
+/// something else than asked) and at 0.
+pub fn check_threads(threads: usize) -> Result<usize, String> {
+    if threads == 0 {
+        return Err("--threads must be at least 1".to_owned());
+    }
+    if threads > MAX_THREADS {
+        return Err(format!(
+            "--threads {threads} is more than {MAX_THREADS}: threads beyond the cores only add switching, and each \
+             reserves a stack (this machine has {} cores)",
+            std::thread::available_parallelism().map_or(1, |n| n.get())
+        ));
+    }
+    Ok(threads)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::camera::CameraConfig;
+    use crate::render::settings::{FilmConfig, IntegratorConfig, ShadowConfig};
+
+    fn settings(w: u32, h: u32) -> RenderSettings {
+        RenderSettings {
+            camera: CameraConfig::default(),
+            film: FilmConfig {
+                resolution: [w, h],
+                ..FilmConfig::default()
+            },
+            integrator: IntegratorConfig::default(),
+            shadows: ShadowConfig::default(),
+            background_visible: true,
+        }
+    }
+
+    #[test]
+    fn sizes_parse_in_binary_units() {
+        assert_eq!(parse_size("512M"), Ok(512 << 20));
+        assert_eq!(parse_size("1.5GiB"), Ok(3 << 29));
+        assert_eq!(parse_size("4096"), Ok(4096));
+        assert!(parse_size("lots").is_err());
+        assert!(parse_size("0").is_err());
+    }
+
+    #[test]
+    fn mem_total_is_read_in_kilobytes() {
+        let text = "MemTotal:        8000000 kB\nMemFree: 1 kB\n";
+        assert_eq!(parse_mem_total(text), Some(8_000_000 * 1024));
+        assert_eq!(parse_mem_total("MemFree: 1 kB"), None);
+    }
+
+    #[test]
+    fn a_huge_film_or_map_is_refused_with_the_estimate_and_the_limit() {
+        let small = estimate(
+            (10_000, 160_000),
+            Backend::Embree,
+            CurveKind::Round,
+            &settings(64, 64),
+            1,
+            2,
+        );
+        assert!(small.check(1 << 30, "test").is_ok(), "{small:?}");
+        let big = estimate(
+            (10_000, 160_000),
+            Backend::Embree,
+            CurveKind::Round,
+            &settings(32768, 32768),
+            1,
+            2,
+        );
+        let e = big.check(8 << 30, "--max-memory").unwrap_err().to_string();
+        assert!(
+            e.contains("film and AOVs 444 GiB") && e.contains("8 GiB (--max-memory)"),
+            "{e}"
+        );
+        let mut maps = settings(64, 64);
+        maps.shadows.mode = ShadowMode::DeepOpacity;
+        maps.shadows.deep_opacity.resolution = 8192;
+        maps.shadows.deep_opacity.layers = 256;
+        let e = estimate((1, 16), Backend::Bvh, CurveKind::Flat, &maps, 1, 1);
+        assert_eq!(e.shadow_maps, 8192 * 8192 * 258 * 4);
+    }
+
+    #[test]
+    fn absurd_thread_counts_are_refused() {
+        assert_eq!(check_threads(2), Ok(2));
+        assert!(check_threads(0).is_err());
+        let e = check_threads(100_000_000).unwrap_err();
+        assert!(e.contains("more than 1024"), "{e}");
+    }
+}

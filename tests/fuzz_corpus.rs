@@ -1,0 +1,87 @@
+//! Replays the fuzz corpora (`fuzz/corpus/<target>/`, seeds and anything a fuzzing run found) through the same
+//! entry points as the cargo-fuzz targets (`cuticle::scene::fuzz`), with stable Rust: what CI runs. A corpus file
+//! may be accepted or rejected; none may panic. The seeds made from real files must still be accepted.
+
+use std::path::{Path, PathBuf};
+
+fn corpus(target: &str) -> Vec<PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("fuzz/corpus")
+        .join(target);
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.is_file())
+        .collect();
+    files.sort();
+    assert!(!files.is_empty(), "{}: empty corpus", dir.display());
+    files
+}
+
+/// Runs every file of `target`'s corpus through `entry`; returns the names accepted.
+fn replay(target: &str, entry: fn(&[u8]) -> bool) -> Vec<String> {
+    let mut accepted = Vec::new();
+    for path in corpus(target) {
+        let bytes = std::fs::read(&path).unwrap();
+        assert!(
+            bytes.len() <= 64 << 10,
+            "{}: corpus files stay under 64 KiB",
+            path.display()
+        );
+        // A panic here names the file through the test's output.
+        eprintln!("{}", path.display());
+        if entry(&bytes) {
+            accepted.push(path.file_name().unwrap().to_string_lossy().into_owned());
+        }
+    }
+    accepted
+}
+
+#[test]
+fn hair_corpus_replays_and_real_seeds_parse() {
+    let ok = replay("hair", cuticle::scene::fuzz::hair);
+    for seed in [
+        "straight-4-strands.hair",
+        "straight-1-strand.hair",
+        "furball-3-strands.hair",
+    ] {
+        assert!(
+            ok.iter().any(|n| n == seed),
+            "{seed} rejected; accepted: {ok:?}"
+        );
+    }
+    assert!(!ok.iter().any(|n| n == "header-2pow32-strands.hair"));
+}
+
+#[test]
+fn tfx_corpus_replays_and_real_seeds_parse() {
+    let ok = replay("tfx", cuticle::scene::fuzz::tfx);
+    for seed in ["mohawk-4-strands.tfx", "mohawk-1-strand.tfx"] {
+        assert!(
+            ok.iter().any(|n| n == seed),
+            "{seed} rejected; accepted: {ok:?}"
+        );
+    }
+    assert!(!ok.iter().any(|n| n == "header-huge-counts.tfx"));
+}
+
+#[test]
+fn scene_corpus_replays_and_shipped_scenes_validate() {
+    let ok = replay("scene", cuticle::scene::fuzz::scene);
+    for name in ["default.toml", "furball.toml", "cornell-box.toml"] {
+        assert!(
+            ok.iter().any(|n| n == name),
+            "{name} rejected; accepted: {ok:?}"
+        );
+    }
+}
+
+#[test]
+fn corpora_stay_small() {
+    let total: u64 = ["hair", "tfx", "scene"]
+        .iter()
+        .flat_map(|t| corpus(t))
+        .map(|p| std::fs::metadata(p).unwrap().len())
+        .sum();
+    assert!(total <= 2 << 20, "corpora total {total} bytes, over 2 MiB");
+}
