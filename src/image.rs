@@ -581,10 +581,42 @@ fn preview_bytes(path: &Path, image: &Image) -> Result<Vec<u8>, ImageError> {
 /// premultiplied by alpha, as [`Image`] holds it: OpenImageIO multiplies it in for formats that
 /// store straight alpha (PNG).
 pub fn read(path: impl AsRef<Path>) -> Result<Image, ImageError> {
+    read_at_most(path, u64::MAX)
+}
+
+/// [`read`], refusing before any pixel is decoded an image whose decoded `f32` texels would take more than
+/// `max_bytes` (its header's width × height × channels × 4): a small compressed file can declare a huge image.
+pub fn read_at_most(path: impl AsRef<Path>, max_bytes: u64) -> Result<Image, ImageError> {
     let path = path.as_ref();
     let metadata = fs::metadata(path).map_err(|e| ImageError::io(path, "cannot read", e))?;
     if metadata.is_dir() {
         return Err(ImageError::invalid(path, "is a directory, not an image"));
+    }
+    if max_bytes < u64::MAX {
+        let header = oiio::read_header(path, &[]).map_err(|source| ImageError::Oiio {
+            path: path.to_path_buf(),
+            context: "openimageio cannot read it".to_owned(),
+            source,
+        })?;
+        let bytes = [header.width, header.height, header.channels.len(), 4]
+            .into_iter()
+            .try_fold(1u64, |acc, n| acc.checked_mul(n as u64));
+        if bytes.is_none_or(|b| b > max_bytes) {
+            return Err(ImageError::invalid(
+                path,
+                format!(
+                    "{} x {} pixels of {} channels would take {} decoded, more than the {} allowed",
+                    header.width,
+                    header.height,
+                    header.channels.len(),
+                    bytes.map_or(
+                        "over 16 EiB".to_owned(),
+                        crate::util::input_file::human_bytes
+                    ),
+                    crate::util::input_file::human_bytes(max_bytes)
+                ),
+            ));
+        }
     }
     let decoded = oiio::read_image(path).map_err(|source| ImageError::Oiio {
         path: path.to_path_buf(),

@@ -41,7 +41,7 @@ use glam::{Mat3, Quat, Vec3};
 
 use super::distribution::Distribution2D;
 use super::{check, check_color, check_direction, clamp_u, unit, LightError, LightSample};
-use crate::image::{read, Image};
+use crate::image::{read_at_most, Image};
 use crate::util::color::luminance;
 use crate::util::sampling::{uniform_sphere, UNIFORM_SPHERE_PDF};
 
@@ -84,6 +84,10 @@ const IN_MEMORY: &str = "<in-memory image>";
 /// anything larger is not a map a frame can use (its decoded texels and sampling tables would exceed a machine's
 /// memory before the render starts).
 pub const MAX_MAP_BYTES: u64 = 1 << 30;
+
+/// Largest decoded environment map: 4 GiB of `f32` texels (a 16K × 8K RGBA map is 2 GiB), checked from the file's
+/// header before any pixel is decoded, since a small compressed file can declare any size.
+pub const MAX_MAP_DECODED_BYTES: u64 = 4 << 30;
 
 impl Environment {
     /// A sky of constant `radiance` (RGB, every channel finite and ≥ 0) in every direction.
@@ -133,9 +137,11 @@ impl Environment {
                 ),
             });
         }
-        let image = read(path).map_err(|source| LightError::EnvironmentMap {
-            path: path.to_path_buf(),
-            source,
+        let image = read_at_most(path, MAX_MAP_DECODED_BYTES).map_err(|source| {
+            LightError::EnvironmentMap {
+                path: path.to_path_buf(),
+                source,
+            }
         })?;
         Environment::build(&image, path, intensity, rotation_deg, up)
     }
@@ -398,6 +404,27 @@ mod tests {
     use rand_pcg::Pcg32;
     use std::sync::OnceLock;
 
+    #[test]
+    fn a_small_file_declaring_a_huge_map_is_refused_before_decoding() {
+        // A 60-byte Radiance header declaring 200 000 × 100 000 pixels (240 GB of f32 RGB) and no pixels.
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("huge.hdr");
+        std::fs::write(
+            &path,
+            "#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 100000 +X 200000\n",
+        )
+        .unwrap();
+        let e = Environment::load(&path, 1.0, 0.0, Vec3::Y)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("huge.hdr")
+                && e.contains("200000 x 100000")
+                && e.contains("more than the 4 GiB"),
+            "{e}"
+        );
+    }
+
     /// The shared maps, beside the repository. CI has them; without them the map tests fail, naming the directory
     /// (they never pass without testing).
     const ENVMAP_DIR: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/envmaps");
@@ -436,7 +463,7 @@ mod tests {
             let Some((_, path)) = smallest else {
                 panic!("no .exr/.hdr in {ENVMAP_DIR}: the environment map tests need one");
             };
-            let image = read(&path).unwrap_or_else(|e| panic!("{e}"));
+            let image = crate::image::read(&path).unwrap_or_else(|e| panic!("{e}"));
             eprintln!(
                 "map: {} ({} x {})",
                 path.display(),
