@@ -372,9 +372,7 @@ fn render_command(args: RenderArgs) -> Result<()> {
         Some(bytes) => (bytes, "--max-memory".to_owned()),
         None => render::budget::default_limit(),
     };
-    render::budget::estimate_frame(&spec, pool.current_num_threads())?
-        .check(limit, &limit_source)?;
-    let frame = Frame::load(spec)?;
+    let frame = pool.install(|| Frame::load_within(spec, limit, &limit_source))?;
     let settings = &frame.settings;
     let [width, height] = settings.film.resolution;
     settings

@@ -402,6 +402,20 @@ fn frames_over_the_memory_limit_and_absurd_thread_counts_are_refused() {
         e.contains("film and AOVs 444 GiB") && e.contains("raise --max-memory"),
         "{e}"
     );
+    // The benchmarks load frames through the same check (Frame::load, default limit).
+    let huge = put(
+        dir.path(),
+        "huge.toml",
+        b"[hair]\nprocedural = { kind = \"fur-ball\", strands = 10 }\n[film]\nresolution = [32768, 32768]\n",
+    );
+    let e = error_of(&cuticle(&[
+        "bench",
+        "frame",
+        huge.to_str().unwrap(),
+        "--repetitions",
+        "1",
+    ]));
+    assert!(e.contains("film and AOVs 444 GiB"), "{e}");
     let e = error_of(&cuticle(&[
         "render",
         "-q",

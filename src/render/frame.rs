@@ -51,6 +51,9 @@ pub enum FrameError {
     /// Embree refused the strands.
     #[error(transparent)]
     Tracer(#[from] EmbreeError),
+    /// The frame's memory estimate exceeds the limit (nothing was allocated).
+    #[error(transparent)]
+    Budget(#[from] super::budget::BudgetError),
 }
 
 /// A frame ready to render.
@@ -76,8 +79,22 @@ pub struct Frame {
 }
 
 impl Frame {
-    /// Loads the hair of `spec` and builds the frame.
+    /// Loads the hair of `spec` and builds the frame, after checking its memory estimate against the default
+    /// limit ([`super::budget::default_limit`]) for the current rayon pool: the benchmarks and studies refuse a
+    /// frame the machine cannot hold as `render` does.
     pub fn load(spec: FrameSpec) -> Result<Frame, FrameError> {
+        let (limit, source) = super::budget::default_limit();
+        Frame::load_within(spec, limit, &source)
+    }
+
+    /// [`Frame::load`] with the memory limit `limit` (bytes), named `limit_source` in the refusal.
+    pub fn load_within(
+        spec: FrameSpec,
+        limit: u64,
+        limit_source: &str,
+    ) -> Result<Frame, FrameError> {
+        super::budget::estimate_frame(&spec, rayon::current_num_threads())?
+            .check(limit, limit_source)?;
         let start = Instant::now();
         let strands = spec.hair.load()?;
         let load_seconds = start.elapsed().as_secs_f64();
