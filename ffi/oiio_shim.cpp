@@ -83,7 +83,7 @@ extern "C" int cuticle_oiio_version(void) { return OIIO_VERSION; }
 
 namespace {
 
-// The body of cuticle_oiio_write and cuticle_oiio_write_window: `window` may be null (the data window is
+// The body of cuticle_oiio_write_window: `window` may be null (the data window is
 // the whole image) and `nattrs` string attributes are written as file metadata.
 int write_image(const char *path, int width, int height, int nchannels,
                 const char *const *channel_names, const void *pixels, int pixel_format,
@@ -179,14 +179,6 @@ int write_image(const char *path, int width, int height, int nchannels,
 }
 
 }  // namespace
-
-extern "C" int cuticle_oiio_write(const char *path, int width, int height, int nchannels,
-                                  const char *const *channel_names, const void *pixels,
-                                  int pixel_format, int file_format, unsigned flags, char *err,
-                                  size_t err_cap) {
-    return write_image(path, width, height, nchannels, channel_names, pixels, pixel_format,
-                       file_format, flags, nullptr, 0, nullptr, nullptr, err, err_cap);
-}
 
 extern "C" int cuticle_oiio_write_window(const char *path, int width, int height, int nchannels,
                                          const char *const *channel_names, const void *pixels,

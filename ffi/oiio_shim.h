@@ -27,7 +27,7 @@ enum {
     CUTICLE_OIIO_UINT8 = 2  /* 8-bit unsigned, 0..255 meaning 0..1 */
 };
 
-/* Flags for cuticle_oiio_write. */
+/* Flags for cuticle_oiio_write_window. */
 enum {
     /* The colour channels are not premultiplied by alpha: stop OIIO from dividing them by alpha when
      * writing a format with unassociated alpha (PNG). */
@@ -36,16 +36,6 @@ enum {
 
 /* The OpenImageIO version linked, as OIIO_VERSION (e.g. 20407 for 2.4.7). */
 int cuticle_oiio_version(void);
-
-/* Writes one image to `path`; the file format follows the extension of `path`.
- *
- * `pixels` holds width * height * nchannels values of `pixel_format`; the file stores
- * `file_format` (OIIO converts, clamping and rounding when narrowing to UINT8). `channel_names`
- * holds nchannels names. A channel named "A" becomes the alpha channel and one named "Z" the depth
- * channel. Returns 0 on success. */
-int cuticle_oiio_write(const char *path, int width, int height, int nchannels,
-                       const char *const *channel_names, const void *pixels, int pixel_format,
-                       int file_format, unsigned flags, char *err, size_t err_cap);
 
 /* Where a written image sits in its full frame (an EXR data window inside the display window): pixel
  * (0, 0) of the data lands on pixel (x, y) of a `full_width` x `full_height` frame. */
@@ -56,8 +46,14 @@ typedef struct CuticleOiioWindow {
     int full_height;
 } CuticleOiioWindow;
 
-/* cuticle_oiio_write with a data window (`window`; null = the whole image) and `nattrs` string
- * attributes (`attr_names[i]` = `attr_values[i]`) written as file metadata. */
+/* Writes one image to `path`; the file format follows the extension of `path`.
+ *
+ * `pixels` holds width * height * nchannels values of `pixel_format`; the file stores
+ * `file_format` (OIIO converts, clamping and rounding when narrowing to UINT8). `channel_names`
+ * holds nchannels names. A channel named "A" becomes the alpha channel and one named "Z" the depth
+ * channel. The data sits at `window` in a larger frame (null = the image is the whole frame), and
+ * `nattrs` string attributes (`attr_names[i]` = `attr_values[i]`) are written as file metadata.
+ * Returns 0 on success. */
 int cuticle_oiio_write_window(const char *path, int width, int height, int nchannels,
                               const char *const *channel_names, const void *pixels,
                               int pixel_format, int file_format, unsigned flags,

@@ -288,13 +288,8 @@ impl LightConfig {
                 radiance,
                 color,
                 ..
-            } => {
-                check_scalar(i, "radiance", *radiance)?;
-                check_tint(i, color)?;
-                check_coords(&at("center"), center)?;
-                check_coords(&at("radius"), &[*radius])?;
             }
-            LightConfig::Sphere {
+            | LightConfig::Sphere {
                 center,
                 radius,
                 radiance,

@@ -32,19 +32,6 @@ mod ffi {
 
     extern "C" {
         pub fn cuticle_oiio_version() -> c_int;
-        pub fn cuticle_oiio_write(
-            path: *const c_char,
-            width: c_int,
-            height: c_int,
-            nchannels: c_int,
-            channel_names: *const *const c_char,
-            pixels: *const c_void,
-            pixel_format: c_int,
-            file_format: c_int,
-            flags: c_uint,
-            err: *mut c_char,
-            err_cap: usize,
-        ) -> c_int;
         pub fn cuticle_oiio_write_window(
             path: *const c_char,
             width: c_int,
@@ -224,68 +211,7 @@ pub fn write_image<S: AsRef<str>>(
     pixels: Pixels<'_>,
     options: WriteOptions,
 ) -> Result<(), OiioError> {
-    let expected = width
-        .checked_mul(height)
-        .and_then(|n| n.checked_mul(channels.len()))
-        .ok_or_else(|| OiioError::new("image size overflows"))?;
-    if expected == 0 {
-        return Err(OiioError::new(format!(
-            "empty image ({width}x{height}, {} channels)",
-            channels.len()
-        )));
-    }
-    if pixels.len() != expected {
-        return Err(OiioError::new(format!(
-            "pixel buffer holds {} values, {width}x{height}x{} needs {expected}",
-            pixels.len(),
-            channels.len()
-        )));
-    }
-    let c_path = path_cstring(path)?;
-    let names = channels
-        .iter()
-        .map(|name| {
-            CString::new(name.as_ref()).map_err(|_| {
-                OiioError::new(format!(
-                    "channel name {:?} contains a NUL byte",
-                    name.as_ref()
-                ))
-            })
-        })
-        .collect::<Result<Vec<_>, _>>()?;
-    let name_ptrs: Vec<*const c_char> = names.iter().map(|n| n.as_ptr()).collect();
-    let (pixel_ptr, pixel_format) = pixels.raw();
-    let (c_width, c_height) = (to_c_int(width, "width")?, to_c_int(height, "height")?);
-    let c_nchannels = to_c_int(channels.len(), "channel count")?;
-    let flags = if options.unassociated_alpha {
-        ffi::UNASSOCIATED_ALPHA
-    } else {
-        0
-    };
-    let mut err = [0u8; ERROR_CAPACITY];
-    // SAFETY: `c_path` and every name are NUL-terminated and outlive the call; `name_ptrs` holds
-    // exactly `channels.len()` pointers; `pixel_ptr` points to `expected` = width·height·channels
-    // values of `pixel_format` (checked above); `err` is writable for `ERROR_CAPACITY` bytes.
-    let status = unsafe {
-        ffi::cuticle_oiio_write(
-            c_path.as_ptr(),
-            c_width,
-            c_height,
-            c_nchannels,
-            name_ptrs.as_ptr(),
-            pixel_ptr,
-            pixel_format,
-            options.format.raw(),
-            flags,
-            err.as_mut_ptr().cast(),
-            err.len(),
-        )
-    };
-    if status == 0 {
-        Ok(())
-    } else {
-        Err(OiioError::from_buffer(&err))
-    }
+    write_image_window(path, width, height, channels, pixels, options, None, &[])
 }
 
 /// Where an image's pixels sit in a larger frame (`CuticleOiioWindow` of `ffi/oiio_shim.h`; EXR's data window
@@ -324,7 +250,13 @@ pub fn write_image_window<S: AsRef<str>>(
         .checked_mul(height)
         .and_then(|n| n.checked_mul(channels.len()))
         .ok_or_else(|| OiioError::new("image size overflows"))?;
-    if expected == 0 || pixels.len() != expected {
+    if expected == 0 {
+        return Err(OiioError::new(format!(
+            "empty image ({width}x{height}, {} channels)",
+            channels.len()
+        )));
+    }
+    if pixels.len() != expected {
         return Err(OiioError::new(format!(
             "pixel buffer holds {} values, {width}x{height}x{} needs {expected}",
             pixels.len(),
