@@ -106,9 +106,10 @@ fn sigint_writes_a_partial_exr_and_keeps_the_previous_frame() {
         }
     }
     std::thread::sleep(Duration::from_millis(500));
-    let pid = child.id().to_string();
-    assert!(Command::new("kill")
-        .args(["-INT", &pid])
+    // The shell's built-in `kill`: a minimal Debian (CI) has no /bin/kill (procps).
+    let kill = format!("kill -INT {}", child.id());
+    assert!(Command::new("sh")
+        .args(["-c", &kill])
         .status()
         .unwrap()
         .success());
