@@ -194,3 +194,103 @@ fn backend_study_renders_both_backends_alike() {
     }
     assert!(report.rows.iter().any(|r| r.curves == CurveKind::Flat));
 }
+
+/// `study all --quick` through the framework on the tiny scene (32×24): every kind writes its CSVs, charts (PNG
+/// and SVG) and read-outs, every measure is finite, each reference against itself has zero error, and error falls
+/// with samples where it must (chiang against its own reference, 1 → 4 spp).
+#[test]
+fn study_all_quick_writes_every_chart_and_sane_values() {
+    use cuticle::study::framework::{StudyConfig, POINT_HEADER, SUMMARY_HEADER};
+    use cuticle::study::{kinds, report};
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("tiny.toml");
+    std::fs::write(&scene, TINY).unwrap();
+    let config = StudyConfig {
+        reference_spp: 16,
+        ..StudyConfig::new(dir.path().join("out"), true)
+    };
+    let all = report::run_all(&scene, &config).unwrap();
+    assert_eq!(all.kinds.len(), kinds::ALL.len());
+    let md = std::fs::read_to_string(&all.markdown).unwrap();
+    assert!(md.contains("## Headline read-outs"), "{md}");
+    for k in &all.kinds {
+        let name = &k.kind.name;
+        for suffix in [
+            ".csv",
+            "-summary.csv",
+            "-error-time.png",
+            "-error-time.svg",
+            "-time.png",
+            "-time.svg",
+            "-readouts.txt",
+        ] {
+            let f = dir.path().join("out").join(format!("{name}{suffix}"));
+            assert!(
+                f.is_file() && std::fs::metadata(&f).unwrap().len() > 0,
+                "{}",
+                f.display()
+            );
+            if suffix.ends_with(".png") {
+                assert!(
+                    md.contains(&format!("({name}{suffix})")),
+                    "{name}{suffix} not in the report"
+                );
+            }
+        }
+        let csv =
+            std::fs::read_to_string(dir.path().join("out").join(format!("{name}.csv"))).unwrap();
+        assert_eq!(csv.lines().next(), Some(POINT_HEADER));
+        assert_eq!(csv.lines().count(), 1 + k.kind.variants.len() * 3, "{name}");
+        let summary =
+            std::fs::read_to_string(dir.path().join("out").join(format!("{name}-summary.csv")))
+                .unwrap();
+        assert_eq!(summary.lines().next(), Some(SUMMARY_HEADER));
+        assert_eq!(
+            k.readouts.len(),
+            k.kind.compare.len(),
+            "{name}: {:?}",
+            k.readouts
+        );
+        for r in &k.references {
+            assert_eq!((r.self_rmse, r.self_fireflies), (0.0, 0), "{name}");
+            assert!(r.seconds.is_some_and(|s| s > 0.0), "{name}");
+        }
+        for p in &k.points {
+            assert!(
+                p.rmse > 0.0 && p.rmse.is_finite() && p.relmse.is_finite(),
+                "{name}: {p:?}"
+            );
+            assert!(p.ssim > 0.0 && p.ssim < 1.0, "{name}: {p:?}");
+            assert_eq!(p.non_finite, 0, "{name}: {p:?}");
+            assert!(
+                p.render_s > 0.0 && p.setup_s > 0.0 && p.camera_rays > 0,
+                "{name}: {p:?}"
+            );
+        }
+    }
+    let models = all.kinds.iter().find(|k| k.kind.name == "models").unwrap();
+    let chiang = |spp: f64| {
+        models
+            .summaries
+            .iter()
+            .find(|s| {
+                models.kind.variants[s.variant].series == "chiang"
+                    && models.kind.variants[s.variant].x == spp
+            })
+            .unwrap()
+            .rmse
+            .mean
+    };
+    assert!(
+        chiang(4.0) < 0.8 * chiang(1.0),
+        "chiang rmse 1 spp {} 4 spp {}",
+        chiang(1.0),
+        chiang(4.0)
+    );
+    // The cached references are reused by a second run of one kind.
+    let again = cuticle::study::framework::run_kind(&scene, &kinds::lobes(true), &config).unwrap();
+    assert!(again
+        .references
+        .iter()
+        .all(|r| r.cached && r.seconds.is_some()));
+}
