@@ -55,7 +55,7 @@ use serde::Serialize;
 use super::cache::{scene_key, write_text};
 use super::figures::{self, ChartSeries};
 use super::StudyError;
-use crate::image::Image;
+use crate::image::{self, Image};
 use crate::measure::{metrics, peak_rss_bytes, pixels, reset_peak_rss};
 use crate::plot::{self, hex, Axis, LineChart, Series, WithNotes};
 use crate::render::{thread_pool, Frame, Options};
@@ -66,6 +66,8 @@ pub type Overrides = Vec<(String, toml::Value)>;
 
 /// Bumped when the references' recipe changes, so old cached files are not reused.
 const REFERENCE_FORMAT: &str = "cuticle study reference v1";
+/// Side of the crop window of `<kind>-crops.png`, pixels (clamped to the image).
+const CROP: usize = 64;
 /// Tables of the scene that decide the frame's set-up (hair, BVH, lights); the rest is applied per render.
 const SETUP_TABLES: [&str; 4] = ["hair", "light", "environment", "shape"];
 
@@ -112,6 +114,9 @@ pub struct Kind {
     pub variants: Vec<Variant>,
     /// Pairs of series (A, B) to read out "A against B".
     pub compare: Vec<(String, String)>,
+    /// Also read out each series' bias: the relative difference of its most converged point's image mean from the
+    /// reference's (for samplers whose error levels off).
+    pub bias_readout: bool,
 }
 
 /// How a study runs and where it writes.
@@ -565,6 +570,15 @@ pub fn run_kind(
         });
     }
 
+    // Crops for `<kind>-crops.png` (seed 0 of every variant): the window holding the most shadowed pixels of the
+    // first reference, when every reference has its size.
+    let [w0, h0] = [judges[0].reference.width, judges[0].reference.height];
+    let crop_window = judges
+        .iter()
+        .all(|j| (j.reference.width, j.reference.height) == (w0, h0))
+        .then(|| metrics::densest_window(&judges[0].mask, w0, h0, CROP));
+    let mut crops: Vec<Option<Vec<glam::Vec3>>> = vec![None; kind.variants.len()];
+
     // The sweep.
     let bar = progress_bar(
         config.progress,
@@ -582,6 +596,9 @@ pub fn run_kind(
         let peak_bytes = peak_rss_bytes();
         let (rmse, relmse, ssim, fireflies, non_finite, mean_diff) =
             judges[v.reference].judge(&image)?;
+        if let (Some((cx, cy, cs)), 0) = (crop_window, *seed) {
+            crops[*i] = Some(figures::crop(&image, cx, cy, cs).map_err(StudyError::Config)?);
+        }
         points.push(Point {
             variant: *i,
             seed: *seed,
@@ -627,6 +644,11 @@ pub fn run_kind(
         dir,
         &format!("{}-time", kind.name),
     )?);
+    if let Some(window) = crop_window {
+        let path = dir.join(format!("{}-crops.png", kind.name));
+        image::write(&path, &crops_mosaic(kind, &judges, window, &crops, config)?)?;
+        files.push(path);
+    }
     let readouts_path = dir.join(format!("{}-readouts.txt", kind.name));
     write_text(&readouts_path, &(readouts.join("\n") + "\n"))?;
     files.push(readouts_path);
@@ -750,7 +772,89 @@ pub fn readouts(kind: &Kind, summaries: &[Summary]) -> Vec<String> {
         };
         out.push(equal_error + &equal_time);
     }
+    if kind.bias_readout {
+        for name in series_names(kind) {
+            let last = summaries
+                .iter()
+                .filter(|s| kind.variants[s.variant].series == name)
+                .max_by(|a, b| {
+                    kind.variants[a.variant]
+                        .x
+                        .total_cmp(&kind.variants[b.variant].x)
+                });
+            if let Some(s) = last {
+                out.push(format!(
+                    "{name}: image mean {:+.2} % (sd {:.2} %) of the reference's at {} ({}), RMSE {:.2e}",
+                    100.0 * s.mean_diff.mean,
+                    100.0 * s.mean_diff.sd,
+                    x_label(kind.variants[s.variant].x),
+                    kind.x_label,
+                    s.rmse.mean
+                ));
+            }
+        }
+    }
     out
+}
+
+/// Rows of crops: per series, its reference's crop then each variant at seed 0 in sweep order; one exposure for
+/// every panel (the first reference crop's 99th percentile maps to 0.9). Top left: the whole first reference with
+/// the window outlined.
+fn crops_mosaic(
+    kind: &Kind,
+    judges: &[Judge],
+    (cx, cy, cs): (usize, usize, usize),
+    crops: &[Option<Vec<glam::Vec3>>],
+    config: &StudyConfig,
+) -> Result<Image, StudyError> {
+    let reference_crops = judges
+        .iter()
+        .map(|j| figures::crop(&j.reference, cx, cy, cs).map_err(StudyError::Config))
+        .collect::<Result<Vec<_>, _>>()?;
+    let p99 = figures::p99_largest_channel(reference_crops[0].iter().copied()).unwrap_or(1.0);
+    let exposure = if p99 > 0.0 {
+        (0.9 / p99).clamp(0.125, 64.0)
+    } else {
+        1.0
+    };
+    let mut rows = vec![vec![figures::Panel {
+        label: "WHOLE IMAGE".into(),
+        rgb: figures::overview(&judges[0].reference, cx, cy, cs, cs),
+    }]];
+    for name in series_names(kind) {
+        let members: Vec<usize> = (0..kind.variants.len())
+            .filter(|&i| kind.variants[i].series == name && crops[i].is_some())
+            .collect();
+        let Some(&first) = members.first() else {
+            continue;
+        };
+        let r = kind.variants[first].reference;
+        let mut row = vec![figures::Panel {
+            label: format!("REFERENCE {} SPP", config.reference_spp),
+            rgb: reference_crops[r].clone(),
+        }];
+        row.extend(members.iter().map(|&i| {
+            figures::Panel {
+                label: format!(
+                    "{} {}",
+                    kind.variants[i].series,
+                    x_label(kind.variants[i].x)
+                )
+                .to_uppercase(),
+                rgb: crops[i].clone().unwrap_or_default(),
+            }
+        }));
+        rows.push(row);
+    }
+    Ok(figures::mosaic(
+        &format!(
+            "{}: crop {cs}×{cs} at ({cx}, {cy}), seed 0, reference {} spp, exposure ×{exposure:.2}",
+            kind.name, config.reference_spp
+        ),
+        &rows,
+        cs,
+        exposure,
+    )?)
 }
 
 /// Colours of the series, in order (Okabe & Ito, then greys).

@@ -108,6 +108,7 @@ pub fn samples(quick: bool) -> Kind {
         references,
         variants,
         compare,
+        bias_readout: false,
     }
 }
 
@@ -172,6 +173,7 @@ pub fn sampling(quick: bool) -> Kind {
         references: models.iter().map(|m| mis_reference(m)).collect(),
         variants,
         compare,
+        bias_readout: false,
     }
 }
 
@@ -199,6 +201,7 @@ pub fn lobes(quick: bool) -> Kind {
             "ishair by-energy lobes".into(),
             "ishair uniform lobes".into(),
         )],
+        bias_readout: false,
     }
 }
 
@@ -227,6 +230,7 @@ pub fn hery(quick: bool) -> Kind {
             "marschner exact sampler".into(),
             "marschner published sampler".into(),
         )],
+        bias_readout: true,
     }
 }
 
@@ -256,6 +260,7 @@ pub fn models(quick: bool) -> Kind {
             ("marschner".into(), "chiang".into()),
             ("ishair".into(), "chiang".into()),
         ],
+        bias_readout: true,
     }
 }
 
@@ -313,6 +318,7 @@ pub fn curves(quick: bool) -> Kind {
             .iter()
             .map(|m| (format!("{m} flat"), format!("{m} round")))
             .collect(),
+        bias_readout: false,
     }
 }
 
@@ -357,6 +363,7 @@ pub fn backends(quick: bool) -> Kind {
             .iter()
             .map(|c| (format!("bvh {c}"), format!("embree {c}")))
             .collect(),
+        bias_readout: false,
     }
 }
 
@@ -408,6 +415,7 @@ pub fn shadows(quick: bool) -> Kind {
         }],
         variants,
         compare: vec![("deep opacity maps".into(), "ray traced".into())],
+        bias_readout: false,
     }
 }
 
