@@ -245,9 +245,19 @@ fn study_all_quick_writes_every_chart_and_sane_values() {
             std::fs::read_to_string(dir.path().join("out").join(format!("{name}-summary.csv")))
                 .unwrap();
         assert_eq!(summary.lines().next(), Some(SUMMARY_HEADER));
+        // One line per compared pair, and one per series where the kind reads out biases.
+        let bias_lines = if k.kind.bias_readout {
+            k.summaries
+                .iter()
+                .map(|s| &k.kind.variants[s.variant].series)
+                .collect::<std::collections::BTreeSet<_>>()
+                .len()
+        } else {
+            0
+        };
         assert_eq!(
             k.readouts.len(),
-            k.kind.compare.len(),
+            k.kind.compare.len() + bias_lines,
             "{name}: {:?}",
             k.readouts
         );

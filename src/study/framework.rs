@@ -44,7 +44,9 @@
 //! For each pair (A, B) a kind compares: **equal error** — the time at which A's curve reaches the error of B's
 //! last (most converged) point, by linear interpolation between A's measured points in log time and log error;
 //! written "A reaches B's RMSE e (at t s) in N× less time" — and **equal time** — A's error at B's last time, by
-//! the same interpolation, as a ratio to B's. Outside A's measured range nothing is extrapolated: the line says so.
+//! the same interpolation, as a ratio to B's — and **equal setting** — A's error and time as ratios to B's at the
+//! largest swept value both measured (equal samples, for most kinds). Outside A's measured range nothing is
+//! extrapolated: the line says so.
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -770,7 +772,31 @@ pub fn readouts(kind: &Kind, summaries: &[Summary]) -> Vec<String> {
             ),
             _ => "; their times do not overlap".to_owned(),
         };
-        out.push(equal_error + &equal_time);
+        // Equal setting: at the largest swept value both series measured (e.g. the same spp).
+        let at_x = |series: &str, x: f64| {
+            summaries.iter().find(|s| {
+                let v = &kind.variants[s.variant];
+                v.series == series && v.x == x
+            })
+        };
+        let equal_setting = summaries
+            .iter()
+            .filter(|s| kind.variants[s.variant].series == *a)
+            .map(|s| kind.variants[s.variant].x)
+            .filter(|&x| at_x(b, x).is_some())
+            .fold(None, |m: Option<f64>, x| Some(m.map_or(x, |m| m.max(x))))
+            .and_then(|x| Some((x, at_x(a, x)?, at_x(b, x)?)))
+            .map(|(x, sa, sb)| {
+                format!(
+                    "; at equal {} ({}) its RMSE is {:.2}× and its time {:.2}× {b}'s",
+                    kind.x_label,
+                    x_label(x),
+                    sa.rmse.mean / sb.rmse.mean,
+                    chart_time(kind, sa) / chart_time(kind, sb)
+                )
+            })
+            .unwrap_or_default();
+        out.push(equal_error + &equal_time + &equal_setting);
     }
     if kind.bias_readout {
         for name in series_names(kind) {
