@@ -304,3 +304,52 @@ fn study_all_quick_writes_every_chart_and_sane_values() {
         .iter()
         .all(|r| r.cached && r.seconds.is_some()));
 }
+
+/// The framework's kinds through the CLI: a bad study setting and a bad scene key are one line naming what is wrong,
+/// exit status 2, before anything is rendered.
+#[test]
+fn framework_kinds_report_bad_input_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("tiny.toml");
+    std::fs::write(&scene, TINY).unwrap();
+    let bad = dir.path().join("bad.toml");
+    std::fs::write(
+        &bad,
+        TINY.replace(
+            "model = \"kajiya-kay\"",
+            "model = \"kajiya-kay\"\nexponent = -1",
+        ),
+    )
+    .unwrap();
+    for (args, needle) in [
+        (
+            vec![
+                "study",
+                "lobes",
+                scene.to_str().unwrap(),
+                "--quick",
+                "--seeds",
+                "0",
+            ],
+            "--seeds must be at least 1",
+        ),
+        (
+            vec!["study", "all", bad.to_str().unwrap(), "--quick"],
+            "bad.toml",
+        ),
+    ] {
+        let out = Command::new(env!("CARGO_BIN_EXE_cuticle"))
+            .args(&args)
+            .args(["-q", "-o"])
+            .arg(dir.path().join("out"))
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            stderr.contains(needle) && stderr.lines().count() == 1,
+            "{args:?}: {stderr}"
+        );
+    }
+    assert!(!dir.path().join("out").join("lobes.csv").exists());
+}

@@ -119,6 +119,9 @@ pub struct Kind {
     /// Also read out each series' bias: the relative difference of its most converged point's image mean from the
     /// reference's (for samplers whose error levels off).
     pub bias_readout: bool,
+    /// The compared series sweep the same setting, so "at equal setting" read-outs mean something (not so when
+    /// one sweeps spp and the other map layers).
+    pub equal_setting: bool,
 }
 
 /// How a study runs and where it writes.
@@ -781,6 +784,7 @@ pub fn readouts(kind: &Kind, summaries: &[Summary]) -> Vec<String> {
         };
         let equal_setting = summaries
             .iter()
+            .filter(|_| kind.equal_setting)
             .filter(|s| kind.variants[s.variant].series == *a)
             .map(|s| kind.variants[s.variant].x)
             .filter(|&x| at_x(b, x).is_some())

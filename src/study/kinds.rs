@@ -109,6 +109,7 @@ pub fn samples(quick: bool) -> Kind {
         variants,
         compare,
         bias_readout: false,
+        equal_setting: true,
     }
 }
 
@@ -174,6 +175,7 @@ pub fn sampling(quick: bool) -> Kind {
         variants,
         compare,
         bias_readout: false,
+        equal_setting: true,
     }
 }
 
@@ -202,6 +204,7 @@ pub fn lobes(quick: bool) -> Kind {
             "ishair uniform lobes".into(),
         )],
         bias_readout: false,
+        equal_setting: true,
     }
 }
 
@@ -231,6 +234,7 @@ pub fn hery(quick: bool) -> Kind {
             "marschner published sampler".into(),
         )],
         bias_readout: true,
+        equal_setting: true,
     }
 }
 
@@ -261,6 +265,7 @@ pub fn models(quick: bool) -> Kind {
             ("ishair".into(), "chiang".into()),
         ],
         bias_readout: true,
+        equal_setting: true,
     }
 }
 
@@ -309,8 +314,9 @@ pub fn curves(quick: bool) -> Kind {
     }
     Kind {
         name: "curves".into(),
-        title: "round tubes against flat ribbons, per model and film width".into(),
-        x_label: "film width (px; strand width in px ∝)".into(),
+        title: "round tubes against flat ribbons, per model and film width (strand width in pixels ∝ film width)"
+            .into(),
+        x_label: "film width (px)".into(),
         time_includes_setup: true,
         references,
         variants,
@@ -319,6 +325,7 @@ pub fn curves(quick: bool) -> Kind {
             .map(|m| (format!("{m} flat"), format!("{m} round")))
             .collect(),
         bias_readout: false,
+        equal_setting: true,
     }
 }
 
@@ -364,6 +371,7 @@ pub fn backends(quick: bool) -> Kind {
             .map(|c| (format!("bvh {c}"), format!("embree {c}")))
             .collect(),
         bias_readout: false,
+        equal_setting: true,
     }
 }
 
@@ -416,6 +424,7 @@ pub fn shadows(quick: bool) -> Kind {
         variants,
         compare: vec![("deep opacity maps".into(), "ray traced".into())],
         bias_readout: false,
+        equal_setting: false,
     }
 }
 
