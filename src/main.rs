@@ -670,6 +670,80 @@ enum StudyCommand {
     /// The same frame on Embree and on the pure-Rust BVH: time, error against a reference, image difference
     /// (issue 13).
     Backends(StudyBackendsArgs),
+    /// Light samples against material samples, per model (thesis table 3, figure 17; issue 17).
+    Samples(StudyKindArgs),
+    /// Importance against uniform BSDF sampling, at equal samples and equal time (issue 17).
+    Sampling(StudyKindArgs),
+    /// ISHair's uniform against energy-based lobe selection (issue 17).
+    Lobes(StudyKindArgs),
+    /// The published (biased) against the exact Hery & Ramamoorthi sampler (issue 17).
+    Hery(StudyKindArgs),
+    /// Marschner and ISHair against a chiang reference (issue 17).
+    Models(StudyKindArgs),
+    /// Round tubes against flat ribbons per model and film width (issue 17).
+    Curves(StudyKindArgs),
+    /// Every kind above, and one Markdown report (report.md) with the charts (issue 17).
+    All(StudyKindArgs),
+}
+
+#[derive(clap::Args)]
+struct StudyKindArgs {
+    /// Scene file (TOML).
+    scene: PathBuf,
+    /// Output directory: <kind>.csv, <kind>-summary.csv, <kind>-error-time.png/.svg, <kind>-time.png/.svg,
+    /// <kind>-readouts.txt, the cached references (and report.md for all).
+    #[arg(short, long, default_value = "study")]
+    out: PathBuf,
+    /// Short sweeps on a 32x24 film (unless --res): what CI runs.
+    #[arg(long)]
+    quick: bool,
+    /// Where the reference EXRs are cached (default: the output directory).
+    #[arg(long)]
+    cache_dir: Option<PathBuf>,
+    /// Samples per pixel of the references (default 256, 64 with --quick).
+    #[arg(long)]
+    reference_spp: Option<u32>,
+    /// Seeds per point.
+    #[arg(long, default_value_t = 3)]
+    seeds: u32,
+    /// Film resolution WxH (overrides film.resolution).
+    #[arg(long, value_parser = parse_resolution)]
+    res: Option<[u32; 2]>,
+    /// Worker threads.
+    #[arg(long, default_value_t = 2)]
+    threads: usize,
+    /// No progress bars.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+/// Runs `cuticle study <name>` for a framework kind (or `all`) and prints the read-outs.
+fn study_kind(name: &str, a: StudyKindArgs) -> Result<()> {
+    use cuticle::study::framework::{run_kind, StudyConfig};
+    let defaults = StudyConfig::new(a.out, a.quick);
+    let config = StudyConfig {
+        cache_dir: a.cache_dir,
+        seeds: a.seeds,
+        reference_spp: a.reference_spp.unwrap_or(defaults.reference_spp),
+        resolution: a.res,
+        threads: a.threads,
+        progress: !a.quiet,
+        ..defaults
+    };
+    if name == "all" {
+        let report = cuticle::study::report::run_all(&a.scene, &config)?;
+        println!("wrote {}", report.markdown.display());
+        for k in &report.kinds {
+            k.readouts
+                .iter()
+                .for_each(|l| println!("{}: {l}", k.kind.name));
+        }
+    } else {
+        let kind = cuticle::study::kinds::by_name(name, a.quick).expect("a subcommand per kind");
+        let report = run_kind(&a.scene, &kind, &config)?;
+        report.readouts.iter().for_each(|l| println!("{l}"));
+    }
+    Ok(())
 }
 
 #[derive(clap::Args)]
@@ -752,6 +826,13 @@ struct StudyBackendsArgs {
 
 fn study_command(command: StudyCommand) -> Result<()> {
     match command {
+        StudyCommand::Samples(a) => study_kind("samples", a)?,
+        StudyCommand::Sampling(a) => study_kind("sampling", a)?,
+        StudyCommand::Lobes(a) => study_kind("lobes", a)?,
+        StudyCommand::Hery(a) => study_kind("hery", a)?,
+        StudyCommand::Models(a) => study_kind("models", a)?,
+        StudyCommand::Curves(a) => study_kind("curves", a)?,
+        StudyCommand::All(a) => study_kind("all", a)?,
         StudyCommand::Shadows(a) => {
             use cuticle::study::shadows::{run, ShadowStudyConfig};
             let config = ShadowStudyConfig {

@@ -194,3 +194,162 @@ fn backend_study_renders_both_backends_alike() {
     }
     assert!(report.rows.iter().any(|r| r.curves == CurveKind::Flat));
 }
+
+/// `study all --quick` through the framework on the tiny scene (32×24): every kind writes its CSVs, charts (PNG
+/// and SVG) and read-outs, every measure is finite, each reference against itself has zero error, and error falls
+/// with samples where it must (chiang against its own reference, 1 → 4 spp).
+#[test]
+fn study_all_quick_writes_every_chart_and_sane_values() {
+    use cuticle::study::framework::{StudyConfig, POINT_HEADER, SUMMARY_HEADER};
+    use cuticle::study::{kinds, report};
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("tiny.toml");
+    std::fs::write(&scene, TINY).unwrap();
+    let config = StudyConfig {
+        reference_spp: 16,
+        ..StudyConfig::new(dir.path().join("out"), true)
+    };
+    let all = report::run_all(&scene, &config).unwrap();
+    assert_eq!(all.kinds.len(), kinds::ALL.len());
+    let md = std::fs::read_to_string(&all.markdown).unwrap();
+    assert!(md.contains("## Headline read-outs"), "{md}");
+    for k in &all.kinds {
+        let name = &k.kind.name;
+        for suffix in [
+            ".csv",
+            "-summary.csv",
+            "-error-time.png",
+            "-error-time.svg",
+            "-time.png",
+            "-time.svg",
+            "-readouts.txt",
+        ] {
+            let f = dir.path().join("out").join(format!("{name}{suffix}"));
+            assert!(
+                f.is_file() && std::fs::metadata(&f).unwrap().len() > 0,
+                "{}",
+                f.display()
+            );
+            if suffix.ends_with(".png") {
+                assert!(
+                    md.contains(&format!("({name}{suffix})")),
+                    "{name}{suffix} not in the report"
+                );
+            }
+        }
+        let csv =
+            std::fs::read_to_string(dir.path().join("out").join(format!("{name}.csv"))).unwrap();
+        assert_eq!(csv.lines().next(), Some(POINT_HEADER));
+        assert_eq!(csv.lines().count(), 1 + k.kind.variants.len() * 3, "{name}");
+        let summary =
+            std::fs::read_to_string(dir.path().join("out").join(format!("{name}-summary.csv")))
+                .unwrap();
+        assert_eq!(summary.lines().next(), Some(SUMMARY_HEADER));
+        // One line per compared pair, and one per series where the kind reads out biases.
+        let bias_lines = if k.kind.bias_readout {
+            k.summaries
+                .iter()
+                .map(|s| &k.kind.variants[s.variant].series)
+                .collect::<std::collections::BTreeSet<_>>()
+                .len()
+        } else {
+            0
+        };
+        assert_eq!(
+            k.readouts.len(),
+            k.kind.compare.len() + bias_lines,
+            "{name}: {:?}",
+            k.readouts
+        );
+        for r in &k.references {
+            assert_eq!((r.self_rmse, r.self_fireflies), (0.0, 0), "{name}");
+            assert!(r.seconds.is_some_and(|s| s > 0.0), "{name}");
+        }
+        for p in &k.points {
+            assert!(
+                p.rmse > 0.0 && p.rmse.is_finite() && p.relmse.is_finite(),
+                "{name}: {p:?}"
+            );
+            assert!(p.ssim > 0.0 && p.ssim < 1.0, "{name}: {p:?}");
+            assert_eq!(p.non_finite, 0, "{name}: {p:?}");
+            assert!(
+                p.render_s > 0.0 && p.setup_s > 0.0 && p.camera_rays > 0,
+                "{name}: {p:?}"
+            );
+        }
+    }
+    let models = all.kinds.iter().find(|k| k.kind.name == "models").unwrap();
+    let chiang = |spp: f64| {
+        models
+            .summaries
+            .iter()
+            .find(|s| {
+                models.kind.variants[s.variant].series == "chiang"
+                    && models.kind.variants[s.variant].x == spp
+            })
+            .unwrap()
+            .rmse
+            .mean
+    };
+    assert!(
+        chiang(4.0) < 0.8 * chiang(1.0),
+        "chiang rmse 1 spp {} 4 spp {}",
+        chiang(1.0),
+        chiang(4.0)
+    );
+    // The cached references are reused by a second run of one kind.
+    let again = cuticle::study::framework::run_kind(&scene, &kinds::lobes(true), &config).unwrap();
+    assert!(again
+        .references
+        .iter()
+        .all(|r| r.cached && r.seconds.is_some()));
+}
+
+/// The framework's kinds through the CLI: a bad study setting and a bad scene key are one line naming what is wrong,
+/// exit status 2, before anything is rendered.
+#[test]
+fn framework_kinds_report_bad_input_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("tiny.toml");
+    std::fs::write(&scene, TINY).unwrap();
+    let bad = dir.path().join("bad.toml");
+    std::fs::write(
+        &bad,
+        TINY.replace(
+            "model = \"kajiya-kay\"",
+            "model = \"kajiya-kay\"\nexponent = -1",
+        ),
+    )
+    .unwrap();
+    for (args, needle) in [
+        (
+            vec![
+                "study",
+                "lobes",
+                scene.to_str().unwrap(),
+                "--quick",
+                "--seeds",
+                "0",
+            ],
+            "--seeds must be at least 1",
+        ),
+        (
+            vec!["study", "all", bad.to_str().unwrap(), "--quick"],
+            "bad.toml",
+        ),
+    ] {
+        let out = Command::new(env!("CARGO_BIN_EXE_cuticle"))
+            .args(&args)
+            .args(["-q", "-o"])
+            .arg(dir.path().join("out"))
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            stderr.contains(needle) && stderr.lines().count() == 1,
+            "{args:?}: {stderr}"
+        );
+    }
+    assert!(!dir.path().join("out").join("lobes.csv").exists());
+}

@@ -3,6 +3,7 @@
 //! layers imports the other; both import this.
 
 pub mod metrics;
+pub mod pixels;
 
 /// Median and spread of repeated timings, in seconds.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -48,6 +49,13 @@ pub fn peak_rss_bytes() -> Option<u64> {
     Some(kb * 1024)
 }
 
+/// Resets this process's peak resident set size to its current size (writes `5` to `/proc/self/clear_refs`,
+/// Linux ≥ 4.0), so that [`peak_rss_bytes`] afterwards reports the peak of what ran since. Returns whether it
+/// worked (never on other platforms; then the peak keeps covering the whole process life).
+pub fn reset_peak_rss() -> bool {
+    std::fs::write("/proc/self/clear_refs", b"5").is_ok()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -57,6 +65,20 @@ mod tests {
         let t = Timing::from_samples(vec![3.0, 1.0, 2.0]);
         assert_eq!((t.median, t.min, t.max), (2.0, 1.0, 3.0));
         assert_eq!(Timing::from_samples(vec![1.0, 2.0]).median, 1.5);
+    }
+
+    #[test]
+    fn peak_memory_can_be_reset() {
+        if cfg!(target_os = "linux") {
+            // 64 MB touched then freed: the peak covers it; after a reset it no longer does.
+            let big = vec![1u8; 64 << 20];
+            assert!(big.iter().map(|&b| u64::from(b)).sum::<u64>() > 0);
+            let with = peak_rss_bytes().unwrap();
+            drop(big);
+            assert!(reset_peak_rss());
+            let after = peak_rss_bytes().unwrap();
+            assert!(after + (32 << 20) < with, "peak {with} -> {after}");
+        }
     }
 
     #[test]

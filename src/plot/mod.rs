@@ -22,6 +22,7 @@ mod axis;
 pub mod bsdf;
 mod heatmap;
 mod line;
+mod notes;
 mod polar;
 mod table;
 
@@ -35,6 +36,7 @@ use plotters::style::text_anchor::{HPos, Pos, VPos};
 pub use axis::{Axis, Scale};
 pub use heatmap::{ColorBar, Colormap, HeatMap};
 pub use line::{LineChart, Series};
+pub use notes::WithNotes;
 pub use polar::PolarChart;
 pub use table::{CsvChart, TableError};
 

@@ -77,7 +77,7 @@ pub fn scene_error_time_chart(
 }
 
 /// The chart of [`error_time_chart`].
-fn error_time_line_chart(
+pub(crate) fn error_time_line_chart(
     title: &str,
     x_label: &str,
     y_label: &str,

@@ -11,10 +11,16 @@
 //!   against a converged reference, and the difference between the two backends' images (issue 13).
 //! - [`cache`]: a stable hash (FNV-1a) naming cached reference renders, and atomic text-file writes.
 //! - [`figures`]: the error-against-time chart (through [`crate::plot`]) and the mosaic of crops.
+//! - [`framework`]: the one study framework of issue 17 (variants × seeds against cached references, every
+//!   measure, CSVs, charts with equal-time and equal-error read-outs); [`kinds`]: `samples`, `sampling`, `lobes`,
+//!   `hery`, `models`, `curves` as data for it; [`report`]: `all`, one Markdown report.
 
 pub mod backends;
 pub mod cache;
 pub mod figures;
+pub mod framework;
+pub mod kinds;
+pub mod report;
 pub mod shadows;
 
 use std::path::{Path, PathBuf};
