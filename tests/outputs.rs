@@ -13,6 +13,20 @@ fn cuticle(args: &[&str]) -> Output {
     Command::new(EXE).args(args).output().expect("run cuticle")
 }
 
+/// `cuticle render -q -o OUT --res RES --spp 1`: the smallest render that writes `out`.
+fn render_small(out: &Path, res: &str) -> Output {
+    cuticle(&[
+        "render",
+        "-q",
+        "-o",
+        out.to_str().unwrap(),
+        "--res",
+        res,
+        "--spp",
+        "1",
+    ])
+}
+
 fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
@@ -32,16 +46,7 @@ fn output_paths_are_checked_before_the_render() {
     let exr = dir.path().join("frame.exr");
     std::fs::write(&exr, "previous frame").unwrap();
     std::fs::create_dir(dir.path().join("frame.png")).unwrap();
-    let o = cuticle(&[
-        "render",
-        "-q",
-        "-o",
-        exr.to_str().unwrap(),
-        "--res",
-        "8x8",
-        "--spp",
-        "1",
-    ]);
+    let o = render_small(&exr, "8x8");
     assert_eq!(o.status.code(), Some(2));
     let e = stderr(&o);
     assert!(e.contains("frame.png: is a directory"), "{e}");
@@ -71,16 +76,7 @@ fn sigint_writes_a_partial_exr_and_keeps_the_previous_frame() {
     let dir = tempfile::tempdir().unwrap();
     let exr = dir.path().join("frame.exr");
     // A previous complete frame, which an interrupted render must leave alone.
-    let o = cuticle(&[
-        "render",
-        "-q",
-        "-o",
-        exr.to_str().unwrap(),
-        "--res",
-        "16x16",
-        "--spp",
-        "1",
-    ]);
+    let o = render_small(&exr, "16x16");
     assert!(o.status.success(), "{}", stderr(&o));
     let before = std::fs::read(&exr).unwrap();
 
@@ -170,16 +166,7 @@ fn a_full_disk_is_reported_and_replaces_nothing() {
         let _ = Command::new("umount").arg(d).status();
     };
     let png = disk.path().join("frame.png");
-    let o = cuticle(&[
-        "render",
-        "-q",
-        "-o",
-        png.to_str().unwrap(),
-        "--res",
-        "8x8",
-        "--spp",
-        "1",
-    ]);
+    let o = render_small(&png, "8x8");
     assert!(o.status.success(), "{}", stderr(&o));
     let good = std::fs::read(&png).unwrap();
     // Fill the disk, leaving less than a PNG of 64x64.
@@ -190,16 +177,7 @@ fn a_full_disk_is_reported_and_replaces_nothing() {
 
     for out in ["frame.png", "frame.exr"] {
         let path = disk.path().join(out);
-        let o = cuticle(&[
-            "render",
-            "-q",
-            "-o",
-            path.to_str().unwrap(),
-            "--res",
-            "64x64",
-            "--spp",
-            "1",
-        ]);
+        let o = render_small(&path, "64x64");
         let e = stderr(&o);
         assert_eq!(o.status.code(), Some(2), "{e}");
         assert!(
