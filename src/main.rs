@@ -682,6 +682,8 @@ enum StudyCommand {
     Models(StudyKindArgs),
     /// Round tubes against flat ribbons per model and film width (issue 17).
     Curves(StudyKindArgs),
+    /// Adversarial cases per method: stress.csv, stress.md (NaN/Inf, fireflies, error; failures named).
+    Stress(StudyKindArgs),
     /// Every kind above, and one Markdown report (report.md) with the charts (issue 17).
     All(StudyKindArgs),
 }
@@ -738,6 +740,14 @@ fn study_kind(name: &str, a: StudyKindArgs) -> Result<()> {
                 .iter()
                 .for_each(|l| println!("{}: {l}", k.kind.name));
         }
+    } else if name == "stress" {
+        let report = cuticle::study::stress::run(&a.scene, &config)?;
+        println!("wrote {}", report.markdown.display());
+        report
+            .skipped
+            .iter()
+            .for_each(|s| println!("skipped {}: {}", s.case, s.reason));
+        report.failures.iter().for_each(|l| println!("{l}"));
     } else {
         let kind = cuticle::study::kinds::by_name(name, a.quick).expect("a subcommand per kind");
         let report = run_kind(&a.scene, &kind, &config)?;
@@ -833,6 +843,7 @@ fn study_command(command: StudyCommand) -> Result<()> {
         StudyCommand::Models(a) => study_kind("models", a)?,
         StudyCommand::Curves(a) => study_kind("curves", a)?,
         StudyCommand::All(a) => study_kind("all", a)?,
+        StudyCommand::Stress(a) => study_kind("stress", a)?,
         StudyCommand::Shadows(a) => {
             use cuticle::study::shadows::{run, ShadowStudyConfig};
             let config = ShadowStudyConfig {

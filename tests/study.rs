@@ -213,6 +213,11 @@ fn study_all_quick_writes_every_chart_and_sane_values() {
     assert_eq!(all.kinds.len(), kinds::ALL.len());
     let md = std::fs::read_to_string(&all.markdown).unwrap();
     assert!(md.contains("## Headline read-outs"), "{md}");
+    assert!(
+        md.contains("## stress:") && md.contains("(stress.md)"),
+        "{md}"
+    );
+    assert!(all.stress.markdown.is_file());
     for k in &all.kinds {
         let name = &k.kind.name;
         for suffix in [
@@ -352,4 +357,107 @@ fn framework_kinds_report_bad_input_once() {
         );
     }
     assert!(!dir.path().join("out").join("lobes.csv").exists());
+}
+
+/// `study stress --quick` on the tiny fur ball (32×24, 3 seeds, references at 64 spp): every case the fur ball can
+/// express is rendered with every method, no pixel of any render is NaN/Inf, and the exact samplers (marschner,
+/// ishair, chiang) stay under 24 fireflies per render (3 % of the 768 pixels). Measured when written: at most 12
+/// (chiang, grazing), 9 (marschner, narrow lobes), 6 (ishair, thin strands); 24 is twice the worst.
+#[test]
+fn stress_quick_has_no_nan_and_few_fireflies_on_the_tiny_scene() {
+    use cuticle::study::framework::StudyConfig;
+    use cuticle::study::stress;
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("tiny.toml");
+    std::fs::write(&scene, TINY).unwrap();
+    let config = StudyConfig::new(dir.path().join("out"), true);
+    let s = stress::run(&scene, &config).unwrap();
+    assert!(s.skipped.is_empty(), "{:?}", s.skipped);
+    let names: Vec<&str> = s.cases.iter().map(|c| c.name.as_str()).collect();
+    assert_eq!(
+        names,
+        [
+            "control",
+            "grazing",
+            "narrow-lobes",
+            "wide-lobes",
+            "sun-32000",
+            "thin-strands",
+            "1-spp",
+            "light-inside",
+            "scale-1e-3",
+            "scale-1e3"
+        ]
+    );
+    let r = &s.report;
+    assert_eq!(r.points.len(), names.len() * stress::METHODS.len() * 3);
+    for p in &r.points {
+        let v = &r.kind.variants[p.variant];
+        assert_eq!(
+            p.non_finite, 0,
+            "{} {} seed {}",
+            v.method, v.settings, p.seed
+        );
+        assert!(
+            p.rmse.is_finite() && p.rmse > 0.0,
+            "{} {}",
+            v.method,
+            v.settings
+        );
+        if v.method != "kajiya-kay" {
+            assert!(
+                p.fireflies <= 24,
+                "{} {} seed {}: {} fireflies",
+                v.method,
+                v.settings,
+                p.seed,
+                p.fireflies
+            );
+        }
+    }
+    // The failures named are exactly the summaries over the firefly limit (none has NaN/Inf), and the report
+    // lists them and every case.
+    let pixels = 32.0 * 24.0;
+    let over = r
+        .summaries
+        .iter()
+        .filter(|x| x.fireflies.mean / pixels > stress::FIREFLY_FAIL_FRACTION)
+        .count();
+    let scale_failures = s
+        .failures
+        .iter()
+        .filter(|f| f.contains("the control's"))
+        .count();
+    assert_eq!(s.failures.len(), over + scale_failures, "{:?}", s.failures);
+    assert_eq!(scale_failures, 0, "{:?}", s.failures);
+    let md = std::fs::read_to_string(&s.markdown).unwrap();
+    for f in &s.failures {
+        assert!(md.contains(f.as_str()), "{f}");
+    }
+    for n in names {
+        assert!(md.contains(&format!("| {n} | marschner |")), "{n}: {md}");
+    }
+    let csv = std::fs::read_to_string(dir.path().join("out/stress.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 1 + r.points.len());
+}
+
+/// A scene whose hair is a file cannot place a light inside the hair or scale itself: those cases are skipped,
+/// with the reason, and the others remain.
+#[test]
+fn stress_skips_what_a_hair_file_scene_cannot_express() {
+    use cuticle::study::stress;
+    let base: toml::Table = toml::from_str(
+        "[hair]\nfile = \"x.hair\"\nradius_scale = 2.0\n[camera]\nposition = [0, 0, 5]\n",
+    )
+    .unwrap();
+    let (cases, skipped) = stress::cases(&base, true);
+    let skipped: Vec<&str> = skipped.iter().map(|s| s.case.as_str()).collect();
+    assert_eq!(skipped, ["light-inside", "scale-1e-3", "scale-1e3"]);
+    assert_eq!(cases.len(), 7);
+    let thin = cases.iter().find(|c| c.name == "thin-strands").unwrap();
+    assert_eq!(thin.overrides[0].1.as_float(), Some(0.04));
+    // The grazing camera drops the scene's position so it is auto-framed along −y.
+    let grazing = cases.iter().find(|c| c.name == "grazing").unwrap();
+    let camera = grazing.overrides[0].1.as_table().unwrap();
+    assert!(!camera.contains_key("position"));
 }

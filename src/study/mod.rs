@@ -14,6 +14,8 @@
 //! - [`framework`]: the one study framework of issue 17 (variants × seeds against cached references, every
 //!   measure, CSVs, charts with equal-time and equal-error read-outs); [`kinds`]: `samples`, `sampling`, `lobes`,
 //!   `hery`, `models`, `curves` as data for it; [`report`]: `all`, one Markdown report.
+//! - [`stress`]: `cuticle study stress SCENE` — adversarial cases per method (NaN/Inf, fireflies, error), on the
+//!   framework.
 
 pub mod backends;
 pub mod cache;
@@ -22,6 +24,7 @@ pub mod framework;
 pub mod kinds;
 pub mod report;
 pub mod shadows;
+pub mod stress;
 
 use std::path::{Path, PathBuf};
 

@@ -1,5 +1,6 @@
 //! `cuticle study all SCENE`: every kind of [`super::kinds::ALL`] on one scene, and one Markdown report
-//! (`report.md`) embedding their charts, with a table of the headline read-outs at the top.
+//! (`report.md`) embedding their charts, with a table of the headline read-outs at the top; then `stress`
+//! ([`super::stress`]), whose failure lines join the headline table and whose `stress.md` the report links.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -7,6 +8,7 @@ use std::path::{Path, PathBuf};
 use super::cache::write_text;
 use super::framework::{run_kind, KindReport, StudyConfig};
 use super::kinds;
+use super::stress::{self, StressReport};
 use super::StudyError;
 
 /// What `all` ran and wrote.
@@ -14,6 +16,8 @@ use super::StudyError;
 pub struct AllReport {
     /// One report per kind, in [`kinds::ALL`] order.
     pub kinds: Vec<KindReport>,
+    /// The stress cases (run after the kinds).
+    pub stress: StressReport,
     /// The Markdown report.
     pub markdown: PathBuf,
 }
@@ -25,10 +29,19 @@ pub fn run_all(scene_path: &Path, config: &StudyConfig) -> Result<AllReport, Stu
         let kind = kinds::by_name(name, config.quick).expect("every name of ALL is a kind");
         reports.push(run_kind(scene_path, &kind, config)?);
     }
+    let stress = stress::run(scene_path, config)?;
+    let mut all = reports.clone();
+    all.push(stress.report.clone());
+    let mut md = markdown_report(scene_path, config, &all);
+    let _ = writeln!(
+        md,
+        "\nPer case and method, with the skipped cases: [stress.md](stress.md)."
+    );
     let markdown = config.out_dir.join("report.md");
-    write_text(&markdown, &markdown_report(scene_path, config, &reports))?;
+    write_text(&markdown, &md)?;
     Ok(AllReport {
         kinds: reports,
+        stress,
         markdown,
     })
 }
