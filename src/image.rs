@@ -440,13 +440,13 @@ impl Outputs {
 
 /// Why the EXR at `temp` does not hold `image` (every channel by name, bit for bit) at `window`, or `Ok`.
 fn verify_exr(temp: &Path, image: &Image, window: Option<Window>) -> Result<(), String> {
-    let header = oiio::read_header(temp, &[]).map_err(|e| e.message)?;
+    let file = oiio::open_image(temp).map_err(|e| e.message)?;
     if let Some(w) = window {
-        if header.window != w {
-            return Err(format!("data window {:?}, meant {w:?}", header.window));
+        if file.window() != w {
+            return Err(format!("data window {:?}, meant {w:?}", file.window()));
         }
     }
-    let back = oiio::read_image(temp).map_err(|e| e.message)?;
+    let back = file.read().map_err(|e| e.message)?;
     if (back.width, back.height) != (image.width, image.height) {
         return Err(format!(
             "reads back as {}x{}, meant {}x{}",
@@ -504,13 +504,14 @@ pub fn read_with_info(
     path: &Path,
     names: &[&str],
 ) -> Result<(Image, DataWindow, Vec<Option<String>>), ImageError> {
-    let image = read(path)?;
-    let header = oiio::read_header(path, names).map_err(|source| ImageError::Oiio {
+    let file = open(path)?;
+    let attributes = file.attributes(names).map_err(|source| ImageError::Oiio {
         path: path.to_path_buf(),
         context: "openimageio cannot read its header".to_owned(),
         source,
     })?;
-    let w = header.window;
+    let w = file.window();
+    let image = decode(path, file)?;
     let int =
         |v: i32| usize::try_from(v).map_err(|_| ImageError::invalid(path, "negative data window"));
     let window = DataWindow {
@@ -519,7 +520,7 @@ pub fn read_with_info(
         full_width: int(w.full_width)?,
         full_height: int(w.full_height)?,
     };
-    Ok((image, window, header.attributes))
+    Ok((image, window, attributes))
 }
 
 /// The sRGB opto-electronic transfer function (IEC 61966-2-1) of a linear value, clamped to
@@ -581,44 +582,53 @@ fn preview_bytes(path: &Path, image: &Image) -> Result<Vec<u8>, ImageError> {
 /// premultiplied by alpha, as [`Image`] holds it: OpenImageIO multiplies it in for formats that
 /// store straight alpha (PNG).
 pub fn read(path: impl AsRef<Path>) -> Result<Image, ImageError> {
-    read_at_most(path, u64::MAX)
+    let path = path.as_ref();
+    decode(path, open(path)?)
 }
 
 /// [`read`], refusing before any pixel is decoded an image whose decoded `f32` texels would take more than
 /// `max_bytes` (its header's width × height × channels × 4): a small compressed file can declare a huge image.
 pub fn read_at_most(path: impl AsRef<Path>, max_bytes: u64) -> Result<Image, ImageError> {
     let path = path.as_ref();
+    let file = open(path)?;
+    let bytes = [file.width, file.height, file.channels.len(), 4]
+        .into_iter()
+        .try_fold(1u64, |acc, n| acc.checked_mul(n as u64));
+    if bytes.is_none_or(|b| b > max_bytes) {
+        return Err(ImageError::invalid(
+            path,
+            format!(
+                "{} x {} pixels of {} channels would take {} decoded, more than the {} allowed",
+                file.width,
+                file.height,
+                file.channels.len(),
+                bytes.map_or(
+                    "over 16 EiB".to_owned(),
+                    crate::util::input_file::human_bytes
+                ),
+                crate::util::input_file::human_bytes(max_bytes)
+            ),
+        ));
+    }
+    decode(path, file)
+}
+
+/// Opens the image at `path` for reading (its header only; see [`oiio::OpenImage`]).
+fn open(path: &Path) -> Result<oiio::OpenImage, ImageError> {
     let metadata = fs::metadata(path).map_err(|e| ImageError::io(path, "cannot read", e))?;
     if metadata.is_dir() {
         return Err(ImageError::invalid(path, "is a directory, not an image"));
     }
-    if max_bytes < u64::MAX {
-        let header = oiio::read_header(path, &[]).map_err(|source| ImageError::Oiio {
-            path: path.to_path_buf(),
-            context: "openimageio cannot read it".to_owned(),
-            source,
-        })?;
-        let bytes = [header.width, header.height, header.channels.len(), 4]
-            .into_iter()
-            .try_fold(1u64, |acc, n| acc.checked_mul(n as u64));
-        if bytes.is_none_or(|b| b > max_bytes) {
-            return Err(ImageError::invalid(
-                path,
-                format!(
-                    "{} x {} pixels of {} channels would take {} decoded, more than the {} allowed",
-                    header.width,
-                    header.height,
-                    header.channels.len(),
-                    bytes.map_or(
-                        "over 16 EiB".to_owned(),
-                        crate::util::input_file::human_bytes
-                    ),
-                    crate::util::input_file::human_bytes(max_bytes)
-                ),
-            ));
-        }
-    }
-    let decoded = oiio::read_image(path).map_err(|source| ImageError::Oiio {
+    oiio::open_image(path).map_err(|source| ImageError::Oiio {
+        path: path.to_path_buf(),
+        context: "openimageio cannot read it".to_owned(),
+        source,
+    })
+}
+
+/// The pixels of `file` (opened from `path`) as an [`Image`], its channels checked.
+fn decode(path: &Path, file: oiio::OpenImage) -> Result<Image, ImageError> {
+    let decoded = file.read().map_err(|source| ImageError::Oiio {
         path: path.to_path_buf(),
         context: "openimageio cannot read it".to_owned(),
         source,

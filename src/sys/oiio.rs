@@ -230,7 +230,7 @@ pub struct Window {
     pub full_height: c_int,
 }
 
-/// Longest string attribute [`read_header`] returns, bytes.
+/// Longest string attribute [`OpenImage::attributes`] returns, bytes.
 const ATTRIBUTE_CAPACITY: usize = 4096;
 
 /// [`write_image`] with the data placed at `window` in a larger frame (`None`: the image is the whole frame) and
@@ -322,23 +322,21 @@ pub fn write_image_window<S: AsRef<str>>(
     }
 }
 
-/// What [`read_header`] finds in a file's header, without reading its pixels.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Header {
+/// An image file open for reading: its header read (size and channel names), its pixels not yet decoded, so a
+/// caller can look at the header (size, data window, attributes) and then decode the pixels without opening the
+/// file a second time.
+pub struct OpenImage {
+    input: Input,
     /// Width of the data window, in pixels.
     pub width: usize,
     /// Height of the data window, in pixels.
     pub height: usize,
     /// Channel names in the order OpenImageIO reports them.
     pub channels: Vec<String>,
-    /// Where the data window sits in the full frame.
-    pub window: Window,
-    /// The value of each string attribute asked for, `None` when the file has none of that name.
-    pub attributes: Vec<Option<String>>,
 }
 
-/// Reads the header of `path`: its size, channels, data window, and the string attributes named in `names`.
-pub fn read_header(path: &Path, names: &[&str]) -> Result<Header, OiioError> {
+/// Opens `path` (first subimage; any format OpenImageIO reads) and reads its size and channel names.
+pub fn open_image(path: &Path) -> Result<OpenImage, OiioError> {
     let c_path = path_cstring(path)?;
     let mut err = [0u8; ERROR_CAPACITY];
     // SAFETY: `c_path` is NUL-terminated and outlives the call; `err` is writable for its length.
@@ -350,14 +348,6 @@ pub fn read_header(path: &Path, names: &[&str]) -> Result<Header, OiioError> {
     unsafe {
         ffi::cuticle_oiio_input_size(input.0.as_ptr(), &mut width, &mut height, &mut nchannels)
     };
-    let mut window = Window {
-        x: 0,
-        y: 0,
-        full_width: 0,
-        full_height: 0,
-    };
-    // SAFETY: `input` is an open handle and `window` a valid local the shim fills.
-    unsafe { ffi::cuticle_oiio_input_window(input.0.as_ptr(), &mut window) };
     let (Ok(width), Ok(height), Ok(nchannels)) = (
         usize::try_from(width),
         usize::try_from(height),
@@ -365,56 +355,108 @@ pub fn read_header(path: &Path, names: &[&str]) -> Result<Header, OiioError> {
     ) else {
         return Err(OiioError::new("image reports a negative size"));
     };
-    let mut channels = Vec::with_capacity(nchannels);
-    for c in 0..nchannels {
-        let c = to_c_int(c, "channel index")?;
-        // SAFETY: `input` is open; the shim bounds-checks `c` (null when out of range).
-        let name = unsafe { ffi::cuticle_oiio_input_channel_name(input.0.as_ptr(), c) };
-        if name.is_null() {
-            return Err(OiioError::new(format!("channel {c} has no name")));
-        }
-        // SAFETY: a non-null name is NUL-terminated and lives until `input` is closed (after this copy).
-        channels.push(
-            unsafe { CStr::from_ptr(name) }
-                .to_string_lossy()
-                .into_owned(),
-        );
-    }
-    let mut attributes = Vec::with_capacity(names.len());
-    for name in names {
-        let c_name = CString::new(*name)
-            .map_err(|_| OiioError::new(format!("attribute name {name:?} contains a NUL byte")))?;
-        let mut buffer = vec![0u8; ATTRIBUTE_CAPACITY];
-        // SAFETY: `input` is open, `c_name` is NUL-terminated, `buffer` is writable for its length; all outlive
-        // the call.
-        let n = unsafe {
-            ffi::cuticle_oiio_input_attribute(
-                input.0.as_ptr(),
-                c_name.as_ptr(),
-                buffer.as_mut_ptr().cast(),
-                buffer.len(),
-            )
-        };
-        attributes.push(match n {
-            -1 => None,
-            n if n < 0 => {
-                return Err(OiioError::new(format!(
-                    "attribute {name:?} is longer than {ATTRIBUTE_CAPACITY} bytes"
-                )))
+    let channels = (0..nchannels)
+        .map(|c| {
+            let c = to_c_int(c, "channel index")?;
+            // SAFETY: `input` is open; the shim bounds-checks `c` (null when out of range).
+            let name = unsafe { ffi::cuticle_oiio_input_channel_name(input.0.as_ptr(), c) };
+            if name.is_null() {
+                return Err(OiioError::new(format!("channel {c} has no name")));
             }
-            n => {
-                buffer.truncate(n as usize);
-                Some(String::from_utf8_lossy(&buffer).into_owned())
-            }
-        });
-    }
-    Ok(Header {
+            // SAFETY: a non-null name is NUL-terminated and lives until `input` is closed (after
+            // this copy).
+            let name = unsafe { CStr::from_ptr(name) };
+            Ok(name.to_string_lossy().into_owned())
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok(OpenImage {
+        input,
         width,
         height,
         channels,
-        window,
-        attributes,
     })
+}
+
+impl OpenImage {
+    /// Where the data window sits in the full frame.
+    pub fn window(&self) -> Window {
+        let mut window = Window {
+            x: 0,
+            y: 0,
+            full_width: 0,
+            full_height: 0,
+        };
+        // SAFETY: `input` is an open handle and `window` a valid local the shim fills.
+        unsafe { ffi::cuticle_oiio_input_window(self.input.0.as_ptr(), &mut window) };
+        window
+    }
+
+    /// The value of each string attribute named in `names`, `None` when the file has none of that name.
+    pub fn attributes(&self, names: &[&str]) -> Result<Vec<Option<String>>, OiioError> {
+        let mut attributes = Vec::with_capacity(names.len());
+        for name in names {
+            let c_name = CString::new(*name).map_err(|_| {
+                OiioError::new(format!("attribute name {name:?} contains a NUL byte"))
+            })?;
+            let mut buffer = vec![0u8; ATTRIBUTE_CAPACITY];
+            // SAFETY: `input` is open, `c_name` is NUL-terminated, `buffer` is writable for its length; all
+            // outlive the call.
+            let n = unsafe {
+                ffi::cuticle_oiio_input_attribute(
+                    self.input.0.as_ptr(),
+                    c_name.as_ptr(),
+                    buffer.as_mut_ptr().cast(),
+                    buffer.len(),
+                )
+            };
+            attributes.push(match n {
+                -1 => None,
+                n if n < 0 => {
+                    return Err(OiioError::new(format!(
+                        "attribute {name:?} is longer than {ATTRIBUTE_CAPACITY} bytes"
+                    )))
+                }
+                n => {
+                    buffer.truncate(n as usize);
+                    Some(String::from_utf8_lossy(&buffer).into_owned())
+                }
+            });
+        }
+        Ok(attributes)
+    }
+
+    /// Decodes the pixels, converted to `f32`, and closes the file. 8-bit files come back as stored, divided by
+    /// 255 (no sRGB decoding); colour is premultiplied by alpha (OpenImageIO multiplies it in for formats that
+    /// store straight alpha, such as PNG).
+    pub fn read(self) -> Result<DecodedImage, OiioError> {
+        let len = self
+            .width
+            .checked_mul(self.height)
+            .and_then(|n| n.checked_mul(self.channels.len()))
+            .ok_or_else(|| OiioError::new("image size overflows"))?;
+        let mut data = vec![0.0f32; len];
+        let mut err = [0u8; ERROR_CAPACITY];
+        // SAFETY: `input` is open; `data` is writable for exactly `len` floats, the size the shim
+        // checks against width·height·nchannels; `err` is writable for its length.
+        let status = unsafe {
+            ffi::cuticle_oiio_read_float(
+                self.input.0.as_ptr(),
+                data.as_mut_ptr(),
+                data.len(),
+                err.as_mut_ptr().cast(),
+                err.len(),
+            )
+        };
+        if status != 0 {
+            return Err(OiioError::from_buffer(&err));
+        }
+        Ok(DecodedImage {
+            width: self.width,
+            height: self.height,
+            channels: self.channels,
+            data,
+        })
+    }
 }
 
 /// An image read by [`read_image`]: interleaved `f32` pixels, top row first.
@@ -441,70 +483,9 @@ impl Drop for Input {
 }
 
 /// Reads the first subimage of `path` (any format OpenImageIO reads: EXR including DWAA/DWAB,
-/// Radiance HDR, PNG, TIFF, ...), converted to `f32`. 8-bit files come back as stored, divided by
-/// 255 (no sRGB decoding); colour is premultiplied by alpha (OpenImageIO multiplies it in for
-/// formats that store straight alpha, such as PNG).
+/// Radiance HDR, PNG, TIFF, ...), converted to `f32` ([`OpenImage::read`]).
 pub fn read_image(path: &Path) -> Result<DecodedImage, OiioError> {
-    let c_path = path_cstring(path)?;
-    let mut err = [0u8; ERROR_CAPACITY];
-    // SAFETY: `c_path` is NUL-terminated and outlives the call; `err` is writable for its length.
-    let raw =
-        unsafe { ffi::cuticle_oiio_open(c_path.as_ptr(), err.as_mut_ptr().cast(), err.len()) };
-    let input = Input(NonNull::new(raw).ok_or_else(|| OiioError::from_buffer(&err))?);
-
-    let (mut width, mut height, mut nchannels): (c_int, c_int, c_int) = (0, 0, 0);
-    // SAFETY: `input` is an open handle and the three out-pointers are valid, distinct locals.
-    unsafe {
-        ffi::cuticle_oiio_input_size(input.0.as_ptr(), &mut width, &mut height, &mut nchannels)
-    };
-    let (Ok(width), Ok(height), Ok(nchannels)) = (
-        usize::try_from(width),
-        usize::try_from(height),
-        usize::try_from(nchannels),
-    ) else {
-        return Err(OiioError::new("image reports a negative size"));
-    };
-
-    let channels = (0..nchannels)
-        .map(|c| {
-            let c = to_c_int(c, "channel index")?;
-            // SAFETY: `input` is open; the shim bounds-checks `c` (null when out of range).
-            let name = unsafe { ffi::cuticle_oiio_input_channel_name(input.0.as_ptr(), c) };
-            if name.is_null() {
-                return Err(OiioError::new(format!("channel {c} has no name")));
-            }
-            // SAFETY: a non-null name is NUL-terminated and lives until `input` is closed (after
-            // this copy).
-            let name = unsafe { CStr::from_ptr(name) };
-            Ok(name.to_string_lossy().into_owned())
-        })
-        .collect::<Result<Vec<_>, _>>()?;
-
-    let len = width
-        .checked_mul(height)
-        .and_then(|n| n.checked_mul(nchannels))
-        .ok_or_else(|| OiioError::new("image size overflows"))?;
-    let mut data = vec![0.0f32; len];
-    // SAFETY: `input` is open; `data` is writable for exactly `len` floats, the size the shim
-    // checks against width·height·nchannels; `err` is writable for its length.
-    let status = unsafe {
-        ffi::cuticle_oiio_read_float(
-            input.0.as_ptr(),
-            data.as_mut_ptr(),
-            data.len(),
-            err.as_mut_ptr().cast(),
-            err.len(),
-        )
-    };
-    if status != 0 {
-        return Err(OiioError::from_buffer(&err));
-    }
-    Ok(DecodedImage {
-        width,
-        height,
-        channels,
-        data,
-    })
+    open_image(path)?.read()
 }
 
 #[cfg(test)]
@@ -575,11 +556,15 @@ mod tests {
             &attributes,
         )
         .unwrap();
-        let header = read_header(&path, &["cuticle:scene", "cuticle:missing"]).unwrap();
-        assert_eq!((header.width, header.height), (2, 1));
-        assert_eq!(header.window, window);
-        assert_eq!(header.attributes, [Some("abc".to_owned()), None]);
-        assert_eq!(read_image(&path).unwrap().data, [1.0, 2.0]);
+        let file = open_image(&path).unwrap();
+        assert_eq!((file.width, file.height), (2, 1));
+        assert_eq!(file.window(), window);
+        assert_eq!(
+            file.attributes(&["cuticle:scene", "cuticle:missing"])
+                .unwrap(),
+            [Some("abc".to_owned()), None]
+        );
+        assert_eq!(file.read().unwrap().data, [1.0, 2.0]);
     }
 
     #[test]
