@@ -229,17 +229,14 @@ impl HairModel {
 /// bytes are read, and its size is checked against the header as [`load`] would): what
 /// [`crate::render::budget`] estimates a frame's memory from before the file is read.
 pub fn declared_counts(path: &Path) -> Result<(u64, u64), HairError> {
-    use std::io::Read;
     let io = |source| HairError::Io {
         path: path.to_path_buf(),
         source,
     };
     let format = format_of(path)?;
-    let (file, file_len) = crate::util::input_file::open_regular(path).map_err(io)?;
-    let mut head = Vec::new();
-    file.take(tfx::HEADER_SIZE.max(yuksel::HEADER_SIZE) as u64)
-        .read_to_end(&mut head)
-        .map_err(io)?;
+    let (_, file_len, head) =
+        crate::util::input_file::open_with_head(path, tfx::HEADER_SIZE.max(yuksel::HEADER_SIZE))
+            .map_err(io)?;
     match format {
         Format::Yuksel => {
             let h = yuksel::Header::parse(path, &head)?;

@@ -230,26 +230,14 @@ impl Header {
 /// Reads a `.tfx` file and parses it with [`parse`]. Only a regular file is read, and only once its size agrees
 /// with its header: huge declared counts or trailing gigabytes are refused after reading 160 bytes.
 pub fn read(path: &Path) -> Result<HairModel, HairError> {
-    use std::io::Read;
+    use crate::util::input_file::{open_with_head, read_rest};
     let io = |source| HairError::Io {
         path: path.to_path_buf(),
         source,
     };
-    let (mut file, file_len) = crate::util::input_file::open_regular(path).map_err(io)?;
-    let mut bytes = Vec::with_capacity(HEADER_SIZE);
-    (&mut file)
-        .take(HEADER_SIZE as u64)
-        .read_to_end(&mut bytes)
-        .map_err(io)?;
-    let header = Header::parse(path, &bytes)?;
-    header.check_file_len(path, file_len)?;
-    let rest = crate::util::input_file::read_at_most(
-        file,
-        file_len - bytes.len() as u64,
-        file_len - bytes.len() as u64,
-    )
-    .map_err(io)?;
-    bytes.extend_from_slice(&rest);
+    let (file, file_len, head) = open_with_head(path, HEADER_SIZE).map_err(io)?;
+    Header::parse(path, &head)?.check_file_len(path, file_len)?;
+    let bytes = read_rest(file, head, file_len).map_err(io)?;
     parse(path, &bytes)
 }
 

@@ -222,24 +222,15 @@ impl Header {
 /// its header declares: a header claiming 2³² strands or a file with gigabytes of trailing data is refused after
 /// reading 128 bytes, before anything is allocated for it.
 pub fn read(path: &Path) -> Result<HairModel, HairError> {
-    use std::io::Read;
+    use crate::util::input_file::{open_with_head, read_rest};
     let io = |source| HairError::Io {
         path: path.to_path_buf(),
         source,
     };
-    let (mut file, file_len) = crate::util::input_file::open_regular(path).map_err(io)?;
-    let mut head = Vec::with_capacity(HEADER_SIZE);
-    (&mut file)
-        .take(HEADER_SIZE as u64)
-        .read_to_end(&mut head)
-        .map_err(io)?;
-    let header = Header::parse(path, &head)?;
-    header.check_file_len(path, file_len)?;
+    let (file, file_len, head) = open_with_head(path, HEADER_SIZE).map_err(io)?;
+    Header::parse(path, &head)?.check_file_len(path, file_len)?;
     // The size matches the header, so the file is exactly `file_len` bytes of declared arrays.
-    let mut bytes = head;
-    crate::util::input_file::read_at_most(file, file_len - HEADER_SIZE as u64, file_len)
-        .map(|rest| bytes.extend_from_slice(&rest))
-        .map_err(io)?;
+    let bytes = read_rest(file, head, file_len).map_err(io)?;
     parse(path, &bytes)
 }
 

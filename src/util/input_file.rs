@@ -23,6 +23,24 @@ pub fn open_regular(path: &Path) -> io::Result<(File, u64)> {
     Ok((file, meta.len()))
 }
 
+/// A header-first file: the regular file `path` opened ([`open_regular`]), its size, and its first `head_len`
+/// bytes (fewer when the file is shorter), so a reader can check the header's declared sizes against the file's
+/// before reading the rest ([`read_rest`]).
+pub fn open_with_head(path: &Path, head_len: usize) -> io::Result<(File, u64, Vec<u8>)> {
+    let (mut file, len) = open_regular(path)?;
+    let mut head = Vec::with_capacity(head_len);
+    (&mut file).take(head_len as u64).read_to_end(&mut head)?;
+    Ok((file, len, head))
+}
+
+/// `head` followed by the rest of `file`, whose whole size was `len` when opened ([`open_with_head`]): at most
+/// `len − head.len()` more bytes are read, so a file that grew since is an error, not an unbounded read.
+pub fn read_rest(file: File, mut head: Vec<u8>, len: u64) -> io::Result<Vec<u8>> {
+    let rest_len = len.saturating_sub(head.len() as u64);
+    head.extend_from_slice(&read_at_most(file, rest_len, rest_len)?);
+    Ok(head)
+}
+
 fn check_kind(meta: &std::fs::Metadata) -> io::Result<()> {
     let t = meta.file_type();
     if t.is_file() {
