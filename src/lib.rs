@@ -24,6 +24,7 @@ pub mod image;
 pub mod light;
 pub mod measure;
 pub mod plot;
+pub mod quality;
 pub mod ray;
 pub mod render;
 pub mod scene;

@@ -109,6 +109,14 @@ struct RenderArgs {
     /// `name.####.exr` each.
     #[arg(long, value_name = "A..B", value_parser = cuticle::farm::parse_frames)]
     frames: Option<std::ops::RangeInclusive<i32>>,
+    /// fixed (the scene's settings) or auto: choose curves, shadows, path length and spp for --target and print
+    /// why (overrides quality.mode; options given here stay fixed).
+    #[arg(long)]
+    quality: Option<cuticle::quality::QualityMode>,
+    /// Error target of --quality auto: relative RMSE of the beauty against a converged image (overrides
+    /// quality.target).
+    #[arg(long)]
+    target: Option<f32>,
 }
 
 /// `cuticle merge`: tiles into one frame.
@@ -334,6 +342,8 @@ fn render_command(args: RenderArgs) -> Result<()> {
         material_samples: args.material_samples,
         path_length: args.path_length,
         lights: args.lights,
+        quality: args.quality,
+        target: args.target,
     };
     let scene = load_scene(args.scene.as_deref())?.apply(&overrides)?;
     let description = format!("{scene:?}");
@@ -372,8 +382,51 @@ fn render_command(args: RenderArgs) -> Result<()> {
         Some(bytes) => (bytes, "--max-memory".to_owned()),
         None => render::budget::default_limit(),
     };
-    let frame = pool.install(|| Frame::load_within(spec, limit, &limit_source))?;
-    let settings = &frame.settings;
+    let auto =
+        (scene.quality.mode == cuticle::quality::QualityMode::Auto).then_some(&scene.quality);
+    let mut decisions = Vec::new();
+    let frame = pool.install(|| {
+        Frame::load_adjusted(spec, limit, &limit_source, |strands, spec| {
+            if auto.is_some() && args.curves.is_none() {
+                let s = &spec.settings;
+                let (kind, d) = cuticle::quality::plan_curves(
+                    strands,
+                    &spec.material,
+                    &s.camera,
+                    s.film.resolution,
+                );
+                spec.curves = kind;
+                decisions.push(d);
+            }
+        })
+    })?;
+    let planned = auto.map(|q| {
+        let fixed = cuticle::quality::Fixed {
+            curves: args.curves.is_some(),
+            shadows: args.shadows.is_some(),
+            path_length: args.path_length.is_some(),
+            spp: args.spp.is_some(),
+        };
+        pool.install(|| cuticle::quality::plan_frame(&frame, &frame.settings, q, fixed))
+    });
+    if let (Some(p), Some(q)) = (&planned, auto) {
+        for d in decisions.iter().chain(&p.decisions) {
+            eprintln!("auto: {d}");
+        }
+        eprintln!(
+            "auto: pilots took {:.2} s; predicted render {:.1} s at {} spp, noise {:.4} (target {})",
+            p.pilot.pilot_seconds,
+            p.pilot.predicted_seconds,
+            p.pilot.spp,
+            p.pilot.predicted_noise,
+            q.target
+        );
+    }
+    let (settings, planned_maps) = match planned {
+        Some(p) => (p.settings, p.maps.map(|m| (m, p.maps_seconds))),
+        None => (frame.settings.clone(), None),
+    };
+    let settings = &settings;
     let [width, height] = settings.film.resolution;
     settings
         .camera
@@ -394,9 +447,14 @@ fn render_command(args: RenderArgs) -> Result<()> {
     // Deep opacity maps are built once: for the render (in deep-opacity mode) and for --dump-shadow-maps alike.
     let deep_opacity = settings.shadows.mode == ShadowMode::DeepOpacity;
     let start = Instant::now();
-    let maps = (deep_opacity || args.dump_shadow_maps.is_some())
-        .then(|| pool.install(|| frame.shadow_maps(settings)));
-    let maps_seconds = start.elapsed().as_secs_f64();
+    let (maps, maps_seconds) = match planned_maps {
+        Some((m, s)) => (Some(m), s),
+        None => {
+            let maps = (deep_opacity || args.dump_shadow_maps.is_some())
+                .then(|| pool.install(|| frame.shadow_maps(settings)));
+            (maps, start.elapsed().as_secs_f64())
+        }
+    };
     let options = render::Options {
         progress: !args.quiet,
     };

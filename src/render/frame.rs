@@ -93,11 +93,23 @@ impl Frame {
         limit: u64,
         limit_source: &str,
     ) -> Result<Frame, FrameError> {
+        Frame::load_adjusted(spec, limit, limit_source, |_, _| {})
+    }
+
+    /// [`Frame::load_within`], with `adjust` changing the spec once the strands are loaded and before anything is
+    /// built from them (`--quality auto` chooses the curve kind from the strands' width on screen there).
+    pub fn load_adjusted(
+        mut spec: FrameSpec,
+        limit: u64,
+        limit_source: &str,
+        adjust: impl FnOnce(&Strands, &mut FrameSpec),
+    ) -> Result<Frame, FrameError> {
         super::budget::estimate_frame(&spec, rayon::current_num_threads())?
             .check(limit, limit_source)?;
         let start = Instant::now();
         let strands = spec.hair.load()?;
         let load_seconds = start.elapsed().as_secs_f64();
+        adjust(&strands, &mut spec);
         let mut frame = Frame::build(strands, spec)?;
         frame.load_seconds = load_seconds;
         Ok(frame)

@@ -27,6 +27,7 @@ use serde::Deserialize;
 use crate::accel::{Backend, CurveKind};
 use crate::hair::procedural::Procedural;
 use crate::hair::{HairSource, HairSpec};
+use crate::quality::{QualityConfig, QualityMode};
 use crate::render::{FrameSpec, RenderSettings};
 
 pub use crate::render::camera::CameraConfig;
@@ -99,6 +100,9 @@ pub struct Scene {
     /// Non-hair geometry, `[[shape]]` tables (a ground plane, a Cornell box).
     #[serde(default, rename = "shape")]
     pub shapes: Vec<ShapeConfig>,
+    /// Fixed settings, or `mode = "auto"` for an error target ([`crate::quality`]).
+    #[serde(default)]
+    pub quality: QualityConfig,
     /// Directory of the scene file: relative paths in the scene resolve against it.
     #[serde(skip)]
     pub base_dir: PathBuf,
@@ -221,6 +225,7 @@ impl Scene {
         self.material.build()?;
         self.integrator.validate()?;
         self.shadows.deep_opacity.validate()?;
+        self.quality.validate()?;
         lights::validate(self)?;
         Ok(())
     }
@@ -311,6 +316,12 @@ impl Scene {
         if let Some(l) = o.lights {
             self.integrator.lights = l;
         }
+        if let Some(m) = o.quality {
+            self.quality.mode = m;
+        }
+        if let Some(t) = o.target {
+            self.quality.target = t;
+        }
         self.revalidate()
     }
 }
@@ -340,4 +351,8 @@ pub struct Overrides {
     pub path_length: Option<u32>,
     /// `integrator.lights`.
     pub lights: Option<LightSelection>,
+    /// `quality.mode`.
+    pub quality: Option<QualityMode>,
+    /// `quality.target`.
+    pub target: Option<f32>,
 }

@@ -1,0 +1,440 @@
+//! `--quality auto` (issue 18): the renderer chooses its own methods for an error target, and says why.
+//!
+//! The studies (`cuticle study`, `docs/shadow-study.md`, README "Measured") measured which method wins where; this
+//! module turns those measurements into decisions, each printed with its reason and its predicted cost or error.
+//!
+//! # The error target
+//!
+//! `[quality] target` is a **relative RMSE** of the beauty image: √relMSE with relMSE = mean over pixels and RGB
+//! of (x − ref)² / (ref² + 0.01), the measure `cuticle study` reports against a converged reference (the 0.01
+//! keeps black pixels from dominating). Half of it is given to bias (bounces left out), half to noise.
+//!
+//! # What is decided, in order
+//!
+//! 1. **Curves** ([`decide_curves`], before the tracer is built): from the strands' width on screen (the camera's
+//!    focal length in pixels times the strand diameter over its depth, over a subset of segments inside the view)
+//!    and whether the fibre model reads the offset h across the fibre ([`crate::bsdf::Material::uses_offset`]).
+//! 2. **Shadows** ([`decide_shadows`]): deep opacity maps where every light that matters is distant and small,
+//!    ray-traced shadows otherwise; the map resolution from the hair's size on screen.
+//! 3. **Path length** and **samples per pixel** ([`pilot`]): measured by pilot renders of a few windows of the
+//!    frame at full resolution (so a pixel integrates what it will in the frame): bounces are added while the
+//!    last one still brought more than a quarter of the target in mean light; samples per pixel from the
+//!    per-pixel variance of two independent pilot estimates.
+//!
+//! What a user fixes on the command line (`--curves`, `--shadows`, `--path-length`, `--spp`) is kept: auto decides
+//! only the rest.
+//!
+//! Not decided yet (they keep the scene's values): light-sample against material-sample counts, per-pixel adaptive
+//! sampling, stochastic simplification.
+
+pub mod pilot;
+
+use serde::Deserialize;
+
+use crate::accel::CurveKind;
+use crate::bsdf::Material;
+use crate::hair::Strands;
+use crate::light::Light;
+use crate::render::camera::CameraConfig;
+use crate::render::settings::ShadowMode;
+
+/// `[quality]`: fixed settings (the scene's, the default) or `mode = "auto"` for an error target.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct QualityConfig {
+    /// `fixed` (render what the scene says) or `auto` (choose for `target`).
+    pub mode: QualityMode,
+    /// Relative RMSE of the beauty against a converged image (see the module docs).
+    pub target: f32,
+    /// Fewest camera samples per pixel auto may choose.
+    pub min_spp: u32,
+    /// Most camera samples per pixel auto may choose.
+    pub max_spp: u32,
+}
+
+impl Default for QualityConfig {
+    fn default() -> Self {
+        QualityConfig {
+            mode: QualityMode::Fixed,
+            target: 0.05,
+            min_spp: 4,
+            max_spp: 1024,
+        }
+    }
+}
+
+impl QualityConfig {
+    /// Range checks; messages name the `quality.*` key.
+    pub fn validate(&self) -> Result<(), String> {
+        if !(self.target.is_finite() && self.target > 0.0 && self.target <= 1.0) {
+            return Err(format!(
+                "quality.target must be in (0, 1] (a relative RMSE), got {}",
+                self.target
+            ));
+        }
+        if self.min_spp == 0 || self.min_spp > self.max_spp || self.max_spp > 65536 {
+            return Err(format!(
+                "quality.min_spp and quality.max_spp must satisfy 1 <= min_spp <= max_spp <= 65536, got {} and {}",
+                self.min_spp, self.max_spp
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Whether the renderer chooses its methods.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum QualityMode {
+    /// Render the scene's settings as written.
+    #[default]
+    Fixed,
+    /// Choose curves, shadows, path length and samples per pixel for `quality.target`.
+    Auto,
+}
+
+impl std::str::FromStr for QualityMode {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "fixed" => Ok(QualityMode::Fixed),
+            "auto" => Ok(QualityMode::Auto),
+            _ => Err(format!("quality mode must be fixed or auto, got {s:?}")),
+        }
+    }
+}
+
+/// One choice auto made: the scene key, the value and why.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Decision {
+    /// The scene key decided, e.g. `hair.curves`.
+    pub key: &'static str,
+    /// The value chosen, as the scene would spell it.
+    pub value: String,
+    /// Why, with the numbers it rests on and the predicted cost or error.
+    pub reason: String,
+}
+
+impl std::fmt::Display for Decision {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} = {}: {}", self.key, self.value, self.reason)
+    }
+}
+
+/// How wide the strands are on screen, in pixels (diameter), over the segments whose midpoint is in view.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ScreenWidths {
+    /// Median width.
+    pub median: f32,
+    /// 90th percentile.
+    pub p90: f32,
+    /// Segments measured (in view, of those sampled).
+    pub measured: usize,
+}
+
+/// Segments measured for [`screen_widths`] at most (evenly strided): enough for stable percentiles, microseconds.
+const WIDTH_SAMPLES: usize = 1 << 16;
+
+/// The strands' on-screen widths as the camera of `camera` sees them in a `width`×`height` film. `None` when no
+/// segment's midpoint is in view.
+pub fn screen_widths(
+    strands: &Strands,
+    camera: &CameraConfig,
+    width: u32,
+    height: u32,
+) -> Option<ScreenWidths> {
+    let cam = crate::render::camera::Camera::from_config(camera, strands.bounds(), width, height);
+    let tan_half = (0.5 * camera.fov.to_radians()).tan();
+    // Focal length in pixels: a length l at depth d spans l · focal / d pixels.
+    let focal = 0.5 * height as f32 / tan_half;
+    let half_w = tan_half * width as f32 / height as f32;
+    let n = strands.segment_count();
+    let stride = n.div_ceil(WIDTH_SAMPLES).max(1);
+    let mut widths: Vec<f32> = (0..n)
+        .step_by(stride)
+        .filter_map(|s| {
+            let p = strands.eval(s as u32, 0.5);
+            let d = p.position - cam.position;
+            let depth = d.dot(cam.forward);
+            if depth <= 0.0 {
+                return None;
+            }
+            // In view: the point's direction inside the frustum (its lateral offsets within tan(fov/2)·depth).
+            let lateral = d - depth * cam.forward;
+            let limit = depth * half_w.max(tan_half);
+            (lateral.length() <= limit * std::f32::consts::SQRT_2)
+                .then_some(2.0 * p.radius * focal / depth)
+        })
+        .filter(|w| w.is_finite())
+        .collect();
+    if widths.is_empty() {
+        return None;
+    }
+    widths.sort_by(f32::total_cmp);
+    let at = |q: f32| widths[((widths.len() - 1) as f32 * q).round() as usize];
+    Some(ScreenWidths {
+        median: at(0.5),
+        p90: at(0.9),
+        measured: widths.len(),
+    })
+}
+
+/// Strands thinner than this many pixels (90th percentile) are drawn as ribbons even by a model that reads the
+/// offset h: a pixel then averages the whole of h on either geometry (a ribbon's v and a tube's projected h are
+/// both uniform across the fibre's width), so only the sub-pixel shape of the hit differs.
+pub const RIBBON_MAX_PIXELS: f32 = 1.0;
+
+/// Ribbons against tubes, from the strands' screen width and the fibre model.
+pub fn decide_curves(material: &Material, widths: Option<ScreenWidths>) -> Decision {
+    let key = "hair.curves";
+    let speed = "ribbons trace 1.5-1.9x faster than tubes (README, Measured: furball-512 11.1 s flat, 19.1 s round)";
+    let model = material.name;
+    let w = match widths {
+        Some(w) => w,
+        None => {
+            return Decision {
+                key,
+                value: "flat".into(),
+                reason: format!("no strand is in view; {speed}"),
+            }
+        }
+    };
+    let width = format!(
+        "strands {:.2} px wide (median; 90 % under {:.2} px, {} segments measured)",
+        w.median, w.p90, w.measured
+    );
+    if !material.uses_offset() {
+        Decision {
+            key,
+            value: "flat".into(),
+            reason: format!(
+                "{model} does not read the offset across the fibre, so ribbons shade as tubes do \
+                 (image means within 0.3 % at 256², README); {width}; {speed}"
+            ),
+        }
+    } else if w.p90 < RIBBON_MAX_PIXELS {
+        Decision {
+            key,
+            value: "flat".into(),
+            reason: format!(
+                "{model} reads the offset h across the fibre, but {width}: under {RIBBON_MAX_PIXELS} px a pixel \
+                 averages all of h on either geometry; {speed}"
+            ),
+        }
+    } else {
+        Decision {
+            key,
+            value: "round".into(),
+            reason: format!(
+                "{model} reads the offset h across the fibre and {width}: the tube's h (TT/TRT shift) shows"
+            ),
+        }
+    }
+}
+
+/// The deep-opacity settings auto chooses with [`decide_shadows`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MapChoice {
+    /// Texels along a side.
+    pub resolution: u32,
+    /// Opacity layers.
+    pub layers: u32,
+}
+
+/// Share of the lights' power (as [`Light::power`] estimates it over the scene's bounding sphere) that lights
+/// poorly served by deep opacity maps (environments, area lights) may carry for auto still to choose maps: the
+/// maps lose 4.4 % of an environment's shadow (README, Self-shadowing), so a light carrying a fifth of the target
+/// at most costs under a twentieth of it.
+fn map_tolerance(target: f32) -> f32 {
+    0.2 * target
+}
+
+/// Deep opacity maps or ray-traced shadows, from the lights. `hair_pixels` is the hair's bounding-sphere
+/// diameter on screen (the map's texels are made about as fine as the pixels there, no finer than needed and
+/// not so coarse that strands alias: `docs/shadow-study.md`).
+pub fn decide_shadows(
+    lights: &[Light],
+    scene_radius: f32,
+    target: f32,
+    hair_pixels: f32,
+) -> (Decision, Option<MapChoice>) {
+    let key = "shadows.mode";
+    let mut distant = 0.0f64;
+    let mut other = 0.0f64;
+    for l in lights {
+        let p = f64::from(l.power(scene_radius));
+        match l {
+            Light::Distant(_) => distant += p,
+            Light::Environment(_) | Light::Area(_) => other += p,
+        }
+    }
+    let total = distant + other;
+    if total <= 0.0 {
+        return (
+            Decision {
+                key,
+                value: "none".into(),
+                reason: "no light carries power: nothing casts a shadow".into(),
+            },
+            None,
+        );
+    }
+    let other_share = (other / total) as f32;
+    if distant > 0.0 && other_share <= map_tolerance(target) {
+        let resolution = (hair_pixels.max(1.0) as u32)
+            .next_power_of_two()
+            .clamp(256, 2048);
+        let layers = 16;
+        let reason = format!(
+            "distant lights carry {:.1} % of the light (environment and area lights {:.1} %, within a fifth of the \
+             target {target}); deep opacity maps matched 16-spp ray-traced shadows under a sun at a quarter of \
+             their cost (RMSE 0.0069 against 0.0077, 0.33 s against 2.35 s: README); {resolution}² texels \
+             (the hair spans {hair_pixels:.0} px on screen), {layers} layers",
+            100.0 * (1.0 - other_share),
+            100.0 * other_share
+        );
+        (
+            Decision {
+                key,
+                value: "deep-opacity".into(),
+                reason,
+            },
+            Some(MapChoice { resolution, layers }),
+        )
+    } else {
+        let reason = format!(
+            "environment and area lights carry {:.1} % of the light, more than a fifth of the target {target}: \
+             deep opacity maps miss 4.4 % of an environment's shadow (README) and need a map per direction",
+            100.0 * other_share
+        );
+        (
+            Decision {
+                key,
+                value: "raytraced".into(),
+                reason,
+            },
+            None,
+        )
+    }
+}
+
+/// The hair's bounding-sphere diameter on screen, pixels (the scale [`decide_shadows`] sizes its maps by).
+pub fn hair_screen_diameter(
+    strands: &Strands,
+    camera: &CameraConfig,
+    width: u32,
+    height: u32,
+) -> f32 {
+    let (lo, hi) = strands.bounds();
+    let cam = crate::render::camera::Camera::from_config(camera, (lo, hi), width, height);
+    let centre = 0.5 * (lo + hi);
+    let radius = 0.5 * (hi - lo).length();
+    let depth = (centre - cam.position)
+        .dot(cam.forward)
+        .max(radius.max(1e-6));
+    let focal = 0.5 * height as f32 / (0.5 * camera.fov.to_radians()).tan();
+    (2.0 * radius * focal / depth).min(1e6)
+}
+
+/// Which of the auto-decided keys the user fixed on the command line (those are kept).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Fixed {
+    /// `--curves`.
+    pub curves: bool,
+    /// `--shadows`.
+    pub shadows: bool,
+    /// `--path-length`.
+    pub path_length: bool,
+    /// `--spp`.
+    pub spp: bool,
+}
+
+/// The curve kind auto builds the tracer with, and the decision that says why (for the caller to print).
+pub fn plan_curves(
+    strands: &Strands,
+    material: &Material,
+    camera: &CameraConfig,
+    resolution: [u32; 2],
+) -> (CurveKind, Decision) {
+    let widths = screen_widths(strands, camera, resolution[0], resolution[1]);
+    let d = decide_curves(material, widths);
+    let kind = if d.value == "round" {
+        CurveKind::Round
+    } else {
+        CurveKind::Flat
+    };
+    (kind, d)
+}
+
+/// Decides `shadows.mode` (and the maps' resolution and layers) of `settings` for `frame`, unless fixed.
+pub fn plan_shadows(
+    frame: &crate::render::Frame,
+    settings: &mut crate::render::RenderSettings,
+    quality: &QualityConfig,
+) -> Decision {
+    let [width, height] = settings.film.resolution;
+    let hair_pixels = hair_screen_diameter(&frame.strands, &settings.camera, width, height);
+    let (decision, maps) =
+        decide_shadows(&frame.lights, frame.radius(), quality.target, hair_pixels);
+    settings.shadows.mode = match decision.value.as_str() {
+        "deep-opacity" => ShadowMode::DeepOpacity,
+        "none" => ShadowMode::None,
+        _ => ShadowMode::Raytraced,
+    };
+    if let Some(m) = maps {
+        settings.shadows.deep_opacity.resolution = m.resolution;
+        settings.shadows.deep_opacity.layers = m.layers;
+    }
+    decision
+}
+
+/// A frame's settings as auto chose them, with the maps they need and what was decided.
+pub struct Planned {
+    /// The settings to render with.
+    pub settings: crate::render::RenderSettings,
+    /// Deep opacity maps for `settings` (built once, used by the pilots and the frame), if it uses them.
+    pub maps: Option<crate::shadow::ShadowMaps>,
+    /// Wall time of building `maps`, seconds.
+    pub maps_seconds: f64,
+    /// Every decision, in the order made.
+    pub decisions: Vec<Decision>,
+    /// The pilots' measurements and predictions.
+    pub pilot: pilot::PilotPlan,
+}
+
+/// Everything auto decides once the frame is built (the curve kind was decided before, [`plan_curves`]): shadows,
+/// then path length and samples per pixel by pilots. Keys in `fixed` keep `settings`' values.
+pub fn plan_frame(
+    frame: &crate::render::Frame,
+    settings: &crate::render::RenderSettings,
+    quality: &QualityConfig,
+    fixed: Fixed,
+) -> Planned {
+    let mut settings = settings.clone();
+    let mut decisions = Vec::new();
+    if !fixed.shadows {
+        decisions.push(plan_shadows(frame, &mut settings, quality));
+    }
+    let start = std::time::Instant::now();
+    let maps =
+        (settings.shadows.mode == ShadowMode::DeepOpacity).then(|| frame.shadow_maps(&settings));
+    let maps_seconds = start.elapsed().as_secs_f64();
+    let p = pilot::plan(
+        frame,
+        &settings,
+        maps.as_ref(),
+        quality,
+        fixed.path_length,
+        fixed.spp,
+    );
+    settings.integrator.path_length = p.path_length;
+    settings.film.spp = p.spp;
+    decisions.extend(p.decisions.iter().cloned());
+    Planned {
+        settings,
+        maps,
+        maps_seconds,
+        decisions,
+        pilot: p,
+    }
+}

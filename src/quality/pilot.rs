@@ -1,0 +1,284 @@
+//! Pilot renders: a few windows of the frame at full resolution, rendered cheaply before the frame to measure what
+//! auto cannot know from the scene file — how much light each bounce adds and how noisy a sample is.
+//!
+//! The windows are a regular grid of [`WINDOW`]² squares over the film (background included, as the error target
+//! counts every pixel). Each is rendered with [`Frame::render_region`], whose pixels equal the full frame's, so a
+//! pilot pixel integrates exactly what the frame's pixel will. Pilots are deterministic (fixed seeds, independent of
+//! the frame's seed and of the thread count), so the decisions are too.
+
+use rayon::prelude::*;
+
+use crate::image::Image;
+use crate::render::integrator::MAX_PATH_LENGTH;
+use crate::render::settings::RenderSettings;
+use crate::render::{Frame, Options, Region};
+use crate::shadow::ShadowMaps;
+
+use super::{Decision, QualityConfig};
+
+/// Side of a pilot window, pixels.
+pub const WINDOW: u32 = 16;
+/// Windows along each axis of the film (fewer on a film too small for them).
+pub const GRID: u32 = 6;
+/// Camera samples per pixel of one pilot estimate.
+pub const PILOT_SPP: u32 = 4;
+/// Seeds of the two independent pilot estimates (far from the small seeds scenes use).
+const SEEDS: [u32; 2] = [0x5eed_0001, 0x5eed_0002];
+
+/// The pilot windows of a `width`×`height` film: up to [`GRID`]² squares of [`WINDOW`]² pixels, evenly spaced.
+pub fn windows(width: u32, height: u32) -> Vec<Region> {
+    let w = WINDOW.min(width);
+    let h = WINDOW.min(height);
+    let nx = GRID.min(width / w).max(1);
+    let ny = GRID.min(height / h).max(1);
+    let mut out = Vec::with_capacity((nx * ny) as usize);
+    for j in 0..ny {
+        for i in 0..nx {
+            // Window centres at (i + 0.5) / nx of the film.
+            let x0 = ((2 * i + 1) * width / (2 * nx))
+                .saturating_sub(w / 2)
+                .min(width - w);
+            let y0 = ((2 * j + 1) * height / (2 * ny))
+                .saturating_sub(h / 2)
+                .min(height - h);
+            out.push(Region {
+                x0,
+                y0,
+                x1: x0 + w,
+                y1: y0 + h,
+            });
+        }
+    }
+    out
+}
+
+/// One pilot estimate: the beauty (RGB) of every window pixel, in window order, and the render's wall time.
+struct Pilot {
+    rgb: Vec<[f32; 3]>,
+    seconds: f64,
+    samples: u64,
+}
+
+fn render_windows(
+    frame: &Frame,
+    settings: &RenderSettings,
+    maps: Option<&ShadowMaps>,
+    windows: &[Region],
+) -> Pilot {
+    let start = std::time::Instant::now();
+    let images: Vec<Image> = windows
+        .par_iter()
+        .map(|&r| {
+            frame
+                .render_region(settings, maps, 0.0, Options { progress: false }, r, None)
+                .image
+        })
+        .collect();
+    let seconds = start.elapsed().as_secs_f64();
+    let mut rgb = Vec::new();
+    let mut samples = 0u64;
+    for image in &images {
+        samples += (image.width * image.height) as u64 * u64::from(settings.film.spp);
+        for y in 0..image.height {
+            for x in 0..image.width {
+                let p = image.pixel(x, y);
+                rgb.push([p[0], p[1], p[2]]);
+            }
+        }
+    }
+    Pilot {
+        rgb,
+        seconds,
+        samples,
+    }
+}
+
+/// The relative RMSE a bounce adds: `before` and `after` are the pilot pixels of both seeds without and with it
+/// (see [`plan`]). The estimate of its square is the mean of the per-pixel products plus two standard errors of
+/// that mean: a bounce is left out only when its bias is small with confidence, not merely lost in noise.
+fn bounce_bias(before: &[Vec<[f32; 3]>; 2], after: &[Vec<[f32; 3]>; 2]) -> f64 {
+    let (mut sum, mut sum2) = (0.0f64, 0.0f64);
+    let mut n = 0usize;
+    for i in 0..before[0].len() {
+        for c in 0..3 {
+            let v = |img: &[Vec<[f32; 3]>; 2], s: usize| f64::from(img[s][i][c]);
+            let (da, db) = (v(after, 0) - v(before, 0), v(after, 1) - v(before, 1));
+            if !(da.is_finite() && db.is_finite()) {
+                continue;
+            }
+            let m = 0.5 * (v(after, 0) + v(after, 1));
+            let t = da * db / (m * m + 0.01);
+            sum += t;
+            sum2 += t * t;
+            n += 1;
+        }
+    }
+    let n = n.max(1) as f64;
+    let mean = sum / n;
+    let standard_error = ((sum2 / n - mean * mean).max(0.0) / n).sqrt();
+    (mean + 2.0 * standard_error).max(0.0).sqrt()
+}
+
+/// What the pilots measured and decided.
+#[derive(Debug, Clone)]
+pub struct PilotPlan {
+    /// Indirect bounces chosen (or the fixed one).
+    pub path_length: u32,
+    /// Camera samples per pixel chosen (or the fixed one).
+    pub spp: u32,
+    /// The decisions, for printing (none for what was fixed).
+    pub decisions: Vec<Decision>,
+    /// Predicted seconds of the frame's pixel loop at `spp`, from the pilots' time per sample.
+    pub predicted_seconds: f64,
+    /// Predicted relative RMSE (noise only) at `spp`.
+    pub predicted_noise: f64,
+    /// Wall time the pilots took, seconds.
+    pub pilot_seconds: f64,
+}
+
+/// Chooses the path length (unless `fixed_path_length`) and then the samples per pixel (unless `fixed_spp`) for
+/// `quality.target`, by pilot renders of `frame` under `settings` (its shadows already decided; `maps` built for
+/// them when they are deep-opacity).
+pub fn plan(
+    frame: &Frame,
+    settings: &RenderSettings,
+    maps: Option<&ShadowMaps>,
+    quality: &QualityConfig,
+    fixed_path_length: bool,
+    fixed_spp: bool,
+) -> PilotPlan {
+    let start = std::time::Instant::now();
+    let [width, height] = settings.film.resolution;
+    let windows = windows(width, height);
+    let target = f64::from(quality.target);
+    let mut pilot = settings.clone();
+    pilot.film.spp = PILOT_SPP;
+    pilot.film.seed = SEEDS[0];
+    let mut decisions = Vec::new();
+
+    // Bounces: each pilot path length k is rendered with both seeds. A pixel's k-th bounce is d = x_k − x_{k−1}
+    // (same seed: the paths agree up to vertex k), and the product of the two seeds' independent d is an unbiased
+    // estimate of its squared mean, so Σ d_a d_b / (m² + 0.01) estimates the relMSE the bounce adds as bias when
+    // left out. Bounces are added until the next one's bias is under a quarter of the target (half the target is
+    // the bias budget; the other half leaves room for the bounces after it).
+    let path_length = if fixed_path_length {
+        settings.integrator.path_length
+    } else {
+        let mut biases = Vec::new();
+        let render_both = |pilot: &mut RenderSettings| -> [Vec<[f32; 3]>; 2] {
+            pilot.film.seed = SEEDS[0];
+            let a = render_windows(frame, pilot, maps, &windows).rgb;
+            pilot.film.seed = SEEDS[1];
+            let b = render_windows(frame, pilot, maps, &windows).rgb;
+            [a, b]
+        };
+        pilot.integrator.path_length = 0;
+        let mut previous = render_both(&mut pilot);
+        let mut chosen = MAX_PATH_LENGTH;
+        for k in 1..=MAX_PATH_LENGTH {
+            pilot.integrator.path_length = k;
+            let next = render_both(&mut pilot);
+            let bias = bounce_bias(&previous, &next);
+            biases.push(bias);
+            previous = next;
+            if bias < 0.25 * target {
+                chosen = k - 1;
+                break;
+            }
+        }
+        let listed: Vec<String> = biases
+            .iter()
+            .enumerate()
+            .map(|(i, b)| format!("bounce {} {:.4}", i + 1, b))
+            .collect();
+        decisions.push(Decision {
+            key: "integrator.path_length",
+            value: chosen.to_string(),
+            reason: format!(
+                "the relative RMSE each bounce would leave out as bias, measured by the pilots ({}): the next \
+                 one is under a quarter of the target {}",
+                listed.join(", "),
+                quality.target
+            ),
+        });
+        chosen
+    };
+    pilot.integrator.path_length = path_length;
+    pilot.film.seed = SEEDS[0];
+
+    // Noise: two independent pilot estimates give each pixel's variance at PILOT_SPP; relMSE falls as 1/spp.
+    let a = render_windows(frame, &pilot, maps, &windows);
+    pilot.film.seed = SEEDS[1];
+    let b = render_windows(frame, &pilot, maps, &windows);
+    let mut rel = 0.0f64;
+    for (x, y) in a.rgb.iter().zip(&b.rgb) {
+        for c in 0..3 {
+            let (x, y) = (f64::from(x[c]), f64::from(y[c]));
+            if !(x.is_finite() && y.is_finite()) {
+                continue;
+            }
+            let m = 0.5 * (x + y);
+            // E[(x - y)²] / 2 is the variance of one PILOT_SPP estimate.
+            rel += 0.5 * (x - y) * (x - y) / (m * m + 0.01);
+        }
+    }
+    let rel_mse_pilot = rel / (3 * a.rgb.len().max(1)) as f64;
+    // Noise budget: target² less the bias budget (target/2)².
+    let noise_budget = 0.75 * target * target;
+    let spp = if fixed_spp {
+        settings.film.spp
+    } else {
+        let wanted = (f64::from(PILOT_SPP) * rel_mse_pilot / noise_budget).ceil();
+        let spp = (wanted as u32).clamp(quality.min_spp, quality.max_spp);
+        let limit = if wanted as u32 > quality.max_spp {
+            format!(" (capped by quality.max_spp = {})", quality.max_spp)
+        } else if (wanted as u32) < quality.min_spp {
+            format!(" (raised to quality.min_spp = {})", quality.min_spp)
+        } else {
+            String::new()
+        };
+        decisions.push(Decision {
+            key: "film.spp",
+            value: spp.to_string(),
+            reason: format!(
+                "the pilot's relative MSE at {PILOT_SPP} spp is {rel_mse_pilot:.3e} (two independent estimates); \
+                 noise within √0.75 of the target {} needs {wanted} spp{limit}",
+                quality.target
+            ),
+        });
+        spp
+    };
+    let seconds_per_sample = (a.seconds + b.seconds) / (a.samples + b.samples).max(1) as f64;
+    let predicted_seconds =
+        seconds_per_sample * f64::from(width) * f64::from(height) * f64::from(spp);
+    PilotPlan {
+        path_length,
+        spp,
+        decisions,
+        predicted_seconds,
+        predicted_noise: (rel_mse_pilot * f64::from(PILOT_SPP) / f64::from(spp)).sqrt(),
+        pilot_seconds: start.elapsed().as_secs_f64(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn windows_lie_inside_the_film_and_do_not_overlap() {
+        for (w, h) in [(640, 480), (512, 512), (20, 10), (1, 1), (97, 33)] {
+            let ws = windows(w, h);
+            assert!(!ws.is_empty());
+            for (i, r) in ws.iter().enumerate() {
+                assert!(r.check_inside(w, h).is_ok(), "{r:?} in {w}x{h}");
+                assert!(r.width() > 0 && r.height() > 0);
+                for s in &ws[i + 1..] {
+                    let overlap = r.x0 < s.x1 && s.x0 < r.x1 && r.y0 < s.y1 && s.y0 < r.y1;
+                    assert!(!overlap, "{r:?} overlaps {s:?} in {w}x{h}");
+                }
+            }
+        }
+        assert_eq!(windows(640, 480).len(), (GRID * GRID) as usize);
+    }
+}

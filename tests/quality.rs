@@ -1,0 +1,217 @@
+//! `--quality auto` (issue 18): the decisions auto must make on scenes built to require them, and an auto render
+//! that meets its error target against a converged reference.
+
+use std::path::Path;
+use std::process::Command;
+
+use cuticle::accel::CurveKind;
+use cuticle::measure::metrics;
+use cuticle::quality::{self, Fixed, QualityConfig};
+use cuticle::render::{thread_pool, Frame, Options};
+use cuticle::scene::{Scene, ShadowMode};
+
+const EXE: &str = env!("CARGO_BIN_EXE_cuticle");
+
+fn scene(text: &str) -> Scene {
+    Scene::parse(text, Path::new("<test>"), Path::new(".")).unwrap()
+}
+
+/// A small procedural fur ball; `extra` appends tables.
+fn fur(model: &str, film: &str, extra: &str) -> Scene {
+    scene(&format!(
+        "[hair]\nprocedural = {{ kind = \"fur-ball\", strands = 1500 }}\nopacity = 0.5\n\
+         [material]\nmodel = \"{model}\"\n[film]\n{film}\n{extra}"
+    ))
+}
+
+const SUN: &str =
+    "[[light]]\nkind = \"distant\"\ndirection = [-1.0, -1.0, -0.6]\nirradiance = 3.0\n";
+const SKY: &str = "[environment]\nradiance = [0.6, 0.7, 0.9]\n";
+
+fn curves_for(s: &Scene) -> (CurveKind, String) {
+    let spec = s.resolve().unwrap();
+    let strands = spec.hair.load().unwrap();
+    let (kind, d) = quality::plan_curves(
+        &strands,
+        &spec.material,
+        &spec.settings.camera,
+        spec.settings.film.resolution,
+    );
+    (kind, d.to_string())
+}
+
+#[test]
+fn auto_chooses_ribbons_for_sub_pixel_strands_and_tubes_for_a_close_up_of_an_offset_model() {
+    // Chiang reads the offset h across the fibre. The whole ball in 64x48 pixels: strands far below a pixel.
+    let far = fur("chiang", "resolution = [64, 48]", SUN);
+    let (kind, why) = curves_for(&far);
+    println!("far: {why}");
+    assert_eq!(kind, CurveKind::Flat, "{why}");
+    // A 1° field of view at 640x480 on a twentieth of the ball: strands pixels wide.
+    let near = fur(
+        "chiang",
+        "resolution = [640, 480]",
+        &format!("{SUN}[camera]\nfov = 1.0\nmargin = 0.05\n"),
+    );
+    let (kind, why) = curves_for(&near);
+    println!("near: {why}");
+    assert_eq!(kind, CurveKind::Round, "{why}");
+    // A model that does not read h gets ribbons even in the close-up.
+    let near_kk = fur(
+        "kajiya-kay",
+        "resolution = [640, 480]",
+        &format!("{SUN}[camera]\nfov = 1.0\nmargin = 0.05\n"),
+    );
+    let (kind, why) = curves_for(&near_kk);
+    assert_eq!(kind, CurveKind::Flat, "{why}");
+}
+
+fn planned_shadows(s: &Scene) -> (ShadowMode, Vec<String>) {
+    let frame = Frame::load(s.resolve().unwrap()).unwrap();
+    let q = QualityConfig {
+        target: 0.2,
+        ..QualityConfig::default()
+    };
+    let pool = thread_pool(Some(2)).unwrap();
+    let p = pool.install(|| quality::plan_frame(&frame, &frame.settings, &q, Fixed::default()));
+    (
+        p.settings.shadows.mode,
+        p.decisions.iter().map(ToString::to_string).collect(),
+    )
+}
+
+#[test]
+fn auto_chooses_deep_opacity_maps_under_a_sun_and_rays_under_an_environment() {
+    let (mode, why) = planned_shadows(&fur("kajiya-kay", "resolution = [32, 24]", SUN));
+    println!("{why:#?}");
+    assert_eq!(mode, ShadowMode::DeepOpacity, "{why:#?}");
+    let (mode, why) = planned_shadows(&fur("kajiya-kay", "resolution = [32, 24]", SKY));
+    println!("{why:#?}");
+    assert_eq!(mode, ShadowMode::Raytraced, "{why:#?}");
+}
+
+/// The auto render of a small scene against a converged reference of the same settings: its relative RMSE (the
+/// measure the target is stated in) is within the target, and a tighter target takes more samples.
+const LOOSE: f32 = 0.04;
+const TIGHT: f32 = 0.02;
+
+#[test]
+fn auto_meets_its_target_and_a_tighter_target_takes_more_samples() {
+    let s = fur("marschner", "resolution = [48, 36]", &format!("{SUN}{SKY}"));
+    let frame = Frame::load(s.resolve().unwrap()).unwrap();
+    let pool = thread_pool(Some(2)).unwrap();
+    let plan = |target: f32| {
+        let q = QualityConfig {
+            target,
+            max_spp: 4096,
+            ..QualityConfig::default()
+        };
+        pool.install(|| quality::plan_frame(&frame, &frame.settings, &q, Fixed::default()))
+    };
+    let loose = plan(LOOSE);
+    let tight = plan(TIGHT);
+    println!(
+        "loose: {} spp, path {}; tight: {} spp, path {}",
+        loose.settings.film.spp,
+        loose.settings.integrator.path_length,
+        tight.settings.film.spp,
+        tight.settings.integrator.path_length
+    );
+    for d in loose.decisions.iter().chain(&tight.decisions) {
+        println!("{d}");
+    }
+    assert!(tight.settings.film.spp > loose.settings.film.spp);
+
+    let render = |settings: &cuticle::render::RenderSettings,
+                  maps: Option<&cuticle::shadow::ShadowMaps>| {
+        pool.install(|| {
+            frame
+                .render_with_maps(settings, maps, 0.0, Options::default())
+                .0
+        })
+    };
+    for planned in [&loose, &tight] {
+        let image = render(&planned.settings, planned.maps.as_ref());
+        let mut reference = planned.settings.clone();
+        reference.film.spp = 2048;
+        reference.film.seed = 991;
+        // Converged in light transport too: the bounces auto left out count against it.
+        reference.integrator.path_length = 4;
+        let reference = render(&reference, planned.maps.as_ref());
+        let mask = vec![false; image.width * image.height];
+        let e = metrics::errors(&image, &reference, &mask).unwrap();
+        let rel_rmse = e.relmse.sqrt();
+        let target = if std::ptr::eq(planned, &loose) {
+            LOOSE
+        } else {
+            TIGHT
+        };
+        println!(
+            "target {target}: {} spp, relative RMSE {rel_rmse:.4} (predicted noise {:.4})",
+            planned.settings.film.spp, planned.pilot.predicted_noise
+        );
+        assert!(
+            rel_rmse <= f64::from(target),
+            "relative RMSE {rel_rmse} over the target {target}"
+        );
+        // The prediction is a prediction: within a factor 2 of what was measured.
+        let predicted = planned.pilot.predicted_noise;
+        assert!(
+            rel_rmse < 2.0 * predicted && rel_rmse > 0.5 * predicted,
+            "predicted noise {predicted}, measured {rel_rmse}"
+        );
+    }
+}
+
+#[test]
+fn render_quality_auto_prints_its_decisions_and_is_the_same_at_1_and_2_threads() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene_path = dir.path().join("s.toml");
+    std::fs::write(
+        &scene_path,
+        format!(
+            "[hair]\nprocedural = {{ kind = \"fur-ball\", strands = 800 }}\n[film]\nresolution = [40, 30]\n\
+             [quality]\nmode = \"auto\"\ntarget = 0.2\n{SUN}"
+        ),
+    )
+    .unwrap();
+    let mut images = Vec::new();
+    for threads in ["1", "2"] {
+        let out = dir.path().join(format!("t{threads}.exr"));
+        let o = Command::new(EXE)
+            .args(["render", scene_path.to_str().unwrap(), "-o"])
+            .arg(&out)
+            .args(["--threads", threads, "-q"])
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{err}");
+        for key in [
+            "auto: hair.curves = ",
+            "auto: shadows.mode = ",
+            "auto: integrator.path_length = ",
+            "auto: film.spp = ",
+            "predicted render",
+        ] {
+            assert!(err.contains(key), "no {key:?} in\n{err}");
+        }
+        images.push(cuticle::image::read(&out).unwrap());
+    }
+    assert_eq!(images[0].data.len(), images[1].data.len());
+    for (a, b) in images[0].data.iter().zip(&images[1].data) {
+        assert_eq!(a.to_bits(), b.to_bits());
+    }
+    // A bad target names the key.
+    let o = Command::new(EXE)
+        .args([
+            "render",
+            scene_path.to_str().unwrap(),
+            "--target",
+            "0",
+            "-q",
+        ])
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("quality.target"));
+}
