@@ -7,6 +7,7 @@
 //! pixel and seed, and the per-ray keys derived from them) and sums its samples in a fixed order; tiles only decide
 //! which thread does the work. The same scene and seed give bit-identical pixels with any thread count.
 
+pub mod adaptive;
 pub mod budget;
 pub mod camera;
 pub mod film;
