@@ -405,6 +405,7 @@ fn render_command(args: RenderArgs) -> Result<()> {
             curves: args.curves.is_some(),
             shadows: args.shadows.is_some(),
             path_length: args.path_length.is_some(),
+            samples: args.light_samples.is_some() || args.material_samples.is_some(),
             spp: args.spp.is_some(),
         };
         pool.install(|| cuticle::quality::plan_frame(&frame, &frame.settings, q, fixed))

@@ -16,16 +16,17 @@
 //!    and whether the fibre model reads the offset h across the fibre ([`crate::bsdf::Material::uses_offset`]).
 //! 2. **Shadows** ([`decide_shadows`]): deep opacity maps where every light that matters is distant and small,
 //!    ray-traced shadows otherwise; the map resolution from the hair's size on screen.
-//! 3. **Path length** and **samples per pixel** ([`pilot`]): measured by pilot renders of a few windows of the
-//!    frame at full resolution (so a pixel integrates what it will in the frame): bounces are added while the
-//!    last one still brought more than a quarter of the target in mean light; samples per pixel from the
-//!    per-pixel variance of two independent pilot estimates.
+//! 3. **Path length**, **light and material samples** and **samples per pixel** ([`pilot`]): measured by pilot
+//!    renders of a few windows of the frame at full resolution (so a pixel integrates what it will in the frame):
+//!    bounces are added until the next one's bias is under a quarter of the target; the light/material sample
+//!    counts that reach a given noise with the fewest rays; samples per pixel from the per-pixel variance of two
+//!    independent pilot estimates.
 //!
 //! What a user fixes on the command line (`--curves`, `--shadows`, `--path-length`, `--spp`) is kept: auto decides
 //! only the rest.
 //!
-//! Not decided yet (they keep the scene's values): light-sample against material-sample counts, per-pixel adaptive
-//! sampling, stochastic simplification.
+//! Every decision rests on image statistics and ray counts, never on wall time, so the same scene decides the same
+//! way on any machine and thread count. Not decided yet: per-pixel adaptive sampling, stochastic simplification.
 
 pub mod pilot;
 
@@ -345,6 +346,8 @@ pub struct Fixed {
     pub shadows: bool,
     /// `--path-length`.
     pub path_length: bool,
+    /// `--light-samples` or `--material-samples`.
+    pub samples: bool,
     /// `--spp`.
     pub spp: bool,
 }
@@ -425,9 +428,12 @@ pub fn plan_frame(
         maps.as_ref(),
         quality,
         fixed.path_length,
+        fixed.samples,
         fixed.spp,
     );
     settings.integrator.path_length = p.path_length;
+    settings.integrator.light_samples = p.light_samples;
+    settings.integrator.material_samples = p.material_samples;
     settings.film.spp = p.spp;
     decisions.extend(p.decisions.iter().cloned());
     Planned {

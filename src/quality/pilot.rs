@@ -57,6 +57,8 @@ struct Pilot {
     rgb: Vec<[f32; 3]>,
     seconds: f64,
     samples: u64,
+    /// Rays traced (deterministic, unlike `seconds`: the cost decisions are made on).
+    rays: u64,
 }
 
 fn render_windows(
@@ -66,18 +68,18 @@ fn render_windows(
     windows: &[Region],
 ) -> Pilot {
     let start = std::time::Instant::now();
-    let images: Vec<Image> = windows
+    let renders: Vec<(Image, u64)> = windows
         .par_iter()
         .map(|&r| {
-            frame
-                .render_region(settings, maps, 0.0, Options { progress: false }, r, None)
-                .image
+            let r = frame.render_region(settings, maps, 0.0, Options { progress: false }, r, None);
+            (r.image, r.stats.rays.total())
         })
         .collect();
     let seconds = start.elapsed().as_secs_f64();
     let mut rgb = Vec::new();
     let mut samples = 0u64;
-    for image in &images {
+    let rays = renders.iter().map(|r| r.1).sum();
+    for (image, _) in &renders {
         samples += (image.width * image.height) as u64 * u64::from(settings.film.spp);
         for y in 0..image.height {
             for x in 0..image.width {
@@ -90,18 +92,67 @@ fn render_windows(
         rgb,
         seconds,
         samples,
+        rays,
     }
 }
+
+/// Two independent pilot estimates (the two seeds) of one setting.
+struct Pair([Pilot; 2]);
+
+impl Pair {
+    fn render(
+        frame: &Frame,
+        settings: &RenderSettings,
+        maps: Option<&ShadowMaps>,
+        windows: &[Region],
+    ) -> Pair {
+        let mut s = settings.clone();
+        s.film.seed = SEEDS[0];
+        let a = render_windows(frame, &s, maps, windows);
+        s.film.seed = SEEDS[1];
+        let b = render_windows(frame, &s, maps, windows);
+        Pair([a, b])
+    }
+
+    /// The relative MSE of one estimate: E[(x − y)²] / 2 is the variance of each, over (m² + 0.01).
+    fn rel_mse(&self) -> f64 {
+        let [a, b] = &self.0;
+        let mut rel = 0.0f64;
+        for (x, y) in a.rgb.iter().zip(&b.rgb) {
+            for c in 0..3 {
+                let (x, y) = (f64::from(x[c]), f64::from(y[c]));
+                if !(x.is_finite() && y.is_finite()) {
+                    continue;
+                }
+                let m = 0.5 * (x + y);
+                rel += 0.5 * (x - y) * (x - y) / (m * m + 0.01);
+            }
+        }
+        rel / (3 * a.rgb.len().max(1)) as f64
+    }
+
+    /// Rays per estimate.
+    fn rays(&self) -> f64 {
+        0.5 * (self.0[0].rays + self.0[1].rays) as f64
+    }
+
+    fn rgb(&self) -> [&[[f32; 3]]; 2] {
+        [&self.0[0].rgb, &self.0[1].rgb]
+    }
+}
+
+/// Light and material samples at the first vertex auto compares (the thesis tuned them by hand, §6.2, table 3).
+const SAMPLE_CANDIDATES: [(u32, u32); 4] = [(1, 1), (1, 4), (4, 1), (4, 4)];
 
 /// The relative RMSE a bounce adds: `before` and `after` are the pilot pixels of both seeds without and with it
 /// (see [`plan`]). The estimate of its square is the mean of the per-pixel products plus two standard errors of
 /// that mean: a bounce is left out only when its bias is small with confidence, not merely lost in noise.
-fn bounce_bias(before: &[Vec<[f32; 3]>; 2], after: &[Vec<[f32; 3]>; 2]) -> f64 {
+fn bounce_bias(before: [&[[f32; 3]]; 2], after: [&[[f32; 3]]; 2]) -> f64 {
     let (mut sum, mut sum2) = (0.0f64, 0.0f64);
     let mut n = 0usize;
     for i in 0..before[0].len() {
         for c in 0..3 {
-            let v = |img: &[Vec<[f32; 3]>; 2], s: usize| f64::from(img[s][i][c]);
+            let v = |img: [&[[f32; 3]]; 2], s: usize| f64::from(img[s][i][c]);
             let (da, db) = (v(after, 0) - v(before, 0), v(after, 1) - v(before, 1));
             if !(da.is_finite() && db.is_finite()) {
                 continue;
@@ -124,6 +175,10 @@ fn bounce_bias(before: &[Vec<[f32; 3]>; 2], after: &[Vec<[f32; 3]>; 2]) -> f64 {
 pub struct PilotPlan {
     /// Indirect bounces chosen (or the fixed one).
     pub path_length: u32,
+    /// Light samples at the first vertex chosen (or the fixed ones).
+    pub light_samples: u32,
+    /// Material samples at the first vertex chosen (or the fixed ones).
+    pub material_samples: u32,
     /// Camera samples per pixel chosen (or the fixed one).
     pub spp: u32,
     /// The decisions, for printing (none for what was fixed).
@@ -136,7 +191,8 @@ pub struct PilotPlan {
     pub pilot_seconds: f64,
 }
 
-/// Chooses the path length (unless `fixed_path_length`) and then the samples per pixel (unless `fixed_spp`) for
+/// Chooses the path length (unless `fixed_path_length`), the first vertex's light and material samples (unless
+/// `fixed_samples`) and then the samples per pixel (unless `fixed_spp`) for
 /// `quality.target`, by pilot renders of `frame` under `settings` (its shadows already decided; `maps` built for
 /// them when they are deep-opacity).
 pub fn plan(
@@ -145,6 +201,7 @@ pub fn plan(
     maps: Option<&ShadowMaps>,
     quality: &QualityConfig,
     fixed_path_length: bool,
+    fixed_samples: bool,
     fixed_spp: bool,
 ) -> PilotPlan {
     let start = std::time::Instant::now();
@@ -153,7 +210,6 @@ pub fn plan(
     let target = f64::from(quality.target);
     let mut pilot = settings.clone();
     pilot.film.spp = PILOT_SPP;
-    pilot.film.seed = SEEDS[0];
     let mut decisions = Vec::new();
 
     // Bounces: each pilot path length k is rendered with both seeds. A pixel's k-th bounce is d = x_k − x_{k−1}
@@ -165,20 +221,13 @@ pub fn plan(
         settings.integrator.path_length
     } else {
         let mut biases = Vec::new();
-        let render_both = |pilot: &mut RenderSettings| -> [Vec<[f32; 3]>; 2] {
-            pilot.film.seed = SEEDS[0];
-            let a = render_windows(frame, pilot, maps, &windows).rgb;
-            pilot.film.seed = SEEDS[1];
-            let b = render_windows(frame, pilot, maps, &windows).rgb;
-            [a, b]
-        };
         pilot.integrator.path_length = 0;
-        let mut previous = render_both(&mut pilot);
+        let mut previous = Pair::render(frame, &pilot, maps, &windows);
         let mut chosen = MAX_PATH_LENGTH;
         for k in 1..=MAX_PATH_LENGTH {
             pilot.integrator.path_length = k;
-            let next = render_both(&mut pilot);
-            let bias = bounce_bias(&previous, &next);
+            let next = Pair::render(frame, &pilot, maps, &windows);
+            let bias = bounce_bias(previous.rgb(), next.rgb());
             biases.push(bias);
             previous = next;
             if bias < 0.25 * target {
@@ -204,25 +253,48 @@ pub fn plan(
         chosen
     };
     pilot.integrator.path_length = path_length;
-    pilot.film.seed = SEEDS[0];
+
+    // Light against material samples: the candidate that reaches a given relMSE with the fewest rays (relMSE ×
+    // rays per estimate is the inverse of its efficiency). Rays, not seconds, so the choice is deterministic.
+    let (pair, light_samples, material_samples) = if fixed_samples {
+        let pair = Pair::render(frame, &pilot, maps, &windows);
+        let (l, m) = (
+            settings.integrator.light_samples,
+            settings.integrator.material_samples,
+        );
+        (pair, l, m)
+    } else {
+        let mut best: Option<(Pair, u32, u32, f64)> = None;
+        let mut listed = Vec::new();
+        for (l, m) in SAMPLE_CANDIDATES {
+            pilot.integrator.light_samples = l;
+            pilot.integrator.material_samples = m;
+            let pair = Pair::render(frame, &pilot, maps, &windows);
+            let cost = pair.rel_mse() * pair.rays();
+            listed.push(format!(
+                "{l} light + {m} material: relMSE {:.2e} with {:.0} rays",
+                pair.rel_mse(),
+                pair.rays()
+            ));
+            if best.as_ref().is_none_or(|b| cost < b.3) {
+                best = Some((pair, l, m, cost));
+            }
+        }
+        let (pair, l, m, _) = best.expect("candidates are not empty");
+        decisions.push(Decision {
+            key: "integrator.light_samples, material_samples",
+            value: format!("{l}, {m}"),
+            reason: format!(
+                "the fewest rays for a given noise (relMSE × rays) among the pilots at {PILOT_SPP} spp: {}",
+                listed.join("; ")
+            ),
+        });
+        (pair, l, m)
+    };
 
     // Noise: two independent pilot estimates give each pixel's variance at PILOT_SPP; relMSE falls as 1/spp.
-    let a = render_windows(frame, &pilot, maps, &windows);
-    pilot.film.seed = SEEDS[1];
-    let b = render_windows(frame, &pilot, maps, &windows);
-    let mut rel = 0.0f64;
-    for (x, y) in a.rgb.iter().zip(&b.rgb) {
-        for c in 0..3 {
-            let (x, y) = (f64::from(x[c]), f64::from(y[c]));
-            if !(x.is_finite() && y.is_finite()) {
-                continue;
-            }
-            let m = 0.5 * (x + y);
-            // E[(x - y)²] / 2 is the variance of one PILOT_SPP estimate.
-            rel += 0.5 * (x - y) * (x - y) / (m * m + 0.01);
-        }
-    }
-    let rel_mse_pilot = rel / (3 * a.rgb.len().max(1)) as f64;
+    let rel_mse_pilot = pair.rel_mse();
+    let [a, b] = &pair.0;
     // Noise budget: target² less the bias budget (target/2)².
     let noise_budget = 0.75 * target * target;
     let spp = if fixed_spp {
@@ -253,6 +325,8 @@ pub fn plan(
         seconds_per_sample * f64::from(width) * f64::from(height) * f64::from(spp);
     PilotPlan {
         path_length,
+        light_samples,
+        material_samples,
         spp,
         decisions,
         predicted_seconds,
