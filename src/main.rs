@@ -745,6 +745,30 @@ enum StudyCommand {
     Stress(StudyKindArgs),
     /// Every kind above, and one Markdown report (report.md) with the charts (issue 17).
     All(StudyKindArgs),
+    /// `--quality auto` against every fixed configuration and the shipped settings, per error target (issue 18).
+    Auto(StudyAutoArgs),
+}
+
+#[derive(clap::Args)]
+struct StudyAutoArgs {
+    /// Scene files (TOML).
+    #[arg(required = true)]
+    scenes: Vec<PathBuf>,
+    /// Output directory: auto.md, auto.csv, auto-fits-<scene>.csv, the cached references.
+    #[arg(short, long, default_value = "study")]
+    out: PathBuf,
+    /// Error targets (relative RMSE).
+    #[arg(long, value_delimiter = ',', default_value = "0.1,0.05")]
+    targets: Vec<f32>,
+    /// Film resolution WxH.
+    #[arg(long, value_parser = parse_resolution, default_value = "128x128")]
+    res: [u32; 2],
+    /// Samples per pixel of the references.
+    #[arg(long, default_value_t = 512)]
+    reference_spp: u32,
+    /// Worker threads.
+    #[arg(long, default_value_t = 2)]
+    threads: usize,
 }
 
 #[derive(clap::Args)]
@@ -902,6 +926,17 @@ fn study_command(command: StudyCommand) -> Result<()> {
         StudyCommand::Models(a) => study_kind("models", a)?,
         StudyCommand::Curves(a) => study_kind("curves", a)?,
         StudyCommand::All(a) => study_kind("all", a)?,
+        StudyCommand::Auto(a) => {
+            let md = cuticle::study::auto::run(&cuticle::study::auto::AutoStudyConfig {
+                scenes: a.scenes,
+                targets: a.targets,
+                resolution: a.res,
+                reference_spp: a.reference_spp,
+                out: a.out,
+                threads: a.threads,
+            })?;
+            print!("{md}");
+        }
         StudyCommand::Stress(a) => study_kind("stress", a)?,
         StudyCommand::Shadows(a) => {
             use cuticle::study::shadows::{run, ShadowStudyConfig};

@@ -25,12 +25,16 @@ pub const PILOT_SPP: u32 = 4;
 /// Seeds of the two independent pilot estimates (far from the small seeds scenes use).
 const SEEDS: [u32; 2] = [0x5eed_0001, 0x5eed_0002];
 
-/// The pilot windows of a `width`×`height` film: up to [`GRID`]² squares of [`WINDOW`]² pixels, evenly spaced.
+/// The pilot windows of a `width`×`height` film: n² squares of [`WINDOW`]² pixels, evenly spaced, with n from 3
+/// to [`GRID`] so that the windows hold about a sixteenth of the film's pixels (pilots cost about as much as two
+/// samples per pixel of the frame; a small film gets fewer windows, but at least 9).
 pub fn windows(width: u32, height: u32) -> Vec<Region> {
     let w = WINDOW.min(width);
     let h = WINDOW.min(height);
-    let nx = GRID.min(width / w).max(1);
-    let ny = GRID.min(height / h).max(1);
+    let pixels = f64::from(width) * f64::from(height);
+    let n = ((pixels / 16.0 / f64::from(WINDOW * WINDOW)).sqrt() as u32).clamp(3, GRID);
+    let nx = n.min(width / w).max(1);
+    let ny = n.min(height / h).max(1);
     let mut out = Vec::with_capacity((nx * ny) as usize);
     for j in 0..ny {
         for i in 0..nx {
@@ -114,10 +118,11 @@ impl Pair {
         Pair([a, b])
     }
 
-    /// The relative MSE of one estimate: E[(x − y)²] / 2 is the variance of each, over (m² + 0.01).
-    fn rel_mse(&self) -> f64 {
+    /// The relative MSE of one estimate, E[(x − y)²] / 2 over (m² + 0.01) per pixel and channel (the variance of
+    /// each of two independent estimates), as (mean, standard error of the mean) over the pilot pixels.
+    fn rel_mse_with_error(&self) -> (f64, f64) {
         let [a, b] = &self.0;
-        let mut rel = 0.0f64;
+        let (mut sum, mut sum2, mut n) = (0.0f64, 0.0f64, 0usize);
         for (x, y) in a.rgb.iter().zip(&b.rgb) {
             for c in 0..3 {
                 let (x, y) = (f64::from(x[c]), f64::from(y[c]));
@@ -125,10 +130,20 @@ impl Pair {
                     continue;
                 }
                 let m = 0.5 * (x + y);
-                rel += 0.5 * (x - y) * (x - y) / (m * m + 0.01);
+                let t = 0.5 * (x - y) * (x - y) / (m * m + 0.01);
+                sum += t;
+                sum2 += t * t;
+                n += 1;
             }
         }
-        rel / (3 * a.rgb.len().max(1)) as f64
+        let n = n.max(1) as f64;
+        let mean = sum / n;
+        (mean, ((sum2 / n - mean * mean).max(0.0) / n).sqrt())
+    }
+
+    /// The mean relative MSE of one estimate (see [`Pair::rel_mse_with_error`]).
+    fn rel_mse(&self) -> f64 {
+        self.rel_mse_with_error().0
     }
 
     /// Rays per estimate.
@@ -217,6 +232,8 @@ pub fn plan(
     // estimate of its squared mean, so Σ d_a d_b / (m² + 0.01) estimates the relMSE the bounce adds as bias when
     // left out. Bounces are added until the next one's bias is under a quarter of the target (half the target is
     // the bias budget; the other half leaves room for the bounces after it).
+    // The pair rendered at the chosen path length with the scene's light and material samples, kept for reuse.
+    let mut kept: Option<Pair> = None;
     let path_length = if fixed_path_length {
         settings.integrator.path_length
     } else {
@@ -229,12 +246,13 @@ pub fn plan(
             let next = Pair::render(frame, &pilot, maps, &windows);
             let bias = bounce_bias(previous.rgb(), next.rgb());
             biases.push(bias);
-            previous = next;
             if bias < 0.25 * target {
                 chosen = k - 1;
                 break;
             }
+            previous = next;
         }
+        kept = Some(previous);
         let listed: Vec<String> = biases
             .iter()
             .enumerate()
@@ -256,20 +274,28 @@ pub fn plan(
 
     // Light against material samples: the candidate that reaches a given relMSE with the fewest rays (relMSE ×
     // rays per estimate is the inverse of its efficiency). Rays, not seconds, so the choice is deterministic.
+    let scene_samples = (
+        settings.integrator.light_samples,
+        settings.integrator.material_samples,
+    );
     let (pair, light_samples, material_samples) = if fixed_samples {
-        let pair = Pair::render(frame, &pilot, maps, &windows);
-        let (l, m) = (
-            settings.integrator.light_samples,
-            settings.integrator.material_samples,
-        );
-        (pair, l, m)
+        let pair = kept
+            .take()
+            .unwrap_or_else(|| Pair::render(frame, &pilot, maps, &windows));
+        (pair, scene_samples.0, scene_samples.1)
     } else {
         let mut best: Option<(Pair, u32, u32, f64)> = None;
         let mut listed = Vec::new();
         for (l, m) in SAMPLE_CANDIDATES {
             pilot.integrator.light_samples = l;
             pilot.integrator.material_samples = m;
-            let pair = Pair::render(frame, &pilot, maps, &windows);
+            let pair = match kept.take() {
+                Some(p) if (l, m) == scene_samples => p,
+                other => {
+                    kept = other;
+                    Pair::render(frame, &pilot, maps, &windows)
+                }
+            };
             let cost = pair.rel_mse() * pair.rays();
             listed.push(format!(
                 "{l} light + {m} material: relMSE {:.2e} with {:.0} rays",
@@ -293,7 +319,9 @@ pub fn plan(
     };
 
     // Noise: two independent pilot estimates give each pixel's variance at PILOT_SPP; relMSE falls as 1/spp.
-    let rel_mse_pilot = pair.rel_mse();
+    // The mean over the pilot pixels plus two standard errors: fewer or noisier pilot pixels, more samples.
+    let (mean, standard_error) = pair.rel_mse_with_error();
+    let rel_mse_pilot = mean + 2.0 * standard_error;
     let [a, b] = &pair.0;
     // Noise budget: target² less the bias budget (target/2)².
     let noise_budget = 0.75 * target * target;
@@ -313,7 +341,8 @@ pub fn plan(
             key: "film.spp",
             value: spp.to_string(),
             reason: format!(
-                "the pilot's relative MSE at {PILOT_SPP} spp is {rel_mse_pilot:.3e} (two independent estimates); \
+                "the pilot's relative MSE at {PILOT_SPP} spp is {mean:.3e} ± {standard_error:.1e} (two independent \
+                 estimates; {rel_mse_pilot:.3e} with two standard errors); \
                  noise within √0.75 of the target {} needs {wanted} spp{limit}",
                 quality.target
             ),

@@ -14,9 +14,12 @@
 //! - [`framework`]: the one study framework of issue 17 (variants × seeds against cached references, every
 //!   measure, CSVs, charts with equal-time and equal-error read-outs); [`kinds`]: `samples`, `sampling`, `lobes`,
 //!   `hery`, `models`, `curves` as data for it; [`report`]: `all`, one Markdown report.
+//! - [`auto`]: `cuticle study auto SCENE...` — `--quality auto` against every fixed configuration, per error target
+//!   (issue 18).
 //! - [`stress`]: `cuticle study stress SCENE` — adversarial cases per method (NaN/Inf, fireflies, error), on the
 //!   framework.
 
+pub mod auto;
 pub mod backends;
 pub mod cache;
 pub mod figures;

@@ -1,0 +1,381 @@
+//! `cuticle study auto SCENE... [--targets 0.1,0.05]` (issue 18, "Proof"): does `--quality auto` meet its error
+//! target, and how does its time compare with the fastest fixed configuration that meets it, and with the scene's
+//! shipped settings?
+//!
+//! # Method
+//!
+//! Per scene (film from `--res`, default 128×128):
+//! 1. **Reference**: the scene's own curves and materials, ray-traced shadows, path length
+//!    [`REFERENCE_PATH_LENGTH`], `reference_spp` samples, its own seed; cached by a hash of the scene and these
+//!    settings.
+//! 2. **Every fixed configuration** the other studies sweep: curves {round, flat} × shadows {ray-traced, deep
+//!    opacity} × path length {0, 1, 2, 3} (the scene's light and material samples). Each is rendered at
+//!    [`FIT_SPP`] = 4 and 16 spp; the squared relative error is fitted as err²(n) = b² + v/n (bias and noise), and
+//!    the spp that meets a target T is v / (T² − b²), none when b ≥ T. Its time is predicted from the 16-spp
+//!    render's time per sample plus the map build.
+//! 3. Per target: the **fastest fixed configuration** (by prediction) and the **shipped settings** (the scene's
+//!    configuration at the spp its fit says meets T) are rendered at those spp and measured; **auto** is planned
+//!    (`quality::plan_curves` + `quality::plan_frame`) and rendered, its time counting the pilots and maps.
+//!
+//! "Met" means the measured relative RMSE (√relMSE, [`crate::measure::metrics`]) is at most T. Times are wall
+//! times on whatever machine runs the study: read the ratios, measured in one run.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use crate::accel::CurveKind;
+use crate::image::Image;
+use crate::measure::metrics;
+use crate::quality::{self, Fixed, QualityConfig};
+use crate::render::{thread_pool, Frame, Options, RenderSettings};
+use crate::scene::{ShadowMode, TransmittanceMode};
+
+use super::{cache, cached_reference, create_dir, load_scene, StudyError};
+
+/// Indirect bounces of the reference (the fixed configurations sweep 0–3 below it).
+pub const REFERENCE_PATH_LENGTH: u32 = 4;
+/// The two sample counts each fixed configuration is fitted from.
+pub const FIT_SPP: [u32; 2] = [4, 16];
+/// Most spp a fixed configuration or auto may be rendered at in the study.
+pub const MAX_SPP: u32 = 4096;
+
+/// What `study auto` runs.
+#[derive(Debug, Clone)]
+pub struct AutoStudyConfig {
+    /// Scene files.
+    pub scenes: Vec<PathBuf>,
+    /// Error targets (relative RMSE).
+    pub targets: Vec<f32>,
+    /// Film resolution.
+    pub resolution: [u32; 2],
+    /// Reference samples per pixel.
+    pub reference_spp: u32,
+    /// Output directory.
+    pub out: PathBuf,
+    /// Worker threads.
+    pub threads: usize,
+}
+
+/// One fixed configuration.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Config {
+    curves: CurveKind,
+    shadows: ShadowMode,
+    path_length: u32,
+}
+
+impl Config {
+    fn name(&self) -> String {
+        format!(
+            "{} {} path {}",
+            self.curves.name(),
+            match self.shadows {
+                ShadowMode::Raytraced => "rays",
+                ShadowMode::DeepOpacity => "maps",
+                ShadowMode::None => "none",
+            },
+            self.path_length
+        )
+    }
+}
+
+/// A fixed configuration's fit.
+#[derive(Debug, Clone, Copy)]
+struct Fit {
+    config: Config,
+    bias2: f64,
+    variance: f64,
+    seconds_per_spp: f64,
+    setup_seconds: f64,
+}
+
+impl Fit {
+    /// The spp that meets `target`, if any within [`MAX_SPP`].
+    fn spp_for(&self, target: f64) -> Option<u32> {
+        let room = target * target - self.bias2;
+        if room <= 0.0 {
+            return None;
+        }
+        let n = (self.variance / room).ceil().max(1.0);
+        (n <= f64::from(MAX_SPP)).then_some(n as u32)
+    }
+
+    fn predicted_seconds(&self, spp: u32) -> f64 {
+        self.setup_seconds + self.seconds_per_spp * f64::from(spp)
+    }
+}
+
+/// One measured render.
+#[derive(Debug, Clone)]
+struct Measured {
+    what: String,
+    settings: String,
+    spp: u32,
+    seconds: f64,
+    rel_rmse: f64,
+}
+
+fn rel_rmse(image: &Image, reference: &Image) -> Result<f64, StudyError> {
+    let mask = vec![false; image.width * image.height];
+    let e = metrics::errors(image, reference, &mask).map_err(StudyError::Config)?;
+    Ok(e.relmse.sqrt())
+}
+
+/// Renders `settings` on `frame`, building maps if it uses them: the image and the seconds (maps + pixels).
+fn render(frame: &Frame, settings: &RenderSettings) -> (Image, f64) {
+    let (image, stats) = frame.render_with(settings, Options::default());
+    (image, stats.seconds + stats.shadow_build_seconds)
+}
+
+/// Runs the study; returns the Markdown summary it wrote to `out/auto.md`.
+pub fn run(config: &AutoStudyConfig) -> Result<String, StudyError> {
+    if config.scenes.is_empty() || config.targets.is_empty() {
+        return Err(StudyError::Config(
+            "study auto needs at least one scene and one target".into(),
+        ));
+    }
+    for &t in &config.targets {
+        if !(t.is_finite() && t > 0.0 && t <= 1.0) {
+            return Err(StudyError::Config(format!(
+                "--targets must be in (0, 1], got {t}"
+            )));
+        }
+    }
+    create_dir(&config.out)?;
+    let pool = thread_pool(Some(config.threads))?;
+    let mut csv = String::from("scene,target,method,settings,spp,seconds,rel_rmse,met\n");
+    let mut md = String::from(
+        "| scene | target | auto: met? | auto s | auto settings | fastest fixed (predicted) | its s | auto ÷ fastest | shipped s | auto ÷ shipped |\n\
+         |---|---:|---|---:|---|---|---:|---:|---:|---:|\n",
+    );
+    for path in &config.scenes {
+        let rows = pool.install(|| study_scene(path, config))?;
+        for (target, auto, fastest, shipped) in rows {
+            let name = path.file_stem().unwrap_or_default().to_string_lossy();
+            for m in [Some(&auto), fastest.as_ref(), shipped.as_ref()]
+                .into_iter()
+                .flatten()
+            {
+                let _ = writeln!(
+                    csv,
+                    "{name},{target},{},{},{},{:.3},{:.5},{}",
+                    m.what,
+                    m.settings,
+                    m.spp,
+                    m.seconds,
+                    m.rel_rmse,
+                    m.rel_rmse <= f64::from(target)
+                );
+            }
+            let fmt_s = |m: &Option<Measured>| {
+                m.as_ref()
+                    .map_or("–".to_string(), |m| format!("{:.2}", m.seconds))
+            };
+            let ratio = |m: &Option<Measured>| {
+                m.as_ref().map_or("–".to_string(), |m| {
+                    format!("{:.2}", auto.seconds / m.seconds)
+                })
+            };
+            let _ = writeln!(
+                md,
+                "| {name} | {target} | {} ({:.4}) | {:.2} | {} | {} | {} | {} | {} | {} |",
+                if auto.rel_rmse <= f64::from(target) {
+                    "yes"
+                } else {
+                    "**no**"
+                },
+                auto.rel_rmse,
+                auto.seconds,
+                auto.settings,
+                fastest
+                    .as_ref()
+                    .map_or("none meets it".to_string(), |m| format!(
+                        "{}, {} spp ({:.4})",
+                        m.settings, m.spp, m.rel_rmse
+                    )),
+                fmt_s(&fastest),
+                ratio(&fastest),
+                fmt_s(&shipped),
+                ratio(&shipped),
+            );
+        }
+    }
+    cache::write_text(&config.out.join("auto.csv"), &csv)?;
+    cache::write_text(&config.out.join("auto.md"), &md)?;
+    Ok(md)
+}
+
+type SceneRows = Vec<(f32, Measured, Option<Measured>, Option<Measured>)>;
+
+fn study_scene(path: &Path, config: &AutoStudyConfig) -> Result<SceneRows, StudyError> {
+    let (text, scene) = load_scene(path, Some(config.resolution))?;
+    let spec_for = |curves: CurveKind| -> Result<Frame, StudyError> {
+        let mut spec = scene.resolve()?;
+        spec.curves = curves;
+        Ok(Frame::load(spec)?)
+    };
+    let frames = [spec_for(CurveKind::Round)?, spec_for(CurveKind::Flat)?];
+    let frame_of = |c: CurveKind| &frames[usize::from(c == CurveKind::Flat)];
+    let base = scene.render_settings();
+
+    // 1. The reference.
+    let mut reference = base.clone();
+    reference.integrator.path_length = REFERENCE_PATH_LENGTH;
+    reference.shadows.mode = ShadowMode::Raytraced;
+    reference.shadows.transmittance = TransmittanceMode::Exact;
+    reference.film.spp = config.reference_spp;
+    reference.film.seed = 0x7e7e;
+    let key = cache::scene_key(
+        "auto-reference-1",
+        &text,
+        &scene,
+        &[],
+        &format!(
+            "{:?} {} {}",
+            config.resolution, config.reference_spp, REFERENCE_PATH_LENGTH
+        ),
+    );
+    let (reference_image, _, _) = cached_reference(
+        &config.out.join(format!("reference-{key:016x}.exr")),
+        config.resolution,
+        || render(frame_of(scene.hair.curves), &reference),
+    )?;
+
+    // 2. Every fixed configuration, fitted.
+    let mut fits = Vec::new();
+    for curves in [CurveKind::Round, CurveKind::Flat] {
+        for shadows in [ShadowMode::Raytraced, ShadowMode::DeepOpacity] {
+            for path_length in 0..REFERENCE_PATH_LENGTH {
+                let c = Config {
+                    curves,
+                    shadows,
+                    path_length,
+                };
+                let mut s = base.clone();
+                s.shadows.mode = shadows;
+                s.integrator.path_length = path_length;
+                let frame = frame_of(curves);
+                let mut e2 = [0.0; 2];
+                let mut last = (0.0, 0.0);
+                for (k, &spp) in FIT_SPP.iter().enumerate() {
+                    s.film.spp = spp;
+                    let (image, stats) = frame.render_with(&s, Options::default());
+                    e2[k] = rel_rmse(&image, &reference_image)?.powi(2);
+                    last = (stats.seconds, stats.shadow_build_seconds);
+                }
+                let (n1, n2) = (f64::from(FIT_SPP[0]), f64::from(FIT_SPP[1]));
+                let variance = ((e2[0] - e2[1]) / (1.0 / n1 - 1.0 / n2)).max(0.0);
+                let bias2 = (e2[1] - variance / n2).max(0.0);
+                fits.push(Fit {
+                    config: c,
+                    bias2,
+                    variance,
+                    seconds_per_spp: last.0 / n2,
+                    setup_seconds: last.1,
+                });
+            }
+        }
+    }
+    let mut fit_csv = String::from("config,bias,variance_x_spp,seconds_per_spp,setup_seconds\n");
+    for f in &fits {
+        let _ = writeln!(
+            fit_csv,
+            "{},{:.5},{:.5},{:.4},{:.3}",
+            f.config.name(),
+            f.bias2.sqrt(),
+            f.variance,
+            f.seconds_per_spp,
+            f.setup_seconds
+        );
+    }
+    let stem = path.file_stem().unwrap_or_default().to_string_lossy();
+    cache::write_text(&config.out.join(format!("auto-fits-{stem}.csv")), &fit_csv)?;
+
+    let shipped_config = Config {
+        curves: scene.hair.curves,
+        shadows: base.shadows.mode,
+        path_length: base.integrator.path_length.min(REFERENCE_PATH_LENGTH - 1),
+    };
+    let mut rows = Vec::new();
+    for &target in &config.targets {
+        let t = f64::from(target);
+        let measure_fixed = |fit: &Fit, what: &str| -> Result<Option<Measured>, StudyError> {
+            let Some(spp) = fit.spp_for(t) else {
+                return Ok(None);
+            };
+            let mut s = base.clone();
+            s.shadows.mode = fit.config.shadows;
+            s.integrator.path_length = fit.config.path_length;
+            s.film.spp = spp;
+            let (image, seconds) = render(frame_of(fit.config.curves), &s);
+            Ok(Some(Measured {
+                what: what.into(),
+                settings: fit.config.name(),
+                spp,
+                seconds,
+                rel_rmse: rel_rmse(&image, &reference_image)?,
+            }))
+        };
+        let fastest = fits
+            .iter()
+            .filter_map(|f| f.spp_for(t).map(|n| (f, f.predicted_seconds(n))))
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .map(|(f, _)| *f);
+        let fastest = match fastest {
+            Some(f) => measure_fixed(&f, "fastest fixed")?,
+            None => None,
+        };
+        let shipped = fits
+            .iter()
+            .find(|f| f.config == shipped_config)
+            .copied()
+            .map(|f| measure_fixed(&f, "shipped"))
+            .transpose()?
+            .flatten();
+
+        // Auto, timed from the curve decision to the last pixel.
+        let start = Instant::now();
+        let strands = &frames[0].strands;
+        let (curves, _) = quality::plan_curves(
+            strands,
+            &frames[0].material,
+            &base.camera,
+            base.film.resolution,
+        );
+        let frame = frame_of(curves);
+        let q = QualityConfig {
+            target,
+            max_spp: MAX_SPP,
+            ..scene.quality.clone()
+        };
+        let planned = quality::plan_frame(frame, &base, &q, Fixed::default());
+        let (image, stats) = frame.render_with_maps(
+            &planned.settings,
+            planned.maps.as_ref(),
+            planned.maps_seconds,
+            Options::default(),
+        );
+        let seconds = start.elapsed().as_secs_f64();
+        let _ = stats;
+        let s = &planned.settings;
+        let auto = Measured {
+            what: "auto".into(),
+            settings: Config {
+                curves,
+                shadows: s.shadows.mode,
+                path_length: s.integrator.path_length,
+            }
+            .name()
+                + &format!(
+                    " {}L {}M",
+                    s.integrator.light_samples, s.integrator.material_samples
+                ),
+            spp: s.film.spp,
+            seconds,
+            rel_rmse: rel_rmse(&image, &reference_image)?,
+        };
+        rows.push((target, auto, fastest, shipped));
+    }
+    Ok(rows)
+}
