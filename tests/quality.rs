@@ -215,3 +215,58 @@ fn render_quality_auto_prints_its_decisions_and_is_the_same_at_1_and_2_threads()
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("quality.target"));
 }
+
+/// `study auto` end to end on a tiny scene: every file written, one row per method and target, auto's row
+/// consistent (met = error within target), and the 16 fixed configurations fitted.
+#[test]
+fn study_auto_writes_its_table_and_fits() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene_path = dir.path().join("tiny.toml");
+    std::fs::write(
+        &scene_path,
+        format!(
+            "[hair]\nprocedural = {{ kind = \"fur-ball\", strands = 600 }}\nopacity = 0.5\n\
+             [shadows.deep_opacity]\nresolution = 64\n{SUN}"
+        ),
+    )
+    .unwrap();
+    let out = dir.path().join("study");
+    let o = Command::new(EXE)
+        .args(["study", "auto", scene_path.to_str().unwrap(), "-o"])
+        .arg(&out)
+        .args([
+            "--res",
+            "32x24",
+            "--reference-spp",
+            "64",
+            "--targets",
+            "0.2,0.1",
+        ])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    let csv = std::fs::read_to_string(out.join("auto.csv")).unwrap();
+    let fits = std::fs::read_to_string(out.join("auto-fits-tiny.csv")).unwrap();
+    assert_eq!(fits.lines().count(), 17, "{fits}");
+    let md = std::fs::read_to_string(out.join("auto.md")).unwrap();
+    assert_eq!(
+        md.lines().filter(|l| l.starts_with("| tiny |")).count(),
+        2,
+        "{md}"
+    );
+    let mut autos = 0;
+    for line in csv.lines().skip(1) {
+        let f: Vec<&str> = line.split(',').collect();
+        assert_eq!(f.len(), 8, "{line}");
+        let (target, rel, met): (f64, f64, bool) = (
+            f[1].parse().unwrap(),
+            f[6].parse().unwrap(),
+            f[7].parse().unwrap(),
+        );
+        assert!(rel.is_finite() && rel >= 0.0, "{line}");
+        assert_eq!(met, rel <= target, "{line}");
+        autos += usize::from(f[2] == "auto");
+    }
+    assert_eq!(autos, 2, "{csv}");
+}
