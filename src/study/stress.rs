@@ -441,7 +441,7 @@ pub fn run(scene_path: &Path, config: &StudyConfig) -> Result<StressReport, Stud
          reference mean more than {:.0} % from the control's. Every number is in `stress.csv` / \
          `stress-summary.csv`.\n",
         config.seeds,
-        config.reference_spp,
+        report.reference_spp,
         100.0 * FIREFLY_FAIL_FRACTION,
         100.0 * SCALE_FAIL
     );
