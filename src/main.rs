@@ -832,7 +832,9 @@ fn study_kind(name: &str, a: StudyKindArgs) -> Result<()> {
             .for_each(|s| println!("skipped {}: {}", s.case, s.reason));
         report.failures.iter().for_each(|l| println!("{l}"));
     } else {
-        let kind = cuticle::study::kinds::by_name(name, a.quick).expect("a subcommand per kind");
+        let kind = cuticle::study::kinds::by_name(name, a.quick)
+            .expect("a subcommand per kind")
+            .map_err(|e| anyhow::anyhow!("study {name}: {e}"))?;
         let report = run_kind(&a.scene, &kind, &config)?;
         report.readouts.iter().for_each(|l| println!("{l}"));
     }

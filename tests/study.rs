@@ -269,7 +269,17 @@ fn study_all_quick_writes_every_chart_and_sane_values() {
         for r in &k.references {
             assert_eq!((r.self_rmse, r.self_fireflies), (0.0, 0), "{name}");
             assert!(r.seconds.is_some_and(|s| s > 0.0), "{name}");
+            // Rendered in two halves: their difference gives the reference's noise, positive and finite.
+            assert!(
+                r.second_rmse.is_some_and(|e| e > 0.0 && e.is_finite()),
+                "{name}: {r:?}"
+            );
         }
+        assert_eq!(k.reference_checks.len(), k.kind.references.len(), "{name}");
+        assert_eq!(
+            k.reference_spp, 16,
+            "{name}: --quick keeps the study's reference spp"
+        );
         for p in &k.points {
             assert!(
                 p.rmse > 0.0 && p.rmse.is_finite() && p.relmse.is_finite(),
@@ -289,7 +299,7 @@ fn study_all_quick_writes_every_chart_and_sane_values() {
             .summaries
             .iter()
             .find(|s| {
-                models.kind.variants[s.variant].series == "chiang"
+                models.kind.variants[s.variant].series == "chiang as marschner"
                     && models.kind.variants[s.variant].x == spp
             })
             .unwrap()
@@ -302,12 +312,118 @@ fn study_all_quick_writes_every_chart_and_sane_values() {
         chiang(1.0),
         chiang(4.0)
     );
-    // The cached references are reused by a second run of one kind.
+    // The cached references are reused by a second run of one kind, with their recorded noise.
     let again = cuticle::study::framework::run_kind(&scene, &kinds::lobes(true), &config).unwrap();
     assert!(again
         .references
         .iter()
-        .all(|r| r.cached && r.seconds.is_some()));
+        .all(|r| r.cached && r.seconds.is_some() && r.second_rmse.is_some()));
+    // The sampling study has a chiang row, importance against uniform.
+    let sampling = all
+        .kinds
+        .iter()
+        .find(|k| k.kind.name == "sampling")
+        .unwrap();
+    assert!(sampling.readouts.iter().any(|l| l
+        .starts_with("chiang importance reaches chiang uniform")
+        || l.starts_with("chiang importance does not reach")));
+}
+
+/// The full runs' budgets: `samples` reaches 2048 samples per shading point on a small window with 16-spp
+/// references of 2048 × 2048 samples; the spp sweeps crop and size their references by their largest spp;
+/// `curves` sweeps the radius at a fixed film; `models` matches chiang's fibre albedo to each thesis model.
+#[test]
+fn full_kinds_have_budgets_and_the_sweeps_asked_for() {
+    use cuticle::study::kinds;
+    let samples = kinds::samples(false);
+    assert_eq!(samples.budget.crop, Some(kinds::SAMPLES_CROP));
+    assert_eq!(
+        samples.budget.reference_spp,
+        Some(kinds::SAMPLES_REFERENCE_SPP)
+    );
+    let xs: Vec<f64> = samples.variants.iter().map(|v| v.x).collect();
+    assert!(xs.contains(&2048.0) && xs.contains(&16.0), "{xs:?}");
+    for name in ["sampling", "lobes", "hery", "backends", "shadows"] {
+        let k = kinds::by_name(name, false).unwrap().unwrap();
+        assert_eq!(k.budget.crop, Some(kinds::SWEEP_CROP), "{name}");
+        assert_eq!(
+            k.budget.reference_spp,
+            Some(8 * kinds::REFERENCE_FACTOR),
+            "{name}"
+        );
+    }
+    let curves = kinds::curves(false);
+    assert!(curves.variants.iter().all(|v| v
+        .overrides
+        .iter()
+        .any(|(k, _)| k == "hair.radius_scale")
+        && !v.overrides.iter().any(|(k, _)| k == "film.resolution")));
+    // Matched colour: chiang's σa reproduces marschner's fibre albedo, so its σa differs from chiang's default.
+    let (sigma_a, albedo) = kinds::matched_chiang("marschner").unwrap();
+    assert!(
+        albedo.iter().all(|a| *a > 0.0 && *a < 1.0),
+        "marschner's fibre albedo {albedo:?}"
+    );
+    assert!(
+        sigma_a.iter().all(|s| s.is_finite() && *s > 0.0),
+        "{sigma_a:?}"
+    );
+    assert!(kinds::matched_chiang("no-such-model").is_err());
+}
+
+/// A crop is the same pixels of the same view: the depth through each pixel centre (filter width 0.001 px) of
+/// the centred 16² window of a 32² film equals the whole film's there, for a placed and an auto-framed camera.
+#[test]
+fn a_crop_shows_the_same_pixels_as_the_whole_film() {
+    use cuticle::render::{Frame, Options};
+    use cuticle::scene::Scene;
+    use cuticle::study::framework::crop_overrides;
+    for camera in [
+        "margin = 0.9",
+        "position = [0.3, 0.2, 3.0]\nlook_at = [0.0, 0.1, 0.0]\nfov = 30.0",
+    ] {
+        let text = TINY.replace("margin = 0.9", camera).replace(
+            "resolution = [32, 32]",
+            "resolution = [32, 24]\nfilter_width = 0.001",
+        );
+        let depth_of = |text: &str| {
+            let scene = Scene::parse(text, Path::new("tiny.toml"), Path::new(".")).unwrap();
+            let frame = Frame::load(scene.resolve().unwrap()).unwrap();
+            let (image, _) = frame.render_with(&scene.render_settings(), Options::default());
+            let z = image.channel_index("depth.Z").expect("a depth.Z AOV");
+            let n = image.channels.len();
+            let depth: Vec<f32> = image.data.chunks_exact(n).map(|p| p[z]).collect();
+            (image.width, depth)
+        };
+        let (w, full) = depth_of(&text);
+        let scene = Scene::parse(&text, Path::new("tiny.toml"), Path::new(".")).unwrap();
+        let mut table: toml::Table = toml::from_str(&text).unwrap();
+        for (k, v) in crop_overrides(&scene.camera, [32, 24], [16, 16]) {
+            let (t, key) = k.split_once('.').unwrap();
+            table
+                .entry(t)
+                .or_insert_with(|| toml::Value::Table(Default::default()))
+                .as_table_mut()
+                .unwrap()
+                .insert(key.into(), v);
+        }
+        let (cw, crop) = depth_of(&toml::to_string(&table).unwrap());
+        assert_eq!(cw, 16);
+        let mut hits = 0;
+        for y in 0..16 {
+            for x in 0..16 {
+                let (a, b) = (crop[y * 16 + x], full[(y + 4) * w + x + 8]);
+                let same = (a - b).abs() <= 1e-3 * a.abs().max(b.abs())
+                    || (a.is_infinite() && b.is_infinite());
+                assert!(same, "{camera}: crop ({x}, {y}) depth {a}, whole film {b}");
+                hits += usize::from(a.is_finite() && a > 0.0);
+            }
+        }
+        assert!(
+            hits > 20,
+            "{camera}: only {hits} pixels of the crop hit hair"
+        );
+    }
 }
 
 /// The framework's kinds through the CLI: a bad study setting and a bad scene key are one line naming what is wrong,

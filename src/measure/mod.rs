@@ -2,6 +2,7 @@
 //! timings, the process's peak memory, and image error against a reference ([`metrics`]). Neither of those two
 //! layers imports the other; both import this.
 
+pub mod albedo;
 pub mod metrics;
 pub mod pixels;
 

@@ -154,6 +154,9 @@ impl Default for IntegratorConfig {
     }
 }
 
+/// The most light or material samples per shading point: the thesis' table 3 goes to 2048.
+pub const MAX_SAMPLES_PER_POINT: u32 = 2048;
+
 impl IntegratorConfig {
     /// Range checks; messages name the `integrator.*` key.
     pub fn validate(&self) -> Result<(), String> {
@@ -161,8 +164,10 @@ impl IntegratorConfig {
             ("light_samples", self.light_samples),
             ("material_samples", self.material_samples),
         ] {
-            if !(1..=1024).contains(&n) {
-                return Err(format!("integrator.{key} must be in [1, 1024], got {n}"));
+            if !(1..=MAX_SAMPLES_PER_POINT).contains(&n) {
+                return Err(format!(
+                    "integrator.{key} must be in [1, {MAX_SAMPLES_PER_POINT}], got {n}"
+                ));
             }
         }
         if self.path_length > MAX_PATH_LENGTH {
@@ -217,6 +222,30 @@ impl RenderSettings {
                 i.strategy
             },
             light_selection: i.lights,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn samples_per_point_go_to_2048_and_no_further() {
+        for (n, ok) in [(0, false), (1, true), (2048, true), (2049, false)] {
+            let c = IntegratorConfig {
+                light_samples: n,
+                material_samples: n,
+                ..IntegratorConfig::default()
+            };
+            let r = c.validate();
+            assert_eq!(r.is_ok(), ok, "{n}: {r:?}");
+            if let Err(e) = r {
+                assert!(
+                    e.contains("integrator.light_samples must be in [1, 2048]"),
+                    "{e}"
+                );
+            }
         }
     }
 }

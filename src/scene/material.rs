@@ -18,7 +18,8 @@
 //! *radius*), **or** `eumelanin` / `pheomelanin` (concentrations), **or** `color` (the target colour of a volume of
 //! hair, inverted to σa with the paper's eq. 9 at `beta_n`), at most one of the three ways; with none, pbrt-v4's
 //! default σa (eumelanin 1.3). Then `beta_m`, `beta_n` (0.3, 0.3; in [0.001, 1]), `alpha` (2 degrees; |α| ≤ 22.5)
-//! and `eta` (1.55; in (1, 10]). Its `color` is not a diffuse colour: the strand colours of the file are unused.
+//! and `eta` (1.55; in (1, 10]), and `sampling` (`importance` or `uniform`). Its `color` is not a diffuse colour:
+//! the strand colours of the file are unused.
 //!
 //! **Strand colour.** Without `color`, the renderer multiplies the *diffuse* lobe by the strand's colour from the
 //! hair file (the other lobes keep their explicit colours: the cuticle's reflection R is not pigmented, and TT/TRT
@@ -299,6 +300,8 @@ pub struct ChiangConfig {
     pub alpha: f32,
     /// η, the fibre's index of refraction.
     pub eta: f32,
+    /// Sampling mode (`importance` or `uniform`).
+    pub sampling: SamplingName,
 }
 
 impl Default for ChiangConfig {
@@ -313,6 +316,7 @@ impl Default for ChiangConfig {
             beta_n: p.beta_n,
             alpha: p.alpha.to_degrees(),
             eta: p.eta,
+            sampling: SamplingName::Importance,
         }
     }
 }
@@ -375,6 +379,7 @@ impl ChiangConfig {
             beta_n: self.beta_n,
             alpha: rad(self.alpha),
             eta: self.eta,
+            sampling: self.sampling.into(),
         })
     }
 }
@@ -708,6 +713,19 @@ mod tests {
         let ok = parse("[material]\nmodel = \"marschner\"\nsampling = \"published\"\n").unwrap();
         ok.build().unwrap();
         let bad = parse("[material]\nmodel = \"ishair\"\nsampling = \"published\"\n").unwrap();
+        let err = bad.build().unwrap_err();
+        assert!(err.contains("published"), "{err}");
+    }
+
+    #[test]
+    fn chiang_takes_the_uniform_sampling_key() {
+        let m = parse("[material]\nmodel = \"chiang\"\nsampling = \"uniform\"\n").unwrap();
+        let MaterialConfig::Chiang(c) = &m else {
+            panic!("not chiang: {m:?}")
+        };
+        assert_eq!(c.params().unwrap().sampling, Sampling::Uniform);
+        m.build().unwrap();
+        let bad = parse("[material]\nmodel = \"chiang\"\nsampling = \"published\"\n").unwrap();
         let err = bad.build().unwrap_err();
         assert!(err.contains("published"), "{err}");
     }

@@ -8,11 +8,26 @@
 //! `integrator.light_samples = 16` or a whole `material` table), re-parsed and validated like a scene file, so a
 //! variant can change anything a scene can say. Each variant is rendered with [`StudyConfig::seeds`] seeds (the
 //! scene's `film.seed` + 0, 1, 2, …). Each variant names one of its kind's references: the scene with that
-//! reference's overrides at [`StudyConfig::reference_spp`] samples per pixel and the seed `film.seed` +
-//! [`super::shadows::REFERENCE_SEED_OFFSET`]. A reference is cached as `reference-<hash>.exr` (with
-//! `reference-<hash>.txt` holding the seconds it took) in the cache directory, the hash ([`super::cache`]) covering
+//! reference's overrides at the kind's reference spp ([`Budget::reference_spp`], else
+//! [`StudyConfig::reference_spp`]). A reference is cached as `reference-<hash>.exr` (with `reference-<hash>.txt`
+//! holding the seconds it took and its noise, below) in the cache directory, the hash ([`super::cache`]) covering
 //! the overridden scene text as parsed and re-serialised, its directory and a format version: the hair and map
 //! files and the renderer's code are not covered (delete the files after changing them).
+//!
+//! # References in two halves
+//!
+//! A reference of n spp is rendered as two halves of ⌊n/2⌋ and ⌈n/2⌉ spp with the seeds `film.seed` +
+//! [`super::shadows::REFERENCE_SEED_OFFSET`] and that + 1, and their R, G, B averaged by spp. The halves' RMSE
+//! against each other gives, at no extra cost, the RMSE of the reference against a second reference with other
+//! seeds ([`ReferenceRun::second_rmse`]); each kind's read-outs print it beside the smallest RMSE of the variants
+//! measured against that reference, so a sweep whose errors are the reference's own noise shows.
+//!
+//! # Budgets
+//!
+//! A kind may render only the centred `c × c` window of the study's film ([`Budget::crop`]): the film becomes
+//! `c × c`, `camera.fov` narrows to the window's rows and `camera.margin` scales so that an auto-framed eye stays
+//! where the whole film puts it ([`crop_overrides`]): the same pixels of the same view, for a fraction of the rays.
+//! [`super::kinds`] says what each kind spends and why.
 //!
 //! The frame (hair, BVH, lights) is set up once for every run of variants sharing the scene's `hair`, `light`,
 //! `environment` and `shape` tables; the material, camera, film, integrator and shadow settings are applied per
@@ -67,7 +82,7 @@ use crate::scene::Scene;
 pub type Overrides = Vec<(String, toml::Value)>;
 
 /// Bumped when the references' recipe changes, so old cached files are not reused.
-const REFERENCE_FORMAT: &str = "cuticle study reference v1";
+const REFERENCE_FORMAT: &str = "cuticle study reference v2 (two halves)";
 /// Side of the crop window of `<kind>-crops.png`, pixels (clamped to the image).
 const CROP: usize = 64;
 /// Tables of the scene that decide the frame's set-up (hair, BVH, lights); the rest is applied per render.
@@ -122,6 +137,18 @@ pub struct Kind {
     /// The compared series sweep the same setting, so "at equal setting" read-outs mean something (not so when
     /// one sweeps spp and the other map layers).
     pub equal_setting: bool,
+    /// What the kind may spend: its reference spp and film crop (see [`Budget`]).
+    pub budget: Budget,
+}
+
+/// A kind's ray budget (see the module docs, "Budgets").
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Budget {
+    /// Render only the centred `crop × crop` window of the study's film (same pixel size and view; clamped to the
+    /// film), or the whole film.
+    pub crop: Option<u32>,
+    /// Samples per pixel of the kind's references, or the study's [`StudyConfig::reference_spp`].
+    pub reference_spp: Option<u32>,
 }
 
 /// How a study runs and where it writes.
@@ -260,6 +287,9 @@ pub struct ReferenceRun {
     pub self_rmse: f64,
     /// Fireflies of the reference against itself (0).
     pub self_fireflies: usize,
+    /// RMSE of this reference against a second one with other seeds, estimated from its two halves (see the
+    /// module docs, "References"); `None` for a reference of 1 spp or an old cache record.
+    pub second_rmse: Option<f64>,
 }
 
 /// The outcome of [`run_kind`].
@@ -277,8 +307,13 @@ pub struct KindReport {
     pub readouts: Vec<String>,
     /// Files written: the CSVs, charts (PNG then SVG) and read-outs.
     pub files: Vec<PathBuf>,
-    /// Film resolution rendered.
+    /// Film resolution rendered (the crop's, when the kind crops).
     pub resolution: [u32; 2],
+    /// Samples per pixel of the references.
+    pub reference_spp: u32,
+    /// Per reference: its estimated noise against the smallest RMSE of its variants (the check that the sweep's
+    /// errors are not the reference's noise).
+    pub reference_checks: Vec<String>,
 }
 
 /// Sets the dotted key `path` of `table` to `value`, creating tables on the way.
@@ -458,6 +493,11 @@ pub fn run_kind(
     config: &StudyConfig,
 ) -> Result<KindReport, StudyError> {
     check(kind, config)?;
+    let config = &StudyConfig {
+        reference_spp: kind.budget.reference_spp.unwrap_or(config.reference_spp),
+        ..config.clone()
+    };
+    check(kind, config)?;
     let text = std::fs::read_to_string(scene_path).map_err(|source| StudyError::SceneFile {
         path: scene_path.to_path_buf(),
         source,
@@ -470,45 +510,73 @@ pub fn run_kind(
     let scene = Scene::parse(&text, scene_path, &base_dir)?;
     let base: toml::Table = toml::from_str(&text)
         .map_err(|e| StudyError::Config(format!("{}: {e}", scene_path.display())))?;
-    let resolution = config
+    let full = config
         .resolution
         .or(config.quick.then_some(QUICK_RESOLUTION))
         .unwrap_or(scene.film.resolution);
+    let resolution = match kind.budget.crop {
+        Some(c) => [c.min(full[0]), c.min(full[1])],
+        None => full,
+    };
     let seed0 = scene.film.seed;
     let film = |spp: u32, seed: u32| -> Overrides {
         vec![
             (
                 "film.resolution".into(),
-                toml::Value::try_from(resolution).expect("array"),
+                toml::Value::try_from(full).expect("array"),
             ),
             ("film.spp".into(), toml::Value::Integer(i64::from(spp))),
             ("film.seed".into(), toml::Value::Integer(i64::from(seed))),
         ]
     };
+    // A scene with `overrides`, then (when the kind crops) its centred crop: the camera of its own settings.
+    let make = |overrides: &Overrides| -> Result<Prepared, StudyError> {
+        let p = prepare(&base, overrides, scene_path, &base_dir)?;
+        if resolution == p.scene.film.resolution {
+            return Ok(p);
+        }
+        let mut o = overrides.clone();
+        o.extend(crop_overrides(
+            &p.scene.camera,
+            p.scene.film.resolution,
+            resolution,
+        ));
+        prepare(&base, &o, scene_path, &base_dir)
+    };
     // Every variant and reference is parsed and checked before anything is rendered.
     let with = |extra: &Overrides, film: Overrides| -> Overrides {
         extra.iter().cloned().chain(film).collect()
     };
+    let reference_seed = seed0.wrapping_add(super::shadows::REFERENCE_SEED_OFFSET);
+    let halves = reference_halves(config.reference_spp);
     let references = kind
         .references
         .iter()
         .map(|r| {
-            let seed = seed0.wrapping_add(super::shadows::REFERENCE_SEED_OFFSET);
-            prepare(
-                &base,
-                &with(&film(config.reference_spp, seed), r.overrides.clone()),
-                scene_path,
-                &base_dir,
-            )
+            let whole = make(&with(
+                &film(config.reference_spp, reference_seed),
+                r.overrides.clone(),
+            ))?;
+            let parts = halves
+                .iter()
+                .enumerate()
+                .map(|(h, &spp)| {
+                    make(&with(
+                        &film(spp, reference_seed.wrapping_add(h as u32)),
+                        r.overrides.clone(),
+                    ))
+                })
+                .collect::<Result<Vec<_>, _>>()?;
+            Ok((whole, parts))
         })
-        .collect::<Result<Vec<_>, _>>()?;
+        .collect::<Result<Vec<_>, StudyError>>()?;
     let mut points_todo = Vec::new();
     for (i, v) in kind.variants.iter().enumerate() {
         for s in 0..config.seeds {
             // The variant's own spp (if it sets one) wins over the study's default of 1.
             let mut o = with(&film(1, seed0.wrapping_add(s)), Vec::new());
             o.extend(v.overrides.iter().cloned());
-            points_todo.push((i, s, prepare(&base, &o, scene_path, &base_dir)?));
+            points_todo.push((i, s, make(&o)?));
         }
     }
 
@@ -522,10 +590,17 @@ pub fn run_kind(
         setup_s: HashMap::new(),
     };
 
-    // The references.
+    // The references: each rendered in two halves with their own seeds and averaged, so that their difference
+    // estimates the reference's own noise at no extra cost.
+    let reference_bar = progress_bar(
+        config.progress,
+        references.len() as u64,
+        format!("study {} references", kind.name),
+    );
     let mut judges = Vec::with_capacity(references.len());
     let mut reference_runs = Vec::with_capacity(references.len());
-    for (r, p) in kind.references.iter().zip(&references) {
+    for (r, (p, parts)) in kind.references.iter().zip(&references) {
+        reference_bar.set_message(r.label.clone());
         let key = scene_key(REFERENCE_FORMAT, &p.text, &p.scene, &[], "");
         let path = cache_dir.join(format!("reference-{key:016x}.exr"));
         let record = path.with_extension("txt");
@@ -534,34 +609,51 @@ pub fn run_kind(
         } else {
             Some(frames.get(p)?.0)
         };
+        let mut second_rmse = None;
         let (reference, cached, seconds) =
             super::cached_reference(&path, p.scene.film.resolution, || {
                 let frame = frame.expect("a frame is set up whenever the reference is not cached");
                 let options = Options {
                     progress: config.progress,
                 };
-                let (image, stats) =
-                    pool.install(|| frame.render_with(&p.scene.render_settings(), options));
-                (image, stats.seconds + stats.shadow_build_seconds)
+                let mut seconds = 0.0;
+                let mut images = Vec::new();
+                for part in parts.iter().chain(parts.is_empty().then_some(p)) {
+                    let (image, stats) =
+                        pool.install(|| frame.render_with(&part.scene.render_settings(), options));
+                    seconds += stats.seconds + stats.shadow_build_seconds;
+                    images.push(image);
+                }
+                if let [a, b] = &images[..] {
+                    let (na, nb) = (f64::from(halves[0]), f64::from(halves[1]));
+                    second_rmse = second_reference_rmse(a, na, b, nb);
+                    (average_rgb(a, na, b, nb), seconds)
+                } else {
+                    (images.swap_remove(0), seconds)
+                }
             })?;
-        let seconds = match seconds {
+        let (seconds, second_rmse) = match seconds {
             Some(s) => {
-                write_text(&record, &format!("{s:.4}\n"))?;
-                Some(s)
+                let noise = second_rmse.map(|e| format!("{e:e}\n")).unwrap_or_default();
+                write_text(&record, &format!("{s:.4}\n{noise}"))?;
+                (Some(s), second_rmse)
             }
-            None => std::fs::read_to_string(&record)
-                .ok()
-                .and_then(|t| t.trim().parse().ok()),
+            None => {
+                let t = std::fs::read_to_string(&record).unwrap_or_default();
+                let mut lines = t.lines().map(|l| l.trim().parse::<f64>().ok());
+                (lines.next().flatten(), lines.next().flatten())
+            }
         };
+        reference_bar.inc(1);
         if config.progress {
-            eprintln!(
+            reference_bar.println(format!(
                 "{}: reference {} ({} spp): {} {}",
                 kind.name,
                 r.label,
                 config.reference_spp,
                 if cached { "reused" } else { "rendered" },
                 seconds.map(|s| format!("{s:.2} s")).unwrap_or_default()
-            );
+            ));
         }
         let judge = Judge::new(reference)?;
         let (self_rmse, _, _, self_fireflies, _, _) = judge.judge(&judge.reference)?;
@@ -572,8 +664,10 @@ pub fn run_kind(
             seconds,
             self_rmse,
             self_fireflies,
+            second_rmse,
         });
     }
+    reference_bar.finish_and_clear();
 
     // Crops for `<kind>-crops.png` (seed 0 of every variant): the window holding the most shadowed pixels of the
     // first reference, when every reference has its size.
@@ -654,8 +748,18 @@ pub fn run_kind(
         image::write(&path, &crops_mosaic(kind, &judges, window, &crops, config)?)?;
         files.push(path);
     }
+    let reference_checks = reference_checks(kind, &summaries, &reference_runs);
     let readouts_path = dir.join(format!("{}-readouts.txt", kind.name));
-    write_text(&readouts_path, &(readouts.join("\n") + "\n"))?;
+    let text: Vec<&String> = readouts.iter().chain(&reference_checks).collect();
+    write_text(
+        &readouts_path,
+        &(text
+            .iter()
+            .map(|l| l.as_str())
+            .collect::<Vec<_>>()
+            .join("\n")
+            + "\n"),
+    )?;
     files.push(readouts_path);
     Ok(KindReport {
         kind: kind.clone(),
@@ -665,7 +769,95 @@ pub fn run_kind(
         readouts,
         files,
         resolution,
+        reference_spp: config.reference_spp,
+        reference_checks,
     })
+}
+
+/// The spp of a reference's two halves (`[spp]` alone when it cannot be split).
+fn reference_halves(spp: u32) -> Vec<u32> {
+    if spp >= 2 {
+        vec![spp / 2, spp - spp / 2]
+    } else {
+        Vec::new()
+    }
+}
+
+/// The RMSE of a reference of `na + nb` spp against a second, independent one, from its halves `a` (`na` spp) and
+/// `b`: for unbiased halves with per-sample variance σ², E|a − b|² = σ²(1/na + 1/nb) and two independent
+/// references of n = na + nb spp differ by 2σ²/n, so RMSE(ref, ref') = RMSE(a, b) · √(2/n / (1/na + 1/nb)).
+fn second_reference_rmse(a: &Image, na: f64, b: &Image, nb: f64) -> Option<f64> {
+    let mask = vec![false; a.width * a.height];
+    let e = metrics::errors(a, b, &mask).ok()?;
+    Some(e.rmse * (2.0 / (na + nb) / (1.0 / na + 1.0 / nb)).sqrt())
+}
+
+/// `a` with its R, G, B replaced by the spp-weighted mean of `a`'s and `b`'s (the other channels, AOVs, are `a`'s).
+fn average_rgb(a: &Image, na: f64, b: &Image, nb: f64) -> Image {
+    let mut out = a.clone();
+    let (wa, wb) = ((na / (na + nb)) as f32, (nb / (na + nb)) as f32);
+    let (ca, cb) = (a.channels.len(), b.channels.len());
+    for name in ["R", "G", "B"] {
+        if let (Some(i), Some(j)) = (a.channel_index(name), b.channel_index(name)) {
+            for (p, q) in out.data.chunks_exact_mut(ca).zip(b.data.chunks_exact(cb)) {
+                p[i] = wa * p[i] + wb * q[j];
+            }
+        }
+    }
+    out
+}
+
+/// The camera keys that show the centred `crop` window of a film of `full` pixels with the same pixels: the
+/// vertical field of view narrowed to the crop's rows, and the auto-framing margin scaled so that an auto-framed
+/// eye stays where the full film puts it (its distance is `margin · r / sin(min(half fov v, h))`,
+/// [`crate::render::camera::Camera::from_config`]).
+pub fn crop_overrides(
+    camera: &crate::scene::CameraConfig,
+    full: [u32; 2],
+    crop: [u32; 2],
+) -> Overrides {
+    let [w, h] = full.map(f64::from);
+    let [cw, ch] = crop.map(f64::from);
+    let tan_v = (0.5 * f64::from(camera.fov).to_radians()).tan();
+    let half = |tan_half: f64, aspect: f64| tan_half.atan().min((tan_half * aspect).atan());
+    let full_half = half(tan_v, w / h);
+    let crop_tan = tan_v * ch / h;
+    let crop_half = half(crop_tan, cw / ch);
+    let margin = f64::from(camera.margin) * crop_half.sin() / full_half.sin();
+    vec![
+        (
+            "film.resolution".into(),
+            toml::Value::try_from(crop).expect("array"),
+        ),
+        (
+            "camera.fov".into(),
+            toml::Value::Float((2.0 * crop_tan.atan()).to_degrees()),
+        ),
+        ("camera.margin".into(), toml::Value::Float(margin)),
+    ]
+}
+
+/// Per reference: its estimated RMSE against a second reference and the smallest mean RMSE of its variants.
+fn reference_checks(kind: &Kind, summaries: &[Summary], runs: &[ReferenceRun]) -> Vec<String> {
+    kind.references
+        .iter()
+        .zip(runs)
+        .enumerate()
+        .filter_map(|(r, (reference, run))| {
+            let noise = run.second_rmse?;
+            let smallest = summaries
+                .iter()
+                .filter(|s| kind.variants[s.variant].reference == r)
+                .map(|s| s.rmse.mean)
+                .fold(f64::INFINITY, f64::min);
+            Some(format!(
+                "reference {}: RMSE against a second reference (other seeds) {noise:.2e}, {:.1}× below its \
+                 variants' smallest mean RMSE {smallest:.2e}",
+                reference.label,
+                smallest / noise
+            ))
+        })
+        .collect()
 }
 
 /// Per-variant mean and spread of `points`.

@@ -3,33 +3,92 @@
 //! defaults (`[material] model = "…"` alone) plus the keys a kind varies, so results do not depend on the scene's
 //! own material; everything else (hair, lights, camera, path length) is the scene's.
 //!
-//! - [`samples`]: the thesis' table 3 — light samples at 64 material samples and material samples at 64 light
-//!   samples, for `marschner`, `ishair`, `chiang`, 1 spp. cuticle caps both counts at 1024
-//!   (`integrator.*_samples`), so the thesis' 2048 is left out. `--quick`: 1, 2, 4 at 4.
+//! # Budgets (full runs; `--quick` renders the whole tiny film at the study's reference spp)
+//!
+//! `cuticle study all scenes/furball.toml --res 256x256` has to finish in 20 minutes on 2 cores, and a reference
+//! is only useful if its own noise is well below the sweep's errors. So each kind has a ray budget
+//! ([`Budget`]): a centred crop of the study's film (same pixels, same view: [`super::framework::crop_overrides`])
+//! and references of [`REFERENCE_FACTOR`] × the sweep's largest spp, not a fixed spp. Every reference is rendered
+//! as two halves with other seeds, whose difference gives its RMSE against a second reference; the read-outs
+//! print it beside the smallest RMSE of its variants (`<kind>-readouts.txt`).
+//!
+//! - spp sweeps (`sampling`, `lobes`, `hery`, `models`, `backends`, `shadows`): 1, 2, 4, 8 spp on the centred
+//!   [`SWEEP_CROP`]² window (96²), references at 8 × 8 = 64 spp.
+//! - [`samples`]: the sweep is over light and material samples per shading point, so everything else is made
+//!   noise-free: 1 spp, the pixel filter shrunk to 0.001 px (every seed's camera ray goes through the pixel
+//!   centre), `integrator.path_length = 0` (one bounce of indirect light is one sample per camera sample, a noise
+//!   no light or material sample count reduces) and `hair.opacity = 1` (stochastic transparency of shadow rays
+//!   adds noise of its own). Measured on the fur ball's 32² centre: at 1 spp with the scene's filter, 16 and 1024
+//!   light samples had the same RMSE (0.177 and 0.177: pixel sampling dominates); with these settings 0.0155
+//!   and 0.0043. The references are (2048 light, 2048 material) samples at [`SAMPLES_REFERENCE_SPP`] = 16 spp on
+//!   the centred [`SAMPLES_CROP`]² = 16² window. Why so many: with MIS the error keeps falling as *either* count
+//!   grows (the balance heuristic shifts weight to the strategy with more samples), so the sweep's last points are
+//!   nearly as good as a 2048 × 2048 render. Measured on the fur ball (32² window, loaded machine): 2-spp
+//!   references were only 1.2–1.3× below the sweep's smallest RMSE (marschner 2.7e-3 against 3.3e-3); 16 spp
+//!   has 8× the samples, so √8 ≈ 2.8× less noise. Costs: references 3 × 16 × 4096 samples per pixel, the sweep
+//!   3 models × 2 series × 8 counts × 3 seeds, ~8·10⁴ samples per pixel; on 256 pixels.
+//! - [`curves`]: the strands' radius scaled (`hair.radius_scale` 0.5, 1, 2: their width in pixels ×0.5 to ×2)
+//!   at a fixed film, 4 spp on the [`SWEEP_CROP`]² window, references at 32 spp.
+//! - `stress` ([`super::stress`]): 8 spp on the centred 48² window, references at 64 spp (7–10 cases × 4 methods,
+//!   each with its own reference).
+//!
+//! # The kinds
+//!
+//! - [`samples`]: the thesis' table 3 — light samples 16…2048 at 64 material samples and material samples
+//!   16…2048 at 64 light samples, for `marschner`, `ishair`, `chiang`. `--quick`: 1, 2, 4 at 4.
 //! - [`sampling`]: importance against uniform BSDF sampling (`material.sampling`) for `kajiya-kay`, `marschner`,
-//!   `ishair` (`chiang` has no uniform mode), material samples only (`integrator.strategy = "material"`, so the
-//!   sampling strategy is what is measured) over spp; equal-time and equal-error read-outs.
+//!   `ishair` and `chiang`, material samples only (`integrator.strategy = "material"`, so the sampling strategy is
+//!   what is measured) over spp; equal-time and equal-error read-outs.
 //! - [`lobes`]: ISHair's lobe selection, `uniform` against `by-energy`, material samples only, over spp.
 //! - [`hery`]: Marschner sampled as Hery & Ramamoorthi published it (`published`, clamp-and-flip) against the exact
 //!   pdf (`importance`), material samples only, over spp, against an MIS reference: the published sampler's error
 //!   levels off at its bias (`mean_diff` in the CSV is the bias of the image mean).
-//! - [`models`]: `marschner` and `ishair` against a `chiang` reference (with `chiang` itself as the control), over
-//!   spp: the error that does not fall with spp is the models' difference. Colours are not matched.
-//! - [`curves`]: round tubes against flat ribbons per model, against a round reference at each film width (the
-//!   strands' width in pixels grows in proportion to it); times include set-up (the BVH differs).
+//! - [`models`]: `marschner` and `ishair` each against a `chiang` reference **at matched colour**: Chiang's σa
+//!   chosen so that its single-fibre albedo equals that model's per channel ([`crate::measure::albedo`], which says
+//!   why the albedo rather than the image mean), with that matched `chiang` itself as the control; over spp. The
+//!   error that does not fall with spp is the models' difference.
+//! - [`curves`]: round tubes against flat ribbons per model, each against a round reference at the same radius
+//!   scale; times include set-up (the BVH differs).
 //! - [`backends`], [`shadows`]: the studies of issues 13 and 6 as framework kinds, for `all` (seeds, SSIM,
 //!   fireflies, read-outs). `cuticle study backends|shadows` keep their own modules ([`super::backends`],
 //!   [`super::shadows`]) and options, with the image-difference maps and crop mosaic the framework does not draw.
 //!   In `shadows` the map build is part of the render time.
 
-use super::framework::{Kind, Overrides, Reference, Variant};
+use super::framework::{Budget, Kind, Overrides, Reference, Variant};
+use crate::bsdf::chiang::ChiangParams;
+use crate::measure::albedo;
+use crate::scene::MaterialConfig;
+
+/// References render this many times the sweep's largest spp (or samples per point).
+pub const REFERENCE_FACTOR: u32 = 8;
+/// Side of the centred window the spp sweeps render, pixels.
+pub const SWEEP_CROP: u32 = 96;
+/// Side of the centred window `samples` renders, pixels.
+pub const SAMPLES_CROP: u32 = 16;
+/// Samples per pixel of `samples`' references (of [`SAMPLES_MAX`] light and material samples each).
+pub const SAMPLES_REFERENCE_SPP: u32 = 16;
+/// The most samples per shading point `samples` sweeps (the thesis' table 3).
+pub const SAMPLES_MAX: u32 = 2048;
+
+/// The budget of an spp sweep: the crop and references at [`REFERENCE_FACTOR`] × its largest spp (`--quick`: the
+/// study's defaults).
+fn sweep_budget(quick: bool) -> Budget {
+    if quick {
+        Budget::default()
+    } else {
+        Budget {
+            crop: Some(SWEEP_CROP),
+            reference_spp: spp_sweep(false).last().map(|s| s * REFERENCE_FACTOR),
+        }
+    }
+}
 
 /// Samples per pixel of the sweeps over spp.
 fn spp_sweep(quick: bool) -> Vec<u32> {
     if quick {
         vec![1, 2, 4]
     } else {
-        vec![1, 2, 4, 8, 16, 32, 64]
+        vec![1, 2, 4, 8]
     }
 }
 
@@ -57,22 +116,36 @@ fn key(k: &str, v: toml::Value) -> (String, toml::Value) {
 
 /// `samples` (see the module docs).
 pub fn samples(quick: bool) -> Kind {
-    let (counts, fixed): (Vec<u32>, u32) = if quick {
-        (vec![1, 2, 4], 4)
+    let (counts, fixed, reference): (Vec<u32>, u32, u32) = if quick {
+        (vec![1, 2, 4], 4, 4)
     } else {
-        (vec![16, 32, 64, 128, 256, 512, 1024], 64)
+        (
+            vec![16, 32, 64, 128, 256, 512, 1024, SAMPLES_MAX],
+            64,
+            SAMPLES_MAX,
+        )
+    };
+    // Noise the sample counts do not reduce, removed (see the module docs, "Budgets").
+    let quiet = || {
+        vec![
+            key("film.filter_width", toml::Value::Float(0.001)),
+            key("integrator.path_length", int(0)),
+            key("hair.opacity", toml::Value::Float(1.0)),
+        ]
     };
     let models = ["marschner", "ishair", "chiang"];
     let mut references = Vec::new();
     let mut variants = Vec::new();
     for (r, model) in models.iter().enumerate() {
+        let mut overrides = vec![
+            material(model, &[]),
+            key("integrator.light_samples", int(reference)),
+            key("integrator.material_samples", int(reference)),
+        ];
+        overrides.extend(quiet());
         references.push(Reference {
-            label: format!("{model}, MIS, {fixed} light × {fixed} material samples"),
-            overrides: vec![
-                material(model, &[]),
-                key("integrator.light_samples", int(fixed)),
-                key("integrator.material_samples", int(fixed)),
-            ],
+            label: format!("{model}, MIS, {reference} light × {reference} material samples"),
+            overrides,
         });
         for (what, other) in [("light", "material"), ("material", "light")] {
             for &n in &counts {
@@ -81,11 +154,14 @@ pub fn samples(quick: bool) -> Kind {
                     method: model.to_string(),
                     settings: format!("{what}_samples={n} {other}_samples={fixed}"),
                     x: f64::from(n),
-                    overrides: vec![
+                    overrides: [
                         material(model, &[]),
                         key(&format!("integrator.{what}_samples"), int(n)),
                         key(&format!("integrator.{other}_samples"), int(fixed)),
-                    ],
+                    ]
+                    .into_iter()
+                    .chain(quiet())
+                    .collect(),
                     reference: r,
                 });
             }
@@ -110,6 +186,14 @@ pub fn samples(quick: bool) -> Kind {
         compare,
         bias_readout: false,
         equal_setting: true,
+        budget: if quick {
+            Budget::default()
+        } else {
+            Budget {
+                crop: Some(SAMPLES_CROP),
+                reference_spp: Some(SAMPLES_REFERENCE_SPP),
+            }
+        },
     }
 }
 
@@ -150,7 +234,7 @@ fn mis_reference(model: &str) -> Reference {
 
 /// `sampling` (see the module docs).
 pub fn sampling(quick: bool) -> Kind {
-    let models = ["kajiya-kay", "marschner", "ishair"];
+    let models = ["kajiya-kay", "marschner", "ishair", "chiang"];
     let mut variants = Vec::new();
     let mut compare = Vec::new();
     for (r, model) in models.iter().enumerate() {
@@ -176,6 +260,7 @@ pub fn sampling(quick: bool) -> Kind {
         compare,
         bias_readout: false,
         equal_setting: true,
+        budget: sweep_budget(quick),
     }
 }
 
@@ -205,6 +290,7 @@ pub fn lobes(quick: bool) -> Kind {
         )],
         bias_readout: false,
         equal_setting: true,
+        budget: sweep_budget(quick),
     }
 }
 
@@ -235,76 +321,110 @@ pub fn hery(quick: bool) -> Kind {
         )],
         bias_readout: true,
         equal_setting: true,
+        budget: sweep_budget(quick),
     }
 }
 
+/// Chiang's σa whose fibre albedo matches `model`'s paper defaults ([`albedo`]), with the albedos: (σa, the
+/// model's albedo, chiang's at that σa).
+pub fn matched_chiang(model: &str) -> Result<([f32; 3], [f32; 3]), String> {
+    let config = MaterialConfig::named(model).ok_or_else(|| format!("no model {model}"))?;
+    let target = albedo::fibre_albedo(&config.build()?);
+    let sigma_a = albedo::chiang_sigma_a_for_albedo(ChiangParams::default(), target)?;
+    Ok((sigma_a.to_array(), target.to_array()))
+}
+
+/// A `[material]` table of `chiang` with `sigma_a`.
+fn chiang_with(sigma_a: [f32; 3]) -> (String, toml::Value) {
+    let mut t = toml::Table::new();
+    t.insert("model".into(), string("chiang"));
+    t.insert(
+        "sigma_a".into(),
+        toml::Value::try_from(sigma_a.map(f64::from)).expect("array"),
+    );
+    ("material".into(), toml::Value::Table(t))
+}
+
 /// `models` (see the module docs).
-pub fn models(quick: bool) -> Kind {
-    let variants = ["marschner", "ishair", "chiang"]
-        .iter()
-        .flat_map(|m| {
-            spp_sweep(quick).into_iter().map(move |spp| Variant {
-                series: (*m).to_owned(),
-                method: (*m).to_owned(),
+pub fn models(quick: bool) -> Result<Kind, String> {
+    let mut references = Vec::new();
+    let mut variants = Vec::new();
+    let mut compare = Vec::new();
+    for (r, model) in ["marschner", "ishair"].iter().enumerate() {
+        let (sigma_a, target) = matched_chiang(model)?;
+        let fmt = |v: [f32; 3]| format!("{:.3} {:.3} {:.3}", v[0], v[1], v[2]);
+        references.push(Reference {
+            label: format!(
+                "chiang at {model}'s fibre albedo ({}; σa {})",
+                fmt(target),
+                fmt(sigma_a)
+            ),
+            overrides: vec![chiang_with(sigma_a)],
+        });
+        let control = format!("chiang as {model}");
+        for (series, m) in [
+            ((*model).to_owned(), material(model, &[])),
+            (control.clone(), chiang_with(sigma_a)),
+        ] {
+            variants.extend(spp_sweep(quick).into_iter().map(|spp| Variant {
+                series: series.clone(),
+                method: series.clone(),
                 settings: format!("spp={spp}"),
                 x: f64::from(spp),
-                overrides: vec![material(m, &[]), key("film.spp", int(spp))],
-                reference: 0,
-            })
-        })
-        .collect();
-    Kind {
+                overrides: vec![m.clone(), key("film.spp", int(spp))],
+                reference: r,
+            }));
+        }
+        compare.push(((*model).to_owned(), control));
+    }
+    Ok(Kind {
         name: "models".into(),
-        title: "the thesis models against the energy-conserving chiang reference".into(),
+        title: "the thesis models against the energy-conserving chiang at matched fibre albedo"
+            .into(),
         x_label: "samples per pixel".into(),
         time_includes_setup: false,
-        references: vec![mis_reference("chiang")],
+        references,
         variants,
-        compare: vec![
-            ("marschner".into(), "chiang".into()),
-            ("ishair".into(), "chiang".into()),
-        ],
+        compare,
         bias_readout: true,
         equal_setting: true,
-    }
+        budget: sweep_budget(quick),
+    })
 }
 
 /// `curves` (see the module docs).
 pub fn curves(quick: bool) -> Kind {
-    let widths: Vec<u32> = if quick {
-        vec![24, 48]
+    let scales: Vec<f64> = if quick {
+        vec![1.0, 2.0]
     } else {
-        vec![128, 256, 512]
+        vec![0.5, 1.0, 2.0]
     };
-    let spp = if quick { 2 } else { 16 };
+    let spp = if quick { 2 } else { 4 };
     let models = ["marschner", "chiang"];
     let mut references = Vec::new();
     let mut variants = Vec::new();
-    for &w in &widths {
-        let film = key(
-            "film.resolution",
-            toml::Value::try_from([w, w]).expect("array"),
-        );
+    for &scale in &scales {
+        let radius = key("hair.radius_scale", toml::Value::Float(scale));
         for model in models {
             let r = references.len();
             references.push(Reference {
-                label: format!("{model}, round, {w}×{w}"),
+                label: format!("{model}, round, radius ×{scale}"),
                 overrides: vec![
                     material(model, &[]),
                     key("hair.curves", string("round")),
-                    film.clone(),
+                    radius.clone(),
                 ],
             });
             for curves in ["round", "flat"] {
                 variants.push(Variant {
                     series: format!("{model} {curves}"),
                     method: format!("{model} {curves}"),
-                    settings: format!("curves={curves} resolution={w} spp={spp}"),
-                    x: f64::from(w),
+                    settings: format!("curves={curves} radius_scale={scale} spp={spp}"),
+                    x: scale,
                     overrides: vec![
                         material(model, &[]),
                         key("hair.curves", string(curves)),
-                        film.clone(),
+                        radius.clone(),
                         key("film.spp", int(spp)),
                     ],
                     reference: r,
@@ -314,9 +434,9 @@ pub fn curves(quick: bool) -> Kind {
     }
     Kind {
         name: "curves".into(),
-        title: "round tubes against flat ribbons, per model and film width (strand width in pixels ∝ film width)"
+        title: "round tubes against flat ribbons, per model and strand width (hair.radius_scale)"
             .into(),
-        x_label: "film width (px)".into(),
+        x_label: "strand radius scale (width in pixels ∝)".into(),
         time_includes_setup: true,
         references,
         variants,
@@ -324,8 +444,16 @@ pub fn curves(quick: bool) -> Kind {
             .iter()
             .map(|m| (format!("{m} flat"), format!("{m} round")))
             .collect(),
-        bias_readout: false,
+        bias_readout: true,
         equal_setting: true,
+        budget: if quick {
+            Budget::default()
+        } else {
+            Budget {
+                crop: Some(SWEEP_CROP),
+                reference_spp: Some(spp * REFERENCE_FACTOR),
+            }
+        },
     }
 }
 
@@ -372,6 +500,7 @@ pub fn backends(quick: bool) -> Kind {
             .collect(),
         bias_readout: false,
         equal_setting: true,
+        budget: sweep_budget(quick),
     }
 }
 
@@ -380,7 +509,7 @@ pub fn shadows(quick: bool) -> Kind {
     let (rt_spp, layers, dom_spp, map_res) = if quick {
         (vec![1, 2, 4], vec![4, 8, 16], 2, 128)
     } else {
-        (vec![1, 4, 16, 64], vec![4, 8, 16, 32, 64], 16, 1024)
+        (spp_sweep(false), vec![4, 8, 16, 32, 64], 8, 1024)
     };
     let mut variants: Vec<Variant> = rt_spp
         .iter()
@@ -425,6 +554,7 @@ pub fn shadows(quick: bool) -> Kind {
         compare: vec![("deep opacity maps".into(), "ray traced".into())],
         bias_readout: false,
         equal_setting: false,
+        budget: sweep_budget(quick),
     }
 }
 
@@ -433,17 +563,17 @@ pub const ALL: [&str; 8] = [
     "samples", "sampling", "lobes", "hery", "models", "curves", "backends", "shadows",
 ];
 
-/// The kind called `name`, or `None`.
-pub fn by_name(name: &str, quick: bool) -> Option<Kind> {
-    Some(match name {
+/// The kind called `name`, or `None`; `Some(Err)` when it cannot be built (`models`' colour match).
+pub fn by_name(name: &str, quick: bool) -> Option<Result<Kind, String>> {
+    Some(Ok(match name {
         "samples" => samples(quick),
         "sampling" => sampling(quick),
         "lobes" => lobes(quick),
         "hery" => hery(quick),
-        "models" => models(quick),
+        "models" => return Some(models(quick)),
         "curves" => curves(quick),
         "backends" => backends(quick),
         "shadows" => shadows(quick),
         _ => return None,
-    })
+    }))
 }

@@ -26,7 +26,9 @@ pub struct AllReport {
 pub fn run_all(scene_path: &Path, config: &StudyConfig) -> Result<AllReport, StudyError> {
     let mut reports = Vec::new();
     for name in kinds::ALL {
-        let kind = kinds::by_name(name, config.quick).expect("every name of ALL is a kind");
+        let kind = kinds::by_name(name, config.quick)
+            .expect("every name of ALL is a kind")
+            .map_err(|e| StudyError::Config(format!("study {name}: {e}")))?;
         reports.push(run_kind(scene_path, &kind, config)?);
     }
     let stress = stress::run(scene_path, config)?;
@@ -59,7 +61,7 @@ pub fn markdown_report(scene_path: &Path, config: &StudyConfig, reports: &[KindR
     let _ = writeln!(md, "# cuticle study all: {}\n", scene_path.display());
     let _ = writeln!(
         md,
-        "{} seeds per point, references at {} spp{}. Written by `cuticle study all{}`; every number below is in \
+        "{} seeds per point, references at {} spp unless a study says otherwise{}. Written by `cuticle study all{}`; every number below is in \
          the CSVs beside this file.\n",
         config.seeds,
         config.reference_spp,
@@ -77,6 +79,18 @@ pub fn markdown_report(scene_path: &Path, config: &StudyConfig, reports: &[KindR
     }
     for r in reports {
         let _ = writeln!(md, "\n## {}: {}\n", r.kind.name, r.kind.title);
+        let _ = writeln!(
+            md,
+            "{}×{} film{}, references at {} spp.\n",
+            r.resolution[0],
+            r.resolution[1],
+            r.kind
+                .budget
+                .crop
+                .map(|_| " (the centred window of the study's film)")
+                .unwrap_or_default(),
+            r.reference_spp
+        );
         for (reference, run) in r.kind.references.iter().zip(&r.references) {
             let _ = writeln!(
                 md,
@@ -88,6 +102,9 @@ pub fn markdown_report(scene_path: &Path, config: &StudyConfig, reports: &[KindR
                     .unwrap_or_else(|| "time not recorded".into()),
                 if run.cached { " (cached)" } else { "" }
             );
+        }
+        for line in &r.reference_checks {
+            let _ = writeln!(md, "- {line}");
         }
         for f in &r.files {
             if f.extension().is_some_and(|e| e == "png") {

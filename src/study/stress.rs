@@ -29,7 +29,9 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use super::cache::write_text;
-use super::framework::{run_kind, Kind, KindReport, Overrides, Reference, StudyConfig, Variant};
+use super::framework::{
+    run_kind, Budget, Kind, KindReport, Overrides, Reference, StudyConfig, Variant,
+};
 use super::StudyError;
 use crate::image;
 use crate::measure::pixels;
@@ -40,6 +42,13 @@ pub const METHODS: [&str; 4] = ["kajiya-kay", "marschner", "ishair", "chiang"];
 pub const FIREFLY_FAIL_FRACTION: f64 = 0.01;
 /// A scale case fails when its reference's mean luminance differs from the control's by more than this fraction.
 pub const SCALE_FAIL: f64 = 0.05;
+/// Samples per pixel of the cases (full runs; `--quick`: 4).
+pub const SPP: u32 = 8;
+/// Side of the centred window the cases render (full runs), pixels: 7–10 cases × 4 methods each with its own
+/// reference must fit the 20 minutes of `study all` (see [`super::kinds`], "Budgets").
+pub const CROP: u32 = 48;
+/// Samples per pixel of the cases' references (full runs): [`super::kinds::REFERENCE_FACTOR`] × [`SPP`].
+pub const REFERENCE_SPP: u32 = super::kinds::REFERENCE_FACTOR * SPP;
 /// The scales of the `scale-*` cases.
 const SCALES: [(f64, &str); 2] = [(1e-3, "scale-1e-3"), (1e3, "scale-1e3")];
 
@@ -153,7 +162,7 @@ fn lights(base: &toml::Table) -> Vec<toml::Value> {
 
 /// The cases `base` (a scene file's table) can express, in order, and the ones it cannot.
 pub fn cases(base: &toml::Table, quick: bool) -> (Vec<Case>, Vec<Skipped>) {
-    let spp = if quick { 4 } else { 16 };
+    let spp = if quick { 4 } else { SPP };
     let mut cases = Vec::new();
     let mut skipped = Vec::new();
     let mut case = |name: &str, what: &str, overrides: Overrides| {
@@ -314,7 +323,7 @@ pub fn cases(base: &toml::Table, quick: bool) -> (Vec<Case>, Vec<Skipped>) {
 }
 
 /// The [`Kind`] of `cases`: one reference and one variant per case and method (case-major, [`METHODS`] order).
-pub fn kind(cases: &[Case]) -> Kind {
+pub fn kind(cases: &[Case], quick: bool) -> Kind {
     let mut references = Vec::new();
     let mut variants = Vec::new();
     for (c, case) in cases.iter().enumerate() {
@@ -346,6 +355,14 @@ pub fn kind(cases: &[Case]) -> Kind {
         compare: Vec::new(),
         bias_readout: false,
         equal_setting: false,
+        budget: if quick {
+            Budget::default()
+        } else {
+            Budget {
+                crop: Some(CROP),
+                reference_spp: Some(REFERENCE_SPP),
+            }
+        },
     }
 }
 
@@ -365,7 +382,7 @@ pub fn run(scene_path: &Path, config: &StudyConfig) -> Result<StressReport, Stud
     let base: toml::Table = toml::from_str(&text)
         .map_err(|e| StudyError::Config(format!("{}: {e}", scene_path.display())))?;
     let (cases, skipped) = cases(&base, config.quick);
-    let kind = kind(&cases);
+    let kind = kind(&cases, config.quick);
     let mut report = run_kind(scene_path, &kind, config)?;
     let [w, h] = report.resolution;
     let pixels = f64::from(w) * f64::from(h);
@@ -424,7 +441,7 @@ pub fn run(scene_path: &Path, config: &StudyConfig) -> Result<StressReport, Stud
          reference mean more than {:.0} % from the control's. Every number is in `stress.csv` / \
          `stress-summary.csv`.\n",
         config.seeds,
-        config.reference_spp,
+        report.reference_spp,
         100.0 * FIREFLY_FAIL_FRACTION,
         100.0 * SCALE_FAIL
     );
