@@ -621,15 +621,18 @@ impl<'a> Integrator<'a> {
             if !self.material_finds_light && !continues {
                 continue;
             }
-            let (le, found) =
-                self.trace_material_sample(v, &self.first, wi, pdf, draw.key(d), counts);
-            if le.max_element() > 0.0 {
-                add_lobes(&mut out.lobes, &weights, le / n_m as f32);
-            }
-            if continues {
+            let le = if continues {
+                let (le, found) =
+                    self.trace_material_sample(v, &self.first, wi, pdf, draw.key(d), counts);
                 if let Found::Surface(second) = found {
                     next = Some((second, weights));
                 }
+                le
+            } else {
+                self.trace_material_light(v, &self.first, wi, pdf, draw.key(d), counts)
+            };
+            if le.max_element() > 0.0 {
+                add_lobes(&mut out.lobes, &weights, le / n_m as f32);
             }
         }
         next
@@ -698,6 +701,11 @@ impl<'a> Integrator<'a> {
             return (radiance, None);
         };
         let weight = fcos.sum() / pdf;
+        if b == self.settings.path_length {
+            // The last vertex's material sample only looks for light: an any-hit query is enough.
+            let le = self.trace_material_light(v, &mis, wi, pdf, draw.key(d), counts);
+            return (radiance + weight * le, None);
+        }
         let (le, found) = self.trace_material_sample(v, &mis, wi, pdf, draw.key(d), counts);
         radiance += weight * le;
         match found {

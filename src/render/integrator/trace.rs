@@ -49,6 +49,11 @@ impl Integrator<'_> {
 
     /// The nearest area light or shape along `ray` before `tfar` (hair is the caller's business), if any.
     fn find_non_hair(&self, ray: &Ray, tfar: f32) -> Option<Found> {
+        self.nearest_non_hair(ray, tfar).1
+    }
+
+    /// [`Integrator::find_non_hair`] with the distance it found it at (`tfar` if nothing).
+    fn nearest_non_hair(&self, ray: &Ray, tfar: f32) -> (f32, Option<Found>) {
         let mut tmax = tfar;
         let shape = self.shapes.intersect(ray, tmax);
         if let Some(s) = shape {
@@ -66,9 +71,9 @@ impl Integrator<'_> {
             }
         }
         if let Some((radiance, i)) = emitter {
-            return Some(Found::Emitter(radiance, i));
+            return (tmax, Some(Found::Emitter(radiance, i)));
         }
-        shape.map(|s| {
+        let found = shape.map(|s| {
             let wo = -ray.dir.normalize();
             let normal = if s.normal.dot(wo) >= 0.0 {
                 s.normal
@@ -83,7 +88,8 @@ impl Integrator<'_> {
                     albedo: s.albedo,
                 },
             })
-        })
+        });
+        (tmax, found)
     }
 
     /// Visibility along a light sample's shadow ray, in [0, 1].
@@ -167,6 +173,45 @@ impl Integrator<'_> {
         }
         let found = self.find(&ray, Some((key, ignore)), counts);
         (self.emitted_along(v, mis, &ray, &found, pdf), found)
+    }
+
+    /// [`Integrator::trace_material_sample`] for a material sample that does not continue the path (it only looks
+    /// for light, for MIS): the emitted light it reaches, found with an any-hit query for hair in front of the
+    /// nearest shape or emitter instead of a closest hit. The same answer — a strand present for `key` blocks it
+    /// exactly when the closest present strand is nearer — for fewer traversal steps (an occlusion query stops at
+    /// the first strand it finds, and most such rays start inside the fur).
+    pub(super) fn trace_material_light(
+        &self,
+        v: &Vertex,
+        mis: &Mis,
+        wi: Vec3,
+        pdf: f32,
+        key: u64,
+        counts: &mut RayCounts,
+    ) -> Vec3 {
+        let (origin, tnear, ignore) = self.spawn(v, wi);
+        let ray = Ray::segment(origin, wi, tnear, f32::INFINITY);
+        counts.material += 1;
+        let (t_end, found) = self.nearest_non_hair(&ray, ray.tfar);
+        let found = match found {
+            // A shape emits nothing: whatever hair lies before it, the sample brings no light.
+            Some(Found::Surface(_)) => return Vec3::ZERO,
+            f => f.unwrap_or(Found::Escaped),
+        };
+        if self.settings.shadows != ShadowMode::None && t_end > tnear {
+            let blocked = self
+                .tracer
+                .occluded_stochastic(&Ray::segment(origin, wi, tnear, t_end), ignore, key)
+                .unwrap_or_else(|_| {
+                    // As `find`: a refused ray counts as rejected and finds nothing.
+                    counts.rejected += 1;
+                    false
+                });
+            if blocked {
+                return Vec3::ZERO;
+            }
+        }
+        self.emitted_along(v, mis, &ray, &found, pdf)
     }
 
     /// The emitted radiance a material sample from `v` along `ray` (density `pdf` per sample) finds in `found`,
