@@ -3,8 +3,7 @@
 //! [`crate::accel::embree::EmbreeTracer`] query for query.
 //!
 //! - **Closest hit**: [`WideBvh::closest`] with the round or flat segment test.
-//! - **Transmittance**: every segment the walk reaches is offered, in no particular order
-//!   ([`WideBvh::for_each_unordered`]); a segment whose strand
+//! - **Transmittance**: every segment the walk reaches is offered ([`WideBvh::for_each`]); a segment whose strand
 //!   is ignored, transparent (opacity 0) or already counted is skipped before its curve test, any other is tested
 //!   over the whole `[tnear, tfar]`. The bookkeeping is Embree's filter's (`sys::embree::filter`): ∏ (1 − aᵢ) over
 //!   distinct strands, at most [`SEEN_STRANDS`] remembered in a fixed array (one more distinct strand ends the ray
@@ -219,7 +218,7 @@ impl Tracer for BvhTracer {
     fn transmittance(&self, ray: &Ray, ignore_strand: Option<u32>) -> Result<f32, InvalidRay> {
         let q = self.query(ray)?;
         let mut seen = Seen::new(ignore_strand);
-        self.bvh.for_each_unordered(&q.ray, |p, tfar| {
+        self.bvh.for_each(&q.ray, |p, tfar| {
             if seen.skips(p.strand, p.opacity) || !q.occludes(p, tfar) {
                 return Control::Continue;
             }

@@ -332,7 +332,7 @@ fn sphere_hit(ray: &Ray, spheres: &[glam::Vec4], tfar: f32) -> Option<f32> {
 /// [`wide::WideBvh`] over `bvh` against brute force, with each segment's [`cross_sections`] as its primitive: the
 /// nearest sphere the walk finds is the one a test of every segment finds, bit for bit; the all-hits walk offers
 /// every segment with a sphere on the ray, each with its own control points and strand, and offers a segment once
-/// unless the tree references it once per span; the unordered all-hits walk offers the same. Returns (rays hitting a sphere, segments offered).
+/// unless the tree references it once per span. Returns (rays hitting a sphere, segments offered).
 fn check_wide_traversal(bvh: &Bvh, strands: &Strands, rays: &[Ray], what: &str) -> (usize, usize) {
     let wide = wide::WideBvh::new(bvh, strands);
     let once = !matches!(bvh.options().bounding, Bounding::SpanRefs { .. });
@@ -371,17 +371,6 @@ fn check_wide_traversal(bvh: &Bvh, strands: &Strands, rays: &[Ray], what: &str) 
             Control::Continue
         }));
         got.sort_unstable();
-        // The unordered walk offers the same entries, each as often.
-        let mut unordered = Vec::new();
-        assert!(!wide.for_each_unordered(ray, |p, _| {
-            unordered.push(p.segment);
-            Control::Continue
-        }));
-        unordered.sort_unstable();
-        assert_eq!(
-            unordered, got,
-            "{what}, wide: ray {i} {ray:?}: the unordered walk offers other segments"
-        );
         let all = got.len();
         got.dedup();
         assert!(
@@ -665,31 +654,6 @@ fn all_hits_walk_stops_when_asked() {
         Control::Stop
     }));
     assert_eq!(calls, 1);
-    // Through a point on the first segment's curve (u = 0), which every box around that segment holds.
-    let p = &strands.control_points[..3];
-    let on_curve = (Vec3::from_slice(&p[0][..3])
-        + 4.0 * Vec3::from_slice(&p[1][..3])
-        + Vec3::from_slice(&p[2][..3]))
-        / 6.0;
-    let ray = Ray::new(
-        Vec3::new(-3.0, 0.0, 0.0),
-        on_curve - Vec3::new(-3.0, 0.0, 0.0),
-    );
-    let wide = wide::WideBvh::new(&bvh, &strands);
-    for unordered in [false, true] {
-        let mut calls = 0;
-        let stop = |_: &wide::Primitive, _| {
-            calls += 1;
-            Control::Stop
-        };
-        let stopped = if unordered {
-            wide.for_each_unordered(&ray, stop)
-        } else {
-            wide.for_each(&ray, stop)
-        };
-        assert!(stopped, "unordered {unordered}: the walk did not stop");
-        assert_eq!(calls, 1, "unordered {unordered}");
-    }
 }
 
 /// Where Embree hits a strand, that point lies in the hit segment's box (to Embree's numerical tolerance), so

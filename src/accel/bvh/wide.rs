@@ -443,7 +443,7 @@ impl WideBvh {
     ) -> Option<f32> {
         let mut r = WideRay::new(ray);
         let mut found = None;
-        self.walk::<true, _>(&mut r, |primitive, r| {
+        self.walk(&mut r, |primitive, r| {
             if let Some(t) = hit(primitive, r.tfar) {
                 debug_assert!(t >= r.tnear && t <= r.tfar, "hit t = {t} outside the ray");
                 r.tfar = t;
@@ -455,31 +455,14 @@ impl WideBvh {
     }
 
     /// Every primitive in a leaf whose bounds the ray crosses: [`Bvh::for_each`]'s contract, the callback given the leaf
-    /// entry, the children a ray crosses entered nearest first (an any-hit query then tends to meet an occluder
-    /// sooner: callgrind, flat `occluded_stochastic` 0.164 G estimated cycles unordered against 0.161 G ordered).
+    /// entry.
     pub fn for_each<F: FnMut(&Primitive, f32) -> Control>(&self, ray: &Ray, mut visit: F) -> bool {
         let mut r = WideRay::new(ray);
-        self.walk::<true, _>(&mut r, |primitive, r| visit(primitive, r.tfar))
+        self.walk(&mut r, |primitive, r| visit(primitive, r.tfar))
     }
 
-    /// [`WideBvh::for_each`] in no particular order: the children a ray crosses are not sorted by distance, for
-    /// queries whose answer does not depend on the order (Embree 3's any-hit walk,
-    /// `BVHNNodeTraverser1Hit::traverseAnyHit` in `kernels/bvh/bvh_traverser1.h`, does not sort either). Measured
-    /// on exact transmittance (callgrind, `bench trace` furball 96x96, flat, 1 thread; instructions + 10 per L1
-    /// miss + 200 per last-level miss + 15 per mispredicted branch): 0.871 G ordered, 0.850 G unordered.
-    pub fn for_each_unordered<F: FnMut(&Primitive, f32) -> Control>(
-        &self,
-        ray: &Ray,
-        mut visit: F,
-    ) -> bool {
-        let mut r = WideRay::new(ray);
-        self.walk::<false, _>(&mut r, |primitive, r| visit(primitive, r.tfar))
-    }
-
-    /// The walk: with `ORDERED`, the children a ray crosses are entered nearest first (closest-hit queries, which
-    /// shrink `tfar` as they go); without, in lane order.
     #[inline]
-    fn walk<const ORDERED: bool, F: FnMut(&Primitive, &mut WideRay) -> Control>(
+    fn walk<F: FnMut(&Primitive, &mut WideRay) -> Control>(
         &self,
         r: &mut WideRay,
         mut primitive: F,
@@ -523,17 +506,6 @@ impl WideBvh {
                     // children whose entry distances agree to 2⁻²¹ relative, which changes no query's answer.
                     if mask.is_power_of_two() {
                         current = children[mask.trailing_zeros() as usize];
-                        continue;
-                    }
-                    if !ORDERED {
-                        let mut rest = mask;
-                        current = children[rest.trailing_zeros() as usize];
-                        rest &= rest - 1;
-                        while rest != 0 {
-                            let lane = rest.trailing_zeros() as usize;
-                            stack.push((children[lane], tmin[lane]));
-                            rest &= rest - 1;
-                        }
                         continue;
                     }
                     let mut key = [0u32; 4];
