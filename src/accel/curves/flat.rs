@@ -213,7 +213,7 @@ fn intersect_tessellated(
     // Step 1 for the four control points at once, one SSE lane per point (the same operations in the same order
     // as a point-by-point `row.dot(p − O)`, so the same bits): structure of arrays, as `quads4` takes them.
     // Measured (callgrind, `bench trace` furball 96x96 flat, 1 thread, instructions in the exact-shadow loop):
-    // 0.592 G point by point, 0.572 G in lanes.
+    // 0.627 G point by point, 0.607 G in lanes.
     let column = |k: usize| Vec4::new(cp[0][k], cp[1][k], cp[2][k], cp[3][k]);
     let (px, py, pz) = (
         column(0) - Vec4::splat(org.x),
