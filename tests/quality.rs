@@ -134,6 +134,7 @@ fn auto_meets_its_target_and_a_tighter_target_takes_more_samples() {
         let image = render(&planned.settings, planned.maps.as_ref());
         let mut reference = planned.settings.clone();
         reference.film.spp = 1024;
+        reference.adaptive = None;
         reference.film.seed = 991;
         // Converged in light transport too: the bounces auto left out count against it.
         reference.integrator.path_length = 4;
@@ -154,6 +155,33 @@ fn auto_meets_its_target_and_a_tighter_target_takes_more_samples() {
             rel_rmse <= f64::from(target),
             "relative RMSE {rel_rmse} over the target {target}"
         );
+        // Adaptive sampling: the background (alpha 0) stops at the schedule's minimum, the hair takes more.
+        let schedule = planned.settings.adaptive.expect("auto samples adaptively");
+        let (a, n) = (
+            image.channel_index("A").unwrap(),
+            image.channel_index("spp").unwrap(),
+        );
+        let (mut background, mut hair) = (Vec::new(), Vec::new());
+        for p in image.data.chunks_exact(image.channels.len()) {
+            if p[a] == 0.0 {
+                &mut background
+            } else {
+                &mut hair
+            }
+            .push(p[n]);
+        }
+        let mean = |v: &[f32]| v.iter().sum::<f32>() / v.len().max(1) as f32;
+        println!(
+            "  spp: schedule {}..{}, background {} pixels mean {:.1}, hair {} pixels mean {:.1}",
+            schedule.min,
+            schedule.max,
+            background.len(),
+            mean(&background),
+            hair.len(),
+            mean(&hair)
+        );
+        assert!(background.iter().all(|&s| s == schedule.min as f32));
+        assert!(mean(&hair) > 1.5 * schedule.min as f32);
         // The prediction is a prediction: within a factor 2 of what was measured.
         let predicted = planned.pilot.predicted_noise;
         assert!(

@@ -391,6 +391,19 @@ pub fn plan_shadows(
     decision
 }
 
+/// The per-pixel schedule for a frame whose pilots asked for `spp` samples per pixel: from a quarter of it (at least
+/// `quality.min_spp` and 2, the fewest that give a variance) to 4× it (at most `quality.max_spp`), each pixel to
+/// the noise share √0.75 of the target.
+pub fn adaptive_schedule(spp: u32, quality: &QualityConfig) -> crate::render::adaptive::Schedule {
+    let min = (spp / 4).max(quality.min_spp).max(2).min(quality.max_spp);
+    let max = spp.saturating_mul(4).min(quality.max_spp).max(min);
+    crate::render::adaptive::Schedule {
+        min,
+        max,
+        target: 0.75f64.sqrt() * f64::from(quality.target),
+    }
+}
+
 /// A frame's settings as auto chose them, with the maps they need and what was decided.
 pub struct Planned {
     /// The settings to render with.
@@ -436,6 +449,20 @@ pub fn plan_frame(
     settings.integrator.material_samples = p.material_samples;
     settings.film.spp = p.spp;
     decisions.extend(p.decisions.iter().cloned());
+    if !fixed.spp {
+        let schedule = adaptive_schedule(p.spp, quality);
+        settings.adaptive = Some(schedule);
+        decisions.push(Decision {
+            key: "adaptive sampling",
+            value: format!("{}..{} spp per pixel", schedule.min, schedule.max),
+            reason: format!(
+                "each pixel samples in doubling rounds until its own relative error (variance at its 95 % upper \
+                 bound) is under {:.4} = √0.75 × the target, from a quarter to 4× the pilots' {} spp: \
+                 converged pixels (background, flat regions) stop early, noisy ones take more (the spp AOV)",
+                schedule.target, p.spp
+            ),
+        });
+    }
     Planned {
         settings,
         maps,

@@ -84,10 +84,11 @@ pub struct Schedule {
 }
 
 impl Schedule {
-    /// How many samples the pixel should have in total after its next round, given what it has; `None` when it is
-    /// done (converged, or at `max`).
-    pub fn next_total(&self, pixel: &Convergence) -> Option<u32> {
-        let n = pixel.count();
+    /// How many samples the pixel should have taken in total after its next round, given the `taken` it has and
+    /// the statistics of those of them that were finite (`pixel`); `None` when it is done (converged, or at `max`).
+    /// Rounds count samples taken, so a dropped non-finite sample cannot stall the schedule.
+    pub fn next_total(&self, taken: u32, pixel: &Convergence) -> Option<u32> {
+        let n = taken;
         if n >= self.max {
             return None;
         }
@@ -114,7 +115,7 @@ mod tests {
 
     fn run(schedule: Schedule, mut sample: impl FnMut() -> Vec3) -> Convergence {
         let mut c = Convergence::default();
-        while let Some(total) = schedule.next_total(&c) {
+        while let Some(total) = schedule.next_total(c.count(), &c) {
             while c.count() < total {
                 c.add(sample());
             }

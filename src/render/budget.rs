@@ -314,6 +314,7 @@ mod tests {
             },
             integrator: IntegratorConfig::default(),
             shadows: ShadowConfig::default(),
+            adaptive: None,
             background_visible: true,
         }
     }

@@ -25,7 +25,8 @@ use super::integrator::PathSample;
 /// - `albedo`: a one-sample estimate of the first shading point's directional albedo (f cos θ / pdf).
 /// - `depth.Z`, `tangent`, `strand.id`: from one unfiltered ray through the pixel centre (a depth or id averaged
 ///   across an edge would name no real surface); depth is +∞, tangent 0 and id −1 where it misses.
-pub const CHANNELS: [&str; 37] = [
+/// - `spp`: the camera samples the pixel took (the film's spp, or what adaptive sampling chose for it).
+pub const CHANNELS: [&str; 38] = [
     "R",
     "G",
     "B",
@@ -63,6 +64,7 @@ pub const CHANNELS: [&str; 37] = [
     "tangent.Y",
     "tangent.Z",
     "strand.id",
+    "spp",
 ];
 
 /// Index of channel `name` in [`CHANNELS`]. In a `const` it fails the build when the name is not a channel.
@@ -110,6 +112,7 @@ mod at {
     pub const DEPTH: usize = channel("depth.Z");
     pub const TANGENT: usize = channel("tangent.X");
     pub const STRAND: usize = channel("strand.id");
+    pub const SPP: usize = channel("spp");
 }
 
 /// Camera samples with a NaN or infinite value, left out of their pixels since the process started.
@@ -198,6 +201,7 @@ impl PixelSums {
             put(at, &v.to_array());
         }
         put(at::SHADOW, &[shadow]);
+        pixel[at::SPP] = spp as f32;
     }
 }
 

@@ -120,6 +120,7 @@ fn render_tiles(
 
     let start = Instant::now();
     let spp = settings.film.spp;
+    let adaptive = settings.adaptive;
     let seed = settings.film.seed;
     let tiles: Vec<(u32, u32)> = (0..tiles_y)
         .flat_map(|ty| (0..tiles_x).map(move |tx| (tx, ty)))
@@ -142,13 +143,38 @@ fn render_tiles(
                 for x in tile.x0..tile.x1 {
                     let sampler = PixelSampler::new(x, y, seed);
                     let mut sums = PixelSums::default();
-                    for i in 0..spp {
+                    let sample = |i: u32, counts: &mut RayCounts| {
                         let (dx, dy) = filter.sample(sampler.get_2d(i, dim::FILTER));
                         let ray = camera.ray(x as f32 + 0.5 + dx, y as f32 + 0.5 + dy);
-                        sums.add(&integrator.sample(&ray, &sampler, i, &mut counts));
-                    }
+                        integrator.sample(&ray, &sampler, i, counts)
+                    };
+                    let taken = match adaptive {
+                        None => {
+                            for i in 0..spp {
+                                sums.add(&sample(i, &mut counts));
+                            }
+                            spp
+                        }
+                        // Rounds of samples, in index order, until the pixel's own estimate of its error is under
+                        // the target (render::adaptive): the count depends on this pixel's samples alone.
+                        Some(schedule) => {
+                            let mut convergence = adaptive::Convergence::default();
+                            let mut i = 0;
+                            while let Some(total) = schedule.next_total(i, &convergence) {
+                                while i < total {
+                                    let s = sample(i, &mut counts);
+                                    if s.beauty.is_finite() {
+                                        convergence.add(s.beauty);
+                                    }
+                                    sums.add(&s);
+                                    i += 1;
+                                }
+                            }
+                            i
+                        }
+                    };
                     let pixel = tile.pixel_mut(x, y);
-                    sums.write(spp, pixel);
+                    sums.write(taken, pixel);
                     let centre = camera.ray(x as f32 + 0.5, y as f32 + 0.5);
                     counts.camera += 1;
                     let hit = tracer.intersect(&centre).unwrap_or(None);

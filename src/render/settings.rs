@@ -198,6 +198,9 @@ pub struct RenderSettings {
     pub integrator: IntegratorConfig,
     /// Self-shadowing.
     pub shadows: ShadowConfig,
+    /// Per-pixel adaptive sampling ([`super::adaptive`]) instead of `film.spp` samples everywhere (`--quality
+    /// auto` sets it; scenes do not).
+    pub adaptive: Option<super::adaptive::Schedule>,
     /// Whether camera rays that escape see the infinite lights.
     pub background_visible: bool,
 }

@@ -255,6 +255,7 @@ impl Scene {
             film: self.film.clone(),
             integrator: self.integrator.clone(),
             shadows: self.shadows.clone(),
+            adaptive: None,
             background_visible: self.environment.visible,
         }
     }
