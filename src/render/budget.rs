@@ -356,7 +356,7 @@ mod tests {
         );
         let e = big.check(8 << 30, "--max-memory").unwrap_err().to_string();
         assert!(
-            e.contains("film and AOVs 444 GiB") && e.contains("8 GiB (--max-memory)"),
+            e.contains("film and AOVs 456 GiB") && e.contains("8 GiB (--max-memory)"),
             "{e}"
         );
         let mut maps = settings(64, 64);
