@@ -200,9 +200,10 @@ pub fn run(config: &AutoStudyConfig) -> Result<String, StudyError> {
                 ratio(&shipped),
             );
         }
+        // Written after every scene, so a long run's finished scenes are kept.
+        cache::write_text(&config.out.join("auto.csv"), &csv)?;
+        cache::write_text(&config.out.join("auto.md"), &md)?;
     }
-    cache::write_text(&config.out.join("auto.csv"), &csv)?;
-    cache::write_text(&config.out.join("auto.md"), &md)?;
     Ok(md)
 }
 
@@ -218,6 +219,19 @@ fn study_scene(path: &Path, config: &AutoStudyConfig) -> Result<SceneRows, Study
     let frames = [spec_for(CurveKind::Round)?, spec_for(CurveKind::Flat)?];
     let frame_of = |c: CurveKind| &frames[usize::from(c == CurveKind::Flat)];
     let base = scene.render_settings();
+    let stem = path.file_stem().unwrap_or_default().to_string_lossy();
+    // Reference, 16 configurations × 2 fits, then per target three renders.
+    let steps = 1 + 2 * 16 + 3 * config.targets.len() as u64;
+    let progress = indicatif::ProgressBar::new(steps);
+    progress.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{prefix} [{bar:30}] {pos}/{len} {msg} ({elapsed})",
+        )
+        .expect("valid template")
+        .progress_chars("=> "),
+    );
+    progress.set_prefix(format!("study auto {stem}"));
+    progress.set_message("reference");
 
     // 1. The reference.
     let mut reference = base.clone();
@@ -241,6 +255,7 @@ fn study_scene(path: &Path, config: &AutoStudyConfig) -> Result<SceneRows, Study
         config.resolution,
         || render(frame_of(scene.hair.curves), &reference),
     )?;
+    progress.inc(1);
 
     // 2. Every fixed configuration, fitted.
     let mut fits = Vec::new();
@@ -258,7 +273,9 @@ fn study_scene(path: &Path, config: &AutoStudyConfig) -> Result<SceneRows, Study
                 let frame = frame_of(curves);
                 let mut e2 = [0.0; 2];
                 let mut last = (0.0, 0.0);
+                progress.set_message(c.name());
                 for (k, &spp) in FIT_SPP.iter().enumerate() {
+                    progress.inc(1);
                     s.film.spp = spp;
                     let (image, stats) = frame.render_with(&s, Options::default());
                     e2[k] = rel_rmse(&image, &reference_image)?.powi(2);
@@ -289,7 +306,6 @@ fn study_scene(path: &Path, config: &AutoStudyConfig) -> Result<SceneRows, Study
             f.setup_seconds
         );
     }
-    let stem = path.file_stem().unwrap_or_default().to_string_lossy();
     cache::write_text(&config.out.join(format!("auto-fits-{stem}.csv")), &fit_csv)?;
 
     let shipped_config = Config {
@@ -300,7 +316,9 @@ fn study_scene(path: &Path, config: &AutoStudyConfig) -> Result<SceneRows, Study
     let mut rows = Vec::new();
     for &target in &config.targets {
         let t = f64::from(target);
+        progress.set_message(format!("target {target}"));
         let measure_fixed = |fit: &Fit, what: &str| -> Result<Option<Measured>, StudyError> {
+            progress.inc(1);
             let Some(spp) = fit.spp_for(t) else {
                 return Ok(None);
             };
@@ -335,6 +353,7 @@ fn study_scene(path: &Path, config: &AutoStudyConfig) -> Result<SceneRows, Study
             .flatten();
 
         // Auto, timed from the curve decision to the last pixel.
+        progress.inc(1);
         let start = Instant::now();
         let strands = &frames[0].strands;
         let (curves, _) = quality::plan_curves(
@@ -377,5 +396,6 @@ fn study_scene(path: &Path, config: &AutoStudyConfig) -> Result<SceneRows, Study
         };
         rows.push((target, auto, fastest, shipped));
     }
+    progress.finish_and_clear();
     Ok(rows)
 }
