@@ -520,12 +520,20 @@ fn render_command(args: RenderArgs) -> Result<()> {
         }
     }
     eprintln!(
-        "{} strands ({:?} curves, {:?} backend), {width}x{height}, {} spp, {} threads: load {:.2} s, build {:.2} s, render {:.2} s \
+        "{} strands ({:?} curves, {:?} backend), {width}x{height}, {}, {} threads: load {:.2} s, build {:.2} s, render {:.2} s \
          ({:.2} Mrays/s: {} camera, {} shadow, {} material rays)",
         frame.strands.strand_count(),
         frame.curves,
         frame.backend,
-        settings.film.spp,
+        match settings.adaptive {
+            // Each pixel traces its samples' camera rays and one centre ray.
+            Some(a) => {
+                let pixels = u64::from(region.width()) * u64::from(region.height());
+                let mean = stats.rays.camera.saturating_sub(pixels) as f64 / pixels.max(1) as f64;
+                format!("adaptive {}..{} spp (mean {mean:.1})", a.min, a.max)
+            }
+            None => format!("{} spp", settings.film.spp),
+        },
         pool.current_num_threads(),
         frame.load_seconds,
         frame.build_seconds(),
