@@ -384,10 +384,18 @@ fn render_command(args: RenderArgs) -> Result<()> {
     };
     let auto =
         (scene.quality.mode == cuticle::quality::QualityMode::Auto).then_some(&scene.quality);
+    // What the command line fixes, auto keeps.
+    let fixed = cuticle::quality::Fixed {
+        curves: args.curves.is_some(),
+        shadows: args.shadows.is_some(),
+        path_length: args.path_length.is_some(),
+        samples: args.light_samples.is_some() || args.material_samples.is_some(),
+        spp: args.spp.is_some(),
+    };
     let mut decisions = Vec::new();
     let frame = pool.install(|| {
         Frame::load_adjusted(spec, limit, &limit_source, |strands, spec| {
-            if auto.is_some() && args.curves.is_none() {
+            if auto.is_some() && !fixed.curves {
                 let s = &spec.settings;
                 let (kind, d) = cuticle::quality::plan_curves(
                     strands,
@@ -400,16 +408,8 @@ fn render_command(args: RenderArgs) -> Result<()> {
             }
         })
     })?;
-    let planned = auto.map(|q| {
-        let fixed = cuticle::quality::Fixed {
-            curves: args.curves.is_some(),
-            shadows: args.shadows.is_some(),
-            path_length: args.path_length.is_some(),
-            samples: args.light_samples.is_some() || args.material_samples.is_some(),
-            spp: args.spp.is_some(),
-        };
-        pool.install(|| cuticle::quality::plan_frame(&frame, &frame.settings, q, fixed))
-    });
+    let planned = auto
+        .map(|q| pool.install(|| cuticle::quality::plan_frame(&frame, &frame.settings, q, fixed)));
     if let (Some(p), Some(q)) = (&planned, auto) {
         for d in decisions.iter().chain(&p.decisions) {
             eprintln!("auto: {d}");

@@ -146,8 +146,7 @@ pub fn screen_widths(
 ) -> Option<ScreenWidths> {
     let cam = crate::render::camera::Camera::from_config(camera, strands.bounds(), width, height);
     let tan_half = (0.5 * camera.fov.to_radians()).tan();
-    // Focal length in pixels: a length l at depth d spans l · focal / d pixels.
-    let focal = 0.5 * height as f32 / tan_half;
+    let focal = focal_pixels(camera, height);
     let half_w = tan_half * width as f32 / height as f32;
     let n = strands.segment_count();
     let stride = n.div_ceil(WIDTH_SAMPLES).max(1);
@@ -186,50 +185,50 @@ pub fn screen_widths(
 pub const RIBBON_MAX_PIXELS: f32 = 1.0;
 
 /// Ribbons against tubes, from the strands' screen width and the fibre model.
-pub fn decide_curves(material: &Material, widths: Option<ScreenWidths>) -> Decision {
+pub fn decide_curves(material: &Material, widths: Option<ScreenWidths>) -> (CurveKind, Decision) {
     let key = "hair.curves";
     let speed = "ribbons trace 1.5-1.9x faster than tubes (README, Measured: furball-512 11.1 s flat, 19.1 s round)";
     let model = material.name;
-    let w = match widths {
-        Some(w) => w,
-        None => {
-            return Decision {
+    let decision = |kind: CurveKind, reason: String| {
+        (
+            kind,
+            Decision {
                 key,
-                value: "flat".into(),
-                reason: format!("no strand is in view; {speed}"),
-            }
-        }
+                value: kind.name().into(),
+                reason,
+            },
+        )
+    };
+    let Some(w) = widths else {
+        return decision(CurveKind::Flat, format!("no strand is in view; {speed}"));
     };
     let width = format!(
         "strands {:.2} px wide (median; 90 % under {:.2} px, {} segments measured)",
         w.median, w.p90, w.measured
     );
     if !material.uses_offset() {
-        Decision {
-            key,
-            value: "flat".into(),
-            reason: format!(
+        decision(
+            CurveKind::Flat,
+            format!(
                 "{model} does not read the offset across the fibre, so ribbons shade as tubes do \
                  (image means within 0.3 % at 256², README); {width}; {speed}"
             ),
-        }
+        )
     } else if w.p90 < RIBBON_MAX_PIXELS {
-        Decision {
-            key,
-            value: "flat".into(),
-            reason: format!(
+        decision(
+            CurveKind::Flat,
+            format!(
                 "{model} reads the offset h across the fibre, but {width}: under {RIBBON_MAX_PIXELS} px a pixel \
                  averages all of h on either geometry; {speed}"
             ),
-        }
+        )
     } else {
-        Decision {
-            key,
-            value: "round".into(),
-            reason: format!(
+        decision(
+            CurveKind::Round,
+            format!(
                 "{model} reads the offset h across the fibre and {width}: the tube's h (TT/TRT shift) shows"
             ),
-        }
+        )
     }
 }
 
@@ -250,7 +249,8 @@ fn map_tolerance(target: f32) -> f32 {
     0.2 * target
 }
 
-/// Deep opacity maps or ray-traced shadows, from the lights. `hair_pixels` is the hair's bounding-sphere
+/// Deep opacity maps or ray-traced shadows (or none, with no light), from the lights: the mode, the maps' settings
+/// when it is deep opacity, and the decision that says why. `hair_pixels` is the hair's bounding-sphere
 /// diameter on screen (the map's texels are made about as fine as the pixels there, no finer than needed and
 /// not so coarse that strands alias: `docs/shadow-study.md`).
 pub fn decide_shadows(
@@ -258,7 +258,7 @@ pub fn decide_shadows(
     scene_radius: f32,
     target: f32,
     hair_pixels: f32,
-) -> (Decision, Option<MapChoice>) {
+) -> (ShadowMode, Option<MapChoice>, Decision) {
     let key = "shadows.mode";
     let mut distant = 0.0f64;
     let mut other = 0.0f64;
@@ -272,12 +272,13 @@ pub fn decide_shadows(
     let total = distant + other;
     if total <= 0.0 {
         return (
+            ShadowMode::None,
+            None,
             Decision {
                 key,
                 value: "none".into(),
                 reason: "no light carries power: nothing casts a shadow".into(),
             },
-            None,
         );
     }
     let other_share = (other / total) as f32;
@@ -295,12 +296,13 @@ pub fn decide_shadows(
             100.0 * other_share
         );
         (
+            ShadowMode::DeepOpacity,
+            Some(MapChoice { resolution, layers }),
             Decision {
                 key,
                 value: "deep-opacity".into(),
                 reason,
             },
-            Some(MapChoice { resolution, layers }),
         )
     } else {
         let reason = format!(
@@ -309,12 +311,13 @@ pub fn decide_shadows(
             100.0 * other_share
         );
         (
+            ShadowMode::Raytraced,
+            None,
             Decision {
                 key,
                 value: "raytraced".into(),
                 reason,
             },
-            None,
         )
     }
 }
@@ -333,8 +336,13 @@ pub fn hair_screen_diameter(
     let depth = (centre - cam.position)
         .dot(cam.forward)
         .max(radius.max(1e-6));
-    let focal = 0.5 * height as f32 / (0.5 * camera.fov.to_radians()).tan();
-    (2.0 * radius * focal / depth).min(1e6)
+    (2.0 * radius * focal_pixels(camera, height) / depth).min(1e6)
+}
+
+/// The camera's focal length in pixels for a film `height` pixels high: a length l at depth d spans l · f / d
+/// pixels.
+fn focal_pixels(camera: &CameraConfig, height: u32) -> f32 {
+    0.5 * height as f32 / (0.5 * camera.fov.to_radians()).tan()
 }
 
 /// Which of the auto-decided keys the user fixed on the command line (those are kept).
@@ -360,13 +368,7 @@ pub fn plan_curves(
     resolution: [u32; 2],
 ) -> (CurveKind, Decision) {
     let widths = screen_widths(strands, camera, resolution[0], resolution[1]);
-    let d = decide_curves(material, widths);
-    let kind = if d.value == "round" {
-        CurveKind::Round
-    } else {
-        CurveKind::Flat
-    };
-    (kind, d)
+    decide_curves(material, widths)
 }
 
 /// Decides `shadows.mode` (and the maps' resolution and layers) of `settings` for `frame`, unless fixed.
@@ -377,13 +379,9 @@ pub fn plan_shadows(
 ) -> Decision {
     let [width, height] = settings.film.resolution;
     let hair_pixels = hair_screen_diameter(&frame.strands, &settings.camera, width, height);
-    let (decision, maps) =
+    let (mode, maps, decision) =
         decide_shadows(&frame.lights, frame.radius(), quality.target, hair_pixels);
-    settings.shadows.mode = match decision.value.as_str() {
-        "deep-opacity" => ShadowMode::DeepOpacity,
-        "none" => ShadowMode::None,
-        _ => ShadowMode::Raytraced,
-    };
+    settings.shadows.mode = mode;
     if let Some(m) = maps {
         settings.shadows.deep_opacity.resolution = m.resolution;
         settings.shadows.deep_opacity.layers = m.layers;

@@ -122,23 +122,13 @@ impl Pair {
     /// each of two independent estimates), as (mean, standard error of the mean) over the pilot pixels.
     fn rel_mse_with_error(&self) -> (f64, f64) {
         let [a, b] = &self.0;
-        let (mut sum, mut sum2, mut n) = (0.0f64, 0.0f64, 0usize);
-        for (x, y) in a.rgb.iter().zip(&b.rgb) {
-            for c in 0..3 {
+        mean_and_error(a.rgb.iter().zip(&b.rgb).flat_map(|(x, y)| {
+            (0..3).filter_map(move |c| {
                 let (x, y) = (f64::from(x[c]), f64::from(y[c]));
-                if !(x.is_finite() && y.is_finite()) {
-                    continue;
-                }
                 let m = 0.5 * (x + y);
-                let t = 0.5 * (x - y) * (x - y) / (m * m + 0.01);
-                sum += t;
-                sum2 += t * t;
-                n += 1;
-            }
-        }
-        let n = n.max(1) as f64;
-        let mean = sum / n;
-        (mean, ((sum2 / n - mean * mean).max(0.0) / n).sqrt())
+                (x.is_finite() && y.is_finite()).then(|| 0.5 * (x - y) * (x - y) / (m * m + 0.01))
+            })
+        }))
     }
 
     /// The mean relative MSE of one estimate (see [`Pair::rel_mse_with_error`]).
@@ -163,26 +153,28 @@ const SAMPLE_CANDIDATES: [(u32, u32); 4] = [(1, 1), (1, 4), (4, 1), (4, 4)];
 /// (see [`plan`]). The estimate of its square is the mean of the per-pixel products plus two standard errors of
 /// that mean: a bounce is left out only when its bias is small with confidence, not merely lost in noise.
 fn bounce_bias(before: [&[[f32; 3]]; 2], after: [&[[f32; 3]]; 2]) -> f64 {
-    let (mut sum, mut sum2) = (0.0f64, 0.0f64);
-    let mut n = 0usize;
-    for i in 0..before[0].len() {
-        for c in 0..3 {
+    let (mean, standard_error) = mean_and_error((0..before[0].len()).flat_map(|i| {
+        (0..3).filter_map(move |c| {
             let v = |img: [&[[f32; 3]]; 2], s: usize| f64::from(img[s][i][c]);
             let (da, db) = (v(after, 0) - v(before, 0), v(after, 1) - v(before, 1));
-            if !(da.is_finite() && db.is_finite()) {
-                continue;
-            }
             let m = 0.5 * (v(after, 0) + v(after, 1));
-            let t = da * db / (m * m + 0.01);
-            sum += t;
-            sum2 += t * t;
-            n += 1;
-        }
+            (da.is_finite() && db.is_finite()).then(|| da * db / (m * m + 0.01))
+        })
+    }));
+    (mean + 2.0 * standard_error).max(0.0).sqrt()
+}
+
+/// The mean of `terms` and the standard error of that mean (0 and 0 for none).
+fn mean_and_error(terms: impl Iterator<Item = f64>) -> (f64, f64) {
+    let (mut sum, mut sum2, mut n) = (0.0f64, 0.0f64, 0usize);
+    for t in terms {
+        sum += t;
+        sum2 += t * t;
+        n += 1;
     }
     let n = n.max(1) as f64;
     let mean = sum / n;
-    let standard_error = ((sum2 / n - mean * mean).max(0.0) / n).sqrt();
-    (mean + 2.0 * standard_error).max(0.0).sqrt()
+    (mean, ((sum2 / n - mean * mean).max(0.0) / n).sqrt())
 }
 
 /// What the pilots measured and decided.

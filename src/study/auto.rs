@@ -369,14 +369,13 @@ fn study_scene(path: &Path, config: &AutoStudyConfig) -> Result<SceneRows, Study
             ..scene.quality.clone()
         };
         let planned = quality::plan_frame(frame, &base, &q, Fixed::default());
-        let (image, stats) = frame.render_with_maps(
+        let (image, _) = frame.render_with_maps(
             &planned.settings,
             planned.maps.as_ref(),
             planned.maps_seconds,
             Options::default(),
         );
         let seconds = start.elapsed().as_secs_f64();
-        let _ = stats;
         let s = &planned.settings;
         let auto = Measured {
             what: "auto".into(),
