@@ -70,6 +70,10 @@ struct RenderArgs {
     /// Seed of the sample streams (overrides film.seed).
     #[arg(long)]
     seed: Option<u32>,
+    /// AOV layers the EXR holds beside the beauty: all, none, or a comma-separated list such as depth,albedo
+    /// (overrides film.aovs).
+    #[arg(long, value_name = "LAYERS", value_parser = parse_aovs)]
+    aovs: Option<AovList>,
     /// Self-shadowing: raytraced, deep-opacity or none (overrides shadows.mode).
     #[arg(long, value_parser = scene_name::<ShadowMode>)]
     shadows: Option<ShadowMode>,
@@ -296,6 +300,22 @@ impl TimedRenderArgs {
     }
 }
 
+/// `--aovs`: `all`, `none` (the beauty alone) or comma-separated layer names (checked with the scene, by
+/// `film.aovs`' own validation).
+fn parse_aovs(s: &str) -> Result<AovList, String> {
+    match s.trim() {
+        "" => Err("expected all, none or layer names such as depth,albedo".to_owned()),
+        "none" => Ok(AovList(Vec::new())),
+        list => Ok(AovList(
+            list.split(',').map(|l| l.trim().to_owned()).collect(),
+        )),
+    }
+}
+
+/// The value of `--aovs` (one argument holding a list, so clap must not see a `Vec`).
+#[derive(Clone, Debug)]
+struct AovList(Vec<String>);
+
 fn parse_resolution(s: &str) -> Result<[u32; 2], String> {
     let (w, h) = s
         .split_once(['x', 'X'])
@@ -334,6 +354,7 @@ fn render_command(args: RenderArgs) -> Result<()> {
         spp: args.spp,
         resolution: args.res,
         seed: args.seed,
+        aovs: args.aovs.map(|a| a.0),
         curves: args.curves,
         backend: args.backend,
         shadows: args.shadows,
@@ -526,10 +547,11 @@ fn render_command(args: RenderArgs) -> Result<()> {
         frame.curves,
         frame.backend,
         match settings.adaptive {
-            // Each pixel traces its samples' camera rays and one centre ray.
+            // Each pixel traces its samples' camera rays and, for the centre AOVs, one centre ray.
             Some(a) => {
                 let pixels = u64::from(region.width()) * u64::from(region.height());
-                let mean = stats.rays.camera.saturating_sub(pixels) as f64 / pixels.max(1) as f64;
+                let centre = if settings.film.traces_centre_ray() { pixels } else { 0 };
+                let mean = stats.rays.camera.saturating_sub(centre) as f64 / pixels.max(1) as f64;
                 format!("adaptive {}..{} spp (mean {mean:.1})", a.min, a.max)
             }
             None => format!("{} spp", settings.film.spp),

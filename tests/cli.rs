@@ -202,3 +202,71 @@ fn bad_hair_file_is_a_clear_error() {
     assert_eq!(out.status.code(), Some(2));
     assert!(stderr(&out).contains("missing.hair"));
 }
+
+/// `--aovs` keeps the beauty bit for bit and only the layers asked for; without `depth`, `tangent` and `strand`
+/// no pixel-centre ray is traced (one camera ray per pixel fewer, read from the render's summary line).
+#[test]
+fn aovs_choose_the_exr_layers_and_leave_the_beauty_alone() {
+    let dir = tempfile::tempdir().unwrap();
+    let render = |name: &str, aovs: Option<&str>| {
+        let exr = dir.path().join(format!("{name}.exr"));
+        let mut args = vec!["render", "-q", "-o", exr.to_str().unwrap()];
+        args.extend(["--res", "40x30", "--spp", "2"]);
+        if let Some(a) = aovs {
+            args.extend(["--aovs", a]);
+        }
+        let out = cuticle(&args);
+        assert!(out.status.success(), "{}", stderr(&out));
+        let camera: u64 = stderr(&out)
+            .split(" camera")
+            .next()
+            .and_then(|s| s.rsplit(' ').next())
+            .and_then(|n| n.parse().ok())
+            .expect("camera ray count in the summary");
+        (cuticle::image::read(&exr).unwrap(), camera)
+    };
+    let (all, all_rays) = render("all", None);
+    let (none, none_rays) = render("none", Some("none"));
+    let (some, some_rays) = render("some", Some("depth,albedo"));
+    assert_eq!(all.channels.len(), cuticle::render::CHANNELS.len());
+    assert_eq!(none.channels, ["R", "G", "B", "A"]);
+    assert_eq!(
+        some.channels,
+        ["R", "G", "B", "A", "albedo.R", "albedo.G", "albedo.B", "depth.Z"]
+    );
+    let pick = |img: &cuticle::image::Image, name: &str| -> Vec<u32> {
+        let c = img.channel_index(name).unwrap();
+        (0..img.height)
+            .flat_map(|y| (0..img.width).map(move |x| (x, y)))
+            .map(|(x, y)| img.get(x, y, c).to_bits())
+            .collect()
+    };
+    for name in ["R", "G", "B", "A"] {
+        assert_eq!(pick(&all, name), pick(&none, name), "{name}");
+    }
+    assert_eq!(pick(&all, "depth.Z"), pick(&some, "depth.Z"));
+    assert_eq!(pick(&all, "albedo.G"), pick(&some, "albedo.G"));
+    let pixels = 40 * 30;
+    assert_eq!(all_rays, 2 * pixels + pixels);
+    assert_eq!(some_rays, all_rays);
+    assert_eq!(none_rays, 2 * pixels);
+
+    let bad = cuticle(
+        &[
+            "render",
+            "-q",
+            "-o",
+            dir.path().join("x.exr").to_str().unwrap(),
+        ]
+        .into_iter()
+        .chain(["--res", "8x8", "--aovs", "depth,normals"])
+        .collect::<Vec<_>>(),
+    );
+    assert_eq!(bad.status.code(), Some(2));
+    let message = stderr(&bad);
+    assert!(
+        message.contains("film.aovs") && message.contains("\"normals\""),
+        "{message}"
+    );
+    assert!(!dir.path().join("x.exr").exists());
+}

@@ -12,6 +12,7 @@ use crate::bsdf::{Lobe, LobeValues};
 use crate::image::Image;
 
 use super::integrator::PathSample;
+use super::settings::FilmConfig;
 
 /// Channels of the film, in order: beauty RGBA, then AOVs as `layer.channel` (EXR naming).
 ///
@@ -66,6 +67,57 @@ pub const CHANNELS: [&str; 38] = [
     "strand.id",
     "spp",
 ];
+
+/// The layer channel `channel` belongs to: its name up to the first `.` (`depth.Z` → `depth`, `spp` → `spp`), and
+/// `beauty` for R, G, B and A.
+pub fn layer_of(channel: &str) -> &str {
+    match channel {
+        "R" | "G" | "B" | "A" => "beauty",
+        c => c.split('.').next().unwrap_or(c),
+    }
+}
+
+/// The AOV layers of [`CHANNELS`] (every layer but the beauty), each once, in channel order: the names
+/// `film.aovs` takes.
+pub fn aov_layers() -> Vec<&'static str> {
+    let mut layers: Vec<&'static str> = Vec::new();
+    for c in CHANNELS {
+        let layer = layer_of(c);
+        if layer != "beauty" && !layers.contains(&layer) {
+            layers.push(layer);
+        }
+    }
+    layers
+}
+
+/// The layers filled by the unfiltered ray through the pixel centre ([`write_centre`]).
+pub const CENTRE_LAYERS: [&str; 3] = ["depth", "tangent", "strand"];
+
+/// `image` (of [`CHANNELS`]) with only the beauty and the AOV layers `film` keeps (`film.aovs`).
+pub(super) fn select_layers(image: Image, film: &FilmConfig) -> Image {
+    let keep: Vec<usize> = (0..image.channels.len())
+        .filter(|&c| {
+            let layer = layer_of(&image.channels[c]);
+            layer == "beauty" || film.keeps_aov(layer)
+        })
+        .collect();
+    if keep.len() == image.channels.len() {
+        return image;
+    }
+    let names = keep.iter().map(|&c| image.channels[c].clone()).collect();
+    let mut out = Image::new(image.width, image.height, names);
+    let (from, to) = (image.channels.len(), keep.len());
+    for (src, dst) in image
+        .data
+        .chunks_exact(from)
+        .zip(out.data.chunks_exact_mut(to))
+    {
+        for (d, &c) in dst.iter_mut().zip(&keep) {
+            *d = src[c];
+        }
+    }
+    out
+}
 
 /// Index of channel `name` in [`CHANNELS`]. In a `const` it fails the build when the name is not a channel.
 pub const fn channel(name: &str) -> usize {
@@ -263,6 +315,48 @@ pub(super) fn assemble(width: u32, height: u32, tiles: &[Tile]) -> Image {
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn aov_layers_cover_every_channel_once() {
+        let layers = aov_layers();
+        assert_eq!(layers.len(), 14, "{layers:?}");
+        for c in CHANNELS {
+            let l = layer_of(c);
+            assert!(l == "beauty" || layers.contains(&l), "{c}");
+        }
+        for l in CENTRE_LAYERS {
+            assert!(layers.contains(&l), "{l}");
+        }
+    }
+
+    #[test]
+    fn select_layers_keeps_the_beauty_and_the_chosen_layers_in_order() {
+        let mut image = Image::new(2, 1, CHANNELS.iter().map(|c| c.to_string()).collect());
+        for (i, v) in image.data.iter_mut().enumerate() {
+            *v = i as f32;
+        }
+        let film = |aovs: &[&str]| FilmConfig {
+            aovs: aovs.iter().map(|a| a.to_string()).collect(),
+            ..FilmConfig::default()
+        };
+        assert_eq!(select_layers(image.clone(), &FilmConfig::default()), image);
+        let some = select_layers(image.clone(), &film(&["spp", "depth"]));
+        assert_eq!(some.channels, ["R", "G", "B", "A", "depth.Z", "spp"]);
+        let n = CHANNELS.len() as f32;
+        let depth = at::DEPTH as f32;
+        assert_eq!(
+            some.pixel(1, 0),
+            [n, n + 1.0, n + 2.0, n + 3.0, n + depth, 2.0 * n - 1.0]
+        );
+        assert!(film(&["depth"]).traces_centre_ray() && !film(&["albedo"]).traces_centre_ray());
+        assert!(film(&["all"]).validate().is_ok() && film(&[]).validate().is_ok());
+        assert!(film(&["all", "depth"]).validate().is_err());
+        assert!(film(&["normal"])
+            .validate()
+            .unwrap_err()
+            .contains("film.aovs"));
+    }
+
     use super::*;
 
     #[test]

@@ -122,6 +122,7 @@ fn render_tiles(
     let spp = settings.film.spp;
     let adaptive = settings.adaptive;
     let seed = settings.film.seed;
+    let centre_ray = settings.film.traces_centre_ray();
     let tiles: Vec<(u32, u32)> = (0..tiles_y)
         .flat_map(|ty| (0..tiles_x).map(move |tx| (tx, ty)))
         .collect();
@@ -175,6 +176,9 @@ fn render_tiles(
                     };
                     let pixel = tile.pixel_mut(x, y);
                     sums.write(taken, pixel);
+                    if !centre_ray {
+                        continue;
+                    }
                     let centre = camera.ray(x as f32 + 0.5, y as f32 + 0.5);
                     counts.camera += 1;
                     let hit = tracer.intersect(&centre).unwrap_or(None);
@@ -213,7 +217,10 @@ fn render_tiles(
             t
         })
         .collect();
-    let image = film::assemble(region.width(), region.height(), &tiles);
+    let image = film::select_layers(
+        film::assemble(region.width(), region.height(), &tiles),
+        &settings.film,
+    );
     let stats = RenderStats {
         seconds: start.elapsed().as_secs_f64(),
         rays,

@@ -293,6 +293,9 @@ impl Scene {
         if let Some(seed) = o.seed {
             self.film.seed = seed;
         }
+        if let Some(aovs) = &o.aovs {
+            self.film.aovs.clone_from(aovs);
+        }
         if let Some(curves) = o.curves {
             self.hair.curves = curves;
         }
@@ -336,6 +339,8 @@ pub struct Overrides {
     pub resolution: Option<[u32; 2]>,
     /// `film.seed`.
     pub seed: Option<u32>,
+    /// `film.aovs`.
+    pub aovs: Option<Vec<String>>,
     /// `hair.curves`.
     pub curves: Option<CurveKind>,
     /// `hair.backend`.
