@@ -14,6 +14,9 @@
 #   WORK (mktemp -d)              renders, logs and times
 #   BIN (./target/release/cuticle)
 #   CHART_ONLY=1                  no renders: redraw the chart and the read-out from $OUT/equal-error.csv
+#   UNBIASED=1 (default)          also render "cycles-unbiased": Cycles with Clamp Indirect 0 and Filter Glossy 0,
+#                                 Blender's two biased noise reductions off (its own reference cannot see their bias,
+#                                 cuticle has neither on); UNBIASED=0 for Blender's defaults only
 #
 # Scene: cuticle `scenes/furball-peer.toml --res 256x256`; Cycles `../shared/peers/cycles_furball.py --res 256
 # --shape thick --bounces 1 --sun` with the harness' material and lights (the README's peer scene maps each setting).
@@ -33,6 +36,8 @@ HAIR=../shared/data/hair/furball.hair
 SCENE=scenes/furball-peer.toml
 CSV=$OUT/equal-error.csv
 REF_SEED=1000   # the sweep uses seeds 1, 2, ...: never the reference's
+RENDERERS="cuticle cycles"
+[ "${UNBIASED:-1}" = 1 ] && RENDERERS="$RENDERERS cycles-unbiased"
 mkdir -p "$OUT"
 
 if [ "${CHART_ONLY:-0}" != 1 ]; then
@@ -51,9 +56,11 @@ if [ "${CHART_ONLY:-0}" != 1 ]; then
         --threads 2 --quiet -o "$WORK/$name.exr" > "$WORK/$name.log" 2>&1
       sed -n 's/.*render \([0-9.]*\) s.*/\1/p' "$WORK/$name.log" | tail -1 > "$WORK/$name.r"
     else
+      local extra=()
+      [ "$who" = cycles-unbiased ] && extra=(--clamp-indirect 0 --blur-glossy 0)
       /usr/bin/time -f %e -o "$WORK/$name.t" blender -b --factory-startup --python "$PEERS/cycles_furball.py" -- \
         --hair "$HAIR" --res 256 --spp "$spp" --seed "$seed" --shape thick --bounces 1 --sun --threads 2 \
-        --out "$WORK/$name.exr" > "$WORK/$name.log" 2>&1
+        "${extra[@]}" --out "$WORK/$name.exr" > "$WORK/$name.log" 2>&1
       sed -n 's/^CYCLES_RENDER_SECONDS=//p' "$WORK/$name.log" | tail -1 > "$WORK/$name.r"
     fi
     [ -s "$WORK/$name.r" ] && [ -f "$WORK/$name.exr" ] || { echo "$name failed: see $WORK/$name.log" >&2; exit 2; }
@@ -65,17 +72,17 @@ if [ "${CHART_ONLY:-0}" != 1 ]; then
   }
 
   echo "references, $REF_SPP spp, seed $REF_SEED"
-  for who in cuticle cycles; do render "ref_$who" "$who" "$REF_SPP" "$REF_SEED"; done
+  for who in $RENDERERS; do render "ref_$who" "$who" "$REF_SPP" "$REF_SEED"; done
   TMP_CSV=$WORK/equal-error.csv
   echo "renderer,spp,seed,wall_s,render_s,rmse" > "$TMP_CSV"
-  for who in cuticle cycles; do
+  for who in $RENDERERS; do
     echo "$who,$REF_SPP,$REF_SEED,$(tail -1 "$WORK/ref_$who.t"),$(cat "$WORK/ref_$who.r")," >> "$TMP_CSV"
   done
   echo "sweep: $SPPS spp"
   seed=0
   for spp in $SPPS; do
     seed=$((seed + 1))
-    for who in cuticle cycles; do
+    for who in $RENDERERS; do
       name="${who}_$spp"
       render "$name" "$who" "$spp" "$seed"
       e=$(rmse "$WORK/ref_$who.exr" "$WORK/$name.exr")
@@ -108,11 +115,13 @@ fmt = lambda t: "n/a" if t is None else f"{t:.2f}"
 # Samples per pixel needed as well: the sampling's share, free of this shared machine's timing noise.
 for col, what in (("wall_s", "wall time, whole process, s"), ("render_s", "own render time, s"),
                   ("spp", "samples per pixel")):
+    peers = [w for w in ("cycles", "cycles-unbiased") if any(r["renderer"] == w for r in rows)]
     print(f"\nto reach RMSE ({what}; ratio target <= 0.7):")
-    print("| RMSE | cuticle | Cycles | cuticle / Cycles |")
-    print("|---:|---:|---:|---:|")
+    print("| RMSE | cuticle | " + " | ".join(peers) + " | " + " | ".join(f"cuticle / {p}" for p in peers) + " |")
+    print("|---:" * (2 + 2 * len(peers)) + "|")
     for target in (0.07, 0.05, 0.04, 0.03):
-        a, b = time_to("cuticle", col, target), time_to("cycles", col, target)
-        ratio = "n/a" if a is None or b is None else f"{a / b:.2f}"
-        print(f"| {target} | {fmt(a)} | {fmt(b)} | {ratio} |")
+        a = time_to("cuticle", col, target)
+        bs = [time_to(p, col, target) for p in peers]
+        ratios = ["n/a" if a is None or b is None else f"{a / b:.2f}" for b in bs]
+        print(f"| {target} | {fmt(a)} | " + " | ".join(fmt(b) for b in bs) + " | " + " | ".join(ratios) + " |")
 EOF

@@ -89,7 +89,7 @@ struct RenderArgs {
     /// Indirect bounces, 0 = direct light only (overrides integrator.path_length).
     #[arg(long)]
     path_length: Option<u32>,
-    /// Light samples for every light (all), or each for one light chosen by power (one) (overrides
+    /// Light samples for every light (all), or each for one light chosen by its weight, power with an environment counted by its irradiance (one) (overrides
     /// integrator.lights).
     #[arg(long, value_parser = scene_name::<LightSelection>)]
     lights: Option<LightSelection>,

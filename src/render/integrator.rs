@@ -6,10 +6,11 @@
 //!
 //! At the **first** shading point every light gets `light_samples` samples (`lights = "all"`, RenderMan's and the
 //! thesis' semantics; or, with `lights = "one"`, each of the `light_samples` samples goes to one light chosen in
-//! proportion to power, as pbrt-v4 and Cycles do) and the material gets `material_samples` samples; a material sample that reaches a light (escapes to an infinite light, or hits an
+//! proportion to its selection weight, [`Light::selection_weight`]: power, an environment counted by the
+//! irradiance it gives) and the material gets `material_samples` samples; a material sample that reaches a light (escapes to an infinite light, or hits an
 //! area light) is weighted against that light's strategy with the power heuristic over the *counts* times the
 //! densities, w = (n_m p_m)² / ((n_m p_m)² + (n_l p_l)²) (Veach 1997, §9.2.4). Deeper vertices take one light,
-//! chosen in proportion to power, and one material sample. The first material sample at each vertex also
+//! chosen the same way, and one material sample. The first material sample at each vertex also
 //! continues the path (`path_length` bounces; 0 = direct light only), with Russian roulette before each vertex after
 //! the second; the last vertex keeps MIS (its material ray only looks for a light; see `mis`).
 //!
@@ -221,7 +222,7 @@ pub struct Integrator<'a> {
     settings: Settings,
     /// The first vertex's strategies and weights (from `settings`).
     first: Mis,
-    /// Light selection ∝ power, for vertices after the first.
+    /// Light selection ∝ [`Light::selection_weight`], for `lights = "one"` and the vertices after the first.
     select: Distribution1D,
     /// Offset of shadow-ray origins off Lambert surfaces (hair rays skip their own strand instead).
     epsilon: f32,
@@ -261,7 +262,10 @@ impl<'a> Integrator<'a> {
         let (lights, scene_radius) = (&frame.lights[..], frame.radius());
         let background_visible = settings.background_visible;
         let settings = settings.transport();
-        let powers: Vec<f32> = lights.iter().map(|l| l.power(scene_radius)).collect();
+        let weights: Vec<f32> = lights
+            .iter()
+            .map(|l| l.selection_weight(scene_radius))
+            .collect();
         Integrator {
             strands: &frame.strands,
             tracer: frame.tracer.as_ref(),
@@ -271,7 +275,7 @@ impl<'a> Integrator<'a> {
             curves: frame.curves,
             settings,
             first: Mis::first_vertex(&settings),
-            select: Distribution1D::new(&powers),
+            select: Distribution1D::new(&weights),
             epsilon: 1e-4 * scene_radius.max(1e-3),
             background_visible,
             maps,
@@ -505,7 +509,7 @@ impl<'a> Integrator<'a> {
 
     /// Step 2, next-event estimation at the first vertex `v` (the thesis' "light samples"). With `lights = "all"`
     /// every light gets `light_samples` samples (a delta light one), each from its own scrambling; with
-    /// `lights = "one"` each of the `light_samples` samples first picks one light ∝ power. Under material-only
+    /// `lights = "one"` each of the `light_samples` samples first picks one light ∝ its selection weight ([`Light::selection_weight`]). Under material-only
     /// sampling only delta lights are light-sampled ([`Mis::samples_light`]).
     fn first_vertex_light_samples(
         &self,
@@ -674,7 +678,7 @@ impl<'a> Integrator<'a> {
         indirect
     }
 
-    /// Step 4 at one deeper vertex `v` (number `b` ≥ 1): one light chosen ∝ power and one material sample,
+    /// Step 4 at one deeper vertex `v` (number `b` ≥ 1): one light chosen ∝ its selection weight and one material sample,
     /// weighted by [`Mis::deeper_vertex`] (at the last vertex under light sampling alone, the light sample only).
     /// Returns the radiance `v` sends back along ωo, and the continuation (the next vertex and f cos θi / p_m) if
     /// the material sample found a surface.
@@ -714,7 +718,7 @@ impl<'a> Integrator<'a> {
         }
     }
 
-    /// Next-event estimation at deeper vertex `v` (number `b`): one light j chosen with probability P(j) ∝ power
+    /// Next-event estimation at deeper vertex `v` (number `b`): one light j chosen with probability P(j) ∝ its selection weight
     /// and one sample of it, w_l L_e f cos θi / (P(j) p_l) with w_l from `mis` ([`Mis::light_weight`]).
     fn deeper_light_sample(
         &self,

@@ -9,7 +9,7 @@ use crate::util::hash::hash64;
 /// | dimensions | width | consumer |
 /// |---|---|---|
 /// | `FILTER` = 0 | 2 | pixel-filter offset x, y (`render`) |
-/// | `vertex(b, LIGHT_SELECT)` = 2 + 8b | 1 | path vertex b: light chosen ∝ power |
+/// | `vertex(b, LIGHT_SELECT)` = 2 + 8b | 1 | path vertex b: light chosen ∝ its selection weight |
 /// | `vertex(b, LIGHT)` = 3 + 8b | 2 | path vertex b: light sample |
 /// | `vertex(b, MATERIAL)` = 5 + 8b | 3 | path vertex b: material (BSDF) sample |
 /// | `vertex(b, ROULETTE)` = 8 + 8b | 1 | path vertex b: Russian roulette |
@@ -26,7 +26,7 @@ pub mod dim {
     pub const FIRST_VERTEX: u32 = 2;
     /// Dimensions per path vertex (7 used, 1 spare).
     pub const PER_VERTEX: u32 = 8;
-    /// Offset in a vertex's block: the light chosen in proportion to power (1 dimension).
+    /// Offset in a vertex's block: the light chosen in proportion to its selection weight (1 dimension).
     pub const LIGHT_SELECT: u32 = 0;
     /// Offset in a vertex's block: the light sample (2 dimensions).
     pub const LIGHT: u32 = 1;

@@ -43,7 +43,7 @@ pub(super) fn power_heuristic(a: f32, b: f32) -> f32 {
 pub(super) struct Mis {
     /// Which strategies estimate direct light.
     pub(super) strategy: Strategy,
-    /// Whether every light gets `light_samples` samples or each sample goes to one light chosen ∝ power.
+    /// Whether every light gets `light_samples` samples or each sample goes to one light chosen ∝ its selection weight.
     pub(super) selection: LightSelection,
     /// n_l: light samples (per light under [`LightSelection::All`], in all under [`LightSelection::One`]).
     pub(super) light_samples: u32,
@@ -67,7 +67,7 @@ impl Mis {
         }
     }
 
-    /// A vertex after the first: one light chosen ∝ power, one material sample; `last` at the path's end.
+    /// A vertex after the first: one light chosen ∝ its selection weight, one material sample; `last` at the path's end.
     pub(super) fn deeper_vertex(strategy: Strategy, last: bool) -> Mis {
         Mis {
             strategy,
