@@ -279,6 +279,11 @@ impl Environment {
         }
     }
 
+    /// Whether the radiance is the same from every direction (no map).
+    pub fn is_constant(&self) -> bool {
+        matches!(self.source, Source::Constant(_))
+    }
+
     /// Power entering a sphere of radius `scene_radius`: 4π · π r² · luminance(average radiance) (pbrt-v4).
     pub fn power(&self, scene_radius: f32) -> f32 {
         4.0 * PI * PI * scene_radius * scene_radius * luminance(self.average_radiance())

@@ -135,8 +135,16 @@ impl Light {
     /// white environment 1, 256², 16 and 64 spp against a 256-spp reference, `lights = "one"`): picking by
     /// power (sun 19 %) gave RMSE 0.149 / 0.077, fireflies from the sun's TT lobe carrying 82 % of the squared
     /// error in 1 % of the pixels; this weight (sun 49 %) gives 0.098 / 0.055 with the same rays.
-    pub fn selection_weight(&self, scene_radius: f32) -> f32 {
+    ///
+    /// With `material_finds_light` (MIS: material samples add the light they reach), a **constant** environment
+    /// weighs 0 unless it is the only light: a material sample, drawn ∝ the fibre's scattering, is the better
+    /// estimator of light that is the same from every direction, and a delta sun can be found by light samples
+    /// only, so they all go to it (Cycles' world "Sampling: Auto" does the same: no light sampling of a constant
+    /// background). Peer scene at 128², 16 spp, two seeds, against 256 spp: sun picked 50 % RMSE 0.092, 80 %
+    /// 0.075 / 0.083, 100 % 0.072 / 0.077 (Cycles, clamp and glossy filter off: 0.079).
+    pub fn selection_weight(&self, scene_radius: f32, material_finds_light: bool) -> f32 {
         match self {
+            Light::Environment(e) if e.is_constant() && material_finds_light => 0.0,
             Light::Environment(_) => 0.25 * self.power(scene_radius),
             Light::Distant(_) | Light::Area(_) => self.power(scene_radius),
         }
@@ -302,8 +310,14 @@ mod tests {
         let r = 2.5;
         let sun = Light::Distant(distant::Distant::new(Vec3::NEG_Y, Vec3::splat(PI), 0.0).unwrap());
         let sky = Light::Environment(environment::Environment::constant(Vec3::ONE).unwrap());
-        let (a, b) = (sun.selection_weight(r), sky.selection_weight(r));
+        let (a, b) = (
+            sun.selection_weight(r, false),
+            sky.selection_weight(r, false),
+        );
         assert!((a / b - 1.0).abs() < 1e-5, "{a} {b}");
+        // Under MIS the material samples take a constant sky; the sun gets every light sample.
+        assert_eq!(sky.selection_weight(r, true), 0.0);
+        assert_eq!(sun.selection_weight(r, true), a);
         assert!((sky.power(r) / sun.power(r) - 4.0).abs() < 1e-5);
     }
 

@@ -264,7 +264,7 @@ impl<'a> Integrator<'a> {
         let settings = settings.transport();
         let weights: Vec<f32> = lights
             .iter()
-            .map(|l| l.selection_weight(scene_radius))
+            .map(|l| l.selection_weight(scene_radius, settings.strategy == Strategy::Mis))
             .collect();
         Integrator {
             strands: &frame.strands,
