@@ -853,7 +853,8 @@ fn study_kind(name: &str, a: StudyKindArgs) -> Result<()> {
 struct StudyShadowsArgs {
     /// Scene file (TOML).
     scene: PathBuf,
-    /// Output directory: shadows.csv, shadows-error-time.png, shadows-crops.png, the cached reference.
+    /// Output directory: the files of every study kind (shadows.csv, shadows-summary.csv, shadows-error-time.png,
+    /// shadows-crops.png, ...), the cached reference.
     #[arg(short, long, default_value = "study-shadows")]
     out: PathBuf,
     /// Where the reference EXR is cached (default: the output directory).
@@ -889,10 +890,13 @@ struct StudyShadowsArgs {
     /// Side of the crop window, pixels.
     #[arg(long, default_value_t = 128)]
     crop: usize,
-    /// Strand tracer: embree or bvh (overrides hair.backend).
+    /// Strand tracer of the variants: embree or bvh (overrides hair.backend; the reference keeps the scene's).
     #[arg(long, value_parser = scene_name::<Backend>)]
     backend: Option<Backend>,
-    /// No progress lines.
+    /// Seeds per point.
+    #[arg(long, default_value_t = 3)]
+    seeds: u32,
+    /// No progress bars.
     #[arg(short, long)]
     quiet: bool,
 }
@@ -901,7 +905,8 @@ struct StudyShadowsArgs {
 struct StudyBackendsArgs {
     /// Scene file (TOML).
     scene: PathBuf,
-    /// Output directory: backends.csv, backends-error-time.png, backends-diff-*.png, the cached references.
+    /// Output directory: the files of every study kind (backends.csv, backends-error-time.png, ...),
+    /// backends-differences.csv, backends-diff-*.png, the cached references.
     #[arg(short, long, default_value = "study-backends")]
     out: PathBuf,
     /// Where the reference EXRs are cached (default: the output directory).
@@ -922,9 +927,24 @@ struct StudyBackendsArgs {
     /// Worker threads.
     #[arg(long, default_value_t = 2)]
     threads: usize,
-    /// No progress lines.
+    /// Seeds per point.
+    #[arg(long, default_value_t = 3)]
+    seeds: u32,
+    /// No progress bars.
     #[arg(short, long)]
     quiet: bool,
+}
+
+/// Runs `kind` (built from a subcommand's own flags) on the whole film and prints its read-outs.
+fn study_custom(
+    scene: &Path,
+    kind: Result<cuticle::study::framework::Kind, String>,
+    config: cuticle::study::framework::StudyConfig,
+) -> Result<()> {
+    let kind = kind.map_err(|e| anyhow::anyhow!("{e}"))?;
+    let report = cuticle::study::framework::run_kind(scene, &kind, &config)?;
+    report.readouts.iter().for_each(|l| println!("{l}"));
+    Ok(())
 }
 
 fn study_command(command: StudyCommand) -> Result<()> {
@@ -949,39 +969,52 @@ fn study_command(command: StudyCommand) -> Result<()> {
         }
         StudyCommand::Stress(a) => study_kind("stress", a)?,
         StudyCommand::Shadows(a) => {
-            use cuticle::study::shadows::{run, ShadowStudyConfig};
-            let config = ShadowStudyConfig {
-                cache_dir: a.cache_dir,
-                reference_spp: a.reference_spp,
+            use cuticle::study::framework::{Budget, StudyConfig};
+            use cuticle::study::kinds::{shadows_with, ShadowsSweep};
+            let sweep = ShadowsSweep {
                 rt_spp: a.rt_spp,
                 layers: a.layers,
                 layer_resolution: a.layer_resolution,
                 resolutions: a.resolutions,
                 resolution_layers: a.resolution_layers,
                 dom_spp: a.dom_spp,
-                film_resolution: a.res,
-                threads: a.threads,
-                crop: a.crop,
-                progress: !a.quiet,
-                backend: a.backend,
-                ..ShadowStudyConfig::new(a.out)
+                backend: a.backend.map(|b| b.name().to_owned()),
             };
-            run(&a.scene, &config)?;
+            let budget = Budget {
+                crop: None,
+                reference_spp: Some(a.reference_spp),
+            };
+            let config = StudyConfig {
+                cache_dir: a.cache_dir,
+                seeds: a.seeds,
+                resolution: a.res,
+                threads: a.threads,
+                progress: !a.quiet,
+                crop: a.crop,
+                ..StudyConfig::new(a.out, false)
+            };
+            study_custom(&a.scene, shadows_with(&sweep, budget), config)?;
         }
         StudyCommand::Backends(a) => {
-            use cuticle::study::backends::{run, BackendStudyConfig};
-            let config = BackendStudyConfig {
-                cache_dir: a.cache_dir,
-                reference_spp: a.reference_spp,
+            use cuticle::study::framework::{Budget, StudyConfig};
+            use cuticle::study::kinds::{backends_with, BackendsSweep};
+            let sweep = BackendsSweep {
                 spp: a.spp,
-                kinds: a.curves,
-                film_resolution: a.res,
+                curves: a.curves.iter().map(|c| c.name().to_owned()).collect(),
+            };
+            let budget = Budget {
+                crop: None,
+                reference_spp: Some(a.reference_spp),
+            };
+            let config = StudyConfig {
+                cache_dir: a.cache_dir,
+                seeds: a.seeds,
+                resolution: a.res,
                 threads: a.threads,
                 progress: !a.quiet,
-                ..BackendStudyConfig::new(a.out)
+                ..StudyConfig::new(a.out, false)
             };
-            let report = run(&a.scene, &config)?;
-            println!("{}", std::fs::read_to_string(&report.csv)?);
+            study_custom(&a.scene, backends_with(&sweep, budget), config)?;
         }
     }
     Ok(())
