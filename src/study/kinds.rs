@@ -21,12 +21,18 @@
 //!   adds noise of its own). Measured on the fur ball's 32² centre: at 1 spp with the scene's filter, 16 and 1024
 //!   light samples had the same RMSE (0.177 and 0.177: pixel sampling dominates); with these settings 0.0155
 //!   and 0.0043. The references are (2048 light, 2048 material) samples at [`SAMPLES_REFERENCE_SPP`] = 16 spp on
-//!   the centred [`SAMPLES_CROP`]² = 16² window. Why so many: with MIS the error keeps falling as *either* count
-//!   grows (the balance heuristic shifts weight to the strategy with more samples), so the sweep's last points are
-//!   nearly as good as a 2048 × 2048 render. Measured on the fur ball (32² window, loaded machine): 2-spp
-//!   references were only 1.2–1.3× below the sweep's smallest RMSE (marschner 2.7e-3 against 3.3e-3); 16 spp
-//!   has 8× the samples, so √8 ≈ 2.8× less noise. Costs: references 3 × 16 × 4096 samples per pixel, the sweep
-//!   3 models × 2 series × 8 counts × 3 seeds, ~8·10⁴ samples per pixel; on 256 pixels.
+//!   the centred [`SAMPLES_CROP`]² = 12² window. Why so many samples: with MIS the error keeps falling as *either*
+//!   count grows (the balance heuristic shifts weight to the strategy with more samples), so the sweep's last
+//!   points are nearly as good as a 2048 × 2048 render. Measured on the fur ball (32² window, loaded machine):
+//!   2-spp references were only 1.2–1.3× below the sweep's smallest RMSE (marschner 2.7e-3 against 3.3e-3); 16 spp
+//!   has 8× the samples, so √8 ≈ 2.8× less noise. Why so few pixels: under an environment map each sample costs
+//!   more; `scenes/study/straight-city.toml` on the 16² window (load 8–9 on 2 cores) took 145, 179 and 141 s per
+//!   reference and 12.4 min for the kind (159 s of CPU), references 7.4× (marschner), 7.3× (ishair) and 1.4×
+//!   (chiang) below the smallest RMSE of their sweep. The window's pixel count sets the cost but not the noise per
+//!   pixel, so 12² (144 pixels, 0.56× the rays) keeps those ratios; fewer reference samples would not (chiang's
+//!   2048-material-sample points are already within 1.4× of the reference's noise). Costs: references
+//!   3 × 16 × 4096 samples per pixel, the sweep 3 models × 2 series × 8 counts × 3 seeds, ~8·10⁴ samples per
+//!   pixel; on 144 pixels.
 //! - [`curves`]: the strands' radius scaled (`hair.radius_scale` 0.5, 1, 2: their width in pixels ×0.5 to ×2)
 //!   at a fixed film, 4 spp on the [`SWEEP_CROP`]² window, references at 32 spp.
 //! - `stress` ([`super::stress`]): 8 spp on the centred 48² window, references at 64 spp (7–10 cases × 4 methods,
@@ -71,7 +77,7 @@ pub const REFERENCE_FACTOR: u32 = 8;
 /// Side of the centred window the spp sweeps render, pixels.
 pub const SWEEP_CROP: u32 = 96;
 /// Side of the centred window `samples` renders, pixels.
-pub const SAMPLES_CROP: u32 = 16;
+pub const SAMPLES_CROP: u32 = 12;
 /// Samples per pixel of `samples`' references (of [`SAMPLES_MAX`] light and material samples each).
 pub const SAMPLES_REFERENCE_SPP: u32 = 16;
 /// The most samples per shading point `samples` sweeps (the thesis' table 3).
