@@ -33,6 +33,20 @@ irradiance = 3.0
 path_length = 0
 "#;
 
+/// Runs `cuticle ARGS -q -o DIR/out`: its exit status and stderr.
+fn cli(args: &[&str], dir: &Path) -> (Option<i32>, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_cuticle"))
+        .args(args)
+        .args(["-q", "-o"])
+        .arg(dir.join("out"))
+        .output()
+        .unwrap();
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
 /// The sweep of the old `study shadows` test: 2 ray-traced spp, maps of 2 and 4 layers at 32², of 16² and 32² at
 /// 4 layers (4 layers at 32² is in both map series), 2 spp for the maps.
 fn tiny_shadows() -> ShadowsSweep {
@@ -200,15 +214,8 @@ fn missing_scene_is_an_error_naming_the_file() {
             "--seeds must be at least 1",
         ),
     ] {
-        let out = Command::new(env!("CARGO_BIN_EXE_cuticle"))
-            .arg("study")
-            .args(&args)
-            .args(["-q", "-o"])
-            .arg(dir.path().join("out"))
-            .output()
-            .unwrap();
-        assert_eq!(out.status.code(), Some(2), "{args:?}");
-        let stderr = String::from_utf8_lossy(&out.stderr);
+        let (code, stderr) = cli(&[&["study"], &args[..]].concat(), dir.path());
+        assert_eq!(code, Some(2), "{args:?}");
         assert!(
             stderr.contains(needle)
                 && stderr.contains("cuticle: error")
@@ -533,14 +540,8 @@ fn framework_kinds_report_bad_input_once() {
             "bad.toml",
         ),
     ] {
-        let out = Command::new(env!("CARGO_BIN_EXE_cuticle"))
-            .args(&args)
-            .args(["-q", "-o"])
-            .arg(dir.path().join("out"))
-            .output()
-            .unwrap();
-        assert_eq!(out.status.code(), Some(2), "{args:?}");
-        let stderr = String::from_utf8_lossy(&out.stderr);
+        let (code, stderr) = cli(&args, dir.path());
+        assert_eq!(code, Some(2), "{args:?}");
         assert!(
             stderr.contains(needle) && stderr.lines().count() == 1,
             "{args:?}: {stderr}"
