@@ -28,11 +28,12 @@
 //!   has 8× the samples, so √8 ≈ 2.8× less noise. Why so few pixels: under an environment map each sample costs
 //!   more; `scenes/study/straight-city.toml` on the 16² window (load 8–9 on 2 cores) took 145, 179 and 141 s per
 //!   reference and 12.4 min for the kind (159 s of CPU), references 7.4× (marschner), 7.3× (ishair) and 1.4×
-//!   (chiang) below the smallest RMSE of their sweep. The window's pixel count sets the cost but not the noise per
-//!   pixel, so 12² (144 pixels, 0.56× the rays) keeps those ratios; fewer reference samples would not (chiang's
-//!   2048-material-sample points are already within 1.4× of the reference's noise). Costs: references
-//!   3 × 16 × 4096 samples per pixel, the sweep 3 models × 2 series × 8 counts × 3 seeds, ~8·10⁴ samples per
-//!   pixel; on 144 pixels.
+//!   (chiang) below the smallest RMSE of their sweep. The window's pixel count sets the cost, not the noise per
+//!   pixel, so 12² (144 pixels, 0.56× the rays) is the cut, not fewer reference samples (they would have put
+//!   chiang's at 1.0×). Measured at 12² in `study all` there (load 9–10): references 7.5×, 7.0× and 7.1× below
+//!   (chiang's 1.4× at 16² came from pixels outside the 12² window). Costs: references 3 × 16 × 4096 samples per
+//!   pixel, the sweep 3 models × 2 series × 8 counts × 3 seeds, ~8·10⁴ samples per pixel (the 64 × 64 point of
+//!   both series is one render); on 144 pixels.
 //! - [`curves`]: the strands' radius scaled (`hair.radius_scale` 0.5, 1, 2: their width in pixels ×0.5 to ×2)
 //!   at a fixed film, 4 spp on the [`SWEEP_CROP`]² window, references at 32 spp.
 //! - `stress` ([`super::stress`]): 8 spp on the centred 48² window, references at 64 spp (7–10 cases × 4 methods,
