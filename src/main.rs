@@ -871,20 +871,40 @@ fn study_kind(name: &str, a: StudyKindArgs) -> Result<()> {
     Ok(())
 }
 
+/// The flags `study shadows` and `study backends` share.
 #[derive(clap::Args)]
-struct StudyShadowsArgs {
+struct StudyWholeArgs {
     /// Scene file (TOML).
     scene: PathBuf,
-    /// Output directory: shadows.csv, shadows-error-time.png, shadows-crops.png, the cached reference.
-    #[arg(short, long, default_value = "study-shadows")]
-    out: PathBuf,
-    /// Where the reference EXR is cached (default: the output directory).
+    /// Where the reference EXRs are cached (default: the output directory).
     #[arg(long)]
     cache_dir: Option<PathBuf>,
-    /// Samples per pixel of the ray-traced reference (exact transmittance).
+    /// Samples per pixel of the references.
     #[arg(long, default_value_t = 256)]
     reference_spp: u32,
-    /// Samples per pixel of the ray-traced variants.
+    /// Film resolution WxH (overrides film.resolution).
+    #[arg(long, value_parser = parse_resolution)]
+    res: Option<[u32; 2]>,
+    /// Worker threads.
+    #[arg(long, default_value_t = 2)]
+    threads: usize,
+    /// Seeds per point.
+    #[arg(long, default_value_t = 3)]
+    seeds: u32,
+    /// No progress bars.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+#[derive(clap::Args)]
+struct StudyShadowsArgs {
+    #[command(flatten)]
+    common: StudyWholeArgs,
+    /// Output directory: the files of every study kind (shadows.csv, shadows-summary.csv, shadows-error-time.png,
+    /// shadows-crops.png, ...), the cached reference (ray traced, exact transmittance).
+    #[arg(short, long, default_value = "study-shadows")]
+    out: PathBuf,
+    /// Samples per pixel of the ray-traced variants (stochastic and exact transmittance).
     #[arg(long, value_delimiter = ',', default_value = "1,4,16,64")]
     rt_spp: Vec<u32>,
     /// Layer counts of the deep-opacity series at --layer-resolution.
@@ -902,51 +922,59 @@ struct StudyShadowsArgs {
     /// Samples per pixel of the deep-opacity and no-shadow variants.
     #[arg(long, default_value_t = 16)]
     dom_spp: u32,
-    /// Film resolution WxH (overrides film.resolution).
-    #[arg(long, value_parser = parse_resolution)]
-    res: Option<[u32; 2]>,
-    /// Worker threads.
-    #[arg(long, default_value_t = 2)]
-    threads: usize,
     /// Side of the crop window, pixels.
     #[arg(long, default_value_t = 128)]
     crop: usize,
-    /// Strand tracer: embree or bvh (overrides hair.backend).
+    /// Strand tracer of the variants: embree or bvh (overrides hair.backend; the reference keeps the scene's).
     #[arg(long, value_parser = scene_name::<Backend>)]
     backend: Option<Backend>,
-    /// No progress lines.
-    #[arg(short, long)]
-    quiet: bool,
 }
 
 #[derive(clap::Args)]
 struct StudyBackendsArgs {
-    /// Scene file (TOML).
-    scene: PathBuf,
-    /// Output directory: backends.csv, backends-error-time.png, backends-diff-*.png, the cached references.
+    #[command(flatten)]
+    common: StudyWholeArgs,
+    /// Output directory: the files of every study kind (backends.csv, backends-error-time.png, ...),
+    /// backends-differences.csv, backends-diff-*.png, the cached references (Embree).
     #[arg(short, long, default_value = "study-backends")]
     out: PathBuf,
-    /// Where the reference EXRs are cached (default: the output directory).
-    #[arg(long)]
-    cache_dir: Option<PathBuf>,
-    /// Samples per pixel of the references (Embree).
-    #[arg(long, default_value_t = 256)]
-    reference_spp: u32,
     /// Samples per pixel of the compared renders.
     #[arg(long, value_delimiter = ',', default_value = "1,4,16")]
     spp: Vec<u32>,
     /// Curve types.
     #[arg(long, value_delimiter = ',', value_parser = scene_name::<CurveKind>, default_value = "round,flat")]
     curves: Vec<CurveKind>,
-    /// Film resolution WxH (overrides film.resolution).
-    #[arg(long, value_parser = parse_resolution)]
-    res: Option<[u32; 2]>,
-    /// Worker threads.
-    #[arg(long, default_value_t = 2)]
-    threads: usize,
-    /// No progress lines.
-    #[arg(short, long)]
-    quiet: bool,
+}
+
+/// Runs the kind `build` makes (from a subcommand's own flags) on the whole film, references at
+/// `--reference-spp`, and prints its read-outs.
+fn study_whole(
+    a: StudyWholeArgs,
+    out: PathBuf,
+    crop: Option<usize>,
+    build: impl FnOnce(
+        cuticle::study::framework::Budget,
+    ) -> Result<cuticle::study::framework::Kind, String>,
+) -> Result<()> {
+    use cuticle::study::framework::{run_kind, Budget, StudyConfig};
+    let kind = build(Budget {
+        crop: None,
+        reference_spp: Some(a.reference_spp),
+    })
+    .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let defaults = StudyConfig::new(out, false);
+    let config = StudyConfig {
+        cache_dir: a.cache_dir,
+        seeds: a.seeds,
+        resolution: a.res,
+        threads: a.threads,
+        progress: !a.quiet,
+        crop: crop.unwrap_or(defaults.crop),
+        ..defaults
+    };
+    let report = run_kind(&a.scene, &kind, &config)?;
+    report.readouts.iter().for_each(|l| println!("{l}"));
+    Ok(())
 }
 
 fn study_command(command: StudyCommand) -> Result<()> {
@@ -971,39 +999,27 @@ fn study_command(command: StudyCommand) -> Result<()> {
         }
         StudyCommand::Stress(a) => study_kind("stress", a)?,
         StudyCommand::Shadows(a) => {
-            use cuticle::study::shadows::{run, ShadowStudyConfig};
-            let config = ShadowStudyConfig {
-                cache_dir: a.cache_dir,
-                reference_spp: a.reference_spp,
+            let sweep = cuticle::study::kinds::ShadowsSweep {
                 rt_spp: a.rt_spp,
                 layers: a.layers,
                 layer_resolution: a.layer_resolution,
                 resolutions: a.resolutions,
                 resolution_layers: a.resolution_layers,
                 dom_spp: a.dom_spp,
-                film_resolution: a.res,
-                threads: a.threads,
-                crop: a.crop,
-                progress: !a.quiet,
-                backend: a.backend,
-                ..ShadowStudyConfig::new(a.out)
+                backend: a.backend.map(|b| b.name().to_owned()),
             };
-            run(&a.scene, &config)?;
+            study_whole(a.common, a.out, Some(a.crop), |budget| {
+                cuticle::study::kinds::shadows_with(&sweep, budget)
+            })?;
         }
         StudyCommand::Backends(a) => {
-            use cuticle::study::backends::{run, BackendStudyConfig};
-            let config = BackendStudyConfig {
-                cache_dir: a.cache_dir,
-                reference_spp: a.reference_spp,
+            let sweep = cuticle::study::kinds::BackendsSweep {
                 spp: a.spp,
-                kinds: a.curves,
-                film_resolution: a.res,
-                threads: a.threads,
-                progress: !a.quiet,
-                ..BackendStudyConfig::new(a.out)
+                curves: a.curves.iter().map(|c| c.name().to_owned()).collect(),
             };
-            let report = run(&a.scene, &config)?;
-            println!("{}", std::fs::read_to_string(&report.csv)?);
+            study_whole(a.common, a.out, None, |budget| {
+                cuticle::study::kinds::backends_with(&sweep, budget)
+            })?;
         }
     }
     Ok(())

@@ -1,12 +1,12 @@
-//! `cuticle study shadows` end to end on a tiny procedural scene (32×32, a few spp, maps of 16–32 texels): the files
-//! it writes, the reference cache, the error measures' sanity, and the error a user sees for a missing scene.
+//! `cuticle study` end to end on a tiny procedural scene (32×32 or 32×24, a few spp, maps of 16–32 texels): the
+//! files each kind writes, the reference cache, the measures' sanity, `shadows` and `backends` with their own
+//! flags, and the errors a user sees for bad input.
 
 use std::path::Path;
 use std::process::Command;
 
-use cuticle::measure::metrics;
-use cuticle::scene::ShadowMode;
-use cuticle::study::shadows::{run, ShadowStudyConfig, CSV_HEADER};
+use cuticle::study::framework::{run_kind, Budget, StudyConfig, DIFFERENCE_HEADER, POINT_HEADER};
+use cuticle::study::kinds::{backends_with, shadows_with, BackendsSweep, ShadowsSweep};
 use cuticle::study::StudyError;
 
 /// A small fur ball under one distant light, direct light only (no environment: one map per variant).
@@ -33,20 +33,53 @@ irradiance = 3.0
 path_length = 0
 "#;
 
-fn tiny_config(out: &Path) -> ShadowStudyConfig {
-    ShadowStudyConfig {
-        reference_spp: 8,
+/// Runs `cuticle ARGS -q -o DIR/out`: its exit status and stderr.
+fn cli(args: &[&str], dir: &Path) -> (Option<i32>, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_cuticle"))
+        .args(args)
+        .args(["-q", "-o"])
+        .arg(dir.join("out"))
+        .output()
+        .unwrap();
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// The sweep of the old `study shadows` test: 2 ray-traced spp, maps of 2 and 4 layers at 32², of 16² and 32² at
+/// 4 layers (4 layers at 32² is in both map series), 2 spp for the maps.
+fn tiny_shadows() -> ShadowsSweep {
+    ShadowsSweep {
         rt_spp: vec![1, 4],
         layers: vec![2, 4],
         layer_resolution: 32,
         resolutions: vec![16, 32],
         resolution_layers: 4,
         dom_spp: 2,
-        crop: 16,
-        ..ShadowStudyConfig::new(out)
+        backend: None,
     }
 }
 
+/// The whole film, references at `spp`.
+fn whole(spp: u32) -> Budget {
+    Budget {
+        crop: None,
+        reference_spp: Some(spp),
+    }
+}
+
+fn tiny_config(out: &Path) -> StudyConfig {
+    StudyConfig {
+        seeds: 2,
+        crop: 16,
+        ..StudyConfig::new(out, false)
+    }
+}
+
+/// `shadows` on the framework: every series the old module measured (no shadows, ray traced with stochastic and
+/// exact transmittance, maps over layers and resolution with their build time and memory, the error over the
+/// shadowed pixels), the reference cache and what its key leaves out.
 #[test]
 fn study_writes_its_files_and_reuses_the_cached_reference() {
     let dir = tempfile::tempdir().unwrap();
@@ -54,145 +87,193 @@ fn study_writes_its_files_and_reuses_the_cached_reference() {
     std::fs::write(&scene, TINY).unwrap();
     let out = dir.path().join("out");
     let config = tiny_config(&out);
+    let kind = shadows_with(&tiny_shadows(), whole(8)).unwrap();
 
-    let first = run(&scene, &config).unwrap();
-    assert!(!first.reference_cached);
-    assert!(first.reference_path.is_file());
-    // none, RT ×2, DOM 2L32, 4L32 (shared by both map series), 4L16.
-    let modes: Vec<_> = first.rows.iter().map(|r| r.variant.mode).collect();
-    use ShadowMode::*;
+    let first = run_kind(&scene, &kind, &config).unwrap();
+    let reference = &first.references[0];
+    assert!(!reference.cached && reference.path.is_file());
+    // none, RT stochastic ×2, RT exact ×2, DOM 2L32, 4L32, 4L16, 4L32 again (rendered once, see below).
+    let methods: Vec<&str> = kind.variants.iter().map(|v| v.method.as_str()).collect();
     assert_eq!(
-        modes,
+        methods,
         [
-            None,
-            Raytraced,
-            Raytraced,
-            DeepOpacity,
-            DeepOpacity,
-            DeepOpacity
+            "none",
+            "raytraced",
+            "raytraced",
+            "raytraced",
+            "raytraced",
+            "deep-opacity",
+            "deep-opacity",
+            "deep-opacity",
+            "deep-opacity"
         ]
     );
-
-    let csv = std::fs::read_to_string(&first.csv).unwrap();
+    let csv = std::fs::read_to_string(out.join("shadows.csv")).unwrap();
     let lines: Vec<&str> = csv.lines().collect();
-    assert_eq!(lines[0], CSV_HEADER);
-    assert_eq!(lines.len(), 1 + 6, "{csv}");
-    assert!(lines[1].starts_with("none,2,,,"), "{}", lines[1]);
-    assert!(lines[6].starts_with("deep-opacity,2,4,16,"), "{}", lines[6]);
-    for line in &lines[1..] {
-        assert_eq!(line.split(',').count(), CSV_HEADER.split(',').count());
-    }
-    let chart = cuticle::image::read(&first.chart).unwrap();
-    assert_eq!((chart.width, chart.height), (960, 640));
-    assert!(first.crops.is_file());
-
-    // Sanity of the measures: the reference against itself is exact, no shadows is not.
-    let mask = metrics::shadowed_mask(&first.reference).unwrap();
+    assert_eq!(lines[0], POINT_HEADER);
+    assert_eq!(lines.len(), 1 + 9 * 2, "{csv}");
     assert!(
-        first.shadowed_pixels > 0 && first.shadowed_pixels == mask.iter().filter(|&&m| m).count()
+        lines[1].starts_with("shadows,no shadows,none,spp=2,"),
+        "{}",
+        lines[1]
     );
-    let zero = metrics::errors(&first.reference, &first.reference, &mask).unwrap();
-    assert_eq!((zero.rmse, zero.rmse_shadowed), (0.0, 0.0));
-    let none = &first.rows[0];
-    assert!(none.errors.rmse > 0.0 && none.errors.rmse_shadowed > none.errors.rmse);
-    for r in &first.rows {
-        assert!(r.errors.rmse.is_finite() && r.errors.relmse.is_finite());
-        let maps = r.variant.mode == DeepOpacity;
-        assert_eq!(r.map_bytes > 0, maps, "{r:?}");
+    for line in &lines[1..] {
+        assert_eq!(
+            line.split(',').count(),
+            POINT_HEADER.split(',').count(),
+            "{line}"
+        );
     }
+    for f in [
+        "shadows-error-time.png",
+        "shadows-error-time.svg",
+        "shadows-crops.png",
+    ] {
+        assert!(out.join(f).is_file(), "{f}");
+    }
+
+    // Sanity of the measures: the reference against itself is exact, no shadows is not, and worst where the
+    // reference is shadowed; only maps hold memory and take build time.
+    assert_eq!(reference.self_rmse, 0.0);
+    let none = &first.summaries[0];
+    assert!(
+        none.rmse.mean > 0.0 && none.rmse_shadowed.mean > none.rmse.mean,
+        "{none:?}"
+    );
+    for p in &first.points {
+        let maps = kind.variants[p.variant].method == "deep-opacity";
+        assert!(p.rmse.is_finite() && p.relmse.is_finite() && p.rmse_shadowed.is_finite());
+        assert_eq!(p.map_bytes > 0, maps, "{p:?}");
+        assert_eq!(p.maps_s > 0.0, maps, "{p:?}");
+        assert!(p.maps_s <= p.render_s, "{p:?}");
+    }
+    // 4 layers at 32² is one render, in both map series.
+    let at = |i: usize| first.points.iter().find(|p| p.variant == i).unwrap();
+    assert_eq!((at(6).rmse, at(6).render_s), (at(8).rmse, at(8).render_s));
 
     // Second run: the reference comes from the cache, and (deterministic renders) every error is the same.
-    let second = run(&scene, &config).unwrap();
-    assert!(second.reference_cached);
-    assert_eq!(second.reference_path, first.reference_path);
-    assert_eq!(second.reference.data.len(), first.reference.data.len());
-    for (a, b) in first.rows.iter().zip(&second.rows) {
-        assert_eq!(a.errors, b.errors, "{:?}", a.variant);
+    let second = run_kind(&scene, &kind, &config).unwrap();
+    assert!(second.references[0].cached);
+    assert_eq!(second.references[0].path, reference.path);
+    for (a, b) in first.points.iter().zip(&second.points) {
+        assert_eq!(
+            (a.rmse, a.rmse_shadowed),
+            (b.rmse, b.rmse_shadowed),
+            "{a:?}"
+        );
     }
 
-    // Map settings in the scene do not touch the reference: still cached. A different reference spp is a
-    // different cache entry.
-    let quick = ShadowStudyConfig {
-        rt_spp: vec![1],
-        layers: vec![],
-        resolutions: vec![],
-        ..config
-    };
+    // Map settings and comments in the scene do not touch the ray-traced reference: still cached. A different
+    // reference spp is a different cache entry.
+    let rt_only = shadows_with(
+        &ShadowsSweep {
+            layers: vec![],
+            resolutions: vec![],
+            rt_spp: vec![1],
+            ..tiny_shadows()
+        },
+        whole(8),
+    )
+    .unwrap();
     std::fs::write(
         &scene,
         format!("# a comment\n{TINY}\n[shadows.deep_opacity]\nbias = 2.0\n"),
     )
     .unwrap();
-    let third = run(&scene, &quick).unwrap();
-    assert!(third.reference_cached);
-    assert_eq!(third.reference_path, first.reference_path);
-    let fourth = run(
-        &scene,
-        &ShadowStudyConfig {
-            reference_spp: 4,
-            ..quick
-        },
-    )
-    .unwrap();
-    assert!(!fourth.reference_cached);
-    assert_ne!(fourth.reference_path, first.reference_path);
+    let third = run_kind(&scene, &rt_only, &config).unwrap();
+    assert!(third.references[0].cached);
+    assert_eq!(third.references[0].path, reference.path);
+    let fewer = shadows_with(&tiny_shadows(), whole(4)).unwrap();
+    let fourth = run_kind(&scene, &fewer, &config).unwrap();
+    assert!(!fourth.references[0].cached);
+    assert_ne!(fourth.references[0].path, reference.path);
 }
 
 #[test]
 fn missing_scene_is_an_error_naming_the_file() {
     let dir = tempfile::tempdir().unwrap();
     let missing = dir.path().join("no-such-scene.toml");
-    let err = run(&missing, &tiny_config(dir.path())).unwrap_err();
+    let kind = shadows_with(&tiny_shadows(), whole(8)).unwrap();
+    let err = run_kind(&missing, &kind, &tiny_config(dir.path())).unwrap_err();
     assert!(matches!(err, StudyError::SceneFile { .. }), "{err:?}");
     assert!(err.to_string().contains("no-such-scene.toml"), "{err}");
 
-    let out = Command::new(env!("CARGO_BIN_EXE_cuticle"))
-        .args(["study", "shadows", missing.to_str().unwrap(), "-q", "-o"])
-        .arg(dir.path().join("out"))
-        .output()
-        .unwrap();
-    assert_eq!(out.status.code(), Some(2));
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        stderr.contains("no-such-scene.toml") && stderr.contains("cuticle: error"),
-        "{stderr}"
-    );
+    let scene = dir.path().join("tiny.toml");
+    std::fs::write(&scene, TINY).unwrap();
+    for (args, needle) in [
+        (
+            vec!["shadows", missing.to_str().unwrap()],
+            "no-such-scene.toml",
+        ),
+        (
+            vec!["shadows", scene.to_str().unwrap(), "--rt-spp", "1,0"],
+            "samples per pixel must be at least 1, got 0",
+        ),
+        (
+            vec!["backends", scene.to_str().unwrap(), "--seeds", "0"],
+            "--seeds must be at least 1",
+        ),
+    ] {
+        let (code, stderr) = cli(&[&["study"], &args[..]].concat(), dir.path());
+        assert_eq!(code, Some(2), "{args:?}");
+        assert!(
+            stderr.contains(needle)
+                && stderr.contains("cuticle: error")
+                && stderr.lines().count() == 1,
+            "{args:?}: {stderr}"
+        );
+    }
+    assert!(!dir.path().join("out").join("shadows.csv").exists());
 }
 
+/// `backends` on the framework: both backends over spp per curve type with the same seeds, their images compared
+/// directly (`backends-differences.csv`, one difference image per curve type).
 #[test]
 fn backend_study_renders_both_backends_alike() {
-    use cuticle::accel::{Backend, CurveKind};
-    use cuticle::study::backends::{self, BackendStudyConfig};
     let dir = tempfile::tempdir().unwrap();
     let scene = dir.path().join("tiny.toml");
     std::fs::write(&scene, TINY).unwrap();
-    let config = BackendStudyConfig {
-        reference_spp: 8,
+    let out = dir.path().join("out");
+    let sweep = BackendsSweep {
         spp: vec![1, 2],
-        ..BackendStudyConfig::new(dir.path().join("out"))
+        curves: vec!["round".into(), "flat".into()],
     };
-    let report = backends::run(&scene, &config).unwrap();
-    // 2 curve types × 2 spp × 2 backends, in that order.
-    assert_eq!(report.rows.len(), 8);
-    let csv = std::fs::read_to_string(&report.csv).unwrap();
-    assert_eq!(csv.lines().next(), Some(backends::CSV_HEADER));
-    assert_eq!(csv.lines().count(), 9, "{csv}");
-    assert!(report.chart.is_file() && report.diffs.iter().all(|d| d.is_file()));
-    for pair in report.rows.chunks(2) {
-        let (e, b) = (&pair[0], &pair[1]);
-        assert_eq!((e.backend, b.backend), (Backend::Embree, Backend::Bvh));
-        assert_eq!((e.curves, e.spp), (b.curves, b.spp));
+    let kind = backends_with(&sweep, whole(8)).unwrap();
+    let report = run_kind(&scene, &kind, &tiny_config(&out)).unwrap();
+    // 2 curve types × 2 backends × 2 spp × 2 seeds.
+    assert_eq!(report.points.len(), 16);
+    let csv = std::fs::read_to_string(out.join("backends-differences.csv")).unwrap();
+    assert_eq!(csv.lines().next(), Some(DIFFERENCE_HEADER));
+    assert_eq!(csv.lines().count(), 1 + 8, "{csv}");
+    for c in ["round", "flat"] {
+        let f = out.join(format!("backends-diff-bvh-{c}-vs-embree-{c}.png"));
+        assert!(f.is_file(), "{}", f.display());
+    }
+    assert_eq!(report.differences.len(), 8);
+    for d in &report.differences {
+        assert_eq!(d.a.replace("bvh", "embree"), d.b);
         // Same samples on both backends: the images differ far less than either differs from the reference.
-        assert!(e.errors.rmse > 0.0 && e.errors.rmse.is_finite(), "{e:?}");
+        assert!(d.rmse_a > 0.0 && d.rmse_a.is_finite(), "{d:?}");
         assert!(
-            e.diff_rmse < 0.25 * e.errors.rmse.min(b.errors.rmse),
+            d.rmse < 0.25 * d.rmse_a.min(d.rmse_b),
             "backends differ by {} at rmse {} / {}",
-            e.diff_rmse,
-            e.errors.rmse,
-            b.errors.rmse
+            d.rmse,
+            d.rmse_a,
+            d.rmse_b
         );
     }
-    assert!(report.rows.iter().any(|r| r.curves == CurveKind::Flat));
+    assert!(report
+        .readouts
+        .iter()
+        .any(|l| l.starts_with("bvh flat against embree flat, same seeds")));
+    assert!(backends_with(
+        &BackendsSweep {
+            spp: vec![],
+            ..sweep
+        },
+        whole(8)
+    )
+    .is_err());
 }
 
 /// `study all --quick` through the framework on the tiny scene (32×24): every kind writes its CSVs, charts (PNG
@@ -200,7 +281,7 @@ fn backend_study_renders_both_backends_alike() {
 /// with samples where it must (chiang against its own reference, 1 → 4 spp).
 #[test]
 fn study_all_quick_writes_every_chart_and_sane_values() {
-    use cuticle::study::framework::{StudyConfig, POINT_HEADER, SUMMARY_HEADER};
+    use cuticle::study::framework::SUMMARY_HEADER;
     use cuticle::study::{kinds, report};
     let dir = tempfile::tempdir().unwrap();
     let scene = dir.path().join("tiny.toml");
@@ -262,7 +343,7 @@ fn study_all_quick_writes_every_chart_and_sane_values() {
         };
         assert_eq!(
             k.readouts.len(),
-            k.kind.compare.len() + bias_lines,
+            k.kind.compare.len() + bias_lines + k.kind.differences.len(),
             "{name}: {:?}",
             k.readouts
         );
@@ -459,14 +540,8 @@ fn framework_kinds_report_bad_input_once() {
             "bad.toml",
         ),
     ] {
-        let out = Command::new(env!("CARGO_BIN_EXE_cuticle"))
-            .args(&args)
-            .args(["-q", "-o"])
-            .arg(dir.path().join("out"))
-            .output()
-            .unwrap();
-        assert_eq!(out.status.code(), Some(2), "{args:?}");
-        let stderr = String::from_utf8_lossy(&out.stderr);
+        let (code, stderr) = cli(&args, dir.path());
+        assert_eq!(code, Some(2), "{args:?}");
         assert!(
             stderr.contains(needle) && stderr.lines().count() == 1,
             "{args:?}: {stderr}"
@@ -481,7 +556,6 @@ fn framework_kinds_report_bad_input_once() {
 /// (chiang, grazing), 9 (marschner, narrow lobes), 6 (ishair, thin strands); 24 is twice the worst.
 #[test]
 fn stress_quick_has_no_nan_and_few_fireflies_on_the_tiny_scene() {
-    use cuticle::study::framework::StudyConfig;
     use cuticle::study::stress;
     let dir = tempfile::tempdir().unwrap();
     let scene = dir.path().join("tiny.toml");

@@ -3,7 +3,7 @@
 //! A converged reference render takes minutes, so studies keep it on disk under a name derived from everything that
 //! decides its pixels: [`Fnv1a`] (64-bit FNV-1a, Fowler–Noll–Vo) is stable across runs, platforms and Rust versions,
 //! unlike `std`'s `DefaultHasher`, whose algorithm is unspecified. What goes into the key is the caller's choice
-//! (see [`super::shadows`]); files the scene refers to (hair, environment maps) are *not* hashed, nor is the
+//! (see [`super::framework`]); files the scene refers to (hair, environment maps) are *not* hashed, nor is the
 //! renderer's code: delete the cached file after changing either.
 //!
 //! Text outputs are written like images ([`crate::util::atomic_file`]): to a temporary file in the same directory, then

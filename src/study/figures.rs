@@ -1,6 +1,6 @@
 //! The figures of a study:
 //!
-//! - [`error_time_chart`]: error against time on log–log axes, one polyline per series with a `+` marker and a
+//! - [`error_time_line_chart`]: error against time on log–log axes, one polyline per series with a `+` marker and a
 //!   small label (spp, layers, resolution) at each measured point, drawn by [`crate::plot`] (PNG and SVG);
 //! - [`mosaic`]: rows of equally sized image crops, each labelled above, upscaled by an integer factor (nearest
 //!   neighbour, so pixels stay visible) and multiplied by one common exposure. An image, not a chart: the pixels
@@ -10,8 +10,7 @@ use glam::Vec3;
 use plotters::style::RGBColor;
 
 use crate::image::Image;
-use crate::plot::{self, Axis, Figure, Label, LineChart, PlotError, Series};
-use crate::scene::Scene;
+use crate::plot::{self, Axis, Label, LineChart, PlotError, Series};
 
 /// One measured point of a chart series.
 #[derive(Debug, Clone, PartialEq)]
@@ -24,7 +23,7 @@ pub struct Point {
     pub label: String,
 }
 
-/// A series of [`error_time_chart`].
+/// A series of [`error_time_line_chart`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct ChartSeries {
     /// The legend text.
@@ -36,47 +35,7 @@ pub struct ChartSeries {
 }
 
 /// Error against time: `series` on log–log axes (whole decades covering every point) labelled `x_label` and
-/// `y_label`, `width × height` pixels. Points with a non-positive or non-finite coordinate are left out.
-pub fn error_time_chart(
-    title: &str,
-    x_label: &str,
-    y_label: &str,
-    series: &[ChartSeries],
-    width: usize,
-    height: usize,
-) -> Result<Figure, PlotError> {
-    plot::render(
-        &error_time_line_chart(title, x_label, y_label, series),
-        "error-time",
-        (width, height),
-    )
-}
-
-/// [`error_time_chart`] for a study of `scene`: RMSE against build + render time, 960 × 640, titled
-/// "`<scene file stem>: <what>RMSE vs time, W×H, reference N spp`".
-pub fn scene_error_time_chart(
-    scene: &Scene,
-    what: &str,
-    reference_spp: u32,
-    series: &[ChartSeries],
-) -> Result<Figure, PlotError> {
-    let stem = scene
-        .source
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let [w, h] = scene.film.resolution;
-    error_time_chart(
-        &format!("{stem}: {what}RMSE vs time, {w}×{h}, reference {reference_spp} spp"),
-        "build + render time (s)",
-        "RMSE",
-        series,
-        960,
-        640,
-    )
-}
-
-/// The chart of [`error_time_chart`].
+/// `y_label`, each point marked and labelled. Points with a non-positive or non-finite coordinate are left out.
 pub(crate) fn error_time_line_chart(
     title: &str,
     x_label: &str,
@@ -338,7 +297,7 @@ mod tests {
         assert_eq!((chart.x.min, chart.x.max), (0.01, 100.0));
         assert_eq!((chart.y.min, chart.y.max), (0.001, 1.0));
         assert_eq!(chart.series[0].points, [(0.03, 0.2), (12.0, 0.004)]);
-        let figure = error_time_chart("C", "X", "Y", &[s], 600, 400).unwrap();
+        let figure = plot::render(&chart, "error-time", (600, 400)).unwrap();
         assert_eq!((figure.image.width, figure.image.height), (600, 400));
         // plotters writes each text on a line of its own.
         assert!(figure.svg.contains("\n64\n") && !figure.svg.contains("left out"));

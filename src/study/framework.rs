@@ -12,12 +12,14 @@
 //! [`StudyConfig::reference_spp`]). A reference is cached as `reference-<hash>.exr` (with `reference-<hash>.txt`
 //! holding the seconds it took and its noise, below) in the cache directory, the hash ([`super::cache`]) covering
 //! the overridden scene text as parsed and re-serialised, its directory and a format version: the hair and map
-//! files and the renderer's code are not covered (delete the files after changing them).
+//! files and the renderer's code are not covered (delete the files after changing them). Settings that cannot
+//! change a reference's pixels are left out of the key: `[shadows.deep_opacity]` when the reference's shadows are
+//! not deep opacity maps (so a scene's map settings keep its ray-traced reference).
 //!
 //! # References in two halves
 //!
 //! A reference of n spp is rendered as two halves of ⌊n/2⌋ and ⌈n/2⌉ spp with the seeds `film.seed` +
-//! [`super::shadows::REFERENCE_SEED_OFFSET`] and that + 1, and their R, G, B averaged by spp. The halves' RMSE
+//! [`REFERENCE_SEED_OFFSET`] and that + 1, and their R, G, B averaged by spp. The halves' RMSE
 //! against each other gives, at no extra cost, the RMSE of the reference against a second reference with other
 //! seeds ([`ReferenceRun::second_rmse`]); each kind's read-outs print it beside the smallest RMSE of the variants
 //! measured against that reference, so a sweep whose errors are the reference's own noise shows.
@@ -32,11 +34,16 @@
 //! The frame (hair, BVH, lights) is set up once for every run of variants sharing the scene's `hair`, `light`,
 //! `environment` and `shape` tables; the material, camera, film, integrator and shadow settings are applied per
 //! render. So **set-up time** (resolving lights and maps, loading the hair, building the BVH) is measured once per
-//! such group and reported on each of its points; **render time** is the pixel loop plus any shadow-map build.
+//! such group and reported on each of its points; **render time** is the pixel loop plus any shadow-map build,
+//! whose part is also reported on its own (`maps_s`, with the maps' memory `map_mb`). A variant whose scene equals
+//! an earlier variant's (a setting in two series, e.g. 16 map layers at 1024² in both the layer and the resolution
+//! series of `shadows`) is rendered once; its points are copied.
 //!
 //! # What is measured, per point ([`Point`])
 //!
-//! Set-up and render seconds; rays by kind (camera, shadow, material); RMSE and relMSE ([`crate::measure::metrics`]);
+//! Set-up, render and shadow-map seconds; shadow-map bytes; rays by kind (camera, shadow, material); RMSE and relMSE
+//! ([`crate::measure::metrics`]), and the RMSE over the pixels the reference sees shadowed (`rmse_shadowed`, NaN
+//! when there are none);
 //! SSIM, fireflies and non-finite pixels ([`crate::measure::pixels`], which says why SSIM and defines "local");
 //! `mean_diff`, the relative difference of the image's mean luminance from the reference's (a bias that no sample
 //! count removes shows here); and **peak memory**: the process's peak resident set size is reset before the render
@@ -52,7 +59,13 @@
 //! - `<kind>-error-time.png/.svg`: mean RMSE against mean time, log–log, one series per method, each point labelled
 //!   with its swept setting, and under the chart the **read-outs** ([`readouts`]);
 //! - `<kind>-time.png/.svg`: mean render time against the swept setting (the thesis' figure 17 for `samples`);
-//! - `<kind>-readouts.txt`: the read-outs as text.
+//! - `<kind>-readouts.txt`: the read-outs as text;
+//! - for kinds with [`Kind::differences`] (pairs of series rendered with the same seeds, e.g. Embree and the BVH):
+//!   `<kind>-differences.csv` ([`DIFFERENCE_HEADER`]: per common setting and seed the RMSE between the two
+//!   images, beside each one's RMSE against the reference: far below them means the same image), a read-out line
+//!   per pair, and `<kind>-diff-<a>-vs-<b>.png`: |A − B| at the largest common setting, seed 0, scaled so that the
+//!   reference's 99th percentile is white (structure in it would mean the two trace differently; isolated pixels
+//!   are paths sent elsewhere by one graze).
 //!
 //! # Read-outs
 //!
@@ -81,10 +94,13 @@ use crate::scene::Scene;
 /// Dotted scene keys and the values that replace them, in order.
 pub type Overrides = Vec<(String, toml::Value)>;
 
+/// Added to the scene's seed for the references' first half (the second takes the next seed), so no variant shares
+/// its samples with a reference.
+pub const REFERENCE_SEED_OFFSET: u32 = 0x0001_0001;
 /// Bumped when the references' recipe changes, so old cached files are not reused.
 const REFERENCE_FORMAT: &str = "cuticle study reference v2 (two halves)";
-/// Side of the crop window of `<kind>-crops.png`, pixels (clamped to the image).
-const CROP: usize = 64;
+/// Side of the crop window of `<kind>-crops.png` by default, pixels (clamped to the image).
+pub const CROP: usize = 64;
 /// Tables of the scene that decide the frame's set-up (hair, BVH, lights); the rest is applied per render.
 const SETUP_TABLES: [&str; 4] = ["hair", "light", "environment", "shape"];
 
@@ -139,6 +155,9 @@ pub struct Kind {
     pub equal_setting: bool,
     /// What the kind may spend: its reference spp and film crop (see [`Budget`]).
     pub budget: Budget,
+    /// Pairs of series (A, B) rendered with the same seeds whose images are compared with each other directly
+    /// (`<kind>-differences.csv`, `<kind>-diff-<a>-vs-<b>.png`; see the module docs).
+    pub differences: Vec<(String, String)>,
 }
 
 /// A kind's ray budget (see the module docs, "Budgets").
@@ -170,6 +189,8 @@ pub struct StudyConfig {
     pub threads: usize,
     /// Progress bars on stderr.
     pub progress: bool,
+    /// Side of the window of `<kind>-crops.png`, pixels (the one with the most shadowed reference pixels).
+    pub crop: usize,
 }
 
 /// The film of `--quick` unless `--res` says otherwise.
@@ -187,6 +208,7 @@ impl StudyConfig {
             resolution: None,
             threads: 2,
             progress: false,
+            crop: CROP,
         }
     }
 }
@@ -202,6 +224,10 @@ pub struct Point {
     pub setup_s: f64,
     /// Pixel loop (plus shadow-map build) seconds.
     pub render_s: f64,
+    /// Of `render_s`, building the shadow maps (0 without maps).
+    pub maps_s: f64,
+    /// Bytes held by the shadow maps.
+    pub map_bytes: usize,
     /// Camera rays.
     pub camera_rays: u64,
     /// Shadow rays.
@@ -212,6 +238,8 @@ pub struct Point {
     pub rmse: f64,
     /// Relative MSE against the reference.
     pub relmse: f64,
+    /// RMSE over the pixels the reference sees shadowed (NaN if there are none).
+    pub rmse_shadowed: f64,
     /// Mean SSIM against the reference.
     pub ssim: f64,
     /// Pixels above 10× the reference's local median.
@@ -258,10 +286,16 @@ pub struct Summary {
     pub setup_s: f64,
     /// Render seconds.
     pub render_s: Stat,
+    /// Shadow-map build seconds (part of `render_s`).
+    pub maps_s: Stat,
+    /// Largest shadow-map memory over the seeds, bytes.
+    pub map_bytes: usize,
     /// RMSE.
     pub rmse: Stat,
     /// relMSE.
     pub relmse: Stat,
+    /// RMSE over the shadowed pixels.
+    pub rmse_shadowed: Stat,
     /// SSIM.
     pub ssim: Stat,
     /// Fireflies.
@@ -314,6 +348,27 @@ pub struct KindReport {
     /// Per reference: its estimated noise against the smallest RMSE of its variants (the check that the sweep's
     /// errors are not the reference's noise).
     pub reference_checks: Vec<String>,
+    /// Per point of the first series of a [`Kind::differences`] pair that the second measured too.
+    pub differences: Vec<Difference>,
+}
+
+/// Two series' images at the same setting and seed, compared with each other (see [`Kind::differences`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Difference {
+    /// Series A (the first of the pair).
+    pub a: String,
+    /// Series B.
+    pub b: String,
+    /// The common setting.
+    pub x: f64,
+    /// The seed.
+    pub seed: u32,
+    /// RMSE between A's and B's images.
+    pub rmse: f64,
+    /// A's RMSE against its reference.
+    pub rmse_a: f64,
+    /// B's RMSE against its reference.
+    pub rmse_b: f64,
 }
 
 /// Sets the dotted key `path` of `table` to `value`, creating tables on the way.
@@ -355,6 +410,18 @@ fn prepare(
         .map_err(|e| StudyError::Config(format!("{}: {e}", source.display())))?;
     let scene = Scene::parse(&text, source, base_dir)?;
     Ok(Prepared { text, scene })
+}
+
+/// `text` without what cannot change the pixels of its render (see the module docs, "What is rendered"), for the
+/// references' cache key.
+fn key_text(text: &str) -> String {
+    let mut table: toml::Table = toml::from_str(text).unwrap_or_default();
+    if let Some(shadows) = table.get_mut("shadows").and_then(|s| s.as_table_mut()) {
+        if shadows.get("mode").and_then(|m| m.as_str()) != Some("deep-opacity") {
+            shadows.remove("deep_opacity");
+        }
+    }
+    toml::to_string(&table).unwrap_or_else(|_| text.to_owned())
 }
 
 /// The key of the frame set-up of `text` (see [`SETUP_TABLES`]).
@@ -419,8 +486,7 @@ impl Judge {
         })
     }
 
-    /// (rmse, relmse, ssim, fireflies, non-finite, mean_diff).
-    fn judge(&self, image: &Image) -> Result<(f64, f64, f64, usize, usize, f64), StudyError> {
+    fn judge(&self, image: &Image) -> Result<Measures, StudyError> {
         let c = StudyError::Config;
         let e = metrics::errors(image, &self.reference, &self.mask).map_err(c)?;
         let ssim = pixels::ssim(image, &self.reference).map_err(c)?;
@@ -432,8 +498,23 @@ impl Judge {
         } else {
             0.0
         };
-        Ok((e.rmse, e.relmse, ssim, fireflies, non_finite, mean_diff))
+        Ok(Measures {
+            errors: e,
+            ssim,
+            fireflies,
+            non_finite,
+            mean_diff,
+        })
     }
+}
+
+/// What [`Judge::judge`] measures of one image.
+struct Measures {
+    errors: metrics::Errors,
+    ssim: f64,
+    fireflies: usize,
+    non_finite: usize,
+    mean_diff: f64,
 }
 
 fn mean_finite(values: &[f64]) -> f64 {
@@ -547,7 +628,7 @@ pub fn run_kind(
     let with = |extra: &Overrides, film: Overrides| -> Overrides {
         extra.iter().cloned().chain(film).collect()
     };
-    let reference_seed = seed0.wrapping_add(super::shadows::REFERENCE_SEED_OFFSET);
+    let reference_seed = seed0.wrapping_add(REFERENCE_SEED_OFFSET);
     let halves = reference_halves(config.reference_spp);
     let references = kind
         .references
@@ -601,7 +682,7 @@ pub fn run_kind(
     let mut reference_runs = Vec::with_capacity(references.len());
     for (r, (p, parts)) in kind.references.iter().zip(&references) {
         reference_bar.set_message(r.label.clone());
-        let key = scene_key(REFERENCE_FORMAT, &p.text, &p.scene, &[], "");
+        let key = scene_key(REFERENCE_FORMAT, &key_text(&p.text), &p.scene, &[], "");
         let path = cache_dir.join(format!("reference-{key:016x}.exr"));
         let record = path.with_extension("txt");
         let frame = if path.is_file() {
@@ -656,14 +737,14 @@ pub fn run_kind(
             ));
         }
         let judge = Judge::new(reference)?;
-        let (self_rmse, _, _, self_fireflies, _, _) = judge.judge(&judge.reference)?;
+        let itself = judge.judge(&judge.reference)?;
         judges.push(judge);
         reference_runs.push(ReferenceRun {
             path,
             cached,
             seconds,
-            self_rmse,
-            self_fireflies,
+            self_rmse: itself.errors.rmse,
+            self_fireflies: itself.fireflies,
             second_rmse,
         });
     }
@@ -675,7 +756,7 @@ pub fn run_kind(
     let crop_window = judges
         .iter()
         .all(|j| (j.reference.width, j.reference.height) == (w0, h0))
-        .then(|| metrics::densest_window(&judges[0].mask, w0, h0, CROP));
+        .then(|| metrics::densest_window(&judges[0].mask, w0, h0, config.crop));
     let mut crops: Vec<Option<Vec<glam::Vec3>>> = vec![None; kind.variants.len()];
 
     // The sweep.
@@ -684,43 +765,75 @@ pub fn run_kind(
         points_todo.len() as u64,
         format!("study {}", kind.name),
     );
-    let mut points = Vec::with_capacity(points_todo.len());
+    let mut points: Vec<Point> = Vec::with_capacity(points_todo.len());
+    // Points already rendered, by scene text and reference: a variant equal to an earlier one is not rendered again.
+    let mut rendered: HashMap<(&str, usize), usize> = HashMap::new();
+    // R, G, B of the points of series in a difference pair, by (variant, seed).
+    let paired = |i: usize| {
+        let series = &kind.variants[i].series;
+        kind.differences
+            .iter()
+            .any(|(a, b)| a == series || b == series)
+    };
+    let mut pair_images: HashMap<(usize, u32), Vec<glam::Vec3>> = HashMap::new();
     for (i, seed, p) in &points_todo {
         let v = &kind.variants[*i];
         bar.set_message(format!("{} {}", v.method, v.settings));
+        if let Some(&earlier) = rendered.get(&(p.text.as_str(), v.reference)) {
+            let copy = Point {
+                variant: *i,
+                ..points[earlier].clone()
+            };
+            let from = (points[earlier].variant, *seed);
+            crops[*i] = crops[from.0].clone();
+            if let Some(rgb) = pair_images.get(&from).cloned() {
+                pair_images.insert((*i, *seed), rgb);
+            }
+            points.push(copy);
+            bar.inc(1);
+            continue;
+        }
         let (frame, setup_s) = frames.get(p)?;
         reset_peak_rss();
         let (image, stats) =
             pool.install(|| frame.render_with(&p.scene.render_settings(), Options::default()));
         let peak_bytes = peak_rss_bytes();
-        let (rmse, relmse, ssim, fireflies, non_finite, mean_diff) =
-            judges[v.reference].judge(&image)?;
+        let m = judges[v.reference].judge(&image)?;
         if let (Some((cx, cy, cs)), 0) = (crop_window, *seed) {
             crops[*i] = Some(figures::crop(&image, cx, cy, cs).map_err(StudyError::Config)?);
         }
+        if paired(*i) {
+            pair_images.insert((*i, *seed), rgb_pixels(&image)?);
+        }
+        rendered.insert((p.text.as_str(), v.reference), points.len());
         points.push(Point {
             variant: *i,
             seed: *seed,
             setup_s,
             render_s: stats.seconds + stats.shadow_build_seconds,
+            maps_s: stats.shadow_build_seconds,
+            map_bytes: stats.shadow_map_bytes,
             camera_rays: stats.rays.camera,
             shadow_rays: stats.rays.shadow,
             material_rays: stats.rays.material,
-            rmse,
-            relmse,
-            ssim,
-            fireflies,
-            non_finite,
-            mean_diff,
+            rmse: m.errors.rmse,
+            relmse: m.errors.relmse,
+            rmse_shadowed: m.errors.rmse_shadowed,
+            ssim: m.ssim,
+            fireflies: m.fireflies,
+            non_finite: m.non_finite,
+            mean_diff: m.mean_diff,
             peak_bytes,
         });
         bar.inc(1);
     }
     bar.finish_and_clear();
     drop(frames);
+    let differences = differences(kind, &points, &pair_images);
 
     let summaries = summarise(kind, &points);
-    let readouts = readouts(kind, &summaries);
+    let mut readouts = readouts(kind, &summaries);
+    readouts.extend(difference_readouts(kind, &differences));
     let mut files = Vec::new();
     let dir = &config.out_dir;
     let csv_path = dir.join(format!("{}.csv", kind.name));
@@ -748,6 +861,18 @@ pub fn run_kind(
         image::write(&path, &crops_mosaic(kind, &judges, window, &crops, config)?)?;
         files.push(path);
     }
+    if !kind.differences.is_empty() {
+        let path = dir.join(format!("{}-differences.csv", kind.name));
+        write_text(&path, &differences_csv(&differences)?)?;
+        files.push(path);
+        files.extend(difference_images(
+            kind,
+            &judges,
+            &pair_images,
+            resolution,
+            dir,
+        )?);
+    }
     let reference_checks = reference_checks(kind, &summaries, &reference_runs);
     let readouts_path = dir.join(format!("{}-readouts.txt", kind.name));
     let text: Vec<&String> = readouts.iter().chain(&reference_checks).collect();
@@ -771,7 +896,166 @@ pub fn run_kind(
         resolution,
         reference_spp: config.reference_spp,
         reference_checks,
+        differences,
     })
+}
+
+/// The R, G, B values of every pixel of a render, row-major.
+fn rgb_pixels(image: &Image) -> Result<Vec<glam::Vec3>, StudyError> {
+    let index = |c: &str| {
+        image
+            .channel_index(c)
+            .ok_or_else(|| StudyError::Config(format!("the render has no {c} channel")))
+    };
+    let [r, g, b] = [index("R")?, index("G")?, index("B")?];
+    let n = image.channels.len();
+    Ok(image
+        .data
+        .chunks_exact(n)
+        .map(|p| glam::Vec3::new(p[r], p[g], p[b]))
+        .collect())
+}
+
+/// RMSE between two pixel lists, over R, G, B.
+fn rgb_rmse(a: &[glam::Vec3], b: &[glam::Vec3]) -> f64 {
+    let sum: f64 = a
+        .iter()
+        .zip(b)
+        .map(|(p, q)| f64::from((*p - *q).length_squared()))
+        .sum();
+    (sum / (3 * a.len().max(1)) as f64).sqrt()
+}
+
+/// For each pair of [`Kind::differences`], each variant of A with a variant of B at the same setting, and each
+/// seed both rendered: the RMSE between their images (see the module docs).
+fn differences(
+    kind: &Kind,
+    points: &[Point],
+    images: &HashMap<(usize, u32), Vec<glam::Vec3>>,
+) -> Vec<Difference> {
+    let mut out = Vec::new();
+    for (a, b) in &kind.differences {
+        for pa in points
+            .iter()
+            .filter(|p| kind.variants[p.variant].series == *a)
+        {
+            let x = kind.variants[pa.variant].x;
+            let partner = points.iter().find(|p| {
+                let v = &kind.variants[p.variant];
+                v.series == *b && v.x == x && p.seed == pa.seed
+            });
+            let Some(pb) = partner else { continue };
+            let (Some(ia), Some(ib)) = (
+                images.get(&(pa.variant, pa.seed)),
+                images.get(&(pb.variant, pb.seed)),
+            ) else {
+                continue;
+            };
+            out.push(Difference {
+                a: a.clone(),
+                b: b.clone(),
+                x,
+                seed: pa.seed,
+                rmse: rgb_rmse(ia, ib),
+                rmse_a: pa.rmse,
+                rmse_b: pb.rmse,
+            });
+        }
+    }
+    out
+}
+
+/// Per pair: the images' difference at the largest common setting against their errors.
+fn difference_readouts(kind: &Kind, differences: &[Difference]) -> Vec<String> {
+    kind.differences
+        .iter()
+        .filter_map(|(a, b)| {
+            let of_pair = || differences.iter().filter(|d| d.a == *a && d.b == *b);
+            let x = of_pair().map(|d| d.x).reduce(f64::max)?;
+            let at: Vec<&Difference> = of_pair().filter(|d| d.x == x).collect();
+            let mean = |f: fn(&Difference) -> f64| at.iter().map(|d| f(d)).sum::<f64>() / at.len() as f64;
+            let (d, ea, eb) = (mean(|d| d.rmse), mean(|d| d.rmse_a), mean(|d| d.rmse_b));
+            Some(format!(
+                "{a} against {b}, same seeds: their images differ by RMSE {d:.2e} at {} ({}; mean of {} seeds), \
+                 {:.2e}× the smaller of their RMSEs against the reference ({ea:.2e}, {eb:.2e})",
+                x_label(x),
+                kind.x_label,
+                at.len(),
+                d / ea.min(eb)
+            ))
+        })
+        .collect()
+}
+
+/// Header of `<kind>-differences.csv`.
+pub const DIFFERENCE_HEADER: &str = "series_a,series_b,x,seed,diff_rmse,rmse_a,rmse_b";
+
+/// `<kind>-differences.csv` ([`DIFFERENCE_HEADER`]).
+pub fn differences_csv(differences: &[Difference]) -> Result<String, csv::Error> {
+    let mut w = csv::Writer::from_writer(Vec::new());
+    w.write_record(DIFFERENCE_HEADER.split(','))?;
+    for d in differences {
+        w.write_record([
+            d.a.clone(),
+            d.b.clone(),
+            x_label(d.x),
+            d.seed.to_string(),
+            sci(d.rmse),
+            sci(d.rmse_a),
+            sci(d.rmse_b),
+        ])?;
+    }
+    finish_csv(w)
+}
+
+/// `<kind>-diff-<a>-vs-<b>.png` per pair: |A − B| at the largest setting both rendered, their first seed, scaled
+/// so that the reference's 99th percentile (largest channel) is white.
+fn difference_images(
+    kind: &Kind,
+    judges: &[Judge],
+    images: &HashMap<(usize, u32), Vec<glam::Vec3>>,
+    [width, height]: [u32; 2],
+    dir: &Path,
+) -> Result<Vec<PathBuf>, StudyError> {
+    let mut files = Vec::new();
+    for (a, b) in &kind.differences {
+        let both = images
+            .keys()
+            .filter(|(i, _)| kind.variants[*i].series == *a)
+            .filter_map(|&(i, seed)| {
+                let x = kind.variants[i].x;
+                let j = (0..kind.variants.len()).find(|&j| {
+                    let v = &kind.variants[j];
+                    v.series == *b && v.x == x && images.contains_key(&(j, seed))
+                })?;
+                Some((x, seed, i, j))
+            })
+            .max_by(|p, q| p.0.total_cmp(&q.0).then(q.1.cmp(&p.1)));
+        let Some((_, seed, i, j)) = both else {
+            continue;
+        };
+        let reference = &judges[kind.variants[i].reference].reference;
+        let white = figures::p99_largest_channel(rgb_pixels(reference)?)
+            .filter(|&w| w > 0.0)
+            .unwrap_or(1.0);
+        let (w, h) = (width as usize, height as usize);
+        let mut out = Image::new(w, h, vec!["R".into(), "G".into(), "B".into()]);
+        for (k, (p, q)) in images[&(i, seed)]
+            .iter()
+            .zip(&images[&(j, seed)])
+            .enumerate()
+        {
+            let d = (*p - *q).abs() / white;
+            for c in 0..3 {
+                out.set(k % w, k / w, c, d[c]);
+            }
+        }
+        let slug = |s: &str| s.replace(' ', "-");
+        let path = dir.join(format!("{}-diff-{}-vs-{}.png", kind.name, slug(a), slug(b)));
+        image::write(&path, &out)?;
+        files.push(path);
+    }
+    Ok(files)
 }
 
 /// The spp of a reference's two halves (`[spp]` alone when it cannot be split).
@@ -873,8 +1157,11 @@ pub fn summarise(kind: &Kind, points: &[Point]) -> Vec<Summary> {
                 seeds: ps.len(),
                 setup_s: first.setup_s,
                 render_s: stat(&|p| p.render_s),
+                maps_s: stat(&|p| p.maps_s),
+                map_bytes: ps.iter().map(|p| p.map_bytes).max().unwrap_or(0),
                 rmse: stat(&|p| p.rmse),
                 relmse: stat(&|p| p.relmse),
+                rmse_shadowed: stat(&|p| p.rmse_shadowed),
                 ssim: stat(&|p| p.ssim),
                 fireflies: stat(&|p| p.fireflies as f64),
                 non_finite: ps.iter().map(|p| p.non_finite).sum(),
@@ -1194,9 +1481,9 @@ fn time_figure(
 }
 
 /// Header of `<kind>.csv`.
-pub const POINT_HEADER: &str = "kind,series,method,settings,x,seed,setup_s,render_s,camera_rays,shadow_rays,material_rays,rmse,relmse,ssim,fireflies,non_finite,mean_diff,peak_mb";
+pub const POINT_HEADER: &str = "kind,series,method,settings,x,seed,setup_s,render_s,camera_rays,shadow_rays,material_rays,rmse,relmse,ssim,fireflies,non_finite,mean_diff,peak_mb,maps_s,map_mb,rmse_shadowed";
 /// Header of `<kind>-summary.csv`.
-pub const SUMMARY_HEADER: &str = "kind,series,method,settings,x,seeds,setup_s,render_s,render_s_sd,rmse,rmse_sd,relmse,relmse_sd,ssim,ssim_sd,fireflies,fireflies_sd,non_finite,mean_diff,mean_diff_sd,peak_mb";
+pub const SUMMARY_HEADER: &str = "kind,series,method,settings,x,seeds,setup_s,render_s,render_s_sd,rmse,rmse_sd,relmse,relmse_sd,ssim,ssim_sd,fireflies,fireflies_sd,non_finite,mean_diff,mean_diff_sd,peak_mb,maps_s,map_mb,rmse_shadowed,rmse_shadowed_sd";
 
 #[derive(Serialize)]
 struct PointRow<'a> {
@@ -1218,6 +1505,9 @@ struct PointRow<'a> {
     non_finite: usize,
     mean_diff: String,
     peak_mb: Option<String>,
+    maps_s: String,
+    map_mb: String,
+    rmse_shadowed: String,
 }
 
 #[derive(Serialize)]
@@ -1243,6 +1533,10 @@ struct SummaryRow<'a> {
     mean_diff: String,
     mean_diff_sd: String,
     peak_mb: Option<String>,
+    maps_s: String,
+    map_mb: String,
+    rmse_shadowed: String,
+    rmse_shadowed_sd: String,
 }
 
 fn sci(x: f64) -> String {
@@ -1286,6 +1580,9 @@ pub fn points_csv(kind: &Kind, points: &[Point]) -> Result<String, csv::Error> {
             non_finite: p.non_finite,
             mean_diff: sci(p.mean_diff),
             peak_mb: mb(p.peak_bytes),
+            maps_s: format!("{:.4}", p.maps_s),
+            map_mb: format!("{:.3}", p.map_bytes as f64 / 1e6),
+            rmse_shadowed: sci(p.rmse_shadowed),
         })?;
     }
     finish_csv(w)
@@ -1321,6 +1618,10 @@ pub fn summary_csv(kind: &Kind, summaries: &[Summary]) -> Result<String, csv::Er
             mean_diff: sci(s.mean_diff.mean),
             mean_diff_sd: sci(s.mean_diff.sd),
             peak_mb: mb(s.peak_bytes),
+            maps_s: format!("{:.4}", s.maps_s.mean),
+            map_mb: format!("{:.3}", s.map_bytes as f64 / 1e6),
+            rmse_shadowed: sci(s.rmse_shadowed.mean),
+            rmse_shadowed_sd: sci(s.rmse_shadowed.sd),
         })?;
     }
     finish_csv(w)

@@ -21,12 +21,19 @@
 //!   adds noise of its own). Measured on the fur ball's 32² centre: at 1 spp with the scene's filter, 16 and 1024
 //!   light samples had the same RMSE (0.177 and 0.177: pixel sampling dominates); with these settings 0.0155
 //!   and 0.0043. The references are (2048 light, 2048 material) samples at [`SAMPLES_REFERENCE_SPP`] = 16 spp on
-//!   the centred [`SAMPLES_CROP`]² = 16² window. Why so many: with MIS the error keeps falling as *either* count
-//!   grows (the balance heuristic shifts weight to the strategy with more samples), so the sweep's last points are
-//!   nearly as good as a 2048 × 2048 render. Measured on the fur ball (32² window, loaded machine): 2-spp
-//!   references were only 1.2–1.3× below the sweep's smallest RMSE (marschner 2.7e-3 against 3.3e-3); 16 spp
-//!   has 8× the samples, so √8 ≈ 2.8× less noise. Costs: references 3 × 16 × 4096 samples per pixel, the sweep
-//!   3 models × 2 series × 8 counts × 3 seeds, ~8·10⁴ samples per pixel; on 256 pixels.
+//!   the centred [`SAMPLES_CROP`]² = 12² window. Why so many samples: with MIS the error keeps falling as *either*
+//!   count grows (the balance heuristic shifts weight to the strategy with more samples), so the sweep's last
+//!   points are nearly as good as a 2048 × 2048 render. Measured on the fur ball (32² window, loaded machine):
+//!   2-spp references were only 1.2–1.3× below the sweep's smallest RMSE (marschner 2.7e-3 against 3.3e-3); 16 spp
+//!   has 8× the samples, so √8 ≈ 2.8× less noise. Why so few pixels: under an environment map each sample costs
+//!   more; `scenes/study/straight-city.toml` on the 16² window (load 8–9 on 2 cores) took 145, 179 and 141 s per
+//!   reference and 12.4 min for the kind (159 s of CPU), references 7.4× (marschner), 7.3× (ishair) and 1.4×
+//!   (chiang) below the smallest RMSE of their sweep. The window's pixel count sets the cost, not the noise per
+//!   pixel, so 12² (144 pixels, 0.56× the rays) is the cut, not fewer reference samples (they would have put
+//!   chiang's at 1.0×). Measured at 12² in `study all` there (load 9–10): references 7.5×, 7.0× and 7.1× below
+//!   (chiang's 1.4× at 16² came from pixels outside the 12² window). Costs: references 3 × 16 × 4096 samples per
+//!   pixel, the sweep 3 models × 2 series × 8 counts × 3 seeds, ~8·10⁴ samples per pixel (the 64 × 64 point of
+//!   both series is one render); on 144 pixels.
 //! - [`curves`]: the strands' radius scaled (`hair.radius_scale` 0.5, 1, 2: their width in pixels ×0.5 to ×2)
 //!   at a fixed film, 4 spp on the [`SWEEP_CROP`]² window, references at 32 spp.
 //! - `stress` ([`super::stress`]): 8 spp on the centred 48² window, references at 64 spp (7–10 cases × 4 methods,
@@ -49,10 +56,17 @@
 //!   error that does not fall with spp is the models' difference.
 //! - [`curves`]: round tubes against flat ribbons per model, each against a round reference at the same radius
 //!   scale; times include set-up (the BVH differs).
-//! - [`backends`], [`shadows`]: the studies of issues 13 and 6 as framework kinds, for `all` (seeds, SSIM,
-//!   fireflies, read-outs). `cuticle study backends|shadows` keep their own modules ([`super::backends`],
-//!   [`super::shadows`]) and options, with the image-difference maps and crop mosaic the framework does not draw.
-//!   In `shadows` the map build is part of the render time.
+//! - [`backends_with`]: Embree against the pure-Rust BVH (issue 13), per curve type, the same seeds on both, so
+//!   besides time (set-up included: the BVH build differs) and error the two images are compared directly
+//!   ([`Kind::differences`]: `backends-differences.csv`, `backends-diff-bvh-<curves>-vs-embree-<curves>.png`).
+//! - [`shadows_with`]: deep opacity maps against ray-traced shadows (issue 6): no shadows, ray tracing with
+//!   stochastic and with exact transmittance, maps over layers and over resolution, against a ray-traced
+//!   reference with exact transmittance; the maps' build time and memory in `maps_s` and `map_mb`, the error over
+//!   the shadowed pixels in `rmse_shadowed`.
+//!
+//! `cuticle study backends|shadows` run the same kinds with the sweep of their flags ([`BackendsSweep`],
+//! [`ShadowsSweep`]) on the whole film; `all` runs them with [`BackendsSweep::for_all`] and
+//! [`ShadowsSweep::for_all`] on the budget of the spp sweeps.
 
 use super::framework::{Budget, Kind, Overrides, Reference, Variant};
 use crate::bsdf::chiang::ChiangParams;
@@ -64,7 +78,7 @@ pub const REFERENCE_FACTOR: u32 = 8;
 /// Side of the centred window the spp sweeps render, pixels.
 pub const SWEEP_CROP: u32 = 96;
 /// Side of the centred window `samples` renders, pixels.
-pub const SAMPLES_CROP: u32 = 16;
+pub const SAMPLES_CROP: u32 = 12;
 /// Samples per pixel of `samples`' references (of [`SAMPLES_MAX`] light and material samples each).
 pub const SAMPLES_REFERENCE_SPP: u32 = 16;
 /// The most samples per shading point `samples` sweeps (the thesis' table 3).
@@ -72,7 +86,7 @@ pub const SAMPLES_MAX: u32 = 2048;
 
 /// The budget of an spp sweep: the crop and references at [`REFERENCE_FACTOR`] × its largest spp (`--quick`: the
 /// study's defaults).
-fn sweep_budget(quick: bool) -> Budget {
+pub fn sweep_budget(quick: bool) -> Budget {
     if quick {
         Budget::default()
     } else {
@@ -194,6 +208,7 @@ pub fn samples(quick: bool) -> Kind {
                 reference_spp: Some(SAMPLES_REFERENCE_SPP),
             }
         },
+        differences: Vec::new(),
     }
 }
 
@@ -261,6 +276,7 @@ pub fn sampling(quick: bool) -> Kind {
         bias_readout: false,
         equal_setting: true,
         budget: sweep_budget(quick),
+        differences: Vec::new(),
     }
 }
 
@@ -291,6 +307,7 @@ pub fn lobes(quick: bool) -> Kind {
         bias_readout: false,
         equal_setting: true,
         budget: sweep_budget(quick),
+        differences: Vec::new(),
     }
 }
 
@@ -322,6 +339,7 @@ pub fn hery(quick: bool) -> Kind {
         bias_readout: true,
         equal_setting: true,
         budget: sweep_budget(quick),
+        differences: Vec::new(),
     }
 }
 
@@ -389,6 +407,7 @@ pub fn models(quick: bool) -> Result<Kind, String> {
         bias_readout: true,
         equal_setting: true,
         budget: sweep_budget(quick),
+        differences: Vec::new(),
     })
 }
 
@@ -454,14 +473,39 @@ pub fn curves(quick: bool) -> Kind {
                 reference_spp: Some(spp * REFERENCE_FACTOR),
             }
         },
+        differences: Vec::new(),
     }
 }
 
-/// `backends` through the framework (see the module docs).
-pub fn backends(quick: bool) -> Kind {
+/// What `backends` sweeps: the flags of `cuticle study backends`, or [`BackendsSweep::for_all`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct BackendsSweep {
+    /// Samples per pixel of the compared renders.
+    pub spp: Vec<u32>,
+    /// Curve types (`round`, `flat`), each with its own Embree reference.
+    pub curves: Vec<String>,
+}
+
+impl BackendsSweep {
+    /// The sweep of `study all`: round and flat at the spp sweep.
+    pub fn for_all(quick: bool) -> Self {
+        BackendsSweep {
+            spp: spp_sweep(quick),
+            curves: vec!["round".into(), "flat".into()],
+        }
+    }
+}
+
+/// `backends` (see the module docs): per curve type an Embree reference, and Embree and the BVH over `sweep.spp`
+/// with the same seeds, so their images differ only where the tracers disagree ([`Kind::differences`]).
+pub fn backends_with(sweep: &BackendsSweep, budget: Budget) -> Result<Kind, String> {
+    if sweep.spp.is_empty() || sweep.curves.is_empty() {
+        return Err("nothing to compare: --spp and --curves must not be empty".into());
+    }
+    check_spp(&sweep.spp)?;
     let mut references = Vec::new();
     let mut variants = Vec::new();
-    for curves in ["round", "flat"] {
+    for curves in &sweep.curves {
         let r = references.len();
         references.push(Reference {
             label: format!("embree, {curves}"),
@@ -471,7 +515,7 @@ pub fn backends(quick: bool) -> Kind {
             ],
         });
         for backend in ["embree", "bvh"] {
-            for spp in spp_sweep(quick) {
+            for &spp in &sweep.spp {
                 variants.push(Variant {
                     series: format!("{backend} {curves}"),
                     method: backend.to_owned(),
@@ -487,61 +531,174 @@ pub fn backends(quick: bool) -> Kind {
             }
         }
     }
-    Kind {
+    let pairs: Vec<(String, String)> = sweep
+        .curves
+        .iter()
+        .map(|c| (format!("bvh {c}"), format!("embree {c}")))
+        .collect();
+    Ok(Kind {
         name: "backends".into(),
         title: "Embree against the pure-Rust BVH on the same frame".into(),
         x_label: "samples per pixel".into(),
         time_includes_setup: true,
         references,
         variants,
-        compare: ["round", "flat"]
-            .iter()
-            .map(|c| (format!("bvh {c}"), format!("embree {c}")))
-            .collect(),
+        compare: pairs.clone(),
         bias_readout: false,
         equal_setting: true,
-        budget: sweep_budget(quick),
+        budget,
+        differences: pairs,
+    })
+}
+
+/// `backends` in `study all`.
+pub fn backends(quick: bool) -> Kind {
+    backends_with(&BackendsSweep::for_all(quick), sweep_budget(quick))
+        .expect("the sweep of all is not empty")
+}
+
+/// What `shadows` sweeps: the flags of `cuticle study shadows`, or [`ShadowsSweep::for_all`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct ShadowsSweep {
+    /// Samples per pixel of the ray-traced series (stochastic and exact transmittance).
+    pub rt_spp: Vec<u32>,
+    /// Layer counts of the map series at `layer_resolution`.
+    pub layers: Vec<u32>,
+    /// Map resolution of the layer series.
+    pub layer_resolution: u32,
+    /// Map resolutions of the series at `resolution_layers`.
+    pub resolutions: Vec<u32>,
+    /// Layers of the resolution series.
+    pub resolution_layers: u32,
+    /// Samples per pixel of the map variants and of the no-shadow variant.
+    pub dom_spp: u32,
+    /// Strand tracer of the variants (`embree`, `bvh`; default: the scene's). The references keep the scene's.
+    pub backend: Option<String>,
+}
+
+impl ShadowsSweep {
+    /// The sweep of `study all`: ray traced at the spp sweep, maps over 4–64 layers at 1024² and over 256²–1024²
+    /// at 16 layers, at 8 spp (`--quick`: 1–4 spp, 4–16 layers at 128², 64² and 128² at 16 layers, 2 spp).
+    pub fn for_all(quick: bool) -> Self {
+        if quick {
+            ShadowsSweep {
+                rt_spp: spp_sweep(true),
+                layers: vec![4, 8, 16],
+                layer_resolution: 128,
+                resolutions: vec![64, 128],
+                resolution_layers: 16,
+                dom_spp: 2,
+                backend: None,
+            }
+        } else {
+            ShadowsSweep {
+                rt_spp: spp_sweep(false),
+                layers: vec![4, 8, 16, 32, 64],
+                layer_resolution: 1024,
+                resolutions: vec![256, 512, 1024],
+                resolution_layers: 16,
+                dom_spp: 8,
+                backend: None,
+            }
+        }
     }
 }
 
-/// `shadows` through the framework (see the module docs).
-pub fn shadows(quick: bool) -> Kind {
-    let (rt_spp, layers, dom_spp, map_res) = if quick {
-        (vec![1, 2, 4], vec![4, 8, 16], 2, 128)
-    } else {
-        (spp_sweep(false), vec![4, 8, 16, 32, 64], 8, 1024)
-    };
-    let mut variants: Vec<Variant> = rt_spp
-        .iter()
-        .map(|&spp| Variant {
-            series: "ray traced".into(),
-            method: "raytraced".into(),
-            settings: format!("spp={spp}"),
-            x: f64::from(spp),
-            overrides: vec![
-                key("shadows.mode", string("raytraced")),
-                key("film.spp", int(spp)),
-            ],
-            reference: 0,
-        })
-        .collect();
-    variants.extend(layers.iter().map(|&l| Variant {
-        series: "deep opacity maps".into(),
-        method: "deep-opacity".into(),
-        settings: format!("layers={l} resolution={map_res} spp={dom_spp}"),
-        x: f64::from(l),
-        overrides: vec![
-            key("shadows.mode", string("deep-opacity")),
-            key("shadows.deep_opacity.layers", int(l)),
-            key("shadows.deep_opacity.resolution", int(map_res)),
-            key("film.spp", int(dom_spp)),
-        ],
+/// An error naming the first 0 of `spp`.
+fn check_spp(spp: &[u32]) -> Result<(), String> {
+    match spp.iter().find(|&&s| s == 0) {
+        Some(s) => Err(format!("samples per pixel must be at least 1, got {s}")),
+        None => Ok(()),
+    }
+}
+
+/// `shadows` (see the module docs): against a ray-traced reference with exact transmittance, no shadows at
+/// `dom_spp`, ray tracing with stochastic and with exact transmittance over `rt_spp`, and deep opacity maps over
+/// layers and over resolution (a setting in both map series is rendered once). The maps' build is part of the
+/// render time and reported on its own (`maps_s`), with their memory (`map_mb`).
+pub fn shadows_with(sweep: &ShadowsSweep, budget: Budget) -> Result<Kind, String> {
+    if sweep.rt_spp.is_empty() && sweep.layers.is_empty() && sweep.resolutions.is_empty() {
+        return Err(
+            "nothing to compare: --rt-spp, --layers and --resolutions are all empty".into(),
+        );
+    }
+    check_spp(&sweep.rt_spp)?;
+    check_spp(&[sweep.dom_spp])?;
+    let backend = || sweep.backend.iter().map(|b| key("hair.backend", string(b)));
+    let variant = |series: &str, method: &str, settings: String, x: u32, o: Overrides| Variant {
+        series: series.into(),
+        method: method.into(),
+        settings,
+        x: f64::from(x),
+        overrides: o.into_iter().chain(backend()).collect(),
         reference: 0,
-    }));
-    Kind {
+    };
+    let spp = |s: u32| key("film.spp", int(s));
+    let mut variants = vec![variant(
+        "no shadows",
+        "none",
+        format!("spp={}", sweep.dom_spp),
+        sweep.dom_spp,
+        vec![key("shadows.mode", string("none")), spp(sweep.dom_spp)],
+    )];
+    for transmittance in ["stochastic", "exact"] {
+        variants.extend(sweep.rt_spp.iter().map(|&s| {
+            variant(
+                &format!("ray traced {transmittance}"),
+                "raytraced",
+                format!("transmittance={transmittance} spp={s}"),
+                s,
+                vec![
+                    key("shadows.mode", string("raytraced")),
+                    key("shadows.transmittance", string(transmittance)),
+                    spp(s),
+                ],
+            )
+        }));
+    }
+    let map = |series: &str, x: u32, layers: u32, resolution: u32| {
+        variant(
+            series,
+            "deep-opacity",
+            format!(
+                "layers={layers} resolution={resolution} spp={}",
+                sweep.dom_spp
+            ),
+            x,
+            vec![
+                key("shadows.mode", string("deep-opacity")),
+                key("shadows.deep_opacity.layers", int(layers)),
+                key("shadows.deep_opacity.resolution", int(resolution)),
+                spp(sweep.dom_spp),
+            ],
+        )
+    };
+    variants.extend(
+        sweep
+            .layers
+            .iter()
+            .map(|&l| map("deep opacity layers", l, l, sweep.layer_resolution)),
+    );
+    variants.extend(
+        sweep
+            .resolutions
+            .iter()
+            .map(|&r| map("deep opacity resolution", r, sweep.resolution_layers, r)),
+    );
+    let has = |series: &str| variants.iter().any(|v| v.series == series);
+    let compare = [
+        ("deep opacity layers", "ray traced stochastic"),
+        ("deep opacity resolution", "ray traced stochastic"),
+        ("ray traced exact", "ray traced stochastic"),
+    ]
+    .into_iter()
+    .filter(|(a, b)| has(a) && has(b))
+    .map(|(a, b)| (a.to_owned(), b.to_owned()))
+    .collect();
+    Ok(Kind {
         name: "shadows".into(),
         title: "deep opacity maps against ray-traced shadows".into(),
-        x_label: "spp (ray traced) or layers (maps)".into(),
+        x_label: "spp (ray traced), layers or map resolution (maps)".into(),
         time_includes_setup: false,
         references: vec![Reference {
             label: "ray traced, exact transmittance".into(),
@@ -551,11 +708,18 @@ pub fn shadows(quick: bool) -> Kind {
             ],
         }],
         variants,
-        compare: vec![("deep opacity maps".into(), "ray traced".into())],
+        compare,
         bias_readout: false,
         equal_setting: false,
-        budget: sweep_budget(quick),
-    }
+        budget,
+        differences: Vec::new(),
+    })
+}
+
+/// `shadows` in `study all`.
+pub fn shadows(quick: bool) -> Kind {
+    shadows_with(&ShadowsSweep::for_all(quick), sweep_budget(quick))
+        .expect("the sweep of all is not empty")
 }
 
 /// The kinds `all` runs, in order.

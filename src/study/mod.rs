@@ -1,32 +1,27 @@
 //! Studies: measured comparisons that render a scene many ways and write what they measured into a directory
 //! (CSV tables, charts, image crops), for the documents in `docs/`. Offline tooling, not part of a render.
 //!
-//! - [`shadows`]: `cuticle study shadows SCENE` — ray-traced shadows at several sample counts and deep opacity maps
-//!   over layer counts and resolutions, against a converged ray-traced reference: error against time, map memory
-//!   (issue 6).
+//! - [`framework`]: the one study framework of issue 17 (variants × seeds against cached references, every
+//!   measure, CSVs, charts with equal-time and equal-error read-outs, crop mosaics, image differences between
+//!   series); [`kinds`]: `samples`, `sampling`, `lobes`, `hery`, `models`, `curves`, `backends` (Embree against
+//!   the pure-Rust BVH, issue 13) and `shadows` (deep opacity maps against ray tracing, issue 6) as data for it;
+//!   [`report`]: `all`, one Markdown report.
+//! - [`stress`]: `cuticle study stress SCENE` — adversarial cases per method (NaN/Inf, fireflies, error), on the
+//!   framework.
+//! - [`auto`]: `cuticle study auto SCENE...` — `--quality auto` against every fixed configuration, per error target
+//!   (issue 18).
+//! - [`cache`]: a stable hash (FNV-1a) naming cached reference renders, and atomic text-file writes.
+//! - [`figures`]: the error-against-time chart (through [`crate::plot`]) and the mosaic of crops.
 //!
 //! Image error measures (RMSE, relMSE, shadowed pixels, the crop window) are [`crate::measure::metrics`], shared
 //! with the benchmarks.
-//! - [`backends`]: `cuticle study backends SCENE` — the same frame on Embree and on the pure-Rust BVH: time, error
-//!   against a converged reference, and the difference between the two backends' images (issue 13).
-//! - [`cache`]: a stable hash (FNV-1a) naming cached reference renders, and atomic text-file writes.
-//! - [`figures`]: the error-against-time chart (through [`crate::plot`]) and the mosaic of crops.
-//! - [`framework`]: the one study framework of issue 17 (variants × seeds against cached references, every
-//!   measure, CSVs, charts with equal-time and equal-error read-outs); [`kinds`]: `samples`, `sampling`, `lobes`,
-//!   `hery`, `models`, `curves` as data for it; [`report`]: `all`, one Markdown report.
-//! - [`auto`]: `cuticle study auto SCENE...` — `--quality auto` against every fixed configuration, per error target
-//!   (issue 18).
-//! - [`stress`]: `cuticle study stress SCENE` — adversarial cases per method (NaN/Inf, fireflies, error), on the
-//!   framework.
 
 pub mod auto;
-pub mod backends;
 pub mod cache;
 pub mod figures;
 pub mod framework;
 pub mod kinds;
 pub mod report;
-pub mod shadows;
 pub mod stress;
 
 use std::path::{Path, PathBuf};

@@ -363,6 +363,7 @@ pub fn kind(cases: &[Case], quick: bool) -> Kind {
                 reference_spp: Some(REFERENCE_SPP),
             }
         },
+        differences: Vec::new(),
     }
 }
 
