@@ -76,6 +76,7 @@
 //! largest swept value both measured (equal samples, for most kinds). Outside A's measured range nothing is
 //! extrapolated: the line says so.
 
+use crate::render::settings::ALL_AOVS;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -608,6 +609,12 @@ pub fn run_kind(
             ),
             ("film.spp".into(), toml::Value::Integer(i64::from(spp))),
             ("film.seed".into(), toml::Value::Integer(i64::from(seed))),
+            // Every AOV, whatever the scene keeps: the measures read `A` and `shadow.Y` (a scene such as the peer
+            // scene writes the beauty alone).
+            (
+                "film.aovs".into(),
+                toml::Value::Array(vec![toml::Value::String(ALL_AOVS.into())]),
+            ),
         ]
     };
     // A scene with `overrides`, then (when the kind crops) its centred crop: the camera of its own settings.
