@@ -1,4 +1,5 @@
-//! Binned SAH construction (Wald 2007) into pbrt-v3's depth-first node array, parallel at the top levels.
+//! Binned SAH construction (Wald 2007) into pbrt-v3's depth-first node array, parallel at the top levels, with
+//! splits also searched in oriented frames near the leaves (Woop et al. 2014, see [`oriented_split`]).
 
 use glam::{Vec3, Vec4};
 
@@ -18,6 +19,34 @@ pub(super) const MAX_BINS: usize = 32;
 
 /// SAH cost of visiting a node (one box test), the unit of [`BuildOptions::intersect_cost`].
 const TRAVERSAL_COST: f32 = 1.0;
+
+/// Largest node (primitives) whose split is also searched in oriented frames ([`oriented_split`]). Above it the
+/// primitives of a node point every way and an oriented split rarely wins. Counted on the fur ball with a limit
+/// of 4 096 (aligned / object-in-frame / strand splits chosen): nodes of 2–3 segments 77 k / 25 k / 158 k, 4–63
+/// segments 24 k / 125 k / 26 k, 64–511 9.5 k / 9.4 k / 29, 512–4 095 2 273 / 33 / 0; and the ray loops'
+/// estimated cycles were the same with 4 096 and 256 (1.163 G, 1.164 G), so 256 saves the build the rest.
+pub(super) const ORIENTED_SPLIT_MAX: usize = 256;
+
+/// SAH cost of an aligned split per unit of the parent's surface area, against one primitive test per unit of a
+/// child's area (Embree's hair builder: traversal 1 against intersection 6, `bvh_builder_hair.h`).
+const ALIGNED_TRAVERSAL: f32 = 1.0 / 6.0;
+/// The same for an oriented split. Embree charges 5 (of 6); measured on the fur ball (flat, estimated cycles of
+/// the ray loops) 5/6 and 1/6 gave the same (1.164 G, 1.165 G): our collapse, not the split, decides whether a
+/// lane is oriented, so the build charges the aligned cost.
+const ORIENTED_TRAVERSAL: f32 = 1.0 / 6.0;
+
+/// A segment's control polygon after two levels of midpoint subdivision (x, y, z, radius): its four quarter
+/// spans are the consecutive fours of these seven points (span k is points k..k + 4), so the box of the seven
+/// points, each inflated by its radius, in any frame holds the quarter spans' hulls; in the world frame it is
+/// the segment's [`Bounding::Spans`]` { levels: 2 }` box.
+type Polygon = [Vec4; 7];
+
+/// What the build reads besides the primitive references.
+struct Context<'a> {
+    options: &'a BuildOptions,
+    /// Each segment's [`Polygon`], by segment id; empty when oriented splits are off.
+    polygons: &'a [Polygon],
+}
 
 /// A primitive during the build: its box and segment id.
 #[derive(Debug, Clone, Copy)]
@@ -109,6 +138,22 @@ pub(super) fn build(strands: &Strands, options: BuildOptions) -> Bvh {
         );
     }
     let mut refs = primitive_refs(strands, options.bounding);
+    // Oriented splits need the segment's geometry; a span reference is not a whole segment, so span-reference
+    // trees keep the aligned build.
+    let polygons: Vec<Polygon> =
+        if options.oriented_splits && !matches!(options.bounding, Bounding::SpanRefs { .. }) {
+            use rayon::prelude::*;
+            (0..strands.segment_count() as u32)
+                .into_par_iter()
+                .map(|segment| polygon(strands, segment))
+                .collect()
+        } else {
+            Vec::new()
+        };
+    let cx = Context {
+        options: &options,
+        polygons: &polygons,
+    };
     assert!(
         refs.len() <= u32::MAX as usize,
         "bvh: {} primitives exceed u32 indices",
@@ -117,7 +162,7 @@ pub(super) fn build(strands: &Strands, options: BuildOptions) -> Bvh {
     let nodes = if refs.is_empty() {
         Vec::new()
     } else {
-        subtree(&mut refs, 0, 0, &options)
+        subtree(&mut refs, 0, 0, &cx)
     };
     Bvh {
         nodes,
@@ -157,8 +202,8 @@ fn primitive_refs(strands: &Strands, bounding: Bounding) -> Vec<PrimRef> {
 /// each node is copied once. (Concatenating the children's node arrays at every parallel level copied the whole
 /// tree once per level, about log₂(n / [`PARALLEL_MIN`]) times, and held two copies at the top: on 15·10⁶ segments
 /// 12 copies of 0.9 GiB.)
-fn subtree(refs: &mut [PrimRef], base: u32, depth: u32, options: &BuildOptions) -> Vec<Node> {
-    assemble(pieces(refs, base, depth, options))
+fn subtree(refs: &mut [PrimRef], base: u32, depth: u32, cx: &Context) -> Vec<Node> {
+    assemble(pieces(refs, base, depth, cx))
 }
 
 /// A part of the node array, in depth-first order.
@@ -181,20 +226,20 @@ impl Piece {
 }
 
 /// The pieces of the subtree over `refs`, with piece indices relative to the returned list.
-fn pieces(refs: &mut [PrimRef], base: u32, depth: u32, options: &BuildOptions) -> Vec<Piece> {
+fn pieces(refs: &mut [PrimRef], base: u32, depth: u32, cx: &Context) -> Vec<Piece> {
     if refs.len() < PARALLEL_MIN {
         let mut nodes = Vec::new();
-        sequential(refs, base, depth, options, &mut nodes);
+        sequential(refs, base, depth, cx, &mut nodes);
         return vec![Piece::Nodes(nodes)];
     }
     let (bounds, centroids) = node_bounds(refs);
-    let Some(mid) = split(refs, &bounds, &centroids, depth, options) else {
+    let Some(mid) = split(refs, &bounds, &centroids, depth, cx) else {
         return vec![Piece::Nodes(vec![leaf(&bounds, base, refs.len())])];
     };
     let (left, right) = refs.split_at_mut(mid);
     let (l, r) = rayon::join(
-        || pieces(left, base, depth + 1, options),
-        || pieces(right, base + mid as u32, depth + 1, options),
+        || pieces(left, base, depth + 1, cx),
+        || pieces(right, base + mid as u32, depth + 1, cx),
     );
     let right_start = 1 + l.len();
     let mut out = Vec::with_capacity(right_start + r.len());
@@ -245,23 +290,17 @@ fn place(out: &mut Vec<Node>, sub: Vec<Node>) {
 }
 
 /// The same build on one thread, appending to `out` (indices relative to `out`'s start).
-fn sequential(
-    refs: &mut [PrimRef],
-    base: u32,
-    depth: u32,
-    options: &BuildOptions,
-    out: &mut Vec<Node>,
-) {
+fn sequential(refs: &mut [PrimRef], base: u32, depth: u32, cx: &Context, out: &mut Vec<Node>) {
     let (bounds, centroids) = node_bounds(refs);
-    match split(refs, &bounds, &centroids, depth, options) {
+    match split(refs, &bounds, &centroids, depth, cx) {
         None => out.push(leaf(&bounds, base, refs.len())),
         Some(mid) => {
             let me = out.len();
             out.push(inner(&bounds, 0));
             let (left, right) = refs.split_at_mut(mid);
-            sequential(left, base, depth + 1, options, out);
+            sequential(left, base, depth + 1, cx, out);
             out[me].offset = out.len() as u32;
-            sequential(right, base + mid as u32, depth + 1, options, out);
+            sequential(right, base + mid as u32, depth + 1, cx, out);
         }
     }
 }
@@ -291,8 +330,9 @@ fn split(
     bounds: &Aabb,
     centroids: &Aabb,
     depth: u32,
-    options: &BuildOptions,
+    cx: &Context,
 ) -> Option<usize> {
+    let options = cx.options;
     let n = refs.len();
     if n == 1 {
         return None;
@@ -307,7 +347,7 @@ fn split(
         2
     };
     if depth < MEDIAN_DEPTH && extent[widest] > 0.0 {
-        let best = best_plane(refs, centroids, options.bins);
+        let best = best_plane(refs.iter().map(|r| r.bounds), n, centroids, options.bins);
         if let Some(plane) = best {
             // SAH (MacDonald & Booth 1990): C = C_trav + C_isect · (A_L N_L + A_R N_R) / A against C_isect · N.
             let area = bounds.area();
@@ -318,6 +358,9 @@ fn split(
             };
             if n <= options.max_leaf && options.intersect_cost * n as f32 <= split_cost {
                 return None;
+            }
+            if let Some(mid) = oriented_split(refs, area, plane.cost, cx) {
+                return Some(mid);
             }
             let mid = partition(refs, |r| plane.bin_of(r) < plane.bin);
             if mid > 0 && mid < n {
@@ -381,7 +424,12 @@ fn bin_index(c: f32, lo: f32, scale: f32, bins: usize) -> usize {
 /// All three axes are binned in one pass over `refs` (the build's hottest loop: one pass instead of three, each
 /// centroid computed once); each bin sees its primitives in the same order as three passes would, so the boxes,
 /// costs and chosen plane are bit for bit the same.
-fn best_plane(refs: &[PrimRef], centroids: &Aabb, bins: usize) -> Option<Plane> {
+fn best_plane(
+    boxes_in: impl IntoIterator<Item = Aabb>,
+    total: usize,
+    centroids: &Aabb,
+    bins: usize,
+) -> Option<Plane> {
     let (lo, hi) = (centroids.lo, centroids.hi);
     // A flat axis bins everything into bin 0 (scale 0) and is skipped by the sweep.
     let scale: [f32; 3] = std::array::from_fn(|axis| {
@@ -393,12 +441,12 @@ fn best_plane(refs: &[PrimRef], centroids: &Aabb, bins: usize) -> Option<Plane> 
     });
     let mut count = [[0usize; MAX_BINS]; 3];
     let mut boxes = [[Aabb::EMPTY; MAX_BINS]; 3];
-    for r in refs {
-        let c = r.bounds.centroid();
+    for bounds in boxes_in {
+        let c = bounds.centroid();
         for axis in 0..3 {
             let b = bin_index(c[axis], lo[axis], scale[axis], bins);
             count[axis][b] += 1;
-            boxes[axis][b] = boxes[axis][b].union(r.bounds);
+            boxes[axis][b] = boxes[axis][b].union(bounds);
         }
     }
     let mut best: Option<Plane> = None;
@@ -419,7 +467,7 @@ fn best_plane(refs: &[PrimRef], centroids: &Aabb, bins: usize) -> Option<Plane> 
         for i in 1..bins {
             acc = acc.union(boxes[i - 1]);
             n += count[i - 1];
-            let right_n = refs.len() - n;
+            let right_n = total - n;
             if n == 0 || right_n == 0 {
                 continue;
             }
@@ -453,6 +501,165 @@ fn partition(refs: &mut [PrimRef], left: impl Fn(&PrimRef) -> bool) -> usize {
             return i;
         }
         refs.swap(i, j - 1);
+        i += 1;
+        j -= 1;
+    }
+}
+
+/// A segment's [`Polygon`]: the points of its quarter spans, the first span's four and each later span's last.
+fn polygon(strands: &Strands, segment: u32) -> Polygon {
+    let mut points = [Vec4::ZERO; 7];
+    let mut k = 0;
+    for_each_span_points(strands, segment, 2, |span| {
+        if k == 0 {
+            points[..4].copy_from_slice(&span);
+            k = 4;
+        } else {
+            points[k] = span[3];
+            k += 1;
+        }
+    });
+    points
+}
+
+/// An orthonormal frame whose third axis is `axis` (a unit vector), as the rows of a rotation.
+fn frame(axis: Vec3) -> [Vec3; 3] {
+    let (x, y) = axis.any_orthonormal_pair();
+    [x, y, axis]
+}
+
+/// The box of `polygon` in `frame` (coordinates along the frame's axes), each point inflated by its radius.
+fn frame_box(polygon: &Polygon, frame: &[Vec3; 3]) -> Aabb {
+    polygon.iter().fold(Aabb::EMPTY, |b, q| {
+        let x = q.truncate();
+        let p = Vec3::new(frame[0].dot(x), frame[1].dot(x), frame[2].dot(x));
+        let r = Vec3::splat(q.w.abs());
+        b.union(Aabb {
+            lo: p - r,
+            hi: p + r,
+        })
+    })
+}
+
+/// A segment's direction: the unit vector from its first to its last refined point, or zero.
+fn direction(polygon: &Polygon) -> Vec3 {
+    (polygon[6] - polygon[0]).truncate().normalize_or_zero()
+}
+
+/// How an oriented split sends each primitive (by position in the node's slice) left or right.
+struct OrientedChoice {
+    cost: f32,
+    left: Vec<bool>,
+}
+
+/// Woop et al. 2014's splits in oriented space, which Embree's hair builder (`bvh_builder_hair.h`) tries beside
+/// the aligned binned SAH and keeps when cheaper: an **object split in the node's frame** (binned SAH over the
+/// primitives' boxes in a frame whose third axis is their mean direction, each direction counted with the sign
+/// that agrees with the sum so far, as [`super::wide`]'s oriented boxes), and a **strand split** (Embree's
+/// `heuristic_strand_array.h`: the first primitive's direction and the direction least parallel to it; each
+/// primitive goes with the one it is more parallel to, each side bounded in its own direction's frame). Costs are
+/// SAH with the oriented boxes' areas (traversal [`ORIENTED_TRAVERSAL`] against [`ALIGNED_TRAVERSAL`]); the
+/// collapse to wide nodes bounds the children of an oriented split in their own oriented frames where that is
+/// tighter. Returns the split's `mid` after partitioning `refs` when an oriented split is cheaper than the aligned
+/// one of cost `aligned_cost` (A_L N_L + A_R N_R, over the node's surface area `area`), or `None`.
+fn oriented_split(
+    refs: &mut [PrimRef],
+    area: f32,
+    aligned_cost: f32,
+    cx: &Context,
+) -> Option<usize> {
+    let n = refs.len();
+    // Two primitives have one partition, whatever the frame.
+    if cx.polygons.is_empty() || n <= 2 || n > ORIENTED_SPLIT_MAX {
+        return None;
+    }
+    let polygon = |r: &PrimRef| &cx.polygons[r.segment as usize];
+    let mut best: Option<OrientedChoice> = None;
+    let mut best_cost = aligned_cost + ALIGNED_TRAVERSAL * area;
+    let mut consider = |choice: OrientedChoice| {
+        if choice.cost < best_cost {
+            best_cost = choice.cost;
+            best = Some(choice);
+        }
+    };
+    // Object split in the node's mean-direction frame.
+    let mut sum = Vec3::ZERO;
+    for r in refs.iter() {
+        let d = direction(polygon(r));
+        sum += if d.dot(sum) < 0.0 { -d } else { d };
+    }
+    if let Some(axis) = sum.try_normalize() {
+        let f = frame(axis);
+        let boxes: Vec<Aabb> = refs.iter().map(|r| frame_box(polygon(r), &f)).collect();
+        let centroids = boxes.iter().fold(Aabb::EMPTY, |c, b| {
+            let m = b.centroid();
+            c.union(Aabb { lo: m, hi: m })
+        });
+        if let Some(plane) = best_plane(boxes.iter().copied(), n, &centroids, cx.options.bins) {
+            consider(OrientedChoice {
+                cost: plane.cost + ORIENTED_TRAVERSAL * area,
+                left: boxes
+                    .iter()
+                    .map(|b| {
+                        let c = b.centroid()[plane.axis];
+                        bin_index(c, plane.lo, plane.scale, plane.bins) < plane.bin
+                    })
+                    .collect(),
+            });
+        }
+    }
+    // Strand split: two direction clusters.
+    let directions: Vec<Vec3> = refs.iter().map(|r| direction(polygon(r))).collect();
+    if let Some(&axis0) = directions.iter().find(|d| **d != Vec3::ZERO) {
+        let axis1 = directions
+            .iter()
+            .filter(|d| **d != Vec3::ZERO)
+            .min_by(|a, b| a.dot(axis0).abs().total_cmp(&b.dot(axis0).abs()))
+            .copied()
+            .unwrap_or(axis0);
+        let left: Vec<bool> = directions
+            .iter()
+            .map(|d| d.dot(axis0).abs() > d.dot(axis1).abs())
+            .collect();
+        let (f0, f1) = (frame(axis0), frame(axis1));
+        let (mut lb, mut rb, mut ln) = (Aabb::EMPTY, Aabb::EMPTY, 0usize);
+        for (r, &l) in refs.iter().zip(&left) {
+            if l {
+                lb = lb.union(frame_box(polygon(r), &f0));
+                ln += 1;
+            } else {
+                rb = rb.union(frame_box(polygon(r), &f1));
+            }
+        }
+        if ln > 0 && ln < n {
+            consider(OrientedChoice {
+                cost: lb.area() * ln as f32
+                    + rb.area() * (n - ln) as f32
+                    + ORIENTED_TRAVERSAL * area,
+                left,
+            });
+        }
+    }
+    let mut choice = best?;
+    let mid = partition_marked(refs, &mut choice.left);
+    (mid > 0 && mid < n).then_some(mid)
+}
+
+/// [`partition`] by a mark per element (`left[i]` for `refs[i]`), the marks moved along with the elements.
+fn partition_marked(refs: &mut [PrimRef], left: &mut [bool]) -> usize {
+    let (mut i, mut j) = (0, refs.len());
+    loop {
+        while i < j && left[i] {
+            i += 1;
+        }
+        while i < j && !left[j - 1] {
+            j -= 1;
+        }
+        if i >= j {
+            return i;
+        }
+        refs.swap(i, j - 1);
+        left.swap(i, j - 1);
         i += 1;
         j -= 1;
     }

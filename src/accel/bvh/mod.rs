@@ -12,7 +12,11 @@
 //!   binned into [`BuildOptions::bins`] bins per axis, the cheapest plane by the surface-area heuristic
 //!   (MacDonald & Booth 1990), leaves of at most [`BuildOptions::max_leaf`] primitives. The two halves of a large
 //!   node are built with `rayon::join`; every decision depends only on the node's primitives, so the tree is the
-//!   same for any thread count (tested).
+//!   same for any thread count (tested). With [`BuildOptions::oriented_splits`] nodes of at most
+//!   [`build::ORIENTED_SPLIT_MAX`] segments also try splits in oriented frames (Woop et al. 2014, as Embree's hair
+//!   builder does; `build::oriented_split`) and keep whichever split has the lowest SAH; node boxes stay
+//!   axis-aligned here, and [`wide`] bounds the children of such splits in their own oriented frames. Measured on
+//!   the fur ball it does not pay (off by default; numbers at [`BuildOptions::default`]).
 //! - **Layout**: pbrt-v3's linear BVH (Pharr, Jakob & Humphreys, §4.3.4): 32-byte nodes in depth-first order, the
 //!   first child right after its parent, the second child's index in the node.
 //! - **Traversal** (this file's, kept as the build's output and the reference the tests compare [`wide`] with;
@@ -186,6 +190,10 @@ pub struct BuildOptions {
     pub bins: usize,
     /// SAH cost of one primitive (ray–curve) test, in box tests (> 0). Higher makes smaller leaves.
     pub intersect_cost: f32,
+    /// Also search each node of at most [`build::ORIENTED_SPLIT_MAX`] primitives for splits in oriented frames
+    /// (Woop et al. 2014; `build::oriented_split`), kept where their SAH is lower. Ignored with
+    /// [`Bounding::SpanRefs`]. Off by default (measured below).
+    pub oriented_splits: bool,
 }
 
 impl Default for BuildOptions {
@@ -203,6 +211,11 @@ impl Default for BuildOptions {
             // Matters for max_leaf > 1 only. Measured with max_leaf 4 and span-capsule leaves (callgrind, same
             // loops): cost 1 against 4: round 2.85 G -> 2.78 G instructions, flat 1.37 G -> 1.29 G.
             intersect_cost: 1.0,
+            // Off: measured on the fur ball (flat; callgrind with cache simulation, `bench trace` ray loops, 96x96,
+            // 1 thread, estimated cycles with mispredicts) the four ray loops went 1.179 G -> 1.164 G (-1.3 %,
+            // exact shadows 0.846 G -> 0.835 G) for 3.69 G -> 7.97 G build instructions (+55 % of the whole
+            // build with the collapse): not worth it. See `build::oriented_split`.
+            oriented_splits: false,
         }
     }
 }

@@ -733,3 +733,104 @@ fn embree_hits_lie_in_the_segment_boxes() {
         check_embree_hits_inside_boxes(&hair, &random_rays(lo, hi, 4000, 9), "straight.hair");
     assert!(checked > 1000, "straight.hair: only {checked} embree hits");
 }
+
+/// Two bundles of `per_bundle` straight strands of `points` points each and length 2, crossing at right angles at
+/// the origin (strands along (1, 1, 0) and (1, −1, 0), each bundle 0.1 × 0.1 across): an X that no axis-aligned
+/// plane separates. Strands of the first bundle come first.
+fn crossing_bundles(per_bundle: usize, points: usize) -> HairModel {
+    let mut rng = SplitMix64::new(17, 3);
+    let mut model = HairModel {
+        strand_offsets: vec![0],
+        radius_from_file: true,
+        ..Default::default()
+    };
+    for bundle in 0..2 {
+        let along = if bundle == 0 {
+            Vec3::new(1.0, 1.0, 0.0)
+        } else {
+            Vec3::new(1.0, -1.0, 0.0)
+        }
+        .normalize();
+        let across = Vec3::Z.cross(along);
+        for _ in 0..per_bundle {
+            let offset = across * (rng.next_f32() - 0.5) + Vec3::Z * (rng.next_f32() - 0.5);
+            let start = -along + 0.1 * offset;
+            for k in 0..points {
+                model
+                    .points
+                    .push(start + along * (2.0 * k as f32 / (points - 1) as f32));
+                model.radius.push(0.002);
+                model.transparency.push(0.0);
+                model.color.push([0.5; 3]);
+            }
+            model.strand_offsets.push(model.points.len() as u32);
+        }
+    }
+    model
+}
+
+#[test]
+fn oriented_splits_separate_crossing_bundles() {
+    let strands = Strands::from_model(&crossing_bundles(12, 9));
+    assert!(strands.segment_count() <= build::ORIENTED_SPLIT_MAX);
+    let first_b = strands.segment_count() as u32 / 2;
+    // The root's two children: which bundles each holds.
+    let bundles_below = |bvh: &Bvh| {
+        let nodes = bvh.nodes();
+        [1, nodes[0].offset as usize].map(|child| {
+            let (first, count) = subtree_range(nodes, child);
+            let below = &bvh.primitives()[first..first + count];
+            (
+                below.iter().any(|&s| s < first_b),
+                below.iter().any(|&s| s >= first_b),
+            )
+        })
+    };
+    let aligned = Bvh::build(
+        &strands,
+        BuildOptions {
+            oriented_splits: false,
+            ..BuildOptions::default()
+        },
+    );
+    assert!(
+        bundles_below(&aligned).contains(&(true, true)),
+        "the aligned SAH should mix the crossing bundles at the root: {:?}",
+        bundles_below(&aligned)
+    );
+    let oriented = Bvh::build(
+        &strands,
+        BuildOptions {
+            oriented_splits: true,
+            ..BuildOptions::default()
+        },
+    );
+    let what = "crossing bundles, oriented splits";
+    check_invariants(&oriented, &strands, what);
+    let (lo, hi) = model_bounds(&strands);
+    let rays = random_rays(lo, hi, BUNDLE_RAYS, 5);
+    let (hits, _) = check_traversal(&oriented, &strands, &rays, what);
+    assert!(hits > rays.len() / 20, "{what}: only {hits} rays hit");
+    check_wide_traversal(&oriented, &strands, &rays, what);
+    let split = bundles_below(&oriented);
+    assert!(
+        split == [(true, false), (false, true)] || split == [(false, true), (true, false)],
+        "oriented splits should put one bundle on each side of the root: {split:?}"
+    );
+}
+
+/// First primitive and primitive count below binary node `i`.
+fn subtree_range(nodes: &[Node], i: usize) -> (usize, usize) {
+    let mut stack = vec![i];
+    let (mut lo, mut hi) = (usize::MAX, 0);
+    while let Some(k) = stack.pop() {
+        let n = &nodes[k];
+        if n.is_leaf() {
+            lo = lo.min(n.offset as usize);
+            hi = hi.max((n.offset + n.count) as usize);
+        } else {
+            stack.extend([k + 1, n.offset as usize]);
+        }
+    }
+    (lo, hi - lo)
+}
