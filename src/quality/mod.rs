@@ -389,16 +389,26 @@ pub fn plan_shadows(
     decision
 }
 
-/// The per-pixel schedule for a frame whose pilots asked for `spp` samples per pixel: from a quarter of it (at least
-/// `quality.min_spp` and 2, the fewest that give a variance) to 4× it (at most `quality.max_spp`), each pixel to
-/// the noise share √0.75 of the target.
-pub fn adaptive_schedule(spp: u32, quality: &QualityConfig) -> crate::render::adaptive::Schedule {
+/// Share of the noise budget the adaptive rule aims at: its stop reads a point estimate of the image's noise,
+/// which falls on either side of the truth, so it aims a little under the budget.
+pub const NOISE_MARGIN: f64 = 0.9;
+
+/// The adaptive schedule for a frame whose pilots asked for `spp` samples per pixel on average, to a noise of
+/// `noise` (relative RMSE): the image-level rule ([`crate::render::adaptive::Rule::Image`]) from a quarter of `spp`
+/// (at least `quality.min_spp` and 2, the fewest that give a variance) to 8× it (at most `quality.max_spp`), to
+/// [`NOISE_MARGIN`] × `noise`.
+pub fn adaptive_schedule(
+    spp: u32,
+    noise: f64,
+    quality: &QualityConfig,
+) -> crate::render::adaptive::Schedule {
     let min = (spp / 4).max(quality.min_spp).max(2).min(quality.max_spp);
-    let max = spp.saturating_mul(4).min(quality.max_spp).max(min);
+    let max = spp.saturating_mul(8).min(quality.max_spp).max(min);
     crate::render::adaptive::Schedule {
         min,
         max,
-        target: 0.75f64.sqrt() * f64::from(quality.target),
+        target: NOISE_MARGIN * noise,
+        rule: crate::render::adaptive::Rule::Image,
     }
 }
 
@@ -448,16 +458,17 @@ pub fn plan_frame(
     settings.film.spp = p.spp;
     decisions.extend(p.decisions.iter().cloned());
     if !fixed.spp {
-        let schedule = adaptive_schedule(p.spp, quality);
+        let schedule = adaptive_schedule(p.spp, p.noise_budget, quality);
         settings.adaptive = Some(schedule);
         decisions.push(Decision {
             key: "adaptive sampling",
             value: format!("{}..{} spp per pixel", schedule.min, schedule.max),
             reason: format!(
-                "each pixel samples in doubling rounds until its own relative error (variance at its 95 % upper \
-                 bound) is under {:.4} = √0.75 × the target, from a quarter to 4× the pilots' {} spp: \
-                 converged pixels (background, flat regions) stop early, noisy ones take more (the spp AOV)",
-                schedule.target, p.spp
+                "every pixel takes {} samples, then rounds give samples in proportion to each pixel's relative \
+                 standard deviation (the fewest samples for a given image error) until the image's estimated \
+                 noise is under {:.4} = {NOISE_MARGIN} × the noise budget {:.4}, from a quarter to 8× the \
+                 pilots' {} spp (the spp AOV shows each pixel's)",
+                schedule.min, schedule.target, p.noise_budget, p.spp
             ),
         });
     }

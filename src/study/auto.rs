@@ -111,9 +111,25 @@ impl Fit {
 struct Measured {
     what: String,
     settings: String,
+    /// Samples per pixel (auto: the mean its adaptive sampling took, rounded).
     spp: u32,
     seconds: f64,
     rel_rmse: f64,
+    /// Auto only: the pilots' wall time, seconds (included in `seconds`).
+    pilot_seconds: f64,
+}
+
+/// The mean of the `spp` channel: the camera samples per pixel a render took.
+fn mean_spp(image: &Image) -> f64 {
+    let Some(n) = image.channel_index("spp") else {
+        return 0.0;
+    };
+    let sum: f64 = image
+        .data
+        .chunks_exact(image.channels.len())
+        .map(|p| f64::from(p[n]))
+        .sum();
+    sum / (image.width * image.height).max(1) as f64
 }
 
 fn rel_rmse(image: &Image, reference: &Image) -> Result<f64, StudyError> {
@@ -146,8 +162,8 @@ pub fn run(config: &AutoStudyConfig) -> Result<String, StudyError> {
     let pool = thread_pool(Some(config.threads))?;
     let mut csv = String::from("scene,target,method,settings,spp,seconds,rel_rmse,met\n");
     let mut md = String::from(
-        "| scene | target | auto: met? | auto s | auto settings | fastest fixed (predicted) | its s | auto ÷ fastest | shipped s | auto ÷ shipped |\n\
-         |---|---:|---|---:|---|---|---:|---:|---:|---:|\n",
+        "| scene | target | auto: met? | auto s | pilots s (share) | auto settings, mean spp | fastest fixed (predicted) | its s | auto ÷ fastest | shipped s | auto ÷ shipped |\n\
+         |---|---:|---|---:|---:|---|---|---:|---:|---:|---:|\n",
     );
     for path in &config.scenes {
         let rows = pool.install(|| study_scene(path, config))?;
@@ -179,7 +195,7 @@ pub fn run(config: &AutoStudyConfig) -> Result<String, StudyError> {
             };
             let _ = writeln!(
                 md,
-                "| {name} | {target} | {} ({:.4}) | {:.2} | {} | {} | {} | {} | {} | {} |",
+                "| {name} | {target} | {} ({:.4}) | {:.2} | {:.2} ({:.0} %) | {}, {} spp | {} | {} | {} | {} | {} |",
                 if auto.rel_rmse <= f64::from(target) {
                     "yes"
                 } else {
@@ -187,7 +203,10 @@ pub fn run(config: &AutoStudyConfig) -> Result<String, StudyError> {
                 },
                 auto.rel_rmse,
                 auto.seconds,
+                auto.pilot_seconds,
+                100.0 * auto.pilot_seconds / auto.seconds.max(1e-9),
                 auto.settings,
+                auto.spp,
                 fastest
                     .as_ref()
                     .map_or("none meets it".to_string(), |m| format!(
@@ -205,6 +224,114 @@ pub fn run(config: &AutoStudyConfig) -> Result<String, StudyError> {
         cache::write_text(&config.out.join("auto.md"), &md)?;
     }
     Ok(md)
+}
+
+/// Renders every fixed configuration at [`FIT_SPP`] and fits err² = b² + v/n.
+fn fit_all(
+    frames: &[Frame; 2],
+    base: &RenderSettings,
+    reference_image: &Image,
+    progress: &indicatif::ProgressBar,
+) -> Result<Vec<Fit>, StudyError> {
+    let frame_of = |c: CurveKind| &frames[usize::from(c == CurveKind::Flat)];
+    let mut fits = Vec::new();
+    for (curves, shadows, path_length) in configs() {
+        let c = Config {
+            curves,
+            shadows,
+            path_length,
+        };
+        let mut s = base.clone();
+        s.shadows.mode = shadows;
+        s.integrator.path_length = path_length;
+        let frame = frame_of(curves);
+        let mut e2 = [0.0; 2];
+        let mut last = (0.0, 0.0);
+        progress.set_message(c.name());
+        for (k, &spp) in FIT_SPP.iter().enumerate() {
+            progress.inc(1);
+            s.film.spp = spp;
+            let (image, stats) = frame.render_with(&s, Options::default());
+            e2[k] = rel_rmse(&image, reference_image)?.powi(2);
+            last = (stats.seconds, stats.shadow_build_seconds);
+        }
+        let (n1, n2) = (f64::from(FIT_SPP[0]), f64::from(FIT_SPP[1]));
+        let variance = ((e2[0] - e2[1]) / (1.0 / n1 - 1.0 / n2)).max(0.0);
+        let bias2 = (e2[1] - variance / n2).max(0.0);
+        fits.push(Fit {
+            config: c,
+            bias2,
+            variance,
+            seconds_per_spp: last.0 / n2,
+            setup_seconds: last.1,
+        });
+    }
+    Ok(fits)
+}
+
+/// The 16 fixed configurations, in the order of the fits' table.
+fn configs() -> impl Iterator<Item = (CurveKind, ShadowMode, u32)> {
+    [CurveKind::Round, CurveKind::Flat].into_iter().flat_map(|c| {
+        [ShadowMode::Raytraced, ShadowMode::DeepOpacity]
+            .into_iter()
+            .flat_map(move |s| (0..REFERENCE_PATH_LENGTH).map(move |p| (c, s, p)))
+    })
+}
+
+/// The fits' table: `exact` writes b² and v in full (the cache, read back by [`parse_fits`]), otherwise rounded
+/// for reading.
+fn fits_csv(fits: &[Fit], exact: bool) -> String {
+    let mut csv = String::from("config,bias,variance_x_spp,seconds_per_spp,setup_seconds\n");
+    for f in fits {
+        let _ = if exact {
+            writeln!(
+                csv,
+                "{},{:e},{:e},{:e},{:e}",
+                f.config.name(),
+                f.bias2.sqrt(),
+                f.variance,
+                f.seconds_per_spp,
+                f.setup_seconds
+            )
+        } else {
+            writeln!(
+                csv,
+                "{},{:.5},{:.5},{:.4},{:.3}",
+                f.config.name(),
+                f.bias2.sqrt(),
+                f.variance,
+                f.seconds_per_spp,
+                f.setup_seconds
+            )
+        };
+    }
+    csv
+}
+
+/// A cached fits table ([`fits_csv`] exact), `None` unless it lists all 16 configurations in order.
+fn parse_fits(text: &str) -> Option<Vec<Fit>> {
+    let mut fits = Vec::new();
+    for ((curves, shadows, path_length), line) in configs().zip(text.lines().skip(1)) {
+        let config = Config {
+            curves,
+            shadows,
+            path_length,
+        };
+        let f: Vec<&str> = line.split(',').collect();
+        if f.len() != 5 || f[0] != config.name() {
+            return None;
+        }
+        let num = |i: usize| f[i].parse::<f64>().ok().filter(|v| v.is_finite());
+        let bias = num(1)?;
+        fits.push(Fit {
+            config,
+            bias2: bias * bias,
+            variance: num(2)?,
+            seconds_per_spp: num(3)?,
+            setup_seconds: num(4)?,
+        });
+    }
+    (fits.len() == 16).then_some(fits)
 }
 
 type SceneRows = Vec<(f32, Measured, Option<Measured>, Option<Measured>)>;
@@ -257,56 +384,37 @@ fn study_scene(path: &Path, config: &AutoStudyConfig) -> Result<SceneRows, Study
     )?;
     progress.inc(1);
 
-    // 2. Every fixed configuration, fitted.
-    let mut fits = Vec::new();
-    for curves in [CurveKind::Round, CurveKind::Flat] {
-        for shadows in [ShadowMode::Raytraced, ShadowMode::DeepOpacity] {
-            for path_length in 0..REFERENCE_PATH_LENGTH {
-                let c = Config {
-                    curves,
-                    shadows,
-                    path_length,
-                };
-                let mut s = base.clone();
-                s.shadows.mode = shadows;
-                s.integrator.path_length = path_length;
-                let frame = frame_of(curves);
-                let mut e2 = [0.0; 2];
-                let mut last = (0.0, 0.0);
-                progress.set_message(c.name());
-                for (k, &spp) in FIT_SPP.iter().enumerate() {
-                    progress.inc(1);
-                    s.film.spp = spp;
-                    let (image, stats) = frame.render_with(&s, Options::default());
-                    e2[k] = rel_rmse(&image, &reference_image)?.powi(2);
-                    last = (stats.seconds, stats.shadow_build_seconds);
-                }
-                let (n1, n2) = (f64::from(FIT_SPP[0]), f64::from(FIT_SPP[1]));
-                let variance = ((e2[0] - e2[1]) / (1.0 / n1 - 1.0 / n2)).max(0.0);
-                let bias2 = (e2[1] - variance / n2).max(0.0);
-                fits.push(Fit {
-                    config: c,
-                    bias2,
-                    variance,
-                    seconds_per_spp: last.0 / n2,
-                    setup_seconds: last.1,
-                });
-            }
+    // 2. Every fixed configuration, fitted (cached like the reference: the fits only pick which configurations
+    // are rendered and measured per target, so a rerun measures those again under its own load).
+    let fit_key = cache::scene_key(
+        "auto-fits-1",
+        &text,
+        &scene,
+        &[],
+        &format!(
+            "{:?} {} {} {:?}",
+            config.resolution, config.reference_spp, REFERENCE_PATH_LENGTH, FIT_SPP
+        ),
+    );
+    let fit_cache = config.out.join(format!("fits-{fit_key:016x}.csv"));
+    let cached = std::fs::read_to_string(&fit_cache)
+        .ok()
+        .and_then(|t| parse_fits(&t));
+    let fits = match cached {
+        Some(f) => {
+            progress.inc(2 * 16);
+            f
         }
-    }
-    let mut fit_csv = String::from("config,bias,variance_x_spp,seconds_per_spp,setup_seconds\n");
-    for f in &fits {
-        let _ = writeln!(
-            fit_csv,
-            "{},{:.5},{:.5},{:.4},{:.3}",
-            f.config.name(),
-            f.bias2.sqrt(),
-            f.variance,
-            f.seconds_per_spp,
-            f.setup_seconds
-        );
-    }
-    cache::write_text(&config.out.join(format!("auto-fits-{stem}.csv")), &fit_csv)?;
+        None => {
+            let f = fit_all(&frames, &base, &reference_image, &progress)?;
+            cache::write_text(&fit_cache, &fits_csv(&f, true))?;
+            f
+        }
+    };
+    cache::write_text(
+        &config.out.join(format!("auto-fits-{stem}.csv")),
+        &fits_csv(&fits, false),
+    )?;
 
     let shipped_config = Config {
         curves: scene.hair.curves,
@@ -333,6 +441,7 @@ fn study_scene(path: &Path, config: &AutoStudyConfig) -> Result<SceneRows, Study
                 spp,
                 seconds,
                 rel_rmse: rel_rmse(&image, &reference_image)?,
+                pilot_seconds: 0.0,
             }))
         };
         let fastest = fits
@@ -389,9 +498,10 @@ fn study_scene(path: &Path, config: &AutoStudyConfig) -> Result<SceneRows, Study
                     " {}L {}M",
                     s.integrator.light_samples, s.integrator.material_samples
                 ),
-            spp: s.film.spp,
+            spp: mean_spp(&image).round() as u32,
             seconds,
             rel_rmse: rel_rmse(&image, &reference_image)?,
+            pilot_seconds: planned.pilot.pilot_seconds,
         };
         rows.push((target, auto, fastest, shipped));
     }
