@@ -286,7 +286,7 @@ fn study_auto_writes_its_table_and_fits() {
         2,
         "{md}"
     );
-    let mut autos = 0;
+    let (mut autos, mut points) = (0, 0);
     for line in csv.lines().skip(1) {
         let f: Vec<&str> = line.split(',').collect();
         assert_eq!(f.len(), 8, "{line}");
@@ -298,8 +298,9 @@ fn study_auto_writes_its_table_and_fits() {
         assert!(rel.is_finite() && rel >= 0.0, "{line}");
         assert_eq!(met, rel <= target, "{line}");
         autos += usize::from(f[2] == "auto");
+        points += usize::from(f[2] == "auto point estimates");
     }
-    assert_eq!(autos, 2, "{csv}");
+    assert_eq!((autos, points), (2, 2), "{csv}");
 }
 
 /// The image-level rule (what auto uses) against the per-pixel rule it replaced, on the quick scene of

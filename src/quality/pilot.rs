@@ -167,10 +167,6 @@ fn bounce_bias(before: [&[[f32; 3]]; 2], after: [&[[f32; 3]]; 2]) -> (f64, f64) 
     }))
 }
 
-/// Standard errors added to a bounce's measured bias before it is compared with a quarter of the target: a bounce
-/// is left out only when its bias is small with confidence, not merely lost in noise.
-const BIAS_STANDARD_ERRORS: f64 = 2.0;
-
 /// The relative RMSE of the bias of every bounce after the chosen ones, from the measured bias of the first left
 /// out (`next`, relative RMSE) and of the last kept (`last`, `None` for path length 0): the bounces' bias falls
 /// about geometrically, so the tail is next / (1 − r) with r = next / last, r at most ½ (and ½ when unknown).
@@ -220,7 +216,8 @@ pub struct PilotPlan {
 }
 
 /// Chooses the path length (unless `fixed_path_length`), the first vertex's light and material samples (unless
-/// `fixed_samples`) and then the samples per pixel (unless `fixed_spp`) for
+/// `fixed_samples`) and then the samples per pixel (unless `fixed_spp`), a bounce's bias with
+/// `bias_standard_errors` ([`super::Margins`]), for
 /// `quality.target`, by pilot renders of `frame` under `settings` (its shadows already decided; `maps` built for
 /// them when they are deep-opacity).
 pub fn plan(
@@ -231,6 +228,7 @@ pub fn plan(
     fixed_path_length: bool,
     fixed_samples: bool,
     fixed_spp: bool,
+    bias_standard_errors: f64,
 ) -> PilotPlan {
     let start = std::time::Instant::now();
     let [width, height] = settings.film.resolution;
@@ -260,7 +258,7 @@ pub fn plan(
             pilot.integrator.path_length = k;
             let next = Pair::render(frame, &pilot, maps, &windows);
             let (mean, standard_error) = bounce_bias(previous.rgb(), next.rgb());
-            let bias = (mean + BIAS_STANDARD_ERRORS * standard_error).max(0.0).sqrt();
+            let bias = (mean + bias_standard_errors * standard_error).max(0.0).sqrt();
             biases.push(bias);
             if bias < 0.25 * target {
                 chosen = k - 1;
@@ -282,7 +280,7 @@ pub fn plan(
             reason: format!(
                 "the relative RMSE each bounce would leave out as bias, measured by the pilots (with {} standard \
                  errors: {}): the next one is under a quarter of the target {}{}",
-                BIAS_STANDARD_ERRORS,
+                bias_standard_errors,
                 listed.join(", "),
                 quality.target,
                 left.map_or(String::new(), |b| format!(

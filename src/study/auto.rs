@@ -15,7 +15,12 @@
 //!    render's time per sample plus the map build.
 //! 3. Per target: the **fastest fixed configuration** (by prediction) and the **shipped settings** (the scene's
 //!    configuration at the spp its fit says meets T) are rendered at those spp and measured; **auto** is planned
-//!    (`quality::plan_curves` + `quality::plan_frame`) and rendered, its time counting the pilots and maps.
+//!    (`quality::plan_curves` + `quality::plan_frame`) and rendered, its time counting the pilots and maps, and
+//!    again with bare point estimates ([`quality::Margins::POINT`]: no standard errors on the bounces' bias, the
+//!    adaptive rule aimed at the whole noise budget) to measure whether auto's margins are needed.
+//!
+//! The fits are cached next to the reference (keyed by the scene and the study's settings): they only choose
+//! which fixed configurations are rendered, and those are measured again by every run.
 //!
 //! "Met" means the measured relative RMSE (√relMSE, [`crate::measure::metrics`]) is at most T. Times are wall
 //! times on whatever machine runs the study: read the ratios, measured in one run.
@@ -162,14 +167,14 @@ pub fn run(config: &AutoStudyConfig) -> Result<String, StudyError> {
     let pool = thread_pool(Some(config.threads))?;
     let mut csv = String::from("scene,target,method,settings,spp,seconds,rel_rmse,met\n");
     let mut md = String::from(
-        "| scene | target | auto: met? | auto s | pilots s (share) | auto settings, mean spp | fastest fixed (predicted) | its s | auto ÷ fastest | shipped s | auto ÷ shipped |\n\
-         |---|---:|---|---:|---:|---|---|---:|---:|---:|---:|\n",
+        "| scene | target | auto: met? | auto s | pilots s (share) | auto settings, mean spp | fastest fixed (predicted) | its s | auto ÷ fastest | shipped s | auto ÷ shipped | point estimates: met?, s |\n\
+         |---|---:|---|---:|---:|---|---|---:|---:|---:|---:|---|\n",
     );
     for path in &config.scenes {
         let rows = pool.install(|| study_scene(path, config))?;
-        for (target, auto, fastest, shipped) in rows {
+        for (target, auto, point, fastest, shipped) in rows {
             let name = path.file_stem().unwrap_or_default().to_string_lossy();
-            for m in [Some(&auto), fastest.as_ref(), shipped.as_ref()]
+            for m in [Some(&auto), Some(&point), fastest.as_ref(), shipped.as_ref()]
                 .into_iter()
                 .flatten()
             {
@@ -195,7 +200,7 @@ pub fn run(config: &AutoStudyConfig) -> Result<String, StudyError> {
             };
             let _ = writeln!(
                 md,
-                "| {name} | {target} | {} ({:.4}) | {:.2} | {:.2} ({:.0} %) | {}, {} spp | {} | {} | {} | {} | {} |",
+                "| {name} | {target} | {} ({:.4}) | {:.2} | {:.2} ({:.0} %) | {}, {} spp | {} | {} | {} | {} | {} | {} ({:.4}), {:.2} |",
                 if auto.rel_rmse <= f64::from(target) {
                     "yes"
                 } else {
@@ -217,6 +222,13 @@ pub fn run(config: &AutoStudyConfig) -> Result<String, StudyError> {
                 ratio(&fastest),
                 fmt_s(&shipped),
                 ratio(&shipped),
+                if point.rel_rmse <= f64::from(target) {
+                    "yes"
+                } else {
+                    "**no**"
+                },
+                point.rel_rmse,
+                point.seconds,
             );
         }
         // Written after every scene, so a long run's finished scenes are kept.
@@ -334,7 +346,7 @@ fn parse_fits(text: &str) -> Option<Vec<Fit>> {
     (fits.len() == 16).then_some(fits)
 }
 
-type SceneRows = Vec<(f32, Measured, Option<Measured>, Option<Measured>)>;
+type SceneRows = Vec<(f32, Measured, Measured, Option<Measured>, Option<Measured>)>;
 
 fn study_scene(path: &Path, config: &AutoStudyConfig) -> Result<SceneRows, StudyError> {
     let (text, scene) = load_scene(path, Some(config.resolution))?;
@@ -347,8 +359,8 @@ fn study_scene(path: &Path, config: &AutoStudyConfig) -> Result<SceneRows, Study
     let frame_of = |c: CurveKind| &frames[usize::from(c == CurveKind::Flat)];
     let base = scene.render_settings();
     let stem = path.file_stem().unwrap_or_default().to_string_lossy();
-    // Reference, 16 configurations × 2 fits, then per target three renders.
-    let steps = 1 + 2 * 16 + 3 * config.targets.len() as u64;
+    // Reference, 16 configurations × 2 fits, then per target four renders.
+    let steps = 1 + 2 * 16 + 4 * config.targets.len() as u64;
     let progress = indicatif::ProgressBar::new(steps);
     progress.set_style(
         indicatif::ProgressStyle::with_template(
@@ -461,49 +473,53 @@ fn study_scene(path: &Path, config: &AutoStudyConfig) -> Result<SceneRows, Study
             .transpose()?
             .flatten();
 
-        // Auto, timed from the curve decision to the last pixel.
-        progress.inc(1);
-        let start = Instant::now();
-        let strands = &frames[0].strands;
-        let (curves, _) = quality::plan_curves(
-            strands,
-            &frames[0].material,
-            &base.camera,
-            base.film.resolution,
-        );
-        let frame = frame_of(curves);
-        let q = QualityConfig {
-            target,
-            max_spp: MAX_SPP,
-            ..scene.quality.clone()
+        // Auto, timed from the curve decision to the last pixel; with its margins and with bare point estimates.
+        let auto_with = |margins: quality::Margins, what: &str| -> Result<Measured, StudyError> {
+            progress.inc(1);
+            let start = Instant::now();
+            let strands = &frames[0].strands;
+            let (curves, _) = quality::plan_curves(
+                strands,
+                &frames[0].material,
+                &base.camera,
+                base.film.resolution,
+            );
+            let frame = frame_of(curves);
+            let q = QualityConfig {
+                target,
+                max_spp: MAX_SPP,
+                ..scene.quality.clone()
+            };
+            let planned = quality::plan_frame_with(frame, &base, &q, Fixed::default(), margins);
+            let (image, _) = frame.render_with_maps(
+                &planned.settings,
+                planned.maps.as_ref(),
+                planned.maps_seconds,
+                Options::default(),
+            );
+            let seconds = start.elapsed().as_secs_f64();
+            let s = &planned.settings;
+            Ok(Measured {
+                what: what.into(),
+                settings: Config {
+                    curves,
+                    shadows: s.shadows.mode,
+                    path_length: s.integrator.path_length,
+                }
+                .name()
+                    + &format!(
+                        " {}L {}M",
+                        s.integrator.light_samples, s.integrator.material_samples
+                    ),
+                spp: mean_spp(&image).round() as u32,
+                seconds,
+                rel_rmse: rel_rmse(&image, &reference_image)?,
+                pilot_seconds: planned.pilot.pilot_seconds,
+            })
         };
-        let planned = quality::plan_frame(frame, &base, &q, Fixed::default());
-        let (image, _) = frame.render_with_maps(
-            &planned.settings,
-            planned.maps.as_ref(),
-            planned.maps_seconds,
-            Options::default(),
-        );
-        let seconds = start.elapsed().as_secs_f64();
-        let s = &planned.settings;
-        let auto = Measured {
-            what: "auto".into(),
-            settings: Config {
-                curves,
-                shadows: s.shadows.mode,
-                path_length: s.integrator.path_length,
-            }
-            .name()
-                + &format!(
-                    " {}L {}M",
-                    s.integrator.light_samples, s.integrator.material_samples
-                ),
-            spp: mean_spp(&image).round() as u32,
-            seconds,
-            rel_rmse: rel_rmse(&image, &reference_image)?,
-            pilot_seconds: planned.pilot.pilot_seconds,
-        };
-        rows.push((target, auto, fastest, shipped));
+        let auto = auto_with(quality::Margins::DEFAULT, "auto")?;
+        let point = auto_with(quality::Margins::POINT, "auto point estimates")?;
+        rows.push((target, auto, point, fastest, shipped));
     }
     progress.finish_and_clear();
     Ok(rows)
