@@ -182,8 +182,15 @@ fn auto_meets_its_target_and_a_tighter_target_takes_more_samples() {
         );
         // Background pixels next to the hair borrow their neighbours' variance (render::adaptive), the rest keep
         // the minimum.
-        let at_min = background.iter().filter(|&&s| s == schedule.min as f32).count();
-        assert!(at_min * 10 > background.len() * 9, "{at_min} of {}", background.len());
+        let at_min = background
+            .iter()
+            .filter(|&&s| s == schedule.min as f32)
+            .count();
+        assert!(
+            at_min * 10 > background.len() * 9,
+            "{at_min} of {}",
+            background.len()
+        );
         assert!(mean(&hair) > 1.5 * mean(&background));
         // The prediction is a prediction: within a factor 2 of what was measured.
         let predicted = planned.pilot.predicted_noise;
@@ -307,7 +314,8 @@ fn study_auto_writes_its_table_and_fits() {
 /// [`auto_meets_its_target_and_a_tighter_target_takes_more_samples`] at the loose target: both meet it, the image
 /// rule with fewer samples. And its image is the same at 1 and 2 threads and with 32² or 7² work tiles.
 #[test]
-fn the_image_rule_meets_the_target_with_fewer_samples_than_the_per_pixel_rule_and_is_deterministic() {
+fn the_image_rule_meets_the_target_with_fewer_samples_than_the_per_pixel_rule_and_is_deterministic()
+{
     use cuticle::render::adaptive::{Rule, Schedule};
     let s = fur("marschner", "resolution = [96, 72]", &format!("{SUN}{SKY}"));
     let frame = Frame::load(s.resolve().unwrap()).unwrap();
@@ -317,7 +325,8 @@ fn the_image_rule_meets_the_target_with_fewer_samples_than_the_per_pixel_rule_an
         max_spp: 4096,
         ..QualityConfig::default()
     };
-    let planned = pool.install(|| quality::plan_frame(&frame, &frame.settings, &q, Fixed::default()));
+    let planned =
+        pool.install(|| quality::plan_frame(&frame, &frame.settings, &q, Fixed::default()));
     let image_rule = planned.settings.adaptive.expect("auto samples adaptively");
     assert_eq!(image_rule.rule, Rule::Image);
     let mut reference = planned.settings.clone();
@@ -326,7 +335,11 @@ fn the_image_rule_meets_the_target_with_fewer_samples_than_the_per_pixel_rule_an
     reference.film.seed = 991;
     reference.integrator.path_length = 4;
     let maps = planned.maps.as_ref();
-    let reference = pool.install(|| frame.render_with_maps(&reference, maps, 0.0, Options::default()).0);
+    let reference = pool.install(|| {
+        frame
+            .render_with_maps(&reference, maps, 0.0, Options::default())
+            .0
+    });
     // The per-pixel rule as auto used it: each pixel to √0.75 of the target, a quarter to 4× the pilots' spp.
     let spp = planned.settings.film.spp;
     let per_pixel = Schedule {
@@ -338,7 +351,11 @@ fn the_image_rule_meets_the_target_with_fewer_samples_than_the_per_pixel_rule_an
     let measure = |schedule: Schedule| {
         let mut settings = planned.settings.clone();
         settings.adaptive = Some(schedule);
-        let image = pool.install(|| frame.render_with_maps(&settings, maps, 0.0, Options::default()).0);
+        let image = pool.install(|| {
+            frame
+                .render_with_maps(&settings, maps, 0.0, Options::default())
+                .0
+        });
         let mask = vec![false; image.width * image.height];
         let e = metrics::errors(&image, &reference, &mask).unwrap();
         let n = image.channel_index("spp").unwrap();
@@ -358,13 +375,15 @@ fn the_image_rule_meets_the_target_with_fewer_samples_than_the_per_pixel_rule_an
     );
     assert!(image_error <= f64::from(LOOSE), "{image_error}");
     assert!(pixel_error <= f64::from(LOOSE), "{pixel_error}");
-    assert!(image_spp < 0.8 * pixel_spp, "{image_spp} against {pixel_spp}");
+    assert!(
+        image_spp < 0.8 * pixel_spp,
+        "{image_spp} against {pixel_spp}"
+    );
 
     // Determinism: 1 thread and 7² tiles against 2 threads and 32² tiles.
     let one = thread_pool(Some(1)).unwrap();
-    let small_tiles = one.install(|| {
-        cuticle::render::render_with_tile_side(&frame, &planned.settings, maps, 7)
-    });
+    let small_tiles =
+        one.install(|| cuticle::render::render_with_tile_side(&frame, &planned.settings, maps, 7));
     assert_eq!(image.data.len(), small_tiles.data.len());
     assert!(image
         .data

@@ -490,9 +490,7 @@ pub fn plan_frame_with(
         &settings,
         maps.as_ref(),
         quality,
-        fixed.path_length,
-        fixed.samples,
-        fixed.spp,
+        fixed,
         margins.bias_standard_errors,
     );
     settings.integrator.path_length = p.path_length;

@@ -215,8 +215,8 @@ pub struct PilotPlan {
     pub pilot_seconds: f64,
 }
 
-/// Chooses the path length (unless `fixed_path_length`), the first vertex's light and material samples (unless
-/// `fixed_samples`) and then the samples per pixel (unless `fixed_spp`), a bounce's bias with
+/// Chooses the path length (unless `fixed.path_length`), the first vertex's light and material samples (unless
+/// `fixed.samples`) and then the samples per pixel (unless `fixed.spp`), a bounce's bias with
 /// `bias_standard_errors` ([`super::Margins`]), for
 /// `quality.target`, by pilot renders of `frame` under `settings` (its shadows already decided; `maps` built for
 /// them when they are deep-opacity).
@@ -225,9 +225,7 @@ pub fn plan(
     settings: &RenderSettings,
     maps: Option<&ShadowMaps>,
     quality: &QualityConfig,
-    fixed_path_length: bool,
-    fixed_samples: bool,
-    fixed_spp: bool,
+    fixed: super::Fixed,
     bias_standard_errors: f64,
 ) -> PilotPlan {
     let start = std::time::Instant::now();
@@ -247,7 +245,7 @@ pub fn plan(
     let mut kept: Option<Pair> = None;
     // The relative RMSE of the bias the bounces left out (measured when the path length is decided here).
     let mut left: Option<f64> = None;
-    let path_length = if fixed_path_length {
+    let path_length = if fixed.path_length {
         settings.integrator.path_length
     } else {
         let mut biases = Vec::new();
@@ -258,7 +256,9 @@ pub fn plan(
             pilot.integrator.path_length = k;
             let next = Pair::render(frame, &pilot, maps, &windows);
             let (mean, standard_error) = bounce_bias(previous.rgb(), next.rgb());
-            let bias = (mean + bias_standard_errors * standard_error).max(0.0).sqrt();
+            let bias = (mean + bias_standard_errors * standard_error)
+                .max(0.0)
+                .sqrt();
             biases.push(bias);
             if bias < 0.25 * target {
                 chosen = k - 1;
@@ -298,7 +298,7 @@ pub fn plan(
         settings.integrator.light_samples,
         settings.integrator.material_samples,
     );
-    let (pair, light_samples, material_samples) = if fixed_samples {
+    let (pair, light_samples, material_samples) = if fixed.samples {
         let pair = kept
             .take()
             .unwrap_or_else(|| Pair::render(frame, &pilot, maps, &windows));
@@ -345,7 +345,7 @@ pub fn plan(
     let [a, b] = &pair.0;
     let bias = left.unwrap_or(0.5 * target).min(0.5 * target);
     let noise_budget = target * target - bias * bias;
-    let spp = if fixed_spp {
+    let spp = if fixed.spp {
         settings.film.spp
     } else {
         let wanted = (f64::from(PILOT_SPP) * mean / noise_budget).ceil();

@@ -498,7 +498,13 @@ mod tests {
     fn the_image_rule_meets_the_image_target_with_fewer_samples_than_the_per_pixel_rule() {
         let target = 0.05;
         let class = |p: usize| p / 200;
-        let mean = |p: usize| if class(p) == 0 { 0.0 } else { 0.2 + (p % 7) as f32 };
+        let mean = |p: usize| {
+            if class(p) == 0 {
+                0.0
+            } else {
+                0.2 + (p % 7) as f32
+            }
+        };
         let draw = |s: &mut u64, p: usize| {
             let (m, u) = (mean(p), lcg(s));
             Vec3::splat(if class(p) == 1 {
@@ -553,10 +559,17 @@ mod tests {
         // The background stays at the minimum; the noisy pixels take the most.
         assert!((0..170).all(|p| counts[p] == min));
         let mean_count = |c: usize| {
-            let c: Vec<u32> = (0..600).filter(|&p| class(p) == c).map(|p| counts[p]).collect();
+            let c: Vec<u32> = (0..600)
+                .filter(|&p| class(p) == c)
+                .map(|p| counts[p])
+                .collect();
             c.iter().sum::<u32>() as f64 / c.len() as f64
         };
-        println!("smooth pixels {:.1}, noisy {:.1}", mean_count(1), mean_count(2));
+        println!(
+            "smooth pixels {:.1}, noisy {:.1}",
+            mean_count(1),
+            mean_count(2)
+        );
         assert!(mean_count(2) > 4.0 * mean_count(1));
     }
 

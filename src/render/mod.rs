@@ -109,7 +109,16 @@ pub fn render_with_tile_side(
     let [width, height] = settings.film.resolution;
     let maps = maps.filter(|_| settings.shadows.mode == ShadowMode::DeepOpacity);
     let full = Region::full(width, height);
-    render_tiles_sized(frame, settings, maps, Options::default(), full, None, tile_side.max(1)).image
+    render_tiles_sized(
+        frame,
+        settings,
+        maps,
+        Options::default(),
+        full,
+        None,
+        tile_side.max(1),
+    )
+    .image
 }
 
 /// [`render_tiles`] with work tiles of `tile_side`² pixels.

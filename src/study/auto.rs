@@ -174,9 +174,14 @@ pub fn run(config: &AutoStudyConfig) -> Result<String, StudyError> {
         let rows = pool.install(|| study_scene(path, config))?;
         for (target, auto, point, fastest, shipped) in rows {
             let name = path.file_stem().unwrap_or_default().to_string_lossy();
-            for m in [Some(&auto), Some(&point), fastest.as_ref(), shipped.as_ref()]
-                .into_iter()
-                .flatten()
+            for m in [
+                Some(&auto),
+                Some(&point),
+                fastest.as_ref(),
+                shipped.as_ref(),
+            ]
+            .into_iter()
+            .flatten()
             {
                 let _ = writeln!(
                     csv,
@@ -283,11 +288,13 @@ fn fit_all(
 
 /// The 16 fixed configurations, in the order of the fits' table.
 fn configs() -> impl Iterator<Item = (CurveKind, ShadowMode, u32)> {
-    [CurveKind::Round, CurveKind::Flat].into_iter().flat_map(|c| {
-        [ShadowMode::Raytraced, ShadowMode::DeepOpacity]
-            .into_iter()
-            .flat_map(move |s| (0..REFERENCE_PATH_LENGTH).map(move |p| (c, s, p)))
-    })
+    [CurveKind::Round, CurveKind::Flat]
+        .into_iter()
+        .flat_map(|c| {
+            [ShadowMode::Raytraced, ShadowMode::DeepOpacity]
+                .into_iter()
+                .flat_map(move |s| (0..REFERENCE_PATH_LENGTH).map(move |p| (c, s, p)))
+        })
 }
 
 /// The fits' table: `exact` writes b² and v in full (the cache, read back by [`parse_fits`]), otherwise rounded
