@@ -296,7 +296,7 @@ fn study_auto_writes_its_table_and_fits() {
     let (mut autos, mut points) = (0, 0);
     for line in csv.lines().skip(1) {
         let f: Vec<&str> = line.split(',').collect();
-        assert_eq!(f.len(), 8, "{line}");
+        assert_eq!(f.len(), 9, "{line}");
         let (target, rel, met): (f64, f64, bool) = (
             f[1].parse().unwrap(),
             f[6].parse().unwrap(),

@@ -5,7 +5,10 @@
 //!
 //! **Determinism**: every pixel depends only on its own sample streams ([`sampler::PixelSampler`], keyed by
 //! pixel and seed, and the per-ray keys derived from them) and sums its samples in a fixed order; tiles only decide
-//! which thread does the work. The same scene and seed give bit-identical pixels with any thread count.
+//! which thread does the work. The same scene and seed give bit-identical pixels with any thread count. With
+//! adaptive sampling's image-level rule ([`adaptive::Rule::Image`]) how many samples a pixel takes is decided
+//! between rounds from all the region's pixels, in row-major order: still the same for any thread count and work
+//! tile size, but a `--crop`/`--tile` region decides from its own pixels (see [`adaptive`]).
 
 pub mod adaptive;
 pub mod budget;

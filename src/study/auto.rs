@@ -23,7 +23,8 @@
 //! which fixed configurations are rendered, and those are measured again by every run.
 //!
 //! "Met" means the measured relative RMSE (√relMSE, [`crate::measure::metrics`]) is at most T. Times are wall
-//! times on whatever machine runs the study: read the ratios, measured in one run.
+//! times on whatever machine runs the study, with the process's CPU time beside them (on a shared machine the
+//! wall time also counts the other work; the CPU time counts this study's): read the ratios, measured in one run.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -122,6 +123,25 @@ struct Measured {
     rel_rmse: f64,
     /// Auto only: the pilots' wall time, seconds (included in `seconds`).
     pilot_seconds: f64,
+    /// The process's CPU time (user + system, all threads) over the same span, seconds: on a machine shared
+    /// with other work it measures the work done where wall time also measures the others'.
+    cpu_seconds: f64,
+}
+
+/// The process's CPU time so far (user + system, all threads), seconds, from `/proc/self/stat` (Linux; clock
+/// ticks of 1/100 s, the fixed USER_HZ of that interface); 0 where it cannot be read.
+fn cpu_seconds() -> f64 {
+    let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else {
+        return 0.0;
+    };
+    // The fields after the command name (in parentheses, which may hold spaces): utime and stime are the 14th
+    // and 15th of the line, the 12th and 13th after the name.
+    let Some(rest) = stat.rfind(')').map(|i| &stat[i + 1..]) else {
+        return 0.0;
+    };
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let ticks = |i: usize| f.get(i).and_then(|v| v.parse::<f64>().ok()).unwrap_or(0.0);
+    (ticks(11) + ticks(12)) / 100.0
 }
 
 /// The mean of the `spp` channel: the camera samples per pixel a render took.
@@ -165,9 +185,10 @@ pub fn run(config: &AutoStudyConfig) -> Result<String, StudyError> {
     }
     create_dir(&config.out)?;
     let pool = thread_pool(Some(config.threads))?;
-    let mut csv = String::from("scene,target,method,settings,spp,seconds,rel_rmse,met\n");
+    let mut csv =
+        String::from("scene,target,method,settings,spp,seconds,rel_rmse,met,cpu_seconds\n");
     let mut md = String::from(
-        "| scene | target | auto: met? | auto s | pilots s (share) | auto settings, mean spp | fastest fixed (predicted) | its s | auto ÷ fastest | shipped s | auto ÷ shipped | point estimates: met?, s |\n\
+        "| scene | target | auto: met? | auto s (CPU s) | pilots s (share) | auto settings, mean spp | fastest fixed (predicted) | its s (CPU s) | auto ÷ fastest (CPU) | shipped s (CPU s) | auto ÷ shipped (CPU) | point estimates: met?, s |\n\
          |---|---:|---|---:|---:|---|---|---:|---:|---:|---:|---|\n",
     );
     for path in &config.scenes {
@@ -185,27 +206,33 @@ pub fn run(config: &AutoStudyConfig) -> Result<String, StudyError> {
             {
                 let _ = writeln!(
                     csv,
-                    "{name},{target},{},{},{},{:.3},{:.5},{}",
+                    "{name},{target},{},{},{},{:.3},{:.5},{},{:.2}",
                     m.what,
                     m.settings,
                     m.spp,
                     m.seconds,
                     m.rel_rmse,
-                    m.rel_rmse <= f64::from(target)
+                    m.rel_rmse <= f64::from(target),
+                    m.cpu_seconds
                 );
             }
             let fmt_s = |m: &Option<Measured>| {
-                m.as_ref()
-                    .map_or("–".to_string(), |m| format!("{:.2}", m.seconds))
+                m.as_ref().map_or("–".to_string(), |m| {
+                    format!("{:.2} ({:.2})", m.seconds, m.cpu_seconds)
+                })
             };
             let ratio = |m: &Option<Measured>| {
                 m.as_ref().map_or("–".to_string(), |m| {
-                    format!("{:.2}", auto.seconds / m.seconds)
+                    format!(
+                        "{:.2} ({:.2})",
+                        auto.seconds / m.seconds,
+                        auto.cpu_seconds / m.cpu_seconds.max(0.01)
+                    )
                 })
             };
             let _ = writeln!(
                 md,
-                "| {name} | {target} | {} ({:.4}) | {:.2} | {:.2} ({:.0} %) | {}, {} spp | {} | {} | {} | {} | {} | {} ({:.4}), {:.2} |",
+                "| {name} | {target} | {} ({:.4}) | {:.2} ({:.2}) | {:.2} ({:.0} %) | {}, {} spp | {} | {} | {} | {} | {} | {} ({:.4}), {:.2} |",
                 if auto.rel_rmse <= f64::from(target) {
                     "yes"
                 } else {
@@ -213,6 +240,7 @@ pub fn run(config: &AutoStudyConfig) -> Result<String, StudyError> {
                 },
                 auto.rel_rmse,
                 auto.seconds,
+                auto.cpu_seconds,
                 auto.pilot_seconds,
                 100.0 * auto.pilot_seconds / auto.seconds.max(1e-9),
                 auto.settings,
@@ -453,7 +481,9 @@ fn study_scene(path: &Path, config: &AutoStudyConfig) -> Result<SceneRows, Study
             s.shadows.mode = fit.config.shadows;
             s.integrator.path_length = fit.config.path_length;
             s.film.spp = spp;
+            let cpu = cpu_seconds();
             let (image, seconds) = render(frame_of(fit.config.curves), &s);
+            let cpu_seconds = cpu_seconds() - cpu;
             Ok(Some(Measured {
                 what: what.into(),
                 settings: fit.config.name(),
@@ -461,6 +491,7 @@ fn study_scene(path: &Path, config: &AutoStudyConfig) -> Result<SceneRows, Study
                 seconds,
                 rel_rmse: rel_rmse(&image, &reference_image)?,
                 pilot_seconds: 0.0,
+                cpu_seconds,
             }))
         };
         let fastest = fits
@@ -484,6 +515,7 @@ fn study_scene(path: &Path, config: &AutoStudyConfig) -> Result<SceneRows, Study
         let auto_with = |margins: quality::Margins, what: &str| -> Result<Measured, StudyError> {
             progress.inc(1);
             let start = Instant::now();
+            let cpu = cpu_seconds();
             let strands = &frames[0].strands;
             let (curves, _) = quality::plan_curves(
                 strands,
@@ -505,6 +537,7 @@ fn study_scene(path: &Path, config: &AutoStudyConfig) -> Result<SceneRows, Study
                 Options::default(),
             );
             let seconds = start.elapsed().as_secs_f64();
+            let cpu_seconds = cpu_seconds() - cpu;
             let s = &planned.settings;
             Ok(Measured {
                 what: what.into(),
@@ -522,6 +555,7 @@ fn study_scene(path: &Path, config: &AutoStudyConfig) -> Result<SceneRows, Study
                 seconds,
                 rel_rmse: rel_rmse(&image, &reference_image)?,
                 pilot_seconds: planned.pilot.pilot_seconds,
+                cpu_seconds,
             })
         };
         let auto = auto_with(quality::Margins::DEFAULT, "auto")?;
