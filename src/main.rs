@@ -444,6 +444,7 @@ fn render_command(args: RenderArgs) -> Result<()> {
             q.target
         );
     }
+    let pilot_seconds = planned.as_ref().map(|p| p.pilot.pilot_seconds);
     let (settings, planned_maps) = match planned {
         Some(p) => (p.settings, p.maps.map(|m| (m, p.maps_seconds))),
         None => (frame.settings.clone(), None),
@@ -565,6 +566,13 @@ fn render_command(args: RenderArgs) -> Result<()> {
         stats.rays.shadow,
         stats.rays.material,
     );
+    if let Some(p) = pilot_seconds {
+        eprintln!(
+            "auto: the pilots took {:.0} % of pilots + render ({p:.2} s of {:.2} s)",
+            100.0 * p / (p + stats.seconds).max(1e-9),
+            p + stats.seconds
+        );
+    }
     if deep_opacity {
         eprintln!(
             "deep opacity maps: built in {:.3} s, {:.1} MB, {} lookups",

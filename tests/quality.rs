@@ -180,8 +180,18 @@ fn auto_meets_its_target_and_a_tighter_target_takes_more_samples() {
             hair.len(),
             mean(&hair)
         );
-        assert!(background.iter().all(|&s| s == schedule.min as f32));
-        assert!(mean(&hair) > 1.5 * schedule.min as f32);
+        // Background pixels next to the hair borrow their neighbours' variance (render::adaptive), the rest keep
+        // the minimum.
+        let at_min = background
+            .iter()
+            .filter(|&&s| s == schedule.min as f32)
+            .count();
+        assert!(
+            at_min * 10 > background.len() * 9,
+            "{at_min} of {}",
+            background.len()
+        );
+        assert!(mean(&hair) > 1.5 * mean(&background));
         // The prediction is a prediction: within a factor 2 of what was measured.
         let predicted = planned.pilot.predicted_noise;
         assert!(
@@ -283,10 +293,10 @@ fn study_auto_writes_its_table_and_fits() {
         2,
         "{md}"
     );
-    let mut autos = 0;
+    let (mut autos, mut points) = (0, 0);
     for line in csv.lines().skip(1) {
         let f: Vec<&str> = line.split(',').collect();
-        assert_eq!(f.len(), 8, "{line}");
+        assert_eq!(f.len(), 9, "{line}");
         let (target, rel, met): (f64, f64, bool) = (
             f[1].parse().unwrap(),
             f[6].parse().unwrap(),
@@ -295,6 +305,87 @@ fn study_auto_writes_its_table_and_fits() {
         assert!(rel.is_finite() && rel >= 0.0, "{line}");
         assert_eq!(met, rel <= target, "{line}");
         autos += usize::from(f[2] == "auto");
+        points += usize::from(f[2] == "auto point estimates");
     }
-    assert_eq!(autos, 2, "{csv}");
+    assert_eq!((autos, points), (2, 2), "{csv}");
+}
+
+/// The image-level rule (what auto uses) against the per-pixel rule it replaced, on the quick scene of
+/// [`auto_meets_its_target_and_a_tighter_target_takes_more_samples`] at the loose target: both meet it, the image
+/// rule with fewer samples. And its image is the same at 1 and 2 threads and with 32² or 7² work tiles.
+#[test]
+fn the_image_rule_meets_the_target_with_fewer_samples_than_the_per_pixel_rule_and_is_deterministic()
+{
+    use cuticle::render::adaptive::{Rule, Schedule};
+    let s = fur("marschner", "resolution = [96, 72]", &format!("{SUN}{SKY}"));
+    let frame = Frame::load(s.resolve().unwrap()).unwrap();
+    let pool = thread_pool(Some(2)).unwrap();
+    let q = QualityConfig {
+        target: LOOSE,
+        max_spp: 4096,
+        ..QualityConfig::default()
+    };
+    let planned =
+        pool.install(|| quality::plan_frame(&frame, &frame.settings, &q, Fixed::default()));
+    let image_rule = planned.settings.adaptive.expect("auto samples adaptively");
+    assert_eq!(image_rule.rule, Rule::Image);
+    let mut reference = planned.settings.clone();
+    reference.film.spp = 1024;
+    reference.adaptive = None;
+    reference.film.seed = 991;
+    reference.integrator.path_length = 4;
+    let maps = planned.maps.as_ref();
+    let reference = pool.install(|| {
+        frame
+            .render_with_maps(&reference, maps, 0.0, Options::default())
+            .0
+    });
+    // The per-pixel rule as auto used it: each pixel to √0.75 of the target, a quarter to 4× the pilots' spp.
+    let spp = planned.settings.film.spp;
+    let per_pixel = Schedule {
+        min: (spp / 4).max(4),
+        max: spp * 4,
+        target: 0.75f64.sqrt() * f64::from(LOOSE),
+        rule: Rule::Pixel,
+    };
+    let measure = |schedule: Schedule| {
+        let mut settings = planned.settings.clone();
+        settings.adaptive = Some(schedule);
+        let image = pool.install(|| {
+            frame
+                .render_with_maps(&settings, maps, 0.0, Options::default())
+                .0
+        });
+        let mask = vec![false; image.width * image.height];
+        let e = metrics::errors(&image, &reference, &mask).unwrap();
+        let n = image.channel_index("spp").unwrap();
+        let samples: f64 = image
+            .data
+            .chunks_exact(image.channels.len())
+            .map(|p| f64::from(p[n]))
+            .sum();
+        let mean = samples / (image.width * image.height) as f64;
+        (image, e.relmse.sqrt(), mean)
+    };
+    let (image, image_error, image_spp) = measure(image_rule);
+    let (_, pixel_error, pixel_spp) = measure(per_pixel);
+    println!(
+        "target {LOOSE}: image rule {image_spp:.1} spp, relative RMSE {image_error:.4}; per-pixel rule \
+         {pixel_spp:.1} spp, {pixel_error:.4}"
+    );
+    assert!(image_error <= f64::from(LOOSE), "{image_error}");
+    assert!(pixel_error <= f64::from(LOOSE), "{pixel_error}");
+    // Measured: 4.7 spp (0.0278) against 5.7 (0.0262); the per-pixel rule is held back by its 4x-spp maximum.
+    assert!(image_spp < pixel_spp, "{image_spp} against {pixel_spp}");
+
+    // Determinism: 1 thread and 7² tiles against 2 threads and 32² tiles.
+    let one = thread_pool(Some(1)).unwrap();
+    let small_tiles =
+        one.install(|| cuticle::render::render_with_tile_side(&frame, &planned.settings, maps, 7));
+    assert_eq!(image.data.len(), small_tiles.data.len());
+    assert!(image
+        .data
+        .iter()
+        .zip(&small_tiles.data)
+        .all(|(a, b)| a.to_bits() == b.to_bits()));
 }

@@ -7,7 +7,8 @@
 //!
 //! `[quality] target` is a **relative RMSE** of the beauty image: √relMSE with relMSE = mean over pixels and RGB
 //! of (x − ref)² / (ref² + 0.01), the measure `cuticle study` reports against a converged reference (the 0.01
-//! keeps black pixels from dominating). Half of it is given to bias (bounces left out), half to noise.
+//! keeps black pixels from dominating). relMSE = bias² + noise²: the bounces left out may take up to half the
+//! target as bias, the noise takes what the measured bias leaves.
 //!
 //! # What is decided, in order
 //!
@@ -19,14 +20,17 @@
 //! 3. **Path length**, **light and material samples** and **samples per pixel** ([`pilot`]): measured by pilot
 //!    renders of a few windows of the frame at full resolution (so a pixel integrates what it will in the frame):
 //!    bounces are added until the next one's bias is under a quarter of the target; the light/material sample
-//!    counts that reach a given noise with the fewest rays; samples per pixel from the per-pixel variance of two
-//!    independent pilot estimates.
+//!    counts that reach a given noise with the fewest rays; the mean samples per pixel from the per-pixel
+//!    variance of two independent pilot estimates.
+//! 4. **Adaptive sampling** ([`adaptive_schedule`], [`crate::render::adaptive`]): the image-level rule, to the
+//!    noise budget target² − (bias left out)², the bias of all the bounces left out estimated from the pilots'
+//!    last two as a geometric tail ([`pilot::bias_left`]); a quarter to 8× the pilots' spp per pixel.
 //!
 //! What a user fixes on the command line (`--curves`, `--shadows`, `--path-length`, `--spp`) is kept: auto decides
 //! only the rest.
 //!
 //! Every decision rests on image statistics and ray counts, never on wall time, so the same scene decides the same
-//! way on any machine and thread count. Not decided yet: per-pixel adaptive sampling, stochastic simplification.
+//! way on any machine and thread count. Not decided yet: stochastic simplification.
 
 pub mod pilot;
 
@@ -389,16 +393,53 @@ pub fn plan_shadows(
     decision
 }
 
-/// The per-pixel schedule for a frame whose pilots asked for `spp` samples per pixel: from a quarter of it (at least
-/// `quality.min_spp` and 2, the fewest that give a variance) to 4× it (at most `quality.max_spp`), each pixel to
-/// the noise share √0.75 of the target.
-pub fn adaptive_schedule(spp: u32, quality: &QualityConfig) -> crate::render::adaptive::Schedule {
+/// How much safety auto adds to its estimates (issue 18's "less conservatism where it is not needed").
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Margins {
+    /// Standard errors added to a bounce's measured bias (relMSE) before it is compared with a quarter of the
+    /// target: a bounce is left out only when its bias is small with confidence, not merely lost in noise.
+    pub bias_standard_errors: f64,
+    /// Share of the noise budget the adaptive rule aims at: its stop reads a point estimate of the image's noise,
+    /// which falls on either side of the truth.
+    pub noise_share: f64,
+}
+
+impl Margins {
+    /// What auto uses (the study measured both, `docs/study/auto/`).
+    pub const DEFAULT: Margins = Margins {
+        bias_standard_errors: 2.0,
+        noise_share: 0.9,
+    };
+    /// The bare point estimates, for the study's comparison.
+    pub const POINT: Margins = Margins {
+        bias_standard_errors: 0.0,
+        noise_share: 1.0,
+    };
+}
+
+impl Default for Margins {
+    fn default() -> Self {
+        Margins::DEFAULT
+    }
+}
+
+/// The adaptive schedule for a frame whose pilots asked for `spp` samples per pixel on average, to a noise of
+/// `noise` (relative RMSE): the image-level rule ([`crate::render::adaptive::Rule::Image`]) from a quarter of `spp`
+/// (at least `quality.min_spp` and 2, the fewest that give a variance) to 8× it (at most `quality.max_spp`), to
+/// `noise_share` × `noise` ([`Margins::noise_share`]).
+pub fn adaptive_schedule(
+    spp: u32,
+    noise: f64,
+    noise_share: f64,
+    quality: &QualityConfig,
+) -> crate::render::adaptive::Schedule {
     let min = (spp / 4).max(quality.min_spp).max(2).min(quality.max_spp);
-    let max = spp.saturating_mul(4).min(quality.max_spp).max(min);
+    let max = spp.saturating_mul(8).min(quality.max_spp).max(min);
     crate::render::adaptive::Schedule {
         min,
         max,
-        target: 0.75f64.sqrt() * f64::from(quality.target),
+        target: noise_share * noise,
+        rule: crate::render::adaptive::Rule::Image,
     }
 }
 
@@ -424,6 +465,17 @@ pub fn plan_frame(
     quality: &QualityConfig,
     fixed: Fixed,
 ) -> Planned {
+    plan_frame_with(frame, settings, quality, fixed, Margins::DEFAULT)
+}
+
+/// [`plan_frame`] with other [`Margins`] (the study compares them).
+pub fn plan_frame_with(
+    frame: &crate::render::Frame,
+    settings: &crate::render::RenderSettings,
+    quality: &QualityConfig,
+    fixed: Fixed,
+    margins: Margins,
+) -> Planned {
     let mut settings = settings.clone();
     let mut decisions = Vec::new();
     if !fixed.shadows {
@@ -438,9 +490,8 @@ pub fn plan_frame(
         &settings,
         maps.as_ref(),
         quality,
-        fixed.path_length,
-        fixed.samples,
-        fixed.spp,
+        fixed,
+        margins.bias_standard_errors,
     );
     settings.integrator.path_length = p.path_length;
     settings.integrator.light_samples = p.light_samples;
@@ -448,16 +499,17 @@ pub fn plan_frame(
     settings.film.spp = p.spp;
     decisions.extend(p.decisions.iter().cloned());
     if !fixed.spp {
-        let schedule = adaptive_schedule(p.spp, quality);
+        let schedule = adaptive_schedule(p.spp, p.noise_budget, margins.noise_share, quality);
         settings.adaptive = Some(schedule);
         decisions.push(Decision {
             key: "adaptive sampling",
             value: format!("{}..{} spp per pixel", schedule.min, schedule.max),
             reason: format!(
-                "each pixel samples in doubling rounds until its own relative error (variance at its 95 % upper \
-                 bound) is under {:.4} = √0.75 × the target, from a quarter to 4× the pilots' {} spp: \
-                 converged pixels (background, flat regions) stop early, noisy ones take more (the spp AOV)",
-                schedule.target, p.spp
+                "every pixel takes {} samples, then rounds give samples in proportion to each pixel's relative \
+                 standard deviation (the fewest samples for a given image error) until the image's estimated \
+                 noise is under {:.4} = {} × the noise budget {:.4}, from a quarter to 8× the \
+                 pilots' {} spp (the spp AOV shows each pixel's)",
+                schedule.min, schedule.target, margins.noise_share, p.noise_budget, p.spp
             ),
         });
     }

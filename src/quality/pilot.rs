@@ -25,14 +25,19 @@ pub const PILOT_SPP: u32 = 4;
 /// Seeds of the two independent pilot estimates (far from the small seeds scenes use).
 const SEEDS: [u32; 2] = [0x5eed_0001, 0x5eed_0002];
 
-/// The pilot windows of a `width`×`height` film: n² squares of [`WINDOW`]² pixels, evenly spaced, with n from 3
-/// to [`GRID`] so that the windows hold about a sixteenth of the film's pixels (pilots cost about as much as two
-/// samples per pixel of the frame; a small film gets fewer windows, but at least 9).
+/// Smallest side of a pilot window on a small film, pixels.
+pub const MIN_WINDOW: u32 = 8;
+
+/// The pilot windows of a `width`×`height` film: n² squares, evenly spaced, with n from 3 to [`GRID`], so that
+/// the windows hold about a sixteenth of the film's pixels: [`WINDOW`]² pixels each, smaller on a small film
+/// (down to [`MIN_WINDOW`]²: 9 windows of 16² were a seventh of a 128² film and made the pilots up to a third of
+/// its frame time; now 9 of 10²). n stays at least 3, so a window sits at the film's centre.
 pub fn windows(width: u32, height: u32) -> Vec<Region> {
-    let w = WINDOW.min(width);
-    let h = WINDOW.min(height);
     let pixels = f64::from(width) * f64::from(height);
     let n = ((pixels / 16.0 / f64::from(WINDOW * WINDOW)).sqrt() as u32).clamp(3, GRID);
+    let side = ((pixels / 16.0 / f64::from(n * n)).sqrt() as u32).clamp(MIN_WINDOW, WINDOW);
+    let w = side.min(width);
+    let h = side.min(height);
     let nx = n.min(width / w).max(1);
     let ny = n.min(height / h).max(1);
     let mut out = Vec::with_capacity((nx * ny) as usize);
@@ -149,19 +154,28 @@ impl Pair {
 /// Light and material samples at the first vertex auto compares (the thesis tuned them by hand, §6.2, table 3).
 const SAMPLE_CANDIDATES: [(u32, u32); 4] = [(1, 1), (1, 4), (4, 1), (4, 4)];
 
-/// The relative RMSE a bounce adds: `before` and `after` are the pilot pixels of both seeds without and with it
-/// (see [`plan`]). The estimate of its square is the mean of the per-pixel products plus two standard errors of
-/// that mean: a bounce is left out only when its bias is small with confidence, not merely lost in noise.
-fn bounce_bias(before: [&[[f32; 3]]; 2], after: [&[[f32; 3]]; 2]) -> f64 {
-    let (mean, standard_error) = mean_and_error((0..before[0].len()).flat_map(|i| {
+/// The relative MSE a bounce adds as bias when left out: `before` and `after` are the pilot pixels of both seeds
+/// without and with it (see [`plan`]). The mean of the per-pixel products and its standard error.
+fn bounce_bias(before: [&[[f32; 3]]; 2], after: [&[[f32; 3]]; 2]) -> (f64, f64) {
+    mean_and_error((0..before[0].len()).flat_map(|i| {
         (0..3).filter_map(move |c| {
             let v = |img: [&[[f32; 3]]; 2], s: usize| f64::from(img[s][i][c]);
             let (da, db) = (v(after, 0) - v(before, 0), v(after, 1) - v(before, 1));
             let m = 0.5 * (v(after, 0) + v(after, 1));
             (da.is_finite() && db.is_finite()).then(|| da * db / (m * m + 0.01))
         })
-    }));
-    (mean + 2.0 * standard_error).max(0.0).sqrt()
+    }))
+}
+
+/// The relative RMSE of the bias of every bounce after the chosen ones, from the measured bias of the first left
+/// out (`next`, relative RMSE) and of the last kept (`last`, `None` for path length 0): the bounces' bias falls
+/// about geometrically, so the tail is next / (1 − r) with r = next / last, r at most ½ (and ½ when unknown).
+pub fn bias_left(next: f64, last: Option<f64>) -> f64 {
+    let r = match last {
+        Some(l) if l > 0.0 => (next / l).clamp(0.0, 0.5),
+        _ => 0.5,
+    };
+    next / (1.0 - r)
 }
 
 /// The mean of `terms` and the standard error of that mean (0 and 0 for none).
@@ -192,14 +206,18 @@ pub struct PilotPlan {
     pub decisions: Vec<Decision>,
     /// Predicted seconds of the frame's pixel loop at `spp`, from the pilots' time per sample.
     pub predicted_seconds: f64,
-    /// Predicted relative RMSE (noise only) at `spp`.
+    /// Predicted relative RMSE (noise only) at `spp` uniform samples per pixel.
     pub predicted_noise: f64,
+    /// The noise the frame may have, relative RMSE: √(target² − bias²) with the bias the pilots measured for the
+    /// bounces left out (half the target when the path length was fixed).
+    pub noise_budget: f64,
     /// Wall time the pilots took, seconds.
     pub pilot_seconds: f64,
 }
 
-/// Chooses the path length (unless `fixed_path_length`), the first vertex's light and material samples (unless
-/// `fixed_samples`) and then the samples per pixel (unless `fixed_spp`) for
+/// Chooses the path length (unless `fixed.path_length`), the first vertex's light and material samples (unless
+/// `fixed.samples`) and then the samples per pixel (unless `fixed.spp`), a bounce's bias with
+/// `bias_standard_errors` ([`super::Margins`]), for
 /// `quality.target`, by pilot renders of `frame` under `settings` (its shadows already decided; `maps` built for
 /// them when they are deep-opacity).
 pub fn plan(
@@ -207,9 +225,8 @@ pub fn plan(
     settings: &RenderSettings,
     maps: Option<&ShadowMaps>,
     quality: &QualityConfig,
-    fixed_path_length: bool,
-    fixed_samples: bool,
-    fixed_spp: bool,
+    fixed: super::Fixed,
+    bias_standard_errors: f64,
 ) -> PilotPlan {
     let start = std::time::Instant::now();
     let [width, height] = settings.film.resolution;
@@ -226,7 +243,9 @@ pub fn plan(
     // the bias budget; the other half leaves room for the bounces after it).
     // The pair rendered at the chosen path length with the scene's light and material samples, kept for reuse.
     let mut kept: Option<Pair> = None;
-    let path_length = if fixed_path_length {
+    // The relative RMSE of the bias the bounces left out (measured when the path length is decided here).
+    let mut left: Option<f64> = None;
+    let path_length = if fixed.path_length {
         settings.integrator.path_length
     } else {
         let mut biases = Vec::new();
@@ -236,10 +255,15 @@ pub fn plan(
         for k in 1..=MAX_PATH_LENGTH {
             pilot.integrator.path_length = k;
             let next = Pair::render(frame, &pilot, maps, &windows);
-            let bias = bounce_bias(previous.rgb(), next.rgb());
+            let (mean, standard_error) = bounce_bias(previous.rgb(), next.rgb());
+            let bias = (mean + bias_standard_errors * standard_error)
+                .max(0.0)
+                .sqrt();
             biases.push(bias);
             if bias < 0.25 * target {
                 chosen = k - 1;
+                let last = (k >= 2).then(|| biases[k as usize - 2]);
+                left = Some(bias_left(bias, last));
                 break;
             }
             previous = next;
@@ -254,10 +278,14 @@ pub fn plan(
             key: "integrator.path_length",
             value: chosen.to_string(),
             reason: format!(
-                "the relative RMSE each bounce would leave out as bias, measured by the pilots ({}): the next \
-                 one is under a quarter of the target {}",
+                "the relative RMSE each bounce would leave out as bias, measured by the pilots (with {} standard \
+                 errors: {}): the next one is under a quarter of the target {}{}",
+                bias_standard_errors,
                 listed.join(", "),
-                quality.target
+                quality.target,
+                left.map_or(String::new(), |b| format!(
+                    "; all bounces left out together about {b:.4} (geometric tail)"
+                ))
             ),
         });
         chosen
@@ -270,7 +298,7 @@ pub fn plan(
         settings.integrator.light_samples,
         settings.integrator.material_samples,
     );
-    let (pair, light_samples, material_samples) = if fixed_samples {
+    let (pair, light_samples, material_samples) = if fixed.samples {
         let pair = kept
             .take()
             .unwrap_or_else(|| Pair::render(frame, &pilot, maps, &windows));
@@ -310,17 +338,17 @@ pub fn plan(
         (pair, l, m)
     };
 
-    // Noise: two independent pilot estimates give each pixel's variance at PILOT_SPP; relMSE falls as 1/spp.
-    // The mean over the pilot pixels plus two standard errors: fewer or noisier pilot pixels, more samples.
+    // Noise: two independent pilot estimates give each pixel's variance at PILOT_SPP; relMSE falls as 1/spp. The
+    // noise budget is what the bias leaves of target²: T² − (bias left out)², or ¾ T² when the path length was
+    // fixed (half the target to bias). The spp is the mean frame's: adaptive sampling spends it where the noise is.
     let (mean, standard_error) = pair.rel_mse_with_error();
-    let rel_mse_pilot = mean + 2.0 * standard_error;
     let [a, b] = &pair.0;
-    // Noise budget: target² less the bias budget (target/2)².
-    let noise_budget = 0.75 * target * target;
-    let spp = if fixed_spp {
+    let bias = left.unwrap_or(0.5 * target).min(0.5 * target);
+    let noise_budget = target * target - bias * bias;
+    let spp = if fixed.spp {
         settings.film.spp
     } else {
-        let wanted = (f64::from(PILOT_SPP) * rel_mse_pilot / noise_budget).ceil();
+        let wanted = (f64::from(PILOT_SPP) * mean / noise_budget).ceil();
         let spp = (wanted as u32).clamp(quality.min_spp, quality.max_spp);
         let limit = if wanted as u32 > quality.max_spp {
             format!(" (capped by quality.max_spp = {})", quality.max_spp)
@@ -334,8 +362,8 @@ pub fn plan(
             value: spp.to_string(),
             reason: format!(
                 "the pilot's relative MSE at {PILOT_SPP} spp is {mean:.3e} ± {standard_error:.1e} (two independent \
-                 estimates; {rel_mse_pilot:.3e} with two standard errors); \
-                 noise within √0.75 of the target {} needs {wanted} spp{limit}",
+                 estimates); noise within {:.4} (√(target² − bias²), target {}) needs {wanted} spp on average{limit}",
+                noise_budget.sqrt(),
                 quality.target
             ),
         });
@@ -351,7 +379,8 @@ pub fn plan(
         spp,
         decisions,
         predicted_seconds,
-        predicted_noise: (rel_mse_pilot * f64::from(PILOT_SPP) / f64::from(spp)).sqrt(),
+        predicted_noise: (mean * f64::from(PILOT_SPP) / f64::from(spp)).sqrt(),
+        noise_budget: noise_budget.sqrt(),
         pilot_seconds: start.elapsed().as_secs_f64(),
     }
 }

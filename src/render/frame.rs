@@ -197,7 +197,8 @@ impl Frame {
     }
 
     /// [`Frame::render_with_maps`] of `region` alone (inside `settings.film.resolution`; its pixels equal the full
-    /// frame's there, bit for bit), stopping early once `cancel` holds a non-zero value: tiles not yet started
+    /// frame's there, bit for bit, except under adaptive sampling's image-level rule, where a region decides its
+    /// sample counts from its own pixels and meets the target by itself: [`super::adaptive`]), stopping early once `cancel` holds a non-zero value: tiles not yet started
     /// are left at zero and [`RegionRender::is_complete`] is false.
     pub fn render_region(
         &self,

@@ -5,7 +5,10 @@
 //!
 //! **Determinism**: every pixel depends only on its own sample streams ([`sampler::PixelSampler`], keyed by
 //! pixel and seed, and the per-ray keys derived from them) and sums its samples in a fixed order; tiles only decide
-//! which thread does the work. The same scene and seed give bit-identical pixels with any thread count.
+//! which thread does the work. The same scene and seed give bit-identical pixels with any thread count. With
+//! adaptive sampling's image-level rule ([`adaptive::Rule::Image`]) how many samples a pixel takes is decided
+//! between rounds from all the region's pixels, in row-major order: still the same for any thread count and work
+//! tile size, but a `--crop`/`--tile` region decides from its own pixels (see [`adaptive`]).
 
 pub mod adaptive;
 pub mod budget;
@@ -94,6 +97,43 @@ fn render_tiles(
     region: Region,
     cancel: Option<&AtomicUsize>,
 ) -> RegionRender {
+    render_tiles_sized(frame, settings, maps, options, region, cancel, TILE)
+}
+
+/// [`Frame::render_with_maps`] of the whole film with work tiles of `tile_side`² pixels instead of 32²: for
+/// tests that the image does not depend on how the work is split.
+#[doc(hidden)]
+pub fn render_with_tile_side(
+    frame: &Frame,
+    settings: &RenderSettings,
+    maps: Option<&ShadowMaps>,
+    tile_side: u32,
+) -> Image {
+    let [width, height] = settings.film.resolution;
+    let maps = maps.filter(|_| settings.shadows.mode == ShadowMode::DeepOpacity);
+    let full = Region::full(width, height);
+    render_tiles_sized(
+        frame,
+        settings,
+        maps,
+        Options::default(),
+        full,
+        None,
+        tile_side.max(1),
+    )
+    .image
+}
+
+/// [`render_tiles`] with work tiles of `tile_side`² pixels.
+fn render_tiles_sized(
+    frame: &Frame,
+    settings: &RenderSettings,
+    maps: Option<&ShadowMaps>,
+    options: Options,
+    region: Region,
+    cancel: Option<&AtomicUsize>,
+    tile_side: u32,
+) -> RegionRender {
     let [width, height] = settings.film.resolution;
     let strands = &frame.strands;
     let tracer = frame.tracer.as_ref();
@@ -102,8 +142,8 @@ fn render_tiles(
     let filter = GaussianFilter::new(settings.film.filter_width);
     let integrator = Integrator::new(frame, settings, maps);
 
-    let tiles_x = region.width().div_ceil(TILE);
-    let tiles_y = region.height().div_ceil(TILE);
+    let tiles_x = region.width().div_ceil(tile_side);
+    let tiles_y = region.height().div_ceil(tile_side);
     let progress = if options.progress {
         indicatif::ProgressBar::new(u64::from(tiles_x * tiles_y))
     } else {
@@ -126,77 +166,96 @@ fn render_tiles(
     let tiles: Vec<(u32, u32)> = (0..tiles_y)
         .flat_map(|ty| (0..tiles_x).map(move |tx| (tx, ty)))
         .collect();
-    let rendered: Vec<(Tile, RayCounts)> = tiles
-        .par_iter()
-        .filter_map(|&(tx, ty)| {
-            if cancel.is_some_and(|c| c.load(Ordering::Relaxed) != 0) {
-                return None;
-            }
-            let (x0, y0) = (region.x0 + tx * TILE, region.y0 + ty * TILE);
-            let mut tile = Tile::new(
-                x0,
-                y0,
-                (x0 + TILE).min(region.x1),
-                (y0 + TILE).min(region.y1),
-            );
-            let mut counts = RayCounts::default();
-            for y in tile.y0..tile.y1 {
-                for x in tile.x0..tile.x1 {
-                    let sampler = PixelSampler::new(x, y, seed);
-                    let mut sums = PixelSums::default();
-                    let sample = |i: u32, counts: &mut RayCounts| {
-                        let (dx, dy) = filter.sample(sampler.get_2d(i, dim::FILTER));
-                        let ray = camera.ray(x as f32 + 0.5 + dx, y as f32 + 0.5 + dy);
-                        integrator.sample(&ray, &sampler, i, counts)
-                    };
-                    let taken = match adaptive {
-                        None => {
-                            for i in 0..spp {
-                                sums.add(&sample(i, &mut counts));
-                            }
-                            spp
-                        }
-                        // Rounds of samples, in index order, until the pixel's own estimate of its error is under
-                        // the target (render::adaptive): the count depends on this pixel's samples alone.
-                        Some(schedule) => {
-                            let mut convergence = adaptive::Convergence::default();
-                            let mut i = 0;
-                            while let Some(total) = schedule.next_total(i, &convergence) {
-                                while i < total {
-                                    let s = sample(i, &mut counts);
-                                    if s.beauty.is_finite() {
-                                        convergence.add(s.beauty);
-                                    }
-                                    sums.add(&s);
-                                    i += 1;
-                                }
-                            }
-                            i
-                        }
-                    };
-                    let pixel = tile.pixel_mut(x, y);
-                    sums.write(taken, pixel);
-                    if !centre_ray {
-                        continue;
-                    }
-                    let centre = camera.ray(x as f32 + 0.5, y as f32 + 0.5);
-                    counts.camera += 1;
-                    let hit = tracer.intersect(&centre).unwrap_or(None);
-                    let (depth, tangent, id) = match hit {
-                        Some(h) => (
-                            h.t * centre.dir.dot(camera.forward),
-                            strands.eval(h.segment, h.u).tangent.normalize_or_zero(),
-                            h.strand as f32,
-                        ),
-                        None => (f32::INFINITY, Vec3::ZERO, -1.0),
-                    };
-                    film::write_centre(depth, tangent, id, pixel);
+    let sample_pixel = |x: u32, y: u32, i: u32, counts: &mut RayCounts| {
+        let sampler = PixelSampler::new(x, y, seed);
+        let (dx, dy) = filter.sample(sampler.get_2d(i, dim::FILTER));
+        let ray = camera.ray(x as f32 + 0.5 + dx, y as f32 + 0.5 + dy);
+        integrator.sample(&ray, &sampler, i, counts)
+    };
+    let write_centre = |x: u32, y: u32, pixel: &mut [f32], counts: &mut RayCounts| {
+        if !centre_ray {
+            return;
+        }
+        let centre = camera.ray(x as f32 + 0.5, y as f32 + 0.5);
+        counts.camera += 1;
+        let hit = tracer.intersect(&centre).unwrap_or(None);
+        let (depth, tangent, id) = match hit {
+            Some(h) => (
+                h.t * centre.dir.dot(camera.forward),
+                strands.eval(h.segment, h.u).tangent.normalize_or_zero(),
+                h.strand as f32,
+            ),
+            None => (f32::INFINITY, Vec3::ZERO, -1.0),
+        };
+        film::write_centre(depth, tangent, id, pixel);
+    };
+    let new_tile = |tx: u32, ty: u32| {
+        let (x0, y0) = (region.x0 + tx * tile_side, region.y0 + ty * tile_side);
+        Tile::new(
+            x0,
+            y0,
+            (x0 + tile_side).min(region.x1),
+            (y0 + tile_side).min(region.y1),
+        )
+    };
+    let cancelled = || cancel.is_some_and(|c| c.load(Ordering::Relaxed) != 0);
+    let rendered: Vec<(Tile, RayCounts)> = match adaptive {
+        Some(schedule) if schedule.rule == adaptive::Rule::Image => adaptive::render_rounds(
+            &tiles,
+            region,
+            schedule,
+            &progress,
+            &new_tile,
+            &sample_pixel,
+            &write_centre,
+            &cancelled,
+        ),
+        _ => tiles
+            .par_iter()
+            .filter_map(|&(tx, ty)| {
+                if cancelled() {
+                    return None;
                 }
-            }
-            progress.inc(1);
-            Some((tile, counts))
-        })
-        .collect();
+                let mut tile = new_tile(tx, ty);
+                let mut counts = RayCounts::default();
+                for y in tile.y0..tile.y1 {
+                    for x in tile.x0..tile.x1 {
+                        let mut sums = PixelSums::default();
+                        let taken = match adaptive {
+                            None => {
+                                for i in 0..spp {
+                                    sums.add(&sample_pixel(x, y, i, &mut counts));
+                                }
+                                spp
+                            }
+                            // Rounds of samples, in index order, until the pixel's own estimate of its error is
+                            // under the target (render::adaptive): the count depends on this pixel's samples alone.
+                            Some(schedule) => {
+                                let mut convergence = adaptive::Convergence::default();
+                                let mut i = 0;
+                                while let Some(total) = schedule.next_total(i, &convergence) {
+                                    while i < total {
+                                        let s = sample_pixel(x, y, i, &mut counts);
+                                        if s.beauty.is_finite() {
+                                            convergence.add(s.beauty);
+                                        }
+                                        sums.add(&s);
+                                        i += 1;
+                                    }
+                                }
+                                i
+                            }
+                        };
+                        let pixel = tile.pixel_mut(x, y);
+                        sums.write(taken, pixel);
+                        write_centre(x, y, pixel, &mut counts);
+                    }
+                }
+                progress.inc(1);
+                Some((tile, counts))
+            })
+            .collect(),
+    };
     progress.finish_and_clear();
 
     let mut rays = RayCounts::default();

@@ -15,10 +15,16 @@
 //!    render's time per sample plus the map build.
 //! 3. Per target: the **fastest fixed configuration** (by prediction) and the **shipped settings** (the scene's
 //!    configuration at the spp its fit says meets T) are rendered at those spp and measured; **auto** is planned
-//!    (`quality::plan_curves` + `quality::plan_frame`) and rendered, its time counting the pilots and maps.
+//!    (`quality::plan_curves` + `quality::plan_frame`) and rendered, its time counting the pilots and maps, and
+//!    again with bare point estimates ([`quality::Margins::POINT`]: no standard errors on the bounces' bias, the
+//!    adaptive rule aimed at the whole noise budget) to measure whether auto's margins are needed.
+//!
+//! The fits are cached next to the reference (keyed by the scene and the study's settings): they only choose
+//! which fixed configurations are rendered, and those are measured again by every run.
 //!
 //! "Met" means the measured relative RMSE (√relMSE, [`crate::measure::metrics`]) is at most T. Times are wall
-//! times on whatever machine runs the study: read the ratios, measured in one run.
+//! times on whatever machine runs the study, with the process's CPU time beside them (on a shared machine the
+//! wall time also counts the other work; the CPU time counts this study's): read the ratios, measured in one run.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -111,9 +117,44 @@ impl Fit {
 struct Measured {
     what: String,
     settings: String,
+    /// Samples per pixel (auto: the mean its adaptive sampling took, rounded).
     spp: u32,
     seconds: f64,
     rel_rmse: f64,
+    /// Auto only: the pilots' wall time, seconds (included in `seconds`).
+    pilot_seconds: f64,
+    /// The process's CPU time (user + system, all threads) over the same span, seconds: on a machine shared
+    /// with other work it measures the work done where wall time also measures the others'.
+    cpu_seconds: f64,
+}
+
+/// The process's CPU time so far (user + system, all threads), seconds, from `/proc/self/stat` (Linux; clock
+/// ticks of 1/100 s, the fixed USER_HZ of that interface); 0 where it cannot be read.
+fn cpu_seconds() -> f64 {
+    let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else {
+        return 0.0;
+    };
+    // The fields after the command name (in parentheses, which may hold spaces): utime and stime are the 14th
+    // and 15th of the line, the 12th and 13th after the name.
+    let Some(rest) = stat.rfind(')').map(|i| &stat[i + 1..]) else {
+        return 0.0;
+    };
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let ticks = |i: usize| f.get(i).and_then(|v| v.parse::<f64>().ok()).unwrap_or(0.0);
+    (ticks(11) + ticks(12)) / 100.0
+}
+
+/// The mean of the `spp` channel: the camera samples per pixel a render took.
+fn mean_spp(image: &Image) -> f64 {
+    let Some(n) = image.channel_index("spp") else {
+        return 0.0;
+    };
+    let sum: f64 = image
+        .data
+        .chunks_exact(image.channels.len())
+        .map(|p| f64::from(p[n]))
+        .sum();
+    sum / (image.width * image.height).max(1) as f64
 }
 
 fn rel_rmse(image: &Image, reference: &Image) -> Result<f64, StudyError> {
@@ -144,42 +185,54 @@ pub fn run(config: &AutoStudyConfig) -> Result<String, StudyError> {
     }
     create_dir(&config.out)?;
     let pool = thread_pool(Some(config.threads))?;
-    let mut csv = String::from("scene,target,method,settings,spp,seconds,rel_rmse,met\n");
+    let mut csv =
+        String::from("scene,target,method,settings,spp,seconds,rel_rmse,met,cpu_seconds\n");
     let mut md = String::from(
-        "| scene | target | auto: met? | auto s | auto settings | fastest fixed (predicted) | its s | auto ÷ fastest | shipped s | auto ÷ shipped |\n\
-         |---|---:|---|---:|---|---|---:|---:|---:|---:|\n",
+        "| scene | target | auto: met? | auto s (CPU s) | pilots s (share) | auto settings, mean spp | fastest fixed (predicted) | its s (CPU s) | auto ÷ fastest (CPU) | shipped s (CPU s) | auto ÷ shipped (CPU) | point estimates: met?, s |\n\
+         |---|---:|---|---:|---:|---|---|---:|---:|---:|---:|---|\n",
     );
     for path in &config.scenes {
         let rows = pool.install(|| study_scene(path, config))?;
-        for (target, auto, fastest, shipped) in rows {
+        for (target, auto, point, fastest, shipped) in rows {
             let name = path.file_stem().unwrap_or_default().to_string_lossy();
-            for m in [Some(&auto), fastest.as_ref(), shipped.as_ref()]
-                .into_iter()
-                .flatten()
+            for m in [
+                Some(&auto),
+                Some(&point),
+                fastest.as_ref(),
+                shipped.as_ref(),
+            ]
+            .into_iter()
+            .flatten()
             {
                 let _ = writeln!(
                     csv,
-                    "{name},{target},{},{},{},{:.3},{:.5},{}",
+                    "{name},{target},{},{},{},{:.3},{:.5},{},{:.2}",
                     m.what,
                     m.settings,
                     m.spp,
                     m.seconds,
                     m.rel_rmse,
-                    m.rel_rmse <= f64::from(target)
+                    m.rel_rmse <= f64::from(target),
+                    m.cpu_seconds
                 );
             }
             let fmt_s = |m: &Option<Measured>| {
-                m.as_ref()
-                    .map_or("–".to_string(), |m| format!("{:.2}", m.seconds))
+                m.as_ref().map_or("–".to_string(), |m| {
+                    format!("{:.2} ({:.2})", m.seconds, m.cpu_seconds)
+                })
             };
             let ratio = |m: &Option<Measured>| {
                 m.as_ref().map_or("–".to_string(), |m| {
-                    format!("{:.2}", auto.seconds / m.seconds)
+                    format!(
+                        "{:.2} ({:.2})",
+                        auto.seconds / m.seconds,
+                        auto.cpu_seconds / m.cpu_seconds.max(0.01)
+                    )
                 })
             };
             let _ = writeln!(
                 md,
-                "| {name} | {target} | {} ({:.4}) | {:.2} | {} | {} | {} | {} | {} | {} |",
+                "| {name} | {target} | {} ({:.4}) | {:.2} ({:.2}) | {:.2} ({:.0} %) | {}, {} spp | {} | {} | {} | {} | {} | {} ({:.4}), {:.2} |",
                 if auto.rel_rmse <= f64::from(target) {
                     "yes"
                 } else {
@@ -187,7 +240,11 @@ pub fn run(config: &AutoStudyConfig) -> Result<String, StudyError> {
                 },
                 auto.rel_rmse,
                 auto.seconds,
+                auto.cpu_seconds,
+                auto.pilot_seconds,
+                100.0 * auto.pilot_seconds / auto.seconds.max(1e-9),
                 auto.settings,
+                auto.spp,
                 fastest
                     .as_ref()
                     .map_or("none meets it".to_string(), |m| format!(
@@ -198,6 +255,13 @@ pub fn run(config: &AutoStudyConfig) -> Result<String, StudyError> {
                 ratio(&fastest),
                 fmt_s(&shipped),
                 ratio(&shipped),
+                if point.rel_rmse <= f64::from(target) {
+                    "yes"
+                } else {
+                    "**no**"
+                },
+                point.rel_rmse,
+                point.seconds,
             );
         }
         // Written after every scene, so a long run's finished scenes are kept.
@@ -207,7 +271,117 @@ pub fn run(config: &AutoStudyConfig) -> Result<String, StudyError> {
     Ok(md)
 }
 
-type SceneRows = Vec<(f32, Measured, Option<Measured>, Option<Measured>)>;
+/// Renders every fixed configuration at [`FIT_SPP`] and fits err² = b² + v/n.
+fn fit_all(
+    frames: &[Frame; 2],
+    base: &RenderSettings,
+    reference_image: &Image,
+    progress: &indicatif::ProgressBar,
+) -> Result<Vec<Fit>, StudyError> {
+    let frame_of = |c: CurveKind| &frames[usize::from(c == CurveKind::Flat)];
+    let mut fits = Vec::new();
+    for (curves, shadows, path_length) in configs() {
+        let c = Config {
+            curves,
+            shadows,
+            path_length,
+        };
+        let mut s = base.clone();
+        s.shadows.mode = shadows;
+        s.integrator.path_length = path_length;
+        let frame = frame_of(curves);
+        let mut e2 = [0.0; 2];
+        let mut last = (0.0, 0.0);
+        progress.set_message(c.name());
+        for (k, &spp) in FIT_SPP.iter().enumerate() {
+            progress.inc(1);
+            s.film.spp = spp;
+            let (image, stats) = frame.render_with(&s, Options::default());
+            e2[k] = rel_rmse(&image, reference_image)?.powi(2);
+            last = (stats.seconds, stats.shadow_build_seconds);
+        }
+        let (n1, n2) = (f64::from(FIT_SPP[0]), f64::from(FIT_SPP[1]));
+        let variance = ((e2[0] - e2[1]) / (1.0 / n1 - 1.0 / n2)).max(0.0);
+        let bias2 = (e2[1] - variance / n2).max(0.0);
+        fits.push(Fit {
+            config: c,
+            bias2,
+            variance,
+            seconds_per_spp: last.0 / n2,
+            setup_seconds: last.1,
+        });
+    }
+    Ok(fits)
+}
+
+/// The 16 fixed configurations, in the order of the fits' table.
+fn configs() -> impl Iterator<Item = (CurveKind, ShadowMode, u32)> {
+    [CurveKind::Round, CurveKind::Flat]
+        .into_iter()
+        .flat_map(|c| {
+            [ShadowMode::Raytraced, ShadowMode::DeepOpacity]
+                .into_iter()
+                .flat_map(move |s| (0..REFERENCE_PATH_LENGTH).map(move |p| (c, s, p)))
+        })
+}
+
+/// The fits' table: `exact` writes b² and v in full (the cache, read back by [`parse_fits`]), otherwise rounded
+/// for reading.
+fn fits_csv(fits: &[Fit], exact: bool) -> String {
+    let mut csv = String::from("config,bias,variance_x_spp,seconds_per_spp,setup_seconds\n");
+    for f in fits {
+        let _ = if exact {
+            writeln!(
+                csv,
+                "{},{:e},{:e},{:e},{:e}",
+                f.config.name(),
+                f.bias2.sqrt(),
+                f.variance,
+                f.seconds_per_spp,
+                f.setup_seconds
+            )
+        } else {
+            writeln!(
+                csv,
+                "{},{:.5},{:.5},{:.4},{:.3}",
+                f.config.name(),
+                f.bias2.sqrt(),
+                f.variance,
+                f.seconds_per_spp,
+                f.setup_seconds
+            )
+        };
+    }
+    csv
+}
+
+/// A cached fits table ([`fits_csv`] exact), `None` unless it lists all 16 configurations in order.
+fn parse_fits(text: &str) -> Option<Vec<Fit>> {
+    let mut fits = Vec::new();
+    for ((curves, shadows, path_length), line) in configs().zip(text.lines().skip(1)) {
+        let config = Config {
+            curves,
+            shadows,
+            path_length,
+        };
+        let f: Vec<&str> = line.split(',').collect();
+        if f.len() != 5 || f[0] != config.name() {
+            return None;
+        }
+        let num = |i: usize| f[i].parse::<f64>().ok().filter(|v| v.is_finite());
+        let bias = num(1)?;
+        fits.push(Fit {
+            config,
+            bias2: bias * bias,
+            variance: num(2)?,
+            seconds_per_spp: num(3)?,
+            setup_seconds: num(4)?,
+        });
+    }
+    (fits.len() == 16).then_some(fits)
+}
+
+type SceneRows = Vec<(f32, Measured, Measured, Option<Measured>, Option<Measured>)>;
 
 fn study_scene(path: &Path, config: &AutoStudyConfig) -> Result<SceneRows, StudyError> {
     let (text, scene) = load_scene(path, Some(config.resolution))?;
@@ -220,8 +394,8 @@ fn study_scene(path: &Path, config: &AutoStudyConfig) -> Result<SceneRows, Study
     let frame_of = |c: CurveKind| &frames[usize::from(c == CurveKind::Flat)];
     let base = scene.render_settings();
     let stem = path.file_stem().unwrap_or_default().to_string_lossy();
-    // Reference, 16 configurations × 2 fits, then per target three renders.
-    let steps = 1 + 2 * 16 + 3 * config.targets.len() as u64;
+    // Reference, 16 configurations × 2 fits, then per target four renders.
+    let steps = 1 + 2 * 16 + 4 * config.targets.len() as u64;
     let progress = indicatif::ProgressBar::new(steps);
     progress.set_style(
         indicatif::ProgressStyle::with_template(
@@ -257,56 +431,37 @@ fn study_scene(path: &Path, config: &AutoStudyConfig) -> Result<SceneRows, Study
     )?;
     progress.inc(1);
 
-    // 2. Every fixed configuration, fitted.
-    let mut fits = Vec::new();
-    for curves in [CurveKind::Round, CurveKind::Flat] {
-        for shadows in [ShadowMode::Raytraced, ShadowMode::DeepOpacity] {
-            for path_length in 0..REFERENCE_PATH_LENGTH {
-                let c = Config {
-                    curves,
-                    shadows,
-                    path_length,
-                };
-                let mut s = base.clone();
-                s.shadows.mode = shadows;
-                s.integrator.path_length = path_length;
-                let frame = frame_of(curves);
-                let mut e2 = [0.0; 2];
-                let mut last = (0.0, 0.0);
-                progress.set_message(c.name());
-                for (k, &spp) in FIT_SPP.iter().enumerate() {
-                    progress.inc(1);
-                    s.film.spp = spp;
-                    let (image, stats) = frame.render_with(&s, Options::default());
-                    e2[k] = rel_rmse(&image, &reference_image)?.powi(2);
-                    last = (stats.seconds, stats.shadow_build_seconds);
-                }
-                let (n1, n2) = (f64::from(FIT_SPP[0]), f64::from(FIT_SPP[1]));
-                let variance = ((e2[0] - e2[1]) / (1.0 / n1 - 1.0 / n2)).max(0.0);
-                let bias2 = (e2[1] - variance / n2).max(0.0);
-                fits.push(Fit {
-                    config: c,
-                    bias2,
-                    variance,
-                    seconds_per_spp: last.0 / n2,
-                    setup_seconds: last.1,
-                });
-            }
+    // 2. Every fixed configuration, fitted (cached like the reference: the fits only pick which configurations
+    // are rendered and measured per target, so a rerun measures those again under its own load).
+    let fit_key = cache::scene_key(
+        "auto-fits-1",
+        &text,
+        &scene,
+        &[],
+        &format!(
+            "{:?} {} {} {:?}",
+            config.resolution, config.reference_spp, REFERENCE_PATH_LENGTH, FIT_SPP
+        ),
+    );
+    let fit_cache = config.out.join(format!("fits-{fit_key:016x}.csv"));
+    let cached = std::fs::read_to_string(&fit_cache)
+        .ok()
+        .and_then(|t| parse_fits(&t));
+    let fits = match cached {
+        Some(f) => {
+            progress.inc(2 * 16);
+            f
         }
-    }
-    let mut fit_csv = String::from("config,bias,variance_x_spp,seconds_per_spp,setup_seconds\n");
-    for f in &fits {
-        let _ = writeln!(
-            fit_csv,
-            "{},{:.5},{:.5},{:.4},{:.3}",
-            f.config.name(),
-            f.bias2.sqrt(),
-            f.variance,
-            f.seconds_per_spp,
-            f.setup_seconds
-        );
-    }
-    cache::write_text(&config.out.join(format!("auto-fits-{stem}.csv")), &fit_csv)?;
+        None => {
+            let f = fit_all(&frames, &base, &reference_image, &progress)?;
+            cache::write_text(&fit_cache, &fits_csv(&f, true))?;
+            f
+        }
+    };
+    cache::write_text(
+        &config.out.join(format!("auto-fits-{stem}.csv")),
+        &fits_csv(&fits, false),
+    )?;
 
     let shipped_config = Config {
         curves: scene.hair.curves,
@@ -326,13 +481,17 @@ fn study_scene(path: &Path, config: &AutoStudyConfig) -> Result<SceneRows, Study
             s.shadows.mode = fit.config.shadows;
             s.integrator.path_length = fit.config.path_length;
             s.film.spp = spp;
+            let cpu = cpu_seconds();
             let (image, seconds) = render(frame_of(fit.config.curves), &s);
+            let cpu_seconds = cpu_seconds() - cpu;
             Ok(Some(Measured {
                 what: what.into(),
                 settings: fit.config.name(),
                 spp,
                 seconds,
                 rel_rmse: rel_rmse(&image, &reference_image)?,
+                pilot_seconds: 0.0,
+                cpu_seconds,
             }))
         };
         let fastest = fits
@@ -352,48 +511,56 @@ fn study_scene(path: &Path, config: &AutoStudyConfig) -> Result<SceneRows, Study
             .transpose()?
             .flatten();
 
-        // Auto, timed from the curve decision to the last pixel.
-        progress.inc(1);
-        let start = Instant::now();
-        let strands = &frames[0].strands;
-        let (curves, _) = quality::plan_curves(
-            strands,
-            &frames[0].material,
-            &base.camera,
-            base.film.resolution,
-        );
-        let frame = frame_of(curves);
-        let q = QualityConfig {
-            target,
-            max_spp: MAX_SPP,
-            ..scene.quality.clone()
+        // Auto, timed from the curve decision to the last pixel; with its margins and with bare point estimates.
+        let auto_with = |margins: quality::Margins, what: &str| -> Result<Measured, StudyError> {
+            progress.inc(1);
+            let start = Instant::now();
+            let cpu = cpu_seconds();
+            let strands = &frames[0].strands;
+            let (curves, _) = quality::plan_curves(
+                strands,
+                &frames[0].material,
+                &base.camera,
+                base.film.resolution,
+            );
+            let frame = frame_of(curves);
+            let q = QualityConfig {
+                target,
+                max_spp: MAX_SPP,
+                ..scene.quality.clone()
+            };
+            let planned = quality::plan_frame_with(frame, &base, &q, Fixed::default(), margins);
+            let (image, _) = frame.render_with_maps(
+                &planned.settings,
+                planned.maps.as_ref(),
+                planned.maps_seconds,
+                Options::default(),
+            );
+            let seconds = start.elapsed().as_secs_f64();
+            let cpu_seconds = cpu_seconds() - cpu;
+            let s = &planned.settings;
+            Ok(Measured {
+                what: what.into(),
+                settings: Config {
+                    curves,
+                    shadows: s.shadows.mode,
+                    path_length: s.integrator.path_length,
+                }
+                .name()
+                    + &format!(
+                        " {}L {}M",
+                        s.integrator.light_samples, s.integrator.material_samples
+                    ),
+                spp: mean_spp(&image).round() as u32,
+                seconds,
+                rel_rmse: rel_rmse(&image, &reference_image)?,
+                pilot_seconds: planned.pilot.pilot_seconds,
+                cpu_seconds,
+            })
         };
-        let planned = quality::plan_frame(frame, &base, &q, Fixed::default());
-        let (image, _) = frame.render_with_maps(
-            &planned.settings,
-            planned.maps.as_ref(),
-            planned.maps_seconds,
-            Options::default(),
-        );
-        let seconds = start.elapsed().as_secs_f64();
-        let s = &planned.settings;
-        let auto = Measured {
-            what: "auto".into(),
-            settings: Config {
-                curves,
-                shadows: s.shadows.mode,
-                path_length: s.integrator.path_length,
-            }
-            .name()
-                + &format!(
-                    " {}L {}M",
-                    s.integrator.light_samples, s.integrator.material_samples
-                ),
-            spp: s.film.spp,
-            seconds,
-            rel_rmse: rel_rmse(&image, &reference_image)?,
-        };
-        rows.push((target, auto, fastest, shipped));
+        let auto = auto_with(quality::Margins::DEFAULT, "auto")?;
+        let point = auto_with(quality::Margins::POINT, "auto point estimates")?;
+        rows.push((target, auto, point, fastest, shipped));
     }
     progress.finish_and_clear();
     Ok(rows)
