@@ -21,7 +21,7 @@ use crate::shadow::ShadowMaps;
 use crate::shape::Shapes;
 
 use super::settings::{RenderSettings, ShadowMode};
-use super::{render_tiles, Options, Region, RegionRender, RenderStats};
+use super::{render_tiles, Options, Region, RegionRender, RenderStats, TILE};
 
 /// What a frame is made of, before anything heavy is built.
 #[derive(Debug)]
@@ -215,7 +215,7 @@ impl Frame {
             "region {region:?} is not inside the {width}x{height} frame"
         );
         let maps = maps.filter(|_| settings.shadows.mode == ShadowMode::DeepOpacity);
-        let mut r = render_tiles(self, settings, maps, options, region, cancel);
+        let mut r = render_tiles(self, settings, maps, options, region, cancel, TILE);
         if let Some(m) = maps {
             r.stats.shadow_build_seconds = maps_seconds;
             r.stats.shadow_map_bytes = m.bytes();

@@ -87,19 +87,6 @@ impl RegionRender {
     }
 }
 
-/// The pixel loop: renders `region` of `frame` with `settings` (and `maps` in deep-opacity mode) on the current
-/// rayon pool. Once `cancel` holds a non-zero value no new tile starts (tiles already running finish).
-fn render_tiles(
-    frame: &Frame,
-    settings: &RenderSettings,
-    maps: Option<&ShadowMaps>,
-    options: Options,
-    region: Region,
-    cancel: Option<&AtomicUsize>,
-) -> RegionRender {
-    render_tiles_sized(frame, settings, maps, options, region, cancel, TILE)
-}
-
 /// [`Frame::render_with_maps`] of the whole film with work tiles of `tile_side`² pixels instead of 32²: for
 /// tests that the image does not depend on how the work is split.
 #[doc(hidden)]
@@ -112,7 +99,7 @@ pub fn render_with_tile_side(
     let [width, height] = settings.film.resolution;
     let maps = maps.filter(|_| settings.shadows.mode == ShadowMode::DeepOpacity);
     let full = Region::full(width, height);
-    render_tiles_sized(
+    render_tiles(
         frame,
         settings,
         maps,
@@ -124,8 +111,10 @@ pub fn render_with_tile_side(
     .image
 }
 
-/// [`render_tiles`] with work tiles of `tile_side`² pixels.
-fn render_tiles_sized(
+/// The pixel loop: renders `region` of `frame` with `settings` (and `maps` in deep-opacity mode) on the current
+/// rayon pool, in work tiles of `tile_side`² pixels ([`TILE`] but in tests). Once `cancel` holds a non-zero value
+/// no new tile starts (tiles already running finish).
+fn render_tiles(
     frame: &Frame,
     settings: &RenderSettings,
     maps: Option<&ShadowMaps>,

@@ -328,29 +328,25 @@ fn configs() -> impl Iterator<Item = (CurveKind, ShadowMode, u32)> {
 /// The fits' table: `exact` writes b² and v in full (the cache, read back by [`parse_fits`]), otherwise rounded
 /// for reading.
 fn fits_csv(fits: &[Fit], exact: bool) -> String {
+    // Every digit (shortest round-trip form) for the cache, `decimals` places for reading.
+    let number = |x: f64, decimals: usize| {
+        if exact {
+            format!("{x:e}")
+        } else {
+            format!("{x:.decimals$}")
+        }
+    };
     let mut csv = String::from("config,bias,variance_x_spp,seconds_per_spp,setup_seconds\n");
     for f in fits {
-        let _ = if exact {
-            writeln!(
-                csv,
-                "{},{:e},{:e},{:e},{:e}",
-                f.config.name(),
-                f.bias2.sqrt(),
-                f.variance,
-                f.seconds_per_spp,
-                f.setup_seconds
-            )
-        } else {
-            writeln!(
-                csv,
-                "{},{:.5},{:.5},{:.4},{:.3}",
-                f.config.name(),
-                f.bias2.sqrt(),
-                f.variance,
-                f.seconds_per_spp,
-                f.setup_seconds
-            )
-        };
+        let _ = writeln!(
+            csv,
+            "{},{},{},{},{}",
+            f.config.name(),
+            number(f.bias2.sqrt(), 5),
+            number(f.variance, 5),
+            number(f.seconds_per_spp, 4),
+            number(f.setup_seconds, 3)
+        );
     }
     csv
 }
