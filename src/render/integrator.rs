@@ -47,7 +47,7 @@ use crate::shadow::ShadowMaps;
 use crate::shape::Shapes;
 use crate::util::color::luminance;
 
-use super::sampler::{dim, PixelSampler};
+use super::sampler::{dim, CameraSample};
 use super::settings::{LightSelection, RenderSettings, ShadowMode, Strategy, TransmittanceMode};
 use super::Frame;
 
@@ -177,7 +177,7 @@ struct Vertex {
 /// [`dim`].
 #[derive(Clone, Copy)]
 struct Draw<'s> {
-    sampler: &'s PixelSampler,
+    sampler: &'s CameraSample<'s>,
     index: u32,
     salt: u32,
 }
@@ -464,7 +464,7 @@ impl<'a> Integrator<'a> {
     pub fn sample(
         &self,
         ray: &Ray,
-        sampler: &PixelSampler,
+        sampler: &CameraSample,
         index: u32,
         counts: &mut RayCounts,
     ) -> PathSample {
@@ -514,7 +514,7 @@ impl<'a> Integrator<'a> {
     fn first_vertex_light_samples(
         &self,
         v: &Vertex,
-        sampler: &PixelSampler,
+        sampler: &CameraSample,
         index: u32,
         out: &mut PathSample,
         counts: &mut RayCounts,
@@ -600,7 +600,7 @@ impl<'a> Integrator<'a> {
     fn first_vertex_material_samples(
         &self,
         v: &Vertex,
-        sampler: &PixelSampler,
+        sampler: &CameraSample,
         index: u32,
         out: &mut PathSample,
         counts: &mut RayCounts,
@@ -651,7 +651,7 @@ impl<'a> Integrator<'a> {
         &self,
         mut v: Vertex,
         first_weights: &LobeValues,
-        sampler: &PixelSampler,
+        sampler: &CameraSample,
         index: u32,
         counts: &mut RayCounts,
     ) -> LobeValues {
@@ -686,7 +686,7 @@ impl<'a> Integrator<'a> {
         &self,
         v: &Vertex,
         b: u32,
-        sampler: &PixelSampler,
+        sampler: &CameraSample,
         index: u32,
         counts: &mut RayCounts,
     ) -> (Vec3, Option<(Vertex, Vec3)>) {

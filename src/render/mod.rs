@@ -34,7 +34,7 @@ use camera::Camera;
 use film::{PixelSums, Tile};
 use filter::GaussianFilter;
 use integrator::{Integrator, RayCounts};
-use sampler::{dim, PixelSampler};
+use sampler::{dim, CameraSample, PixelSampler};
 
 pub use film::CHANNELS;
 pub use frame::{thread_pool, Frame, FrameError, FrameSpec, ThreadPoolError};
@@ -156,7 +156,8 @@ fn render_tiles(
         .flat_map(|ty| (0..tiles_x).map(move |tx| (tx, ty)))
         .collect();
     let sample_pixel = |x: u32, y: u32, i: u32, counts: &mut RayCounts| {
-        let sampler = PixelSampler::new(x, y, seed);
+        let pixel = PixelSampler::new(x, y, seed);
+        let sampler = CameraSample::new(&pixel, i);
         let (dx, dy) = filter.sample(sampler.get_2d(i, dim::FILTER));
         let ray = camera.ray(x as f32 + 0.5 + dx, y as f32 + 0.5 + dy);
         integrator.sample(&ray, &sampler, i, counts)
