@@ -1,5 +1,5 @@
 //! Build script: finds Embree (4 preferred, else 3), generates its bindings with bindgen, and compiles the small
-//! OpenImageIO C++ shim in `ffi/`. Any missing native dependency stops the build with one message naming the Debian
+//! OpenImageIO C++ shim in `ffi/` into a shared library that the binary embeds. Any missing native dependency stops the build with one message naming the Debian
 //! packages to install.
 
 use std::env;
@@ -117,8 +117,10 @@ fn main() {
         .write_to_file(out.join("embree_bindings.rs"))
         .expect("write embree bindings to OUT_DIR");
 
-    // --- OpenImageIO shim --------------------------------------------------------------------------------------
-    // Probe without emitting link flags: the static shim must come before libOpenImageIO on the link line.
+    // --- OpenImageIO shim ---------------------------------------------------------------------------------------
+    // A shared library linked against OpenImageIO, embedded in the binary and loaded on first use
+    // (src/sys/oiio.rs says why: OpenImageIO's 260 dependencies cost every process half a second at start-up).
+    // So nothing here links OpenImageIO into cuticle itself.
     let oiio = match pkg_config::Config::new()
         .cargo_metadata(false)
         .probe("OpenImageIO")
@@ -128,17 +130,37 @@ fn main() {
     };
     let mut cc = cc::Build::new();
     cc.cpp(true)
-        .file("ffi/oiio_shim.cpp")
+        .pic(true)
+        .cargo_metadata(false)
         .flag_if_supported("-std=c++17")
         .warnings(true);
     for dir in &oiio.include_paths {
         cc.include(dir);
     }
-    cc.compile("cuticle_oiio_shim");
+    let shim = out.join("libcuticle_oiio.so");
+    let mut link = cc.get_compiler().to_command();
+    link.arg("-shared")
+        .arg("ffi/oiio_shim.cpp")
+        .arg("-o")
+        .arg(&shim)
+        .arg("-Wl,-soname,libcuticle_oiio.so")
+        // Fail here, not at dlopen, if a symbol is missing.
+        .arg("-Wl,--no-undefined");
     for dir in &oiio.link_paths {
-        println!("cargo:rustc-link-search=native={}", dir.display());
+        link.arg(format!("-L{}", dir.display()));
+        // The shim finds a non-system OpenImageIO where it was linked against it.
+        link.arg(format!("-Wl,-rpath,{}", dir.display()));
     }
     for lib in &oiio.libs {
-        println!("cargo:rustc-link-lib={lib}");
+        link.arg(format!("-l{lib}"));
+    }
+    match link.status() {
+        Ok(status) if status.success() => {}
+        Ok(status) => fail(&format!(
+            "compiling the OpenImageIO shim failed ({status}): {link:?}"
+        )),
+        Err(e) => fail(&format!(
+            "cannot run the C++ compiler for the OpenImageIO shim: {e}"
+        )),
     }
 }

@@ -224,6 +224,13 @@ fn check_before_writing(path: &Path, image: &Image) -> Result<(), ImageError> {
         .map_err(|message| ImageError::invalid(path, message))
 }
 
+/// Starts loading the image library (OpenImageIO) in the background, for a command that reads or writes images
+/// after other work (`render`): the half second its dependencies take to load then overlaps that work
+/// ([`crate::sys::oiio`] has the numbers).
+pub fn preload() {
+    oiio::preload();
+}
+
 /// Writes `image` to `path`, atomically and verified (see the [module docs](self)), in the format its extension
 /// names (case-insensitive):
 ///

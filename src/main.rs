@@ -347,6 +347,7 @@ fn load_scene(path: Option<&Path>) -> Result<Scene> {
 }
 
 fn render_command(args: RenderArgs) -> Result<()> {
+    cuticle::image::preload();
     if args.spp == Some(0) {
         bail!("--spp must be at least 1");
     }

@@ -270,3 +270,25 @@ fn aovs_choose_the_exr_layers_and_leave_the_beauty_alone() {
     );
     assert!(!dir.path().join("x.exr").exists());
 }
+
+/// OpenImageIO is loaded on first use (src/sys/oiio.rs), not linked: its ~260 dependencies cost every process about
+/// half a second before `main`. The binary's own dynamic section must therefore not name it (the embedded shim
+/// does, inside its bytes, which `readelf -d` does not read).
+#[test]
+fn the_binary_does_not_link_openimageio_at_start_up() {
+    let out = Command::new("readelf")
+        .args(["-d", EXE])
+        .output()
+        .expect("readelf (binutils) runs");
+    assert!(out.status.success(), "readelf -d failed: {}", stderr(&out));
+    let dynamic = String::from_utf8_lossy(&out.stdout);
+    let needed: Vec<&str> = dynamic.lines().filter(|l| l.contains("(NEEDED)")).collect();
+    assert!(
+        needed.iter().any(|l| l.contains("libembree")),
+        "readelf output has no Embree NEEDED entry, so it was not read: {needed:?}"
+    );
+    assert!(
+        !needed.iter().any(|l| l.contains("OpenImageIO")),
+        "the binary links OpenImageIO at start-up: {needed:?}"
+    );
+}

@@ -1,7 +1,14 @@
 //! Safe wrappers over the OpenImageIO shim (`ffi/oiio_shim.{h,cpp}`).
 //!
-//! The shim is a small `extern "C"` API compiled by `build.rs`; the declarations below mirror
-//! `ffi/oiio_shim.h` by hand. This module checks every length and string before it reaches C++,
+//! The shim is a small `extern "C"` API that `build.rs` compiles into a shared library linked against OpenImageIO;
+//! the function types below mirror `ffi/oiio_shim.h` by hand.
+//!
+//! **Loaded on first use, not at start-up.** Debian's OpenImageIO pulls in 260 shared libraries (codecs, OpenCV,
+//! FFmpeg, ...) whose relocation cost every process 0.4–0.55 s of wall time before `main` (measured: an empty C
+//! program linked against Embree starts in 0.01 s, against Embree and OpenImageIO in 0.54–0.57 s). The cuticle
+//! binary therefore does not link OpenImageIO: the shim's bytes are embedded in it and loaded with `dlopen`
+//! ([`ffi::api`]) the first time an image is read or written, and `render` starts that load on a background thread
+//! ([`preload`]) so that it overlaps the hair loading, the BVH build and the render instead of preceding them. This module checks every length and string before it reaches C++,
 //! so the functions it exposes are safe. Errors come back as [`OiioError`] holding OpenImageIO's
 //! own message; [`crate::image`] adds the file name.
 
@@ -12,6 +19,7 @@ use std::ptr::NonNull;
 /// Raw declarations mirroring `ffi/oiio_shim.h`.
 mod ffi {
     use std::ffi::{c_char, c_int, c_uint, c_void};
+    use std::sync::OnceLock;
 
     /// `CUTICLE_OIIO_FLOAT`.
     pub const FLOAT: c_int = 0;
@@ -30,9 +38,11 @@ mod ffi {
         _marker: std::marker::PhantomData<(*mut u8, std::marker::PhantomPinned)>,
     }
 
-    extern "C" {
-        pub fn cuticle_oiio_version() -> c_int;
-        pub fn cuticle_oiio_write_window(
+    /// The shim's entry points, as `ffi/oiio_shim.h` declares them.
+    pub struct Api {
+        pub version: unsafe extern "C" fn() -> c_int,
+        #[allow(clippy::type_complexity)]
+        pub write_window: unsafe extern "C" fn(
             path: *const c_char,
             width: c_int,
             height: c_int,
@@ -48,41 +58,134 @@ mod ffi {
             attr_values: *const *const c_char,
             err: *mut c_char,
             err_cap: usize,
-        ) -> c_int;
-        pub fn cuticle_oiio_input_window(
-            input: *const CuticleOiioInput,
-            window: *mut super::Window,
-        );
-        pub fn cuticle_oiio_input_attribute(
+        ) -> c_int,
+        pub input_window:
+            unsafe extern "C" fn(input: *const CuticleOiioInput, window: *mut super::Window),
+        pub input_attribute: unsafe extern "C" fn(
             input: *const CuticleOiioInput,
             name: *const c_char,
             out: *mut c_char,
             out_cap: usize,
-        ) -> c_int;
-        pub fn cuticle_oiio_open(
+        ) -> c_int,
+        pub open: unsafe extern "C" fn(
             path: *const c_char,
             err: *mut c_char,
             err_cap: usize,
-        ) -> *mut CuticleOiioInput;
-        pub fn cuticle_oiio_input_size(
+        ) -> *mut CuticleOiioInput,
+        pub input_size: unsafe extern "C" fn(
             input: *const CuticleOiioInput,
             width: *mut c_int,
             height: *mut c_int,
             nchannels: *mut c_int,
-        );
-        pub fn cuticle_oiio_input_channel_name(
-            input: *const CuticleOiioInput,
-            channel: c_int,
-        ) -> *const c_char;
-        pub fn cuticle_oiio_read_float(
+        ),
+        pub input_channel_name:
+            unsafe extern "C" fn(input: *const CuticleOiioInput, channel: c_int) -> *const c_char,
+        pub read_float: unsafe extern "C" fn(
             input: *mut CuticleOiioInput,
             out: *mut f32,
             out_len: usize,
             err: *mut c_char,
             err_cap: usize,
-        ) -> c_int;
-        pub fn cuticle_oiio_close(input: *mut CuticleOiioInput);
+        ) -> c_int,
+        pub close: unsafe extern "C" fn(input: *mut CuticleOiioInput),
+        /// Keeps the shim (and OpenImageIO) mapped for as long as the pointers above are used: forever.
+        _library: libloading::Library,
     }
+
+    /// The shim library, built by `build.rs` and embedded in the binary.
+    static SHIM: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/libcuticle_oiio.so"));
+
+    static API: OnceLock<Result<Api, String>> = OnceLock::new();
+
+    /// The shim's entry points, loading the shim (and with it OpenImageIO) on the first call; a call made while
+    /// another thread loads it waits for that load.
+    pub fn api() -> Result<&'static Api, super::OiioError> {
+        API.get_or_init(load)
+            .as_ref()
+            .map_err(|e| super::OiioError::new(format!("cannot load OpenImageIO: {e}")))
+    }
+
+    /// Writes the embedded shim into an anonymous in-memory file (`memfd_create`) and `dlopen`s it by its
+    /// `/proc/self/fd` path: nothing is written to disk, and a `noexec` /tmp does not matter. Where that fails
+    /// (no memfd, no /proc), the shim goes to a temporary file in the temporary directory, deleted once loaded.
+    fn load() -> Result<Api, String> {
+        let library = match load_from_memfd() {
+            Ok(library) => library,
+            Err(memfd) => load_from_temp_file()
+                .map_err(|file| format!("from memory ({memfd}), from a temporary file ({file})"))?,
+        };
+        symbols(library)
+    }
+
+    pub(super) fn load_from_memfd() -> Result<libloading::Library, String> {
+        use std::io::Write;
+        use std::os::fd::AsRawFd;
+        let fd = rustix::fs::memfd_create("cuticle-oiio-shim", rustix::fs::MemfdFlags::CLOEXEC)
+            .map_err(|e| format!("memfd_create: {e}"))?;
+        let mut file = std::fs::File::from(fd);
+        file.write_all(SHIM).map_err(|e| e.to_string())?;
+        open(std::path::Path::new(&format!(
+            "/proc/self/fd/{}",
+            file.as_raw_fd()
+        )))
+        // `file` closes here: the loader keeps its own mapping.
+    }
+
+    pub(super) fn load_from_temp_file() -> Result<libloading::Library, String> {
+        use std::io::Write;
+        let mut file = tempfile::Builder::new()
+            .prefix("cuticle-oiio-shim-")
+            .suffix(".so")
+            .tempfile()
+            .map_err(|e| e.to_string())?;
+        file.write_all(SHIM).map_err(|e| e.to_string())?;
+        file.flush().map_err(|e| e.to_string())?;
+        open(file.path())
+        // The file is deleted here; the loader keeps its mapping.
+    }
+
+    fn open(path: &std::path::Path) -> Result<libloading::Library, String> {
+        // SAFETY: the library is cuticle's own shim, built with this binary; loading it runs only the static
+        // initialisers of OpenImageIO and its dependencies, which have no preconditions on the loading program.
+        unsafe { libloading::Library::new(path) }.map_err(|e| e.to_string())
+    }
+
+    /// The shim's entry points in `library`.
+    pub(super) fn symbols(library: libloading::Library) -> Result<Api, String> {
+        /// # Safety
+        /// `T` is the declared type of the symbol `name`.
+        unsafe fn get<T: Copy>(library: &libloading::Library, name: &[u8]) -> Result<T, String> {
+            // SAFETY: the caller guarantees `T` is the symbol's declared function type.
+            unsafe { library.get::<T>(name) }
+                .map(|symbol| *symbol)
+                .map_err(|e| e.to_string())
+        }
+        // SAFETY: each symbol is one of the shim's `extern "C"` functions, and the field it fills has exactly
+        // the parameter and return types `ffi/oiio_shim.h` declares for it (mirrored by hand, as before); the
+        // pointers stay valid because `_library` is kept with them and never unloaded.
+        unsafe {
+            Ok(Api {
+                version: get(&library, b"cuticle_oiio_version\0")?,
+                write_window: get(&library, b"cuticle_oiio_write_window\0")?,
+                input_window: get(&library, b"cuticle_oiio_input_window\0")?,
+                input_attribute: get(&library, b"cuticle_oiio_input_attribute\0")?,
+                open: get(&library, b"cuticle_oiio_open\0")?,
+                input_size: get(&library, b"cuticle_oiio_input_size\0")?,
+                input_channel_name: get(&library, b"cuticle_oiio_input_channel_name\0")?,
+                read_float: get(&library, b"cuticle_oiio_read_float\0")?,
+                close: get(&library, b"cuticle_oiio_close\0")?,
+                _library: library,
+            })
+        }
+    }
+}
+
+/// Starts loading OpenImageIO on a background thread, for a command that will read or write an image after other
+/// work: the load then overlaps that work. Errors surface at the first image call.
+pub fn preload() {
+    std::thread::spawn(|| {
+        let _ = ffi::api();
+    });
 }
 
 /// Bytes reserved for an error message from the shim (longer ones are truncated).
@@ -173,10 +276,11 @@ pub struct WriteOptions {
 }
 
 /// The OpenImageIO version linked, as `major * 10000 + minor * 100 + patch` (20407 for 2.4.7).
-pub fn version() -> u32 {
+pub fn version() -> Result<u32, OiioError> {
+    let api = ffi::api()?;
     // SAFETY: the function takes no arguments and returns a compile-time constant.
-    let v = unsafe { ffi::cuticle_oiio_version() };
-    u32::try_from(v).unwrap_or(0)
+    let v = unsafe { (api.version)() };
+    Ok(u32::try_from(v).unwrap_or(0))
 }
 
 fn path_cstring(path: &Path) -> Result<CString, OiioError> {
@@ -297,7 +401,7 @@ pub fn write_image_window<S: AsRef<str>>(
     // SAFETY: as in `write_image`; in addition `window_ptr` is null or points to a `Window` that outlives the
     // call, and `key_ptrs`/`value_ptrs` hold `attributes.len()` NUL-terminated strings each, alive until after it.
     let status = unsafe {
-        ffi::cuticle_oiio_write_window(
+        (ffi::api()?.write_window)(
             c_path.as_ptr(),
             c_width,
             c_height,
@@ -339,15 +443,16 @@ pub struct OpenImage {
 pub fn open_image(path: &Path) -> Result<OpenImage, OiioError> {
     let c_path = path_cstring(path)?;
     let mut err = [0u8; ERROR_CAPACITY];
+    let api = ffi::api()?;
     // SAFETY: `c_path` is NUL-terminated and outlives the call; `err` is writable for its length.
-    let raw =
-        unsafe { ffi::cuticle_oiio_open(c_path.as_ptr(), err.as_mut_ptr().cast(), err.len()) };
-    let input = Input(NonNull::new(raw).ok_or_else(|| OiioError::from_buffer(&err))?);
+    let raw = unsafe { (api.open)(c_path.as_ptr(), err.as_mut_ptr().cast(), err.len()) };
+    let input = Input {
+        raw: NonNull::new(raw).ok_or_else(|| OiioError::from_buffer(&err))?,
+        api,
+    };
     let (mut width, mut height, mut nchannels): (c_int, c_int, c_int) = (0, 0, 0);
     // SAFETY: `input` is an open handle and the three out-pointers are valid, distinct locals.
-    unsafe {
-        ffi::cuticle_oiio_input_size(input.0.as_ptr(), &mut width, &mut height, &mut nchannels)
-    };
+    unsafe { (api.input_size)(input.raw.as_ptr(), &mut width, &mut height, &mut nchannels) };
     let (Ok(width), Ok(height), Ok(nchannels)) = (
         usize::try_from(width),
         usize::try_from(height),
@@ -359,7 +464,7 @@ pub fn open_image(path: &Path) -> Result<OpenImage, OiioError> {
         .map(|c| {
             let c = to_c_int(c, "channel index")?;
             // SAFETY: `input` is open; the shim bounds-checks `c` (null when out of range).
-            let name = unsafe { ffi::cuticle_oiio_input_channel_name(input.0.as_ptr(), c) };
+            let name = unsafe { (api.input_channel_name)(input.raw.as_ptr(), c) };
             if name.is_null() {
                 return Err(OiioError::new(format!("channel {c} has no name")));
             }
@@ -387,7 +492,7 @@ impl OpenImage {
             full_height: 0,
         };
         // SAFETY: `input` is an open handle and `window` a valid local the shim fills.
-        unsafe { ffi::cuticle_oiio_input_window(self.input.0.as_ptr(), &mut window) };
+        unsafe { (self.input.api.input_window)(self.input.raw.as_ptr(), &mut window) };
         window
     }
 
@@ -402,8 +507,8 @@ impl OpenImage {
             // SAFETY: `input` is open, `c_name` is NUL-terminated, `buffer` is writable for its length; all
             // outlive the call.
             let n = unsafe {
-                ffi::cuticle_oiio_input_attribute(
-                    self.input.0.as_ptr(),
+                (self.input.api.input_attribute)(
+                    self.input.raw.as_ptr(),
                     c_name.as_ptr(),
                     buffer.as_mut_ptr().cast(),
                     buffer.len(),
@@ -439,8 +544,8 @@ impl OpenImage {
         // SAFETY: `input` is open; `data` is writable for exactly `len` floats, the size the shim
         // checks against width·height·nchannels; `err` is writable for its length.
         let status = unsafe {
-            ffi::cuticle_oiio_read_float(
-                self.input.0.as_ptr(),
+            (self.input.api.read_float)(
+                self.input.raw.as_ptr(),
                 data.as_mut_ptr(),
                 data.len(),
                 err.as_mut_ptr().cast(),
@@ -472,13 +577,16 @@ pub struct DecodedImage {
     pub data: Vec<f32>,
 }
 
-/// An open `CuticleOiioInput`, closed on drop.
-struct Input(NonNull<ffi::CuticleOiioInput>);
+/// An open `CuticleOiioInput`, closed on drop, with the loaded shim that opened it.
+struct Input {
+    raw: NonNull<ffi::CuticleOiioInput>,
+    api: &'static ffi::Api,
+}
 
 impl Drop for Input {
     fn drop(&mut self) {
         // SAFETY: the handle came from `cuticle_oiio_open` and `Input` owns it: it is closed once.
-        unsafe { ffi::cuticle_oiio_close(self.0.as_ptr()) }
+        unsafe { (self.api.close)(self.raw.as_ptr()) }
     }
 }
 
@@ -494,11 +602,22 @@ mod tests {
 
     #[test]
     fn links_openimageio_2_4_or_later() {
-        assert!(
-            version() >= 20400,
-            "linked OpenImageIO version {}",
-            version()
-        );
+        let version = version().expect("the embedded shim loads");
+        assert!(version >= 20400, "linked OpenImageIO version {version}");
+    }
+
+    #[test]
+    fn the_shim_loads_from_memory_and_from_a_temporary_file() {
+        for (how, library) in [
+            ("memfd", ffi::load_from_memfd()),
+            ("temporary file", ffi::load_from_temp_file()),
+        ] {
+            let api = ffi::symbols(library.unwrap_or_else(|e| panic!("{how}: {e}")))
+                .unwrap_or_else(|e| panic!("{how}: {e}"));
+            // SAFETY: takes no arguments, returns a constant.
+            let v = unsafe { (api.version)() };
+            assert!(v >= 20400, "{how}: OpenImageIO version {v}");
+        }
     }
 
     #[test]
