@@ -154,8 +154,8 @@ impl Obbs4 {
                     .to_array()
                     .map(|c| c as i16)
             });
-            for i in 0..3 {
-                let row = glam::DVec3::from_array(rows[i].map(f64::from));
+            for (i, frame_row) in rows.iter().enumerate() {
+                let row = glam::DVec3::from_array(frame_row.map(f64::from));
                 let (mut min, mut max) = (f64::INFINITY, f64::NEG_INFINITY);
                 for c in o.corners() {
                     let p = row.dot((c - offset) * scale);
@@ -167,8 +167,8 @@ impl Obbs4 {
                 let bound = |v: f64| v.clamp(-32767.0, 32767.0) as i16;
                 q.lower[i][lane] = bound(min.floor() - 1.0);
                 q.upper[i][lane] = bound(max.ceil() + 1.0);
-                for j in 0..3 {
-                    q.rows[i][j][lane] = rows[i][j];
+                for (stored, &c) in q.rows[i].iter_mut().zip(frame_row) {
+                    stored[lane] = c;
                 }
             }
         }
