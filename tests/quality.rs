@@ -389,3 +389,69 @@ fn the_image_rule_meets_the_target_with_fewer_samples_than_the_per_pixel_rule_an
         .zip(&small_tiles.data)
         .all(|(a, b)| a.to_bits() == b.to_bits()));
 }
+
+/// The process's CPU time so far (user + system), seconds, from `/proc/self/stat` (ticks of 1/100 s).
+fn process_cpu_seconds() -> f64 {
+    let stat = std::fs::read_to_string("/proc/self/stat").unwrap();
+    let rest = &stat[stat.rfind(')').unwrap() + 1..];
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    (f[11].parse::<f64>().unwrap() + f[12].parse::<f64>().unwrap()) / 100.0
+}
+
+/// Measures what calibrated [`quality::cost`]'s weights: CPU time of the pixel loop against the ray counts, one
+/// thread, over the shipped scenes × curves × shadows × path length × light/material candidates. Prints CSV.
+/// `cargo test --release --test quality calibrate_cost_model -- --ignored --nocapture`
+#[test]
+#[ignore = "a measurement (minutes), not a check: its output calibrated quality::cost"]
+fn calibrate_cost_model() {
+    let pool = thread_pool(Some(1)).unwrap();
+    println!("scene,curves,shadows,path,light,material,spp,camera,shadow,material_rays,map_lookups,cpu_seconds");
+    for path in [
+        "scenes/default.toml",
+        "scenes/thesis/straight-sunset-marschner.toml",
+        "scenes/thesis/cornell-box.toml",
+        "scenes/thesis/straight-city-marschner.toml",
+    ] {
+        let mut s = Scene::load(Path::new(path)).unwrap();
+        s.film.resolution = [128, 128];
+        let s = s.revalidate().unwrap();
+        for curves in [CurveKind::Flat, CurveKind::Round] {
+            let mut spec = s.resolve().unwrap();
+            spec.curves = curves;
+            let frame = Frame::load(spec).unwrap();
+            for shadows in [ShadowMode::Raytraced, ShadowMode::DeepOpacity] {
+                for path_length in 0..4 {
+                    for (l, m) in [(1, 1), (1, 4), (4, 1), (4, 4)] {
+                        let mut settings = frame.settings.clone();
+                        settings.shadows.mode = shadows;
+                        settings.integrator.path_length = path_length;
+                        settings.integrator.light_samples = l;
+                        settings.integrator.material_samples = m;
+                        settings.film.spp = 4;
+                        let maps = (shadows == ShadowMode::DeepOpacity)
+                            .then(|| pool.install(|| frame.shadow_maps(&settings)));
+                        let cpu = process_cpu_seconds();
+                        let (_, stats) = pool.install(|| {
+                            frame.render_with_maps(
+                                &settings,
+                                maps.as_ref(),
+                                0.0,
+                                Options::default(),
+                            )
+                        });
+                        let cpu = process_cpu_seconds() - cpu;
+                        let r = stats.rays;
+                        println!(
+                            "{path},{},{shadows:?},{path_length},{l},{m},4,{},{},{},{},{cpu:.2}",
+                            curves.name(),
+                            r.camera,
+                            r.shadow,
+                            r.material,
+                            r.map_lookups
+                        );
+                    }
+                }
+            }
+        }
+    }
+}

@@ -20,7 +20,8 @@
 //! 3. **Path length**, **light and material samples** and **samples per pixel** ([`pilot`]): measured by pilot
 //!    renders of a few windows of the frame at full resolution (so a pixel integrates what it will in the frame):
 //!    bounces are added until the next one's bias is under a quarter of the target; the light/material sample
-//!    counts that reach a given noise with the fewest rays; the mean samples per pixel from the per-pixel
+//!    counts that reach a given noise at the least predicted cost ([`cost`]: CPU seconds per ray of each kind,
+//!    calibrated once); the mean samples per pixel from the per-pixel
 //!    variance of two independent pilot estimates.
 //! 4. **Adaptive sampling** ([`adaptive_schedule`], [`crate::render::adaptive`]): the image-level rule, to the
 //!    noise budget target² − (bias left out)², the bias of all the bounces left out estimated from the pilots'
@@ -29,9 +30,10 @@
 //! What a user fixes on the command line (`--curves`, `--shadows`, `--path-length`, `--spp`) is kept: auto decides
 //! only the rest.
 //!
-//! Every decision rests on image statistics and ray counts, never on wall time, so the same scene decides the same
+//! Every decision rests on image statistics and ray counts (weighted by [`cost::WEIGHTS`]), never on wall time, so the same scene decides the same
 //! way on any machine and thread count. Not decided yet: stochastic simplification.
 
+pub mod cost;
 pub mod pilot;
 
 use serde::Deserialize;

@@ -13,8 +13,11 @@
 //!    [`FIT_SPP`] = 4 and 16 spp; the squared relative error is fitted as err²(n) = b² + v/n (bias and noise), and
 //!    the spp that meets a target T is v / (T² − b²), none when b ≥ T. Its time is predicted from the 16-spp
 //!    render's time per sample plus the map build.
-//! 3. Per target: the **fastest fixed configuration** (by prediction) and the **shipped settings** (the scene's
-//!    configuration at the spp its fit says meets T) are rendered at those spp and measured; **auto** is planned
+//! 3. Per target: the **fastest fixed configuration** by the fits, rendered at its fit's spp (a lower bound on a
+//!    fixed configuration's time where it misses T); the **fastest fixed configuration that measured meets T**
+//!    ([`fastest_measured`]: up to [`SEARCH_CONFIGS`] configurations in order of predicted time, each raised
+//!    from its fit's spp by (measured / T)² × 1.1 until it meets T, at most [`SEARCH_TRIES`] renders); and the
+//!    **shipped settings** (the scene's configuration at the spp its fit says meets T), all measured; **auto** is planned
 //!    (`quality::plan_curves` + `quality::plan_frame`) and rendered, its time counting the pilots and maps, and
 //!    again with bare point estimates ([`quality::Margins::POINT`]: no standard errors on the bounces' bias, the
 //!    adaptive rule aimed at the whole noise budget) to measure whether auto's margins are needed.
@@ -188,21 +191,30 @@ pub fn run(config: &AutoStudyConfig) -> Result<String, StudyError> {
     let mut csv =
         String::from("scene,target,method,settings,spp,seconds,rel_rmse,met,cpu_seconds\n");
     let mut md = String::from(
-        "| scene | target | auto: met? | auto s (CPU s) | pilots s (share) | auto settings, mean spp | fastest fixed (predicted) | its s (CPU s) | auto ÷ fastest (CPU) | shipped s (CPU s) | auto ÷ shipped (CPU) | point estimates: met?, s |\n\
-         |---|---:|---|---:|---:|---|---|---:|---:|---:|---:|---|\n",
+        "| scene | target | auto: met? | auto s (CPU s) | pilots s (share) | auto settings, mean spp | fastest fixed by the fits: measured | its s (CPU s) | auto ÷ it (CPU) | fastest fixed that measured meets it | its s (CPU s) | auto ÷ it (CPU) | fixed renders searched | shipped s (CPU s) | auto ÷ shipped (CPU) | point estimates: met?, s |\n\
+         |---|---:|---|---:|---:|---|---|---:|---:|---|---:|---:|---:|---:|---:|---|\n",
     );
     for path in &config.scenes {
         let rows = pool.install(|| study_scene(path, config))?;
-        for (target, auto, point, fastest, shipped) in rows {
+        for row in rows {
+            let Row {
+                target,
+                auto,
+                point,
+                fastest,
+                measured_fastest,
+                shipped,
+            } = row;
             let name = path.file_stem().unwrap_or_default().to_string_lossy();
-            for m in [
-                Some(&auto),
-                Some(&point),
-                fastest.as_ref(),
-                shipped.as_ref(),
-            ]
-            .into_iter()
-            .flatten()
+            let best = measured_fastest.best().cloned().map(|mut m| {
+                m.what = "fastest fixed measured".into();
+                m
+            });
+            for m in [Some(&auto), Some(&point)]
+                .into_iter()
+                .chain(measured_fastest.renders.iter().map(Some))
+                .chain([best.as_ref(), shipped.as_ref()])
+                .flatten()
             {
                 let _ = writeln!(
                     csv,
@@ -230,9 +242,14 @@ pub fn run(config: &AutoStudyConfig) -> Result<String, StudyError> {
                     )
                 })
             };
+            let described = |m: &Option<Measured>, none: &str| {
+                m.as_ref().map_or(none.to_string(), |m| {
+                    format!("{}, {} spp ({:.4})", m.settings, m.spp, m.rel_rmse)
+                })
+            };
             let _ = writeln!(
                 md,
-                "| {name} | {target} | {} ({:.4}) | {:.2} ({:.2}) | {:.2} ({:.0} %) | {}, {} spp | {} | {} | {} | {} | {} | {} ({:.4}), {:.2} |",
+                "| {name} | {target} | {} ({:.4}) | {:.2} ({:.2}) | {:.2} ({:.0} %) | {}, {} spp | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} ({:.4}), {:.2} |",
                 if auto.rel_rmse <= f64::from(target) {
                     "yes"
                 } else {
@@ -245,14 +262,13 @@ pub fn run(config: &AutoStudyConfig) -> Result<String, StudyError> {
                 100.0 * auto.pilot_seconds / auto.seconds.max(1e-9),
                 auto.settings,
                 auto.spp,
-                fastest
-                    .as_ref()
-                    .map_or("none meets it".to_string(), |m| format!(
-                        "{}, {} spp ({:.4})",
-                        m.settings, m.spp, m.rel_rmse
-                    )),
+                described(&fastest, "none meets it"),
                 fmt_s(&fastest),
                 ratio(&fastest),
+                described(&best, "none measured meets it"),
+                fmt_s(&best),
+                ratio(&best),
+                measured_fastest.renders.len(),
                 fmt_s(&shipped),
                 ratio(&shipped),
                 if point.rel_rmse <= f64::from(target) {
@@ -377,9 +393,90 @@ fn parse_fits(text: &str) -> Option<Vec<Fit>> {
     (fits.len() == 16).then_some(fits)
 }
 
-type SceneRows = Vec<(f32, Measured, Measured, Option<Measured>, Option<Measured>)>;
+/// One scene's measurements at one target.
+struct Row {
+    target: f32,
+    auto: Measured,
+    point: Measured,
+    /// The fastest fixed configuration by the fits, rendered at its fit's spp (it may miss the target).
+    fastest: Option<Measured>,
+    /// The fastest fixed configuration that measured meets the target, every render of the search.
+    measured_fastest: Search,
+    shipped: Option<Measured>,
+}
 
-fn study_scene(path: &Path, config: &AutoStudyConfig) -> Result<SceneRows, StudyError> {
+/// Fixed configurations rendered at most by [`fastest_measured`] (in order of predicted time).
+pub const SEARCH_CONFIGS: usize = 4;
+/// Renders of one configuration at most by [`fastest_measured`] (the fit's spp, then raised).
+pub const SEARCH_TRIES: usize = 3;
+
+/// [`fastest_measured`] renders no configuration predicted to take more than this many times the wall time of
+/// the best one measured so far (the fits' times were measured under another load).
+const PRUNE: f64 = 1.5;
+
+/// What [`fastest_measured`] found: every render it made, and which of them is the fastest that met the target.
+#[derive(Debug, Clone, Default)]
+struct Search {
+    renders: Vec<Measured>,
+    best: Option<usize>,
+}
+
+impl Search {
+    fn best(&self) -> Option<&Measured> {
+        self.best.map(|i| &self.renders[i])
+    }
+}
+
+/// The fastest fixed configuration that *measured* meets `target`: the configurations whose fit meets it, in order
+/// of predicted time, at most [`SEARCH_CONFIGS`] of them; each rendered (`render(config, spp, first render of the
+/// search)`) at its fit's spp and, while it misses, again at spp × (measured / target)² × 1.1 (at most
+/// [`SEARCH_TRIES`] renders, [`MAX_SPP`]). A configuration whose predicted time is over the best measured CPU time
+/// so far is not rendered. Returns the first render (the fits' pick, as the study reported before) and the search.
+fn fastest_measured(
+    fits: &[Fit],
+    target: f64,
+    mut render: impl FnMut(Config, u32, bool) -> Result<Measured, StudyError>,
+) -> Result<(Option<Measured>, Search), StudyError> {
+    let mut order: Vec<(&Fit, u32, f64)> = fits
+        .iter()
+        .filter_map(|f| f.spp_for(target).map(|n| (f, n, f.predicted_seconds(n))))
+        .collect();
+    order.sort_by(|a, b| a.2.total_cmp(&b.2));
+    let mut search = Search::default();
+    for &(fit, spp, predicted) in order.iter().take(SEARCH_CONFIGS) {
+        if search.best().is_some_and(|b| predicted > b.cpu_seconds) {
+            break;
+        }
+        let mut spp = spp;
+        for _ in 0..SEARCH_TRIES {
+            let m = render(fit.config, spp, search.renders.is_empty())?;
+            let (met, err) = (m.rel_rmse <= target, m.rel_rmse);
+            search.renders.push(m);
+            let i = search.renders.len() - 1;
+            if met {
+                if search
+                    .best()
+                    .is_none_or(|b| search.renders[i].cpu_seconds < b.cpu_seconds)
+                {
+                    search.best = Some(i);
+                }
+                break;
+            }
+            let raised = (f64::from(spp) * (err / target).powi(2) * 1.1).ceil();
+            if spp >= MAX_SPP
+                || search.best().is_some_and(|b| {
+                    fit.predicted_seconds(raised.min(f64::from(MAX_SPP)) as u32) > PRUNE * b.seconds
+                })
+            {
+                break;
+            }
+            spp = (raised as u32).clamp(spp + 1, MAX_SPP);
+        }
+    }
+    Ok((search.renders.first().cloned(), search))
+}
+
+fn study_scene(path: &Path, config: &AutoStudyConfig) -> Result<Vec<Row>, StudyError> {
     let (text, scene) = load_scene(path, Some(config.resolution))?;
     let spec_for = |curves: CurveKind| -> Result<Frame, StudyError> {
         let mut spec = scene.resolve()?;
@@ -468,44 +565,45 @@ fn study_scene(path: &Path, config: &AutoStudyConfig) -> Result<SceneRows, Study
     for &target in &config.targets {
         let t = f64::from(target);
         progress.set_message(format!("target {target}"));
-        let measure_fixed = |fit: &Fit, what: &str| -> Result<Option<Measured>, StudyError> {
-            progress.inc(1);
-            let Some(spp) = fit.spp_for(t) else {
-                return Ok(None);
-            };
+        // The fastest fixed configuration by the fits (a lower bound where it misses), then the fastest that
+        // measured meets the target (see [`fastest_measured`]); the first render of the second is the first.
+        let render_fixed = |config: Config, spp: u32, what: &str| -> Result<Measured, StudyError> {
             let mut s = base.clone();
-            s.shadows.mode = fit.config.shadows;
-            s.integrator.path_length = fit.config.path_length;
+            s.shadows.mode = config.shadows;
+            s.integrator.path_length = config.path_length;
             s.film.spp = spp;
             let cpu = cpu_seconds();
-            let (image, seconds) = render(frame_of(fit.config.curves), &s);
+            let (image, seconds) = render(frame_of(config.curves), &s);
             let cpu_seconds = cpu_seconds() - cpu;
-            Ok(Some(Measured {
+            Ok(Measured {
                 what: what.into(),
-                settings: fit.config.name(),
+                settings: config.name(),
                 spp,
                 seconds,
                 rel_rmse: rel_rmse(&image, &reference_image)?,
                 pilot_seconds: 0.0,
                 cpu_seconds,
-            }))
+            })
         };
-        let fastest = fits
-            .iter()
-            .filter_map(|f| f.spp_for(t).map(|n| (f, f.predicted_seconds(n))))
-            .min_by(|a, b| a.1.total_cmp(&b.1))
-            .map(|(f, _)| *f);
-        let fastest = match fastest {
-            Some(f) => measure_fixed(&f, "fastest fixed")?,
-            None => None,
-        };
+        progress.inc(1);
+        let (fastest, measured_fastest) = fastest_measured(&fits, t, |config, spp, first| {
+            render_fixed(
+                config,
+                spp,
+                if first {
+                    "fastest fixed"
+                } else {
+                    "fixed search"
+                },
+            )
+        })?;
+        progress.inc(1);
         let shipped = fits
             .iter()
             .find(|f| f.config == shipped_config)
-            .copied()
-            .map(|f| measure_fixed(&f, "shipped"))
-            .transpose()?
-            .flatten();
+            .and_then(|f| f.spp_for(t).map(|spp| (f.config, spp)))
+            .map(|(config, spp)| render_fixed(config, spp, "shipped"))
+            .transpose()?;
 
         // Auto, timed from the curve decision to the last pixel; with its margins and with bare point estimates.
         let auto_with = |margins: quality::Margins, what: &str| -> Result<Measured, StudyError> {
@@ -556,8 +654,96 @@ fn study_scene(path: &Path, config: &AutoStudyConfig) -> Result<SceneRows, Study
         };
         let auto = auto_with(quality::Margins::DEFAULT, "auto")?;
         let point = auto_with(quality::Margins::POINT, "auto point estimates")?;
-        rows.push((target, auto, point, fastest, shipped));
+        rows.push(Row {
+            target,
+            auto,
+            point,
+            fastest,
+            measured_fastest,
+            shipped,
+        });
     }
     progress.finish_and_clear();
     Ok(rows)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn fit(path_length: u32, bias2: f64, variance: f64, seconds_per_spp: f64) -> Fit {
+        Fit {
+            config: Config {
+                curves: CurveKind::Flat,
+                shadows: ShadowMode::Raytraced,
+                path_length,
+            },
+            bias2,
+            variance,
+            seconds_per_spp,
+            setup_seconds: 0.0,
+        }
+    }
+
+    /// A "render" whose error is √(b² + v'/spp) with the true variance v' of each path length (the fits may be
+    /// wrong), and whose time is its fit's prediction.
+    fn renderer(
+        truth: &[(u32, f64, f64, f64)],
+    ) -> impl FnMut(Config, u32, bool) -> Result<Measured, StudyError> + '_ {
+        move |config, spp, first| {
+            let &(_, b2, v, s) = truth
+                .iter()
+                .find(|t| t.0 == config.path_length)
+                .expect("known path length");
+            let seconds = s * f64::from(spp);
+            Ok(Measured {
+                what: if first {
+                    "fastest fixed"
+                } else {
+                    "fixed search"
+                }
+                .into(),
+                settings: config.name(),
+                spp,
+                seconds,
+                rel_rmse: (b2 + v / f64::from(spp)).sqrt(),
+                pilot_seconds: 0.0,
+                cpu_seconds: seconds,
+            })
+        }
+    }
+
+    #[test]
+    fn the_measured_search_raises_a_fit_that_missed_and_keeps_the_fastest_that_met() {
+        let target = 0.1;
+        // Path 1's fit says 0.04 / 0.1² = 4 spp, but its true variance is 4x: it misses, then meets when raised.
+        // Path 2's fit is right but slower per sample.
+        let fits = [fit(1, 0.0, 0.04, 0.1), fit(2, 0.0, 0.05, 0.1)];
+        let truth = [(1, 0.0, 0.16, 0.1), (2, 0.0, 0.05, 0.1)];
+        let (first, search) =
+            fastest_measured(&fits, target, renderer(&truth)).expect("renders succeed");
+        let first = first.expect("a configuration meets the target by its fit");
+        assert_eq!(
+            (first.settings.as_str(), first.spp),
+            ("flat rays path 1", 4)
+        );
+        assert!(first.rel_rmse > target, "the fit's pick misses: {first:?}");
+        let best = search.best().expect("one met the target");
+        assert!(best.rel_rmse <= target, "{best:?}");
+        // Raised to 4 × (0.2 / 0.1)² × 1.1 = 18 spp: 1.8 s, against path 2's 5 spp, 0.5 s: path 2 is the best.
+        assert_eq!(search.renders[1].spp, 18, "{:?}", search.renders);
+        assert_eq!((best.settings.as_str(), best.spp), ("flat rays path 2", 5));
+        assert!(search.renders.len() <= SEARCH_CONFIGS * SEARCH_TRIES);
+    }
+
+    #[test]
+    fn the_measured_search_reports_none_when_a_bias_keeps_every_render_over_the_target() {
+        // The fit sees no bias; the truth has one over the target: every try misses, up to the bound.
+        let fits = [fit(0, 0.0, 0.04, 0.01)];
+        let truth = [(0, 0.02, 0.04, 0.01)];
+        let (first, search) = fastest_measured(&fits, 0.1, renderer(&truth)).unwrap();
+        assert!(first.is_some());
+        assert!(search.best().is_none(), "{:?}", search.renders);
+        assert_eq!(search.renders.len(), SEARCH_TRIES);
+    }
 }

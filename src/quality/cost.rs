@@ -1,0 +1,120 @@
+//! A deterministic cost model: the predicted CPU time of a render from its ray counts, so that auto can compare
+//! configurations by what they cost without reading the clock (its decisions stay the same for any thread count
+//! and load).
+//!
+//! Rays of different kinds cost different amounts: a camera ray that misses the hair is cheap, a shadow ray with
+//! exact transmittance traverses the whole fur, and every light or material sample at a vertex also evaluates the
+//! BSDF and the MIS densities. Counting rays alone made a (1 light, 4 material) candidate look 1.3× as costly as
+//! (1, 1) per camera sample on the default scene where it measured 1.4–1.8× (`docs/study/auto/README.md`), and
+//! auto picked it. The weights here are seconds per ray of each kind, *including* the shading work that comes
+//! with the ray, fitted by least squares to the CPU time of the pixel loop (one thread) over 4 ray-count
+//! regressors; see [`WEIGHTS`] for the measurement.
+
+use crate::render::integrator::RayCounts;
+
+/// Seconds per ray (or map lookup) of each kind, shading included.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CostWeights {
+    /// Per camera ray (the sample's setup, the first hit, or the background).
+    pub camera: f64,
+    /// Per shadow ray of a light sample (with the light sample and BSDF evaluation it serves).
+    pub shadow: f64,
+    /// Per material-sample or continuation ray (with the BSDF sample and the vertex it finds).
+    pub material: f64,
+    /// Per deep-opacity-map lookup made instead of a shadow ray (with its light sample and BSDF evaluation).
+    pub map_lookup: f64,
+}
+
+/// The weights auto uses. Measured on this machine class (2-core AMD EPYC VM, x86-64-v3 release build, one thread,
+/// the machine loaded by other work: read them as ratios, camera 1 : shadow 3.6 : material 3.7 : lookup 1.8) by
+/// `cargo test --release --test quality calibrate_cost_model -- --ignored --nocapture`: the CPU time of the pixel
+/// loop of the default scene at 128², 4 spp, round and flat curves × ray-traced and deep-opacity shadows × path
+/// length 0–3 × the four light/material candidates (81 renders of 0.1–0.8 s), fitted by least squares over the
+/// four ray counts; the fit is within −16 % and +42 % of every render, within ±20 % of 72 of them (the CSV is
+/// `docs/study/auto/cost-calibration.csv`). Round curves cost ~15 % more per ray than flat; one set of weights
+/// serves both, as the candidates compared are always on the same curves.
+pub const WEIGHTS: CostWeights = CostWeights {
+    camera: 0.92e-6,
+    shadow: 3.34e-6,
+    material: 3.42e-6,
+    map_lookup: 1.66e-6,
+};
+
+impl CostWeights {
+    /// The predicted CPU seconds of a render that traced `rays`.
+    pub fn seconds(&self, rays: &RayCounts) -> f64 {
+        self.camera * rays.camera as f64
+            + self.shadow * rays.shadow as f64
+            + self.material * rays.material as f64
+            + self.map_lookup * rays.map_lookups as f64
+    }
+}
+
+/// The inverse efficiency of a sampling configuration: the relative MSE of one estimate times its predicted cost
+/// (the cost of reaching a given noise, as the noise falls as 1 / cost). Smaller is better.
+pub fn inverse_efficiency(rel_mse: f64, rays: &RayCounts, weights: &CostWeights) -> f64 {
+    rel_mse * weights.seconds(rays)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn counts(camera: u64, shadow: u64, material: u64) -> RayCounts {
+        RayCounts {
+            camera,
+            shadow,
+            material,
+            ..RayCounts::default()
+        }
+    }
+
+    #[test]
+    fn a_four_sample_candidate_at_equal_rel_mse_times_rays_ranks_below_one_sample_when_its_rays_cost_more(
+    ) {
+        // The default scene's rays at path 3, 4 spp, 128² (docs/study/auto/cost-calibration.csv): (1 light,
+        // 1 material) and (1, 4). The extra rays of (1, 4) are material rays, which cost more than the camera rays
+        // that make up half of (1, 1)'s. Its relMSE is set so that relMSE × rays ties (as the default scene's
+        // pilots nearly did: 2.45e-2 × 7608 against 1.88e-2 × 9862), which counting rays broke towards (1, 4).
+        let one = counts(81920, 55658, 35581);
+        let four = counts(81920, 55686, 95840);
+        let e1 = 2.45e-2;
+        let e4 = e1 * one.total() as f64 / four.total() as f64;
+        let (c1, c4) = (
+            inverse_efficiency(e1, &one, &WEIGHTS),
+            inverse_efficiency(e4, &four, &WEIGHTS),
+        );
+        assert!(c4 > 1.05 * c1, "(1, 4) {c4:.3e} against (1, 1) {c1:.3e}");
+        // With every kind weighted alike the model is relMSE × rays again, and the two tie.
+        let alike = CostWeights {
+            camera: 1.0,
+            shadow: 1.0,
+            material: 1.0,
+            map_lookup: 1.0,
+        };
+        let (a1, a4) = (
+            inverse_efficiency(e1, &one, &alike),
+            inverse_efficiency(e4, &four, &alike),
+        );
+        assert!((a1 - a4).abs() < 1e-9 * a1, "{a1} {a4}");
+    }
+
+    #[test]
+    fn the_weights_predict_the_measured_cpu_time_of_each_candidate_on_the_default_scene() {
+        // docs/study/auto/cost-calibration.csv, flat, ray-traced shadows, path 2, 4 spp at 128²: (1, 1) 0.37 s
+        // CPU, (1, 4) 0.49 s, (4, 1) 0.57 s, (4, 4) 0.71 s.
+        let measured = [
+            (counts(81920, 54613, 34536), 0.37),
+            (counts(81920, 54629, 94783), 0.49),
+            (counts(81920, 114844, 34536), 0.57),
+            (counts(81920, 114860, 94783), 0.71),
+        ];
+        for (rays, seconds) in measured {
+            let predicted = WEIGHTS.seconds(&rays);
+            assert!(
+                (predicted / seconds - 1.0).abs() < 0.25,
+                "{rays:?}: predicted {predicted:.3} s, measured {seconds} s"
+            );
+        }
+    }
+}
