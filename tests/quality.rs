@@ -347,6 +347,7 @@ fn the_image_rule_meets_the_target_with_fewer_samples_than_the_per_pixel_rule_an
         max: spp * 4,
         target: 0.75f64.sqrt() * f64::from(LOOSE),
         rule: Rule::Pixel,
+        cost: None,
     };
     let measure = |schedule: Schedule| {
         let mut settings = planned.settings.clone();

@@ -12,18 +12,8 @@
 
 use crate::render::integrator::RayCounts;
 
-/// Seconds per ray (or map lookup) of each kind, shading included.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct CostWeights {
-    /// Per camera ray (the sample's setup, the first hit, or the background).
-    pub camera: f64,
-    /// Per shadow ray of a light sample (with the light sample and BSDF evaluation it serves).
-    pub shadow: f64,
-    /// Per material-sample or continuation ray (with the BSDF sample and the vertex it finds).
-    pub material: f64,
-    /// Per deep-opacity-map lookup made instead of a shadow ray (with its light sample and BSDF evaluation).
-    pub map_lookup: f64,
-}
+/// Seconds per ray (or map lookup) of each kind, shading included (the type lives with the ray counts it weighs).
+pub use crate::render::integrator::RayCost as CostWeights;
 
 /// The weights auto uses. Measured on this machine class (2-core AMD EPYC VM, x86-64-v3 release build, one thread,
 /// the machine loaded by other work: read them as ratios, camera 1 : shadow 3.6 : material 3.7 : lookup 1.8) by
@@ -39,16 +29,6 @@ pub const WEIGHTS: CostWeights = CostWeights {
     material: 3.42e-6,
     map_lookup: 1.66e-6,
 };
-
-impl CostWeights {
-    /// The predicted CPU seconds of a render that traced `rays`.
-    pub fn seconds(&self, rays: &RayCounts) -> f64 {
-        self.camera * rays.camera as f64
-            + self.shadow * rays.shadow as f64
-            + self.material * rays.material as f64
-            + self.map_lookup * rays.map_lookups as f64
-    }
-}
 
 /// The inverse efficiency of a sampling configuration: the relative MSE of one estimate times its predicted cost
 /// (the cost of reaching a given noise, as the noise falls as 1 / cost). Smaller is better.

@@ -442,6 +442,7 @@ pub fn adaptive_schedule(
         max,
         target: noise_share * noise,
         rule: crate::render::adaptive::Rule::Image,
+        cost: Some(cost::WEIGHTS),
     }
 }
 
@@ -507,10 +508,10 @@ pub fn plan_frame_with(
             key: "adaptive sampling",
             value: format!("{}..{} spp per pixel", schedule.min, schedule.max),
             reason: format!(
-                "every pixel takes {} samples, then rounds give samples in proportion to each pixel's relative \
-                 standard deviation (the fewest samples for a given image error) until the image's estimated \
-                 noise is under {:.4} = {} × the noise budget {:.4}, from a quarter to 8× the \
-                 pilots' {} spp (the spp AOV shows each pixel's)",
+                "every pixel takes {} samples, then rounds give samples in proportion to √(v/c), each pixel's \
+                 relative variance v per sample over its predicted cost c per sample (the least predicted time for \
+                 a given image error) until the image's estimated noise is under {:.4} = {} × the noise budget \
+                 {:.4}, from a quarter to 8× the pilots' {} spp (the spp AOV shows each pixel's)",
                 schedule.min, schedule.target, margins.noise_share, p.noise_budget, p.spp
             ),
         });

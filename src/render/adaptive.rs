@@ -11,7 +11,11 @@
 //! round boundary, if the estimate is over target², the samples go where they buy the most: minimising Σ v / n
 //! for a given Σ n gives n ∝ √v (a Lagrange multiplier), so each pixel's goal is n* = √v · Σ √v / (target² · N)
 //! (water-filled: pixels at `max`, or already past their goal, are held and the rest share what is left of the
-//! budget). A round takes every pixel to its goal, at most doubling its count (its v is re-estimated from more
+//! budget). With a cost model ([`Schedule::cost`], what `--quality auto` sets) the samples are weighed by what they
+//! cost: a pixel's c is the mean predicted CPU time of its samples (from the rays each traced, weighed per kind,
+//! never the clock), and minimising the cost Σ c n for the same Σ v / n gives n ∝ √(v/c), goal
+//! n* = √(v/c) · Σ √(v c) / (target² · N). A pixel of the fur's edge, noisy and cheap (many of its camera rays miss),
+//! then gets more of the samples, and one deep in the fur, where every sample traces a full path, fewer. A round takes every pixel to its goal, at most doubling its count (its v is re-estimated from more
 //! samples before it grows further). The region is done when the estimate meets the budget or no pixel may grow.
 //!
 //! Against the per-pixel rule ([`Rule::Pixel`]) this spends nothing on pixels whose error is already small
@@ -39,7 +43,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::film::{PixelSums, Tile};
-use super::integrator::{PathSample, RayCounts};
+use super::integrator::{PathSample, RayCost, RayCounts};
 use super::Region;
 
 /// Mean and variance accumulators of one pixel's beauty (Welford's update, in f64 for long runs).
@@ -48,6 +52,9 @@ pub struct Convergence {
     n: u32,
     mean: [f64; 3],
     m2: [f64; 3],
+    /// Predicted CPU seconds of the pixel's samples ([`Schedule::cost`]), and how many samples they are.
+    cost: f64,
+    costed: u32,
 }
 
 impl Convergence {
@@ -67,6 +74,18 @@ impl Convergence {
     /// Samples added.
     pub fn count(&self) -> u32 {
         self.n
+    }
+
+    /// Adds one sample's predicted cost in seconds (every sample taken, finite or not).
+    #[inline]
+    pub fn add_cost(&mut self, seconds: f64) {
+        self.cost += seconds;
+        self.costed += 1;
+    }
+
+    /// The pixel's mean predicted cost per sample, if its samples' costs were recorded.
+    pub fn mean_cost(&self) -> Option<f64> {
+        (self.costed > 0 && self.cost > 0.0).then(|| self.cost / f64::from(self.costed))
     }
 
     /// The estimated relative error of the pixel's mean (see the module docs), with the variance at its 95 % upper
@@ -132,6 +151,10 @@ pub struct Schedule {
     pub target: f64,
     /// What the target is tested on.
     pub rule: Rule,
+    /// [`Rule::Image`] with a cost model: each pixel's samples are weighed by their predicted cost (from the rays
+    /// they traced, never the clock), and the samples go where they buy the most error per second instead of per
+    /// sample (module docs). `None`: every sample costs the same.
+    pub cost: Option<RayCost>,
 }
 
 /// Each pixel's relative variance v, raised to the mean of its 3×3 neighbourhood (inside the region, `width`
@@ -210,9 +233,15 @@ impl Schedule {
         }
         let count = taken.len() as f64;
         let v = smoothed_variances(width, pixels);
+        // Each pixel's cost per sample, if every pixel's was recorded; otherwise all equal.
+        let c: Vec<f64> = pixels
+            .iter()
+            .map(Convergence::mean_cost)
+            .collect::<Option<Vec<f64>>>()
+            .unwrap_or_else(|| vec![1.0; pixels.len()]);
         let max = f64::from(self.max);
         // Water-filling: `held` pixels keep a fixed count (at max, or already past their goal); the others share
-        // the budget left by the held ones, n* = √v · Σ√v / room.
+        // the budget left by the held ones, n* = √(v/c) · Σ√(v c) / room (with c = 1: √v · Σ√v / room).
         let mut held: Vec<Option<f64>> = taken
             .iter()
             .map(|&n| (n >= self.max).then_some(max))
@@ -223,7 +252,7 @@ impl Schedule {
             for (i, h) in held.iter().enumerate() {
                 match h {
                     Some(n) => held_mse += v[i] / n,
-                    None => root_sum += v[i].sqrt(),
+                    None => root_sum += (v[i] * c[i]).sqrt(),
                 }
             }
             let room = budget * count - held_mse;
@@ -233,7 +262,7 @@ impl Schedule {
                     continue;
                 }
                 let g = if room > 0.0 {
-                    v[i].sqrt() * root_sum / room
+                    (v[i] / c[i]).sqrt() * root_sum / room
                 } else {
                     max
                 };
@@ -289,6 +318,7 @@ impl Work {
     fn grow(
         &mut self,
         goal: impl Fn(u32, u32) -> u32,
+        cost: Option<RayCost>,
         sample: &(impl Fn(u32, u32, u32, &mut RayCounts) -> PathSample + Sync),
     ) {
         let t = &self.tile;
@@ -299,7 +329,11 @@ impl Work {
                 k += 1;
                 let g = goal(x, y);
                 while p.taken < g {
+                    let before = self.counts;
                     let s = sample(x, y, p.taken, &mut self.counts);
+                    if let Some(cost) = &cost {
+                        p.stats.add_cost(cost.seconds(&self.counts.since(&before)));
+                    }
                     if s.beauty.is_finite() {
                         p.stats.add(s.beauty);
                     }
@@ -340,7 +374,7 @@ pub(super) fn render_rounds(
                 pixels: (0..n).map(|_| Pixel::default()).collect(),
                 counts: RayCounts::default(),
             };
-            w.grow(|_, _| schedule.min, sample);
+            w.grow(|_, _| schedule.min, schedule.cost, sample);
             progress.inc(1);
             Some(w)
         })
@@ -370,7 +404,7 @@ pub(super) fn render_rounds(
         progress.set_prefix(format!("round {}", round + 1));
         progress.set_length(progress.length().unwrap_or(0) + tiles.len() as u64);
         work.par_iter_mut().for_each(|w| {
-            w.grow(|x, y| next[index(x, y)], sample);
+            w.grow(|x, y| next[index(x, y)], schedule.cost, sample);
             progress.inc(1);
         });
     }
@@ -451,6 +485,7 @@ mod tests {
             max: 1024,
             target: 0.02,
             rule: Rule::Pixel,
+            cost: None,
         };
         let background = run(schedule, || Vec3::ZERO);
         assert_eq!(background.count(), 8);
@@ -532,6 +567,7 @@ mod tests {
                 max,
                 target,
                 rule: Rule::Image,
+                cost: None,
             },
             600,
             |p| draw(&mut s, p),
@@ -543,6 +579,7 @@ mod tests {
             max,
             target,
             rule: Rule::Pixel,
+            cost: None,
         };
         let mut s = 5u64;
         let pixel_stats: Vec<Convergence> = (0..600)
@@ -573,6 +610,43 @@ mod tests {
         assert!(mean_count(2) > 4.0 * mean_count(1));
     }
 
+    /// With a cost model, of two pixels equally noisy the one whose samples cost 16× less gets more samples
+    /// (its goal is √(v/c) · Σ√(v c) / room: 4× the other's before the caps); without one, or with equal costs,
+    /// they get the same.
+    #[test]
+    fn cheaper_pixels_get_more_samples_under_a_cost_model() {
+        let mut stats = Convergence::default();
+        let mut state = 3u64;
+        for _ in 0..8 {
+            let x = lcg(&mut state);
+            stats.add(Vec3::splat(x));
+        }
+        let with_costs = |c0: f64, c1: f64| {
+            let mut p = [stats, stats];
+            for _ in 0..8 {
+                p[0].add_cost(c0);
+                p[1].add_cost(c1);
+            }
+            p
+        };
+        let schedule = Schedule {
+            min: 8,
+            max: 1 << 16,
+            // Without costs each goal is v / target² = 11.5 (12 whole samples), under the round's cap of 16.
+            target: (stats.relative_variance() / 11.5).sqrt(),
+            rule: Rule::Image,
+            cost: None,
+        };
+        let next = |p: &[Convergence]| schedule.next_round(0, 2, &[8, 8], p).expect("grows");
+        let plain = next(&[stats, stats]);
+        assert_eq!(plain, vec![12, 12]);
+        assert_eq!(next(&with_costs(2e-6, 2e-6)), plain);
+        let costed = next(&with_costs(1e-6, 16e-6));
+        println!("no cost model {plain:?}, costs 1 : 16 {costed:?}");
+        // Goals 28.8 and 7.2: the costly pixel is held at its 8, the cheap one takes the round's cap.
+        assert_eq!(costed, vec![16, 8]);
+    }
+
     /// The decision reads the pixels' statistics in their order only: the same inputs give the same goals, and
     /// a region already under its budget is done.
     #[test]
@@ -591,6 +665,7 @@ mod tests {
             max: 64,
             target,
             rule: Rule::Image,
+            cost: None,
         };
         assert_eq!(at(1.01 * e).next_round(0, 50, &taken, &stats), None);
         let next = at(0.5 * e).next_round(0, 50, &taken, &stats).unwrap();
@@ -611,6 +686,7 @@ mod tests {
             max: 1024,
             target: 0.02,
             rule: Rule::Pixel,
+            cost: None,
         };
         let mut s = 2u64;
         let (mut early, mut to_max) = (0, 0);
@@ -643,6 +719,7 @@ mod tests {
             max: 4096,
             target,
             rule: Rule::Pixel,
+            cost: None,
         };
         let mut s = 11u64;
         let (mut e2, mut pixels) = (0.0f64, 0usize);

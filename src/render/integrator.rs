@@ -107,9 +107,46 @@ impl RayCounts {
         self.map_lookups += o.map_lookups;
     }
 
+    /// The rays counted since `earlier`, an earlier reading of the same counters.
+    pub fn since(&self, earlier: &RayCounts) -> RayCounts {
+        RayCounts {
+            camera: self.camera - earlier.camera,
+            shadow: self.shadow - earlier.shadow,
+            material: self.material - earlier.material,
+            rejected: self.rejected - earlier.rejected,
+            map_lookups: self.map_lookups - earlier.map_lookups,
+        }
+    }
+
     /// Every ray traced.
     pub fn total(&self) -> u64 {
         self.camera + self.shadow + self.material
+    }
+}
+
+/// Predicted seconds per ray (or map lookup) of each kind, the shading that comes with it included: a deterministic
+/// cost model, so that decisions weighed by cost (adaptive sampling, `--quality auto`) never read the clock and are
+/// the same for any thread count and load. The measured weights and how they were fitted are
+/// `crate::quality::cost::WEIGHTS`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RayCost {
+    /// Per camera ray (the sample's setup, the first hit, or the background).
+    pub camera: f64,
+    /// Per shadow ray of a light sample (with the light sample and BSDF evaluation it serves).
+    pub shadow: f64,
+    /// Per material-sample or continuation ray (with the BSDF sample and the vertex it finds).
+    pub material: f64,
+    /// Per deep-opacity-map lookup made instead of a shadow ray (with its light sample and BSDF evaluation).
+    pub map_lookup: f64,
+}
+
+impl RayCost {
+    /// The predicted CPU seconds of the work that traced `rays`.
+    pub fn seconds(&self, rays: &RayCounts) -> f64 {
+        self.camera * rays.camera as f64
+            + self.shadow * rays.shadow as f64
+            + self.material * rays.material as f64
+            + self.map_lookup * rays.map_lookups as f64
     }
 }
 
