@@ -231,6 +231,12 @@ pub fn preload() {
     oiio::preload();
 }
 
+/// Waits for the background load [`preload`] started, if any: call before the process exits (a process that exits
+/// while a library is being loaded can die of a signal).
+pub fn finish_preload() {
+    oiio::finish_preload();
+}
+
 /// Writes `image` to `path`, atomically and verified (see the [module docs](self)), in the format its extension
 /// names (case-insensitive):
 ///

@@ -347,7 +347,6 @@ fn load_scene(path: Option<&Path>) -> Result<Scene> {
 }
 
 fn render_command(args: RenderArgs) -> Result<()> {
-    cuticle::image::preload();
     if args.spp == Some(0) {
         bail!("--spp must be at least 1");
     }
@@ -399,6 +398,8 @@ fn render_command(args: RenderArgs) -> Result<()> {
         .transpose()
         .map_err(anyhow::Error::msg)?;
     let pool = thread_pool(threads)?;
+    // The scene and outputs are valid: load OpenImageIO while the hair loads and the BVH builds.
+    cuticle::image::preload();
     let spec = scene.resolve()?;
     let (limit, limit_source) = match args.max_memory {
         Some(bytes) => (bytes, "--max-memory".to_owned()),
@@ -1077,7 +1078,10 @@ fn main() -> ExitCode {
         );
         return ExitCode::from(2);
     }
-    match run() {
+    let result = run();
+    // No exit while OpenImageIO is still being loaded in the background (image::finish_preload says why).
+    cuticle::image::finish_preload();
+    match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!(

@@ -180,12 +180,31 @@ mod ffi {
     }
 }
 
+/// The background load [`preload`] started, if any, for [`finish_preload`].
+static PRELOADING: std::sync::Mutex<Option<std::thread::JoinHandle<()>>> =
+    std::sync::Mutex::new(None);
+
 /// Starts loading OpenImageIO on a background thread, for a command that will read or write an image after other
-/// work: the load then overlaps that work. Errors surface at the first image call.
+/// work: the load then overlaps that work. Errors surface at the first image call. The process must call
+/// [`finish_preload`] before it exits.
 pub fn preload() {
-    std::thread::spawn(|| {
+    let handle = std::thread::spawn(|| {
         let _ = ffi::api();
     });
+    if let Ok(mut slot) = PRELOADING.lock() {
+        *slot = Some(handle);
+    }
+}
+
+/// Waits for a load [`preload`] started. A process must not exit while another thread is inside `dlopen`: exit
+/// runs the static destructors of the libraries loaded so far while the loader runs the initialisers of the next,
+/// and the process can die of a signal instead of exiting with its code (seen: a `render` refused for its memory
+/// estimate, exit status 2, ended by a signal once in a CI run).
+pub fn finish_preload() {
+    let handle = PRELOADING.lock().ok().and_then(|mut slot| slot.take());
+    if let Some(handle) = handle {
+        let _ = handle.join();
+    }
 }
 
 /// Bytes reserved for an error message from the shim (longer ones are truncated).
