@@ -8,7 +8,8 @@
 //! program linked against Embree starts in 0.01 s, against Embree and OpenImageIO in 0.54–0.57 s). The cuticle
 //! binary therefore does not link OpenImageIO: the shim's bytes are embedded in it and loaded with `dlopen`
 //! ([`ffi::api`]) the first time an image is read or written, and `render` starts that load on a background thread
-//! ([`preload`]) so that it overlaps the hair loading, the BVH build and the render instead of preceding them. This module checks every length and string before it reaches C++,
+//! ([`preload`]) so that it overlaps the hair loading, the BVH build and the render instead of preceding them, and
+//! waits for it before the process exits ([`finish_preload`]). This module checks every length and string before it reaches C++,
 //! so the functions it exposes are safe. Errors come back as [`OiioError`] holding OpenImageIO's
 //! own message; [`crate::image`] adds the file name.
 
