@@ -131,6 +131,13 @@ struct Measured {
     cpu_seconds: f64,
 }
 
+impl Measured {
+    /// Whether the render's measured relative RMSE meets `target`.
+    fn meets(&self, target: f64) -> bool {
+        self.rel_rmse <= target
+    }
+}
+
 /// The process's CPU time so far (user + system, all threads), seconds, from `/proc/self/stat` (Linux; clock
 /// ticks of 1/100 s, the fixed USER_HZ of that interface); 0 where it cannot be read.
 fn cpu_seconds() -> f64 {
@@ -224,7 +231,7 @@ pub fn run(config: &AutoStudyConfig) -> Result<String, StudyError> {
                     m.spp,
                     m.seconds,
                     m.rel_rmse,
-                    m.rel_rmse <= f64::from(target),
+                    m.meets(f64::from(target)),
                     m.cpu_seconds
                 );
             }
@@ -242,6 +249,13 @@ pub fn run(config: &AutoStudyConfig) -> Result<String, StudyError> {
                     )
                 })
             };
+            let verdict = |m: &Measured| {
+                if m.meets(f64::from(target)) {
+                    "yes"
+                } else {
+                    "**no**"
+                }
+            };
             let described = |m: &Option<Measured>, none: &str| {
                 m.as_ref().map_or(none.to_string(), |m| {
                     format!("{}, {} spp ({:.4})", m.settings, m.spp, m.rel_rmse)
@@ -250,11 +264,7 @@ pub fn run(config: &AutoStudyConfig) -> Result<String, StudyError> {
             let _ = writeln!(
                 md,
                 "| {name} | {target} | {} ({:.4}) | {:.2} ({:.2}) | {:.2} ({:.0} %) | {}, {} spp | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} ({:.4}), {:.2} |",
-                if auto.rel_rmse <= f64::from(target) {
-                    "yes"
-                } else {
-                    "**no**"
-                },
+                verdict(&auto),
                 auto.rel_rmse,
                 auto.seconds,
                 auto.cpu_seconds,
@@ -271,11 +281,7 @@ pub fn run(config: &AutoStudyConfig) -> Result<String, StudyError> {
                 measured_fastest.renders.len(),
                 fmt_s(&shipped),
                 ratio(&shipped),
-                if point.rel_rmse <= f64::from(target) {
-                    "yes"
-                } else {
-                    "**no**"
-                },
+                verdict(&point),
                 point.rel_rmse,
                 point.seconds,
             );
@@ -450,7 +456,7 @@ fn fastest_measured(
         let mut spp = spp;
         for _ in 0..SEARCH_TRIES {
             let m = render(fit.config, spp, search.renders.is_empty())?;
-            let (met, err) = (m.rel_rmse <= target, m.rel_rmse);
+            let (met, err) = (m.meets(target), m.rel_rmse);
             search.renders.push(m);
             let i = search.renders.len() - 1;
             if met {
