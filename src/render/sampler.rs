@@ -183,18 +183,6 @@ impl<'s> CameraSample<'s> {
         }
     }
 
-    /// The pixel's sampler (for keys and the reads the cache does not hold).
-    #[inline]
-    pub fn sampler(&self) -> &'s PixelSampler {
-        self.sampler
-    }
-
-    /// The camera sample's index in the pixel.
-    #[inline]
-    pub fn index(&self) -> u32 {
-        self.index
-    }
-
     /// [`PixelSampler::get_salted`], from the kept sets when the read is of this sample, unsalted, in the first
     /// [`CACHED_SETS`] sets and in the first Sobol block.
     #[inline]
