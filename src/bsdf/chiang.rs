@@ -95,9 +95,11 @@ use super::frame::{atan2, phi as azimuth, wrap_phi, COS_THETA_MIN};
 use super::fresnel::dielectric;
 use super::{check, check_color, Bsdf, BsdfError, BsdfSample, Lobe, LobeValues, Sampling};
 use crate::util::color::luminance;
+use crate::util::lanes::{exp_f32x4, exp_f64x4};
 use crate::util::sampling::{uniform_sphere, UNIFORM_SPHERE_PDF};
 use glam::Vec3;
 use std::f32::consts::{FRAC_PI_8, PI, TAU};
+use wide::{f32x4, f64x4, CmpLe};
 
 /// The highest scattering order with its own lobe; [`P_MAX`] itself stands for every p ≥ 3.
 pub const P_MAX: usize = 3;
@@ -390,23 +392,16 @@ impl Longitudinal {
     }
 
     /// M_p(θi, θo′) (d'Eon et al. 2011) from the sines and cosines (cos θo′ ≥ 0), each pair of unit length in
-    /// f64 ([`unit_pair`]), in log space: exp(ln c + (cos θi cos θo′ − sin θi sin θo′ − 1)/v) · I₀ₑ(cos θi cos θo′/v).
-    /// In f64 and from unit pairs: the exponent is a difference of terms ~1/v, and a pair off unit length by an
-    /// f32 rounding (ε ~ 1e-7) would scale M_p by e^{ε/v}, 0.7 % at βm = 0.01 and a factor e at βm = 1e-3.
-    ///
-    /// One exponential: below [`I0_SWITCH`] the e^{−a} of I₀ₑ(a) cancels the e^{a} of the exponent, so
-    /// M_p = exp(ln c − (sin θi sin θo′ + 1)/v) I₀(a) with the series; above, the asymptotic expansion of I₀ₑ.
+    /// f64 ([`unit_pair`]): [`m_p_lanes`] with one lane.
     #[inline]
-    fn eval(&self, (si, ci): (f64, f64), (so, co): (f64, f64)) -> f64 {
-        let cc = ci * co;
-        let a = cc * self.inv_v;
-        if a <= I0_SWITCH {
-            let e = self.log_norm - (si * so + 1.0) * self.inv_v;
-            e.exp() * (1.0 + i0_series_minus_one(a))
-        } else {
-            let e = self.log_norm + (cc - si * so - 1.0) * self.inv_v;
-            e.exp() * i0e_asymptotic_scaled(a) / (std::f64::consts::TAU * a).sqrt()
-        }
+    fn eval(&self, sc_i: (f64, f64), sc_o: (f64, f64)) -> f64 {
+        m_p_lanes(
+            f64x4::splat(self.inv_v),
+            f64x4::splat(self.log_norm),
+            sc_i,
+            [sc_o; 4],
+        )
+        .to_array()[0]
     }
 
     /// sin θi of a direction drawn from M_p(·, θo′) (d'Eon et al. 2011's sampling): the cosine of the angle t to
@@ -419,9 +414,64 @@ impl Longitudinal {
         // w = cos t − 1 ∈ [−2, 0]; sin t = √(−w (2 + w)) keeps its precision for narrow lobes.
         let w = (self.v * (xi + (1.0 - xi) * self.exp_m2_over_v).ln()).max(-2.0);
         let (cos_t, sin_t) = (1.0 + w, (-w * (2.0 + w)).max(0.0).sqrt());
-        let cos_phi = (std::f64::consts::TAU * u_phi as f64).cos();
+        // The azimuth about the centre in f32 (libm's f64 cos was a tenth of the sampler): it multiplies sin t, so
+        // its rounding moves the direction by ~1e-7 of the lobe's width; f and pdf are taken at the result.
+        let cos_phi = (TAU * u_phi).cos() as f64;
         (-cos_t * sin_o + sin_t * cos_phi * cos_o).clamp(-1.0, 1.0)
     }
+}
+
+/// M_p of N lobes at once, lobe k of variance 1/`inv_v[k]` (normalisation `log_norm[k]`, [`Longitudinal`]) towards
+/// its own (tilted) outgoing direction `sc_o[k]`, for one incident direction `sc_i`; each pair (sin, cos) of unit
+/// length in f64 ([`unit_pair`]), cos ≥ 0. In log space:
+/// exp(ln c + (cos θi cos θo′ − sin θi sin θo′ − 1)/v) · I₀ₑ(cos θi cos θo′/v), in f64: the exponent is a difference
+/// of terms ~1/v, and a pair off unit length by an f32 rounding (ε ~ 1e-7) would scale M_p by e^{ε/v}, 0.7 % at
+/// βm = 0.01 and a factor e at βm = 1e-3.
+///
+/// One exponential per lane: where a = cos θi cos θo′/v ≤ [`I0_SWITCH`] the e^{−a} of I₀ₑ(a) cancels the e^{a} of
+/// the exponent, so M_p = exp(ln c − (sin θi sin θo′ + 1)/v) I₀(a) with the series; above, the asymptotic expansion
+/// of I₀ₑ. Written lane by lane without branches (a lane takes its branch by a select; a polynomial no lane needs is
+/// skipped): Chiang's four lobes go through AVX2 as one f64×4 vector, the exponentials by
+/// [`crate::util::lanes::exp_f64x4`].
+#[inline(always)]
+fn m_p_lanes(inv_v: f64x4, log_norm: f64x4, (si, ci): (f64, f64), sc_o: [(f64, f64); 4]) -> f64x4 {
+    let one = f64x4::splat(1.0);
+    let switch = f64x4::splat(I0_SWITCH);
+    let cc = f64x4::splat(ci) * f64x4::new(sc_o.map(|s| s.1));
+    let ss = f64x4::splat(si) * f64x4::new(sc_o.map(|s| s.0));
+    let a = cc * inv_v;
+    let series = a.cmp_le(switch);
+    let e = exp_f64x4(log_norm + (series.blend(f64x4::ZERO, cc) - ss - one) * inv_v);
+    let small = if series.any() {
+        let a = a.min(switch);
+        let y = f64x4::splat(0.25) * a * a;
+        y.mul_add(estrin32_x4(&I0_SERIES, y), one)
+    } else {
+        f64x4::ZERO
+    };
+    let large = if series.all() {
+        f64x4::ZERO
+    } else {
+        let inv_a = one / a.max(switch);
+        estrin32_x4(&I0_ASYMPTOTIC, inv_a)
+            * (inv_a * f64x4::splat(1.0 / std::f64::consts::TAU)).sqrt()
+    };
+    e * series.blend(small, large)
+}
+
+/// [`estrin32`] in four lanes at once.
+#[inline(always)]
+fn estrin32_x4(c: &[f64; 32], x: f64x4) -> f64x4 {
+    let x2 = x * x;
+    let x4 = x2 * x2;
+    let x8 = x4 * x4;
+    let a: [f64x4; 16] =
+        std::array::from_fn(|i| f64x4::splat(c[2 * i + 1]).mul_add(x, f64x4::splat(c[2 * i])));
+    let b: [f64x4; 8] = std::array::from_fn(|i| a[2 * i + 1].mul_add(x2, a[2 * i]));
+    let d: [f64x4; 4] = std::array::from_fn(|i| b[2 * i + 1].mul_add(x4, b[2 * i]));
+    let e0 = d[1].mul_add(x8, d[0]);
+    let e1 = d[3].mul_add(x8, d[2]);
+    e1.mul_add(x8 * x8, e0)
 }
 
 /// M_p(θi, θo) for variance `v` (d'Eon et al. 2011), from the sines and cosines (cos ≥ 0); normalised so that
@@ -490,6 +540,9 @@ struct Azimuthal {
     inv_s: f32,
     /// 1/(s tanh(π/2s)).
     norm: f32,
+    /// F(−π) = 1/(1 + e^{π/s}) and tanh(π/2s) in f64, for [`Azimuthal::sample`].
+    cdf_lo: f64,
+    tanh_half: f64,
 }
 
 impl Azimuthal {
@@ -498,14 +551,34 @@ impl Azimuthal {
             s,
             inv_s: 1.0 / s,
             norm: 1.0 / (s * (0.5 * PI / s).tanh()),
+            cdf_lo: 1.0 / (1.0 + (std::f64::consts::PI / s as f64).exp()),
+            tanh_half: (0.5 * std::f64::consts::PI / s as f64).tanh(),
         }
+    }
+
+    /// A draw by the inverse CDF ([`sample_trimmed_logistic`], whose constants this keeps).
+    #[inline]
+    fn sample(&self, u: f32) -> f32 {
+        let u = u as f64;
+        let (q, q_c) = (
+            self.cdf_lo + u * self.tanh_half,
+            self.cdf_lo + (1.0 - u) * self.tanh_half,
+        );
+        ((self.s as f64 * (q / q_c).ln()) as f32).clamp(-PI, PI)
     }
 
     /// The density at x ∈ [−π, π] ([`trimmed_logistic`]).
     #[inline]
     fn eval(&self, x: f32) -> f32 {
-        let e = (-x.abs() * self.inv_s).exp();
-        e * self.norm / ((1.0 + e) * (1.0 + e))
+        self.eval_lanes([x; 4])[0]
+    }
+
+    /// [`Azimuthal::eval`] at four points at once (Chiang's three lobes in one f32 vector).
+    #[inline(always)]
+    fn eval_lanes(&self, x: [f32; 4]) -> [f32; 4] {
+        let e = exp_f32x4(-f32x4::new(x).abs() * f32x4::splat(self.inv_s));
+        let e1 = e + f32x4::splat(1.0);
+        (e * f32x4::splat(self.norm) / (e1 * e1)).to_array()
     }
 }
 
@@ -513,12 +586,7 @@ impl Azimuthal {
 /// x = s ln(q/(1 − q)), with 1 − q = F(−π) + (1 − u) tanh(π/2s) written so (no cancellation near u = 1).
 #[inline]
 pub fn sample_trimmed_logistic(u: f32, s: f32) -> f32 {
-    let (u, s) = (u as f64, s as f64);
-    let pi = std::f64::consts::PI;
-    let f_lo = 1.0 / (1.0 + (pi / s).exp());
-    let k = (0.5 * pi / s).tanh();
-    let (q, q_c) = (f_lo + u * k, f_lo + (1.0 - u) * k);
-    ((s * (q / q_c).ln()) as f32).clamp(-PI, PI)
+    Azimuthal::new(s).sample(u)
 }
 
 // ---------------------------------------------------------------------------------------------------------------
@@ -732,7 +800,13 @@ impl ChiangFibre<'_> {
         let gamma_t = sin_gt.asin();
         let cos_gt = (1.0 - sin_gt * sin_gt).max(0.0).sqrt();
         // One chord of length 2 cos γt / cos θt radii; cos θt ≥ √(1 − 1/η²) > 0.
-        let t = (-m.params.sigma_a * (2.0 * cos_gt / cos_t)).exp();
+        let t = exp_f32x4(f32x4::from(
+            (-m.params.sigma_a * (2.0 * cos_gt / cos_t))
+                .extend(0.0)
+                .to_array(),
+        ))
+        .to_array();
+        let t = Vec3::new(t[0], t[1], t[2]);
         let ap = a_p(cos_o, self.cos_gamma_o, eta, t);
         let lum = ap.map(luminance);
         let total: f32 = lum.iter().sum();
@@ -763,17 +837,19 @@ impl ChiangFibre<'_> {
     #[inline]
     fn mn(&self, view: &View, sc_i: (f64, f64), phi: f32) -> [f32; P_MAX + 1] {
         let m = self.model;
-        let mut out = [0.0f32; P_MAX + 1];
-        for (p, o) in out.iter_mut().enumerate() {
-            let mp = m.longitudinal(p).eval(sc_i, view.tilted[p]) as f32;
-            let np = if p < P_MAX {
-                m.azimuthal.eval(wrap_phi(phi - view.phis[p]))
-            } else {
-                0.5 / PI
-            };
-            *o = mp * np;
-        }
-        out
+        let lobes = [0, 1, 2, 3].map(|p| m.longitudinal(p));
+        let mp = m_p_lanes(
+            f64x4::new(lobes.map(|l| l.inv_v)),
+            f64x4::new(lobes.map(|l| l.log_norm)),
+            sc_i,
+            view.tilted,
+        )
+        .to_array();
+        // The residual's N_p is uniform; its lane of the logistic is computed and dropped (a 4-wide vector).
+        let np = m
+            .azimuthal
+            .eval_lanes([0, 1, 2, 2].map(|p| wrap_phi(phi - view.phis[p])));
+        std::array::from_fn(|p| mp[p] as f32 * if p < P_MAX { np[p] } else { 0.5 / PI })
     }
 
     /// The lobes (f per p, R/TT/TRT + residual) and the mixture pdf.
@@ -862,7 +938,7 @@ impl ChiangFibre<'_> {
         let cos_i = (1.0 - sin_i * sin_i).max(0.0).sqrt();
         let (sin_i, cos_i) = (sin_i as f32, cos_i as f32);
         let dphi = if p < P_MAX {
-            view.phis[p] + sample_trimmed_logistic(u[2], m.azimuthal.s)
+            view.phis[p] + m.azimuthal.sample(u[2])
         } else {
             TAU * u[2]
         };

@@ -17,6 +17,7 @@ pub mod color;
 pub mod exact_array;
 pub mod hash;
 pub mod input_file;
+pub mod lanes;
 pub mod report;
 pub mod sampling;
 pub mod stats;
