@@ -163,6 +163,32 @@ impl Pair {
 /// Light and material samples at the first vertex auto compares (the thesis tuned them by hand, §6.2, table 3).
 const SAMPLE_CANDIDATES: [(u32, u32); 4] = [(1, 1), (1, 4), (4, 1), (4, 4)];
 
+/// A candidate whose predicted cost (relMSE × CPU s, [`predicted_both`]) is over this many times the best
+/// measured one's is not rendered.
+const SKIP_MARGIN: f64 = 1.2;
+
+/// The relative MSE and predicted CPU seconds of the (4, 4) candidate from the pilots of (1, 1), (1, 4) and
+/// (4, 1) (`measured`: candidate, relMSE, seconds), `None` for any other candidate or before the three are
+/// measured. A pixel's variance is taken as a part the first vertex's samples do not touch (the camera's, the
+/// strands' coverage) plus a light part and a material part, each divided by its sample count, so
+/// v(4, 4) = v(4, 1) + v(1, 4) − v(1, 1); the rays add the same way. On the fur ball (128², path 3) that predicts
+/// relMSE 6.5e-2 and 0.075 s where the pilots measured 7.2e-2 and 0.074 s (the variance parts are not quite
+/// independent, so the prediction is optimistic for (4, 4) and skipping it on the prediction is safe), its cost
+/// 1.6× (1, 1)'s: the most expensive of the eight pilot pairs is then not rendered.
+fn predicted_both(
+    candidate: (u32, u32),
+    measured: &[((u32, u32), f64, f64)],
+) -> Option<(f64, f64)> {
+    if candidate != (4, 4) {
+        return None;
+    }
+    let get = |c: (u32, u32)| measured.iter().find(|m| m.0 == c).map(|m| (m.1, m.2));
+    let (v11, s11) = get((1, 1))?;
+    let (v14, s14) = get((1, 4))?;
+    let (v41, s41) = get((4, 1))?;
+    Some(((v14 + v41 - v11).max(0.0), (s14 + s41 - s11).max(0.0)))
+}
+
 /// The relative MSE a bounce adds as bias when left out: `before` and `after` are the pilot pixels of both seeds
 /// without and with it, in `windows` order (see [`plan`]). The mean of the per-pixel products and its standard
 /// error.
@@ -282,6 +308,9 @@ pub struct PilotPlan {
     pub noise_budget: f64,
     /// Wall time the pilots took, seconds.
     pub pilot_seconds: f64,
+    /// CPU seconds of the pilots predicted from their rays ([`super::cost::WEIGHTS`]): their cost without the
+    /// machine's load.
+    pub pilot_predicted_seconds: f64,
 }
 
 /// Chooses the path length (unless `fixed.path_length`), the first vertex's light and material samples (unless
@@ -304,6 +333,12 @@ pub fn plan(
     let mut pilot = settings.clone();
     pilot.film.spp = PILOT_SPP;
     let mut decisions = Vec::new();
+    let spent = std::cell::Cell::new(0.0f64);
+    let render_pair = |settings: &RenderSettings| {
+        let pair = Pair::render(frame, settings, maps, &windows);
+        spent.set(spent.get() + 2.0 * pair.predicted_seconds());
+        pair
+    };
 
     // Bounces: each pilot path length k is rendered with both seeds. A pixel's k-th bounce is d = x_k − x_{k−1}
     // (same seed: the paths agree up to vertex k), and the product of the two seeds' independent d is an unbiased
@@ -320,11 +355,11 @@ pub fn plan(
         let mut biases = Vec::new();
         let mut floored = Vec::new();
         pilot.integrator.path_length = 0;
-        let mut previous = Pair::render(frame, &pilot, maps, &windows);
+        let mut previous = render_pair(&pilot);
         let mut chosen = MAX_PATH_LENGTH;
         for k in 1..=MAX_PATH_LENGTH {
             pilot.integrator.path_length = k;
-            let next = Pair::render(frame, &pilot, maps, &windows);
+            let next = render_pair(&pilot);
             let (mean, standard_error) = bounce_bias(previous.rgb(), next.rgb(), &windows);
             let measured = (mean + bias_standard_errors * standard_error)
                 .max(0.0)
@@ -377,24 +412,36 @@ pub fn plan(
         settings.integrator.material_samples,
     );
     let (pair, light_samples, material_samples) = if fixed.samples {
-        let pair = kept
-            .take()
-            .unwrap_or_else(|| Pair::render(frame, &pilot, maps, &windows));
+        let pair = kept.take().unwrap_or_else(|| render_pair(&pilot));
         (pair, scene_samples.0, scene_samples.1)
     } else {
         let mut best: Option<(Pair, u32, u32, f64)> = None;
         let mut listed = Vec::new();
+        let mut measured: Vec<((u32, u32), f64, f64)> = Vec::new();
         for (l, m) in SAMPLE_CANDIDATES {
             pilot.integrator.light_samples = l;
             pilot.integrator.material_samples = m;
+            let reusable = kept.is_some() && (l, m) == scene_samples;
+            if let (false, Some((v, seconds)), Some(b)) =
+                (reusable, predicted_both((l, m), &measured), best.as_ref())
+            {
+                if v * seconds > SKIP_MARGIN * b.3 {
+                    listed.push(format!(
+                        "{l} light + {m} material: not rendered, predicted from the three others relMSE \
+                         {v:.2e}, {seconds:.3} CPU s (over {SKIP_MARGIN} × the best's cost)"
+                    ));
+                    continue;
+                }
+            }
             let pair = match kept.take() {
                 Some(p) if (l, m) == scene_samples => p,
                 other => {
                     kept = other;
-                    Pair::render(frame, &pilot, maps, &windows)
+                    render_pair(&pilot)
                 }
             };
             let cost = pair.rel_mse() * pair.predicted_seconds();
+            measured.push(((l, m), pair.rel_mse(), pair.predicted_seconds()));
             listed.push(format!(
                 "{l} light + {m} material: relMSE {:.2e} with {:.0} rays, predicted {:.3} CPU s",
                 pair.rel_mse(),
@@ -462,6 +509,7 @@ pub fn plan(
         predicted_noise: (mean * f64::from(PILOT_SPP) / f64::from(spp)).sqrt(),
         noise_budget: noise_budget.sqrt(),
         pilot_seconds: start.elapsed().as_secs_f64(),
+        pilot_predicted_seconds: spent.get(),
     }
 }
 
@@ -484,6 +532,28 @@ mod tests {
             }
         }
         assert_eq!(windows(640, 480).len(), (GRID * GRID) as usize);
+    }
+
+    #[test]
+    fn four_light_and_four_material_samples_are_predicted_from_the_other_three() {
+        let fur = [
+            ((1, 1), 8.73e-2, 0.035),
+            ((1, 4), 7.51e-2, 0.055),
+            ((4, 1), 7.68e-2, 0.055),
+        ];
+        assert_eq!(predicted_both((1, 4), &fur), None);
+        assert_eq!(predicted_both((4, 4), &fur[..2]), None);
+        let (v, s) = predicted_both((4, 4), &fur).unwrap();
+        assert!(
+            (v - 6.46e-2).abs() < 1e-9 && (s - 0.075).abs() < 1e-9,
+            "{v} {s}"
+        );
+        // The fur ball's: 1.6x (1, 1)'s cost, not rendered.
+        assert!(v * s > SKIP_MARGIN * 8.73e-2 * 0.035);
+        // Where the light and material noise dominate and each halves, (4, 4) is predicted to win: rendered.
+        let noisy = [((1, 1), 1.0, 1.0), ((1, 4), 0.55, 1.3), ((4, 1), 0.55, 1.3)];
+        let (v, s) = predicted_both((4, 4), &noisy).unwrap();
+        assert!(v * s < SKIP_MARGIN * 1.0 * 1.0, "{v} {s}");
     }
 
     #[test]
