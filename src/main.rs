@@ -438,8 +438,9 @@ fn render_command(args: RenderArgs) -> Result<()> {
             eprintln!("auto: {d}");
         }
         eprintln!(
-            "auto: pilots took {:.2} s; predicted render {:.1} s at {} spp, noise {:.4} (target {})",
+            "auto: pilots took {:.2} s ({:.2} CPU s predicted from their rays); predicted render {:.1} s at {} spp, noise {:.4} (target {})",
             p.pilot.pilot_seconds,
+            p.pilot.pilot_predicted_seconds,
             p.pilot.predicted_seconds,
             p.pilot.spp,
             p.pilot.predicted_noise,

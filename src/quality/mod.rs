@@ -19,7 +19,8 @@
 //!    ray-traced shadows otherwise; the map resolution from the hair's size on screen.
 //! 3. **Path length**, **light and material samples** and **samples per pixel** ([`pilot`]): measured by pilot
 //!    renders of a few windows of the frame at full resolution (so a pixel integrates what it will in the frame):
-//!    bounces are added until the next one's bias is under a quarter of the target; the light/material sample
+//!    bounces are added until the next one's bias (its pilots' estimate, at least the geometric continuation of
+//!    the two before, [`pilot::geometric_floor`]) is under a quarter of the target; the light/material sample
 //!    counts that reach a given noise at the least predicted cost ([`cost`]: CPU seconds per ray of each kind,
 //!    calibrated once); the mean samples per pixel from the per-pixel
 //!    variance of two independent pilot estimates.

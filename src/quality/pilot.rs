@@ -163,17 +163,103 @@ impl Pair {
 /// Light and material samples at the first vertex auto compares (the thesis tuned them by hand, §6.2, table 3).
 const SAMPLE_CANDIDATES: [(u32, u32); 4] = [(1, 1), (1, 4), (4, 1), (4, 4)];
 
+/// A candidate whose predicted cost (relMSE × CPU s, [`predicted_both`]) is over this many times the best
+/// measured one's is not rendered.
+const SKIP_MARGIN: f64 = 1.2;
+
+/// The relative MSE and predicted CPU seconds of the (4, 4) candidate from the pilots of (1, 1), (1, 4) and
+/// (4, 1) (`measured`: candidate, relMSE, seconds), `None` for any other candidate or before the three are
+/// measured. A pixel's variance is taken as a part the first vertex's samples do not touch (the camera's, the
+/// strands' coverage) plus a light part and a material part, each divided by its sample count, so
+/// v(4, 4) = v(4, 1) + v(1, 4) − v(1, 1); the rays add the same way. On the fur ball (128², path 3) that predicts
+/// relMSE 6.5e-2 and 0.075 s where the pilots measured 7.2e-2 and 0.074 s (the variance parts are not quite
+/// independent, so the prediction is optimistic for (4, 4) and skipping it on the prediction is safe), its cost
+/// 1.6× (1, 1)'s: the most expensive of the eight pilot pairs is then not rendered.
+fn predicted_both(
+    candidate: (u32, u32),
+    measured: &[((u32, u32), f64, f64)],
+) -> Option<(f64, f64)> {
+    if candidate != (4, 4) {
+        return None;
+    }
+    let get = |c: (u32, u32)| measured.iter().find(|m| m.0 == c).map(|m| (m.1, m.2));
+    let (v11, s11) = get((1, 1))?;
+    let (v14, s14) = get((1, 4))?;
+    let (v41, s41) = get((4, 1))?;
+    Some(((v14 + v41 - v11).max(0.0), (s14 + s41 - s11).max(0.0)))
+}
+
 /// The relative MSE a bounce adds as bias when left out: `before` and `after` are the pilot pixels of both seeds
-/// without and with it (see [`plan`]). The mean of the per-pixel products and its standard error.
-fn bounce_bias(before: [&[[f32; 3]]; 2], after: [&[[f32; 3]]; 2]) -> (f64, f64) {
-    mean_and_error((0..before[0].len()).flat_map(|i| {
-        (0..3).filter_map(move |c| {
-            let v = |img: [&[[f32; 3]]; 2], s: usize| f64::from(img[s][i][c]);
-            let (da, db) = (v(after, 0) - v(before, 0), v(after, 1) - v(before, 1));
-            let m = 0.5 * (v(after, 0) + v(after, 1));
-            (da.is_finite() && db.is_finite()).then(|| da * db / (m * m + 0.01))
+/// without and with it, in `windows` order (see [`plan`]). The mean of the per-pixel products and its standard
+/// error.
+///
+/// A pixel's term is d_a d_b / (m̃² + 0.01), d_s its bounce in seed s and m̃ the mean of both seeds' `after` over
+/// the pixel's neighbours in its window (3×3 without the centre). The denominator must not read the pixel's own
+/// samples: with m the pixel's own mean, a sample that found much of the bounce also raised m, so the large
+/// products were divided by large denominators. On the fur ball (`scenes/furball.toml`, 128², flat, path 3 against
+/// 2, seeds' products over the whole film) that put bounce 3 at 1.5e-4 at 4 spp where a denominator from an
+/// independent 64-spp render gives 3.1e-4 (and 5.9e-4 at 32 spp); the neighbours' gives 3.1e-4 and 5.8e-4, and
+/// on the default scene within 10 % of the independent one too (the own mean's 2.4e-4 at 32 spp against 4.8e-5:
+/// the error is not even one-sided). The fur ball's pilots put bounce 3 at 0.0054 (relative RMSE, with 2 standard
+/// errors), chose path 2, and missed 0.05 (0.0538).
+/// The neighbours' samples are independent of the pixel's, so the mean product over their mean is unbiased for
+/// the squared bounce over the neighbourhood's squared mean.
+fn bounce_bias(
+    before: [&[[f32; 3]]; 2],
+    after: [&[[f32; 3]]; 2],
+    windows: &[Region],
+) -> (f64, f64) {
+    let mut starts = Vec::with_capacity(windows.len());
+    let mut offset = 0usize;
+    for r in windows {
+        starts.push((offset, r.width() as usize, r.height() as usize));
+        offset += r.width() as usize * r.height() as usize;
+    }
+    debug_assert_eq!(offset, before[0].len());
+    let value = |img: [&[[f32; 3]]; 2], s: usize, i: usize, c: usize| f64::from(img[s][i][c]);
+    mean_and_error(starts.into_iter().flat_map(move |(start, w, h)| {
+        (0..w * h).flat_map(move |p| {
+            let (x, y) = (p % w, p / w);
+            let i = start + p;
+            (0..3).filter_map(move |c| {
+                let (mut sum, mut n) = (0.0f64, 0u32);
+                for ny in y.saturating_sub(1)..(y + 2).min(h) {
+                    for nx in x.saturating_sub(1)..(x + 2).min(w) {
+                        let j = start + ny * w + nx;
+                        if j != i {
+                            sum += 0.5 * (value(after, 0, j, c) + value(after, 1, j, c));
+                            n += 1;
+                        }
+                    }
+                }
+                let m = if n > 0 {
+                    sum / f64::from(n)
+                } else {
+                    0.5 * (value(after, 0, i, c) + value(after, 1, i, c))
+                };
+                let da = value(after, 0, i, c) - value(before, 0, i, c);
+                let db = value(after, 1, i, c) - value(before, 1, i, c);
+                (da.is_finite() && db.is_finite() && m.is_finite())
+                    .then(|| da * db / (m * m + 0.01))
+            })
         })
     }))
+}
+
+/// The least bias (relative RMSE) the next bounce is taken to have, from the estimates of the bounces before it
+/// (`None` before the third): the last one times the ratio of the last two (at most ½, as in [`bias_left`]).
+///
+/// A deep bounce on dense fur is found by few of the pilots' 4 samples per pixel, so its product estimate is
+/// heavy-tailed: most pixels see none of it and the mean, and its standard error, come out low. On the fur ball
+/// (`scenes/furball.toml`, 128², flat, 1 light + 1 material) the pilots measured bounces 1, 2, 3 at 0.150, 0.053,
+/// 0.009 (with 2 standard errors) where 32-spp renders of the whole film measure 0.147, 0.051, 0.023 (bounce 4
+/// 0.011, 5 0.005: ratios 0.35, 0.45, 0.50, 0.45): the bounces fall about geometrically, and the ratio of the
+/// first two, well measured, bounds the next one better than its own noisy estimate.
+pub fn geometric_floor(before: &[f64]) -> Option<f64> {
+    match before {
+        [.., older, last] if *older > 0.0 => Some(last * (last / older).clamp(0.0, 0.5)),
+        _ => None,
+    }
 }
 
 /// The relative RMSE of the bias of every bounce after the chosen ones, from the measured bias of the first left
@@ -222,6 +308,9 @@ pub struct PilotPlan {
     pub noise_budget: f64,
     /// Wall time the pilots took, seconds.
     pub pilot_seconds: f64,
+    /// CPU seconds of the pilots predicted from their rays ([`super::cost::WEIGHTS`]): their cost without the
+    /// machine's load.
+    pub pilot_predicted_seconds: f64,
 }
 
 /// Chooses the path length (unless `fixed.path_length`), the first vertex's light and material samples (unless
@@ -244,6 +333,12 @@ pub fn plan(
     let mut pilot = settings.clone();
     pilot.film.spp = PILOT_SPP;
     let mut decisions = Vec::new();
+    let spent = std::cell::Cell::new(0.0f64);
+    let render_pair = |settings: &RenderSettings| {
+        let pair = Pair::render(frame, settings, maps, &windows);
+        spent.set(spent.get() + 2.0 * pair.predicted_seconds());
+        pair
+    };
 
     // Bounces: each pilot path length k is rendered with both seeds. A pixel's k-th bounce is d = x_k − x_{k−1}
     // (same seed: the paths agree up to vertex k), and the product of the two seeds' independent d is an unbiased
@@ -258,16 +353,19 @@ pub fn plan(
         settings.integrator.path_length
     } else {
         let mut biases = Vec::new();
+        let mut floored = Vec::new();
         pilot.integrator.path_length = 0;
-        let mut previous = Pair::render(frame, &pilot, maps, &windows);
+        let mut previous = render_pair(&pilot);
         let mut chosen = MAX_PATH_LENGTH;
         for k in 1..=MAX_PATH_LENGTH {
             pilot.integrator.path_length = k;
-            let next = Pair::render(frame, &pilot, maps, &windows);
-            let (mean, standard_error) = bounce_bias(previous.rgb(), next.rgb());
-            let bias = (mean + bias_standard_errors * standard_error)
+            let next = render_pair(&pilot);
+            let (mean, standard_error) = bounce_bias(previous.rgb(), next.rgb(), &windows);
+            let measured = (mean + bias_standard_errors * standard_error)
                 .max(0.0)
                 .sqrt();
+            let bias = geometric_floor(&biases).map_or(measured, |f| measured.max(f));
+            floored.push(bias > measured);
             biases.push(bias);
             if bias < 0.25 * target {
                 chosen = k - 1;
@@ -281,14 +379,18 @@ pub fn plan(
         let listed: Vec<String> = biases
             .iter()
             .enumerate()
-            .map(|(i, b)| format!("bounce {} {:.4}", i + 1, b))
+            .map(|(i, b)| {
+                let floor = if floored[i] { " (floor)" } else { "" };
+                format!("bounce {} {:.4}{floor}", i + 1, b)
+            })
             .collect();
         decisions.push(Decision {
             key: "integrator.path_length",
             value: chosen.to_string(),
             reason: format!(
                 "the relative RMSE each bounce would leave out as bias, measured by the pilots (with {} standard \
-                 errors: {}): the next one is under a quarter of the target {}{}",
+                 errors; at least the last two's geometric ratio times the last, marked floor: {}): the next one \
+                 is under a quarter of the target {}{}",
                 bias_standard_errors,
                 listed.join(", "),
                 quality.target,
@@ -310,24 +412,36 @@ pub fn plan(
         settings.integrator.material_samples,
     );
     let (pair, light_samples, material_samples) = if fixed.samples {
-        let pair = kept
-            .take()
-            .unwrap_or_else(|| Pair::render(frame, &pilot, maps, &windows));
+        let pair = kept.take().unwrap_or_else(|| render_pair(&pilot));
         (pair, scene_samples.0, scene_samples.1)
     } else {
         let mut best: Option<(Pair, u32, u32, f64)> = None;
         let mut listed = Vec::new();
+        let mut measured: Vec<((u32, u32), f64, f64)> = Vec::new();
         for (l, m) in SAMPLE_CANDIDATES {
             pilot.integrator.light_samples = l;
             pilot.integrator.material_samples = m;
+            let reusable = kept.is_some() && (l, m) == scene_samples;
+            if let (false, Some((v, seconds)), Some(b)) =
+                (reusable, predicted_both((l, m), &measured), best.as_ref())
+            {
+                if v * seconds > SKIP_MARGIN * b.3 {
+                    listed.push(format!(
+                        "{l} light + {m} material: not rendered, predicted from the three others relMSE \
+                         {v:.2e}, {seconds:.3} CPU s (over {SKIP_MARGIN} × the best's cost)"
+                    ));
+                    continue;
+                }
+            }
             let pair = match kept.take() {
                 Some(p) if (l, m) == scene_samples => p,
                 other => {
                     kept = other;
-                    Pair::render(frame, &pilot, maps, &windows)
+                    render_pair(&pilot)
                 }
             };
             let cost = pair.rel_mse() * pair.predicted_seconds();
+            measured.push(((l, m), pair.rel_mse(), pair.predicted_seconds()));
             listed.push(format!(
                 "{l} light + {m} material: relMSE {:.2e} with {:.0} rays, predicted {:.3} CPU s",
                 pair.rel_mse(),
@@ -395,6 +509,7 @@ pub fn plan(
         predicted_noise: (mean * f64::from(PILOT_SPP) / f64::from(spp)).sqrt(),
         noise_budget: noise_budget.sqrt(),
         pilot_seconds: start.elapsed().as_secs_f64(),
+        pilot_predicted_seconds: spent.get(),
     }
 }
 
@@ -417,5 +532,105 @@ mod tests {
             }
         }
         assert_eq!(windows(640, 480).len(), (GRID * GRID) as usize);
+    }
+
+    #[test]
+    fn four_light_and_four_material_samples_are_predicted_from_the_other_three() {
+        let fur = [
+            ((1, 1), 8.73e-2, 0.035),
+            ((1, 4), 7.51e-2, 0.055),
+            ((4, 1), 7.68e-2, 0.055),
+        ];
+        assert_eq!(predicted_both((1, 4), &fur), None);
+        assert_eq!(predicted_both((4, 4), &fur[..2]), None);
+        let (v, s) = predicted_both((4, 4), &fur).unwrap();
+        assert!(
+            (v - 6.46e-2).abs() < 1e-9 && (s - 0.075).abs() < 1e-9,
+            "{v} {s}"
+        );
+        // The fur ball's: 1.6x (1, 1)'s cost, not rendered.
+        assert!(v * s > SKIP_MARGIN * 8.73e-2 * 0.035);
+        // Where the light and material noise dominate and each halves, (4, 4) is predicted to win: rendered.
+        let noisy = [((1, 1), 1.0, 1.0), ((1, 4), 0.55, 1.3), ((4, 1), 0.55, 1.3)];
+        let (v, s) = predicted_both((4, 4), &noisy).unwrap();
+        assert!(v * s < SKIP_MARGIN * 1.0 * 1.0, "{v} {s}");
+    }
+
+    #[test]
+    fn a_deep_bounce_is_at_least_the_geometric_continuation_of_the_two_before() {
+        assert_eq!(geometric_floor(&[]), None);
+        assert_eq!(geometric_floor(&[0.15]), None);
+        // The fur ball's pilots: bounces 1 and 2 at 0.150 and 0.053 make bounce 3 at least 0.0187, over a
+        // quarter of 0.05 (0.0125): path 3, where its own estimate (0.0088) chose path 2 and missed the target.
+        let floor = geometric_floor(&[0.150, 0.053]).unwrap();
+        assert!((floor - 0.053 * 0.053 / 0.150).abs() < 1e-12, "{floor}");
+        assert!(floor > 0.25 * 0.05);
+        // The ratio is capped at ½ (a bounce that grew is not extrapolated as growing).
+        assert_eq!(geometric_floor(&[0.01, 0.04]), Some(0.02));
+        assert_eq!(geometric_floor(&[0.0, 0.04]), None);
+    }
+
+    /// Pilot pixels of a bounce found by few samples (each of 4 samples hits with probability 0.3, and a hit
+    /// carries the bounce, as on dense fur): the pixel's own mean rises with its bounce, so a denominator from it
+    /// underestimates the bias; the neighbours' does not.
+    #[test]
+    fn a_bounce_found_by_few_samples_is_not_underestimated() {
+        let ws = windows(256, 256);
+        let pixels: usize = ws.iter().map(|r| (r.width() * r.height()) as usize).sum();
+        let mut state = 0x1234_5678_u64;
+        let mut uniform = move || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            ((state >> 40) as f64) / f64::from(1u32 << 24)
+        };
+        let (p, beta) = (0.3, 0.2);
+        let mut render = || {
+            let (mut before, mut after) = (Vec::new(), Vec::new());
+            for _ in 0..pixels {
+                let (mut b, mut a) = ([0.0f32; 3], [0.0f32; 3]);
+                for c in 0..3 {
+                    let (mut x, mut d) = (0.0, 0.0);
+                    for _ in 0..PILOT_SPP {
+                        if uniform() < p {
+                            x += 1.0 / p;
+                            d += beta / p * 2.0 * uniform();
+                        }
+                    }
+                    let n = f64::from(PILOT_SPP);
+                    b[c] = (x / n) as f32;
+                    a[c] = ((x + d) / n) as f32;
+                }
+                before.push(b);
+                after.push(a);
+            }
+            (before, after)
+        };
+        let (b0, a0) = render();
+        let (b1, a1) = render();
+        let truth = beta * beta / ((1.0 + beta) * (1.0 + beta) + 0.01);
+        let (mean, error) = bounce_bias([&b0, &b1], [&a0, &a1], &ws);
+        // The same products over each pixel's own mean (the estimator before): far under the truth.
+        let own = (0..pixels)
+            .flat_map(|i| (0..3).map(move |c| (i, c)))
+            .map(|(i, c)| {
+                let (da, db) = (
+                    f64::from(a0[i][c] - b0[i][c]),
+                    f64::from(a1[i][c] - b1[i][c]),
+                );
+                let m = 0.5 * f64::from(a0[i][c] + a1[i][c]);
+                da * db / (m * m + 0.01)
+            })
+            .sum::<f64>()
+            / (3 * pixels) as f64;
+        println!("truth {truth:.4e}, neighbours' denominator {mean:.4e} ± {error:.1e}, own mean {own:.4e}");
+        assert!(
+            own < 0.8 * truth,
+            "the model shows the failure: {own:.4e} against {truth:.4e}"
+        );
+        assert!(
+            mean > 0.9 * truth && mean < 1.3 * truth,
+            "{mean:.4e} ± {error:.1e} against {truth:.4e}"
+        );
     }
 }
