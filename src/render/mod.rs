@@ -126,7 +126,7 @@ fn render_tiles(
     let [width, height] = settings.film.resolution;
     let strands = &frame.strands;
     let tracer = frame.tracer.as_ref();
-    let bounds = strands.bounds();
+    let bounds = frame.hair_bounds();
     let camera = Camera::from_config(&settings.camera, bounds, width, height);
     let filter = GaussianFilter::new(settings.film.filter_width);
     let integrator = Integrator::new(frame, settings, maps);
