@@ -506,16 +506,17 @@ impl<'a> Integrator<'a> {
         counts: &mut RayCounts,
     ) -> PathSample {
         counts.camera += 1;
-        let first = match self.find(ray, None, counts) {
-            Found::Surface(v) => v,
-            seen => return self.seen_directly(ray, &seen),
+        // Matched by reference: the vertex (a few hundred bytes with Chiang's view terms) is not moved out.
+        let found = self.find(ray, None, counts);
+        let Found::Surface(first) = &found else {
+            return self.seen_directly(ray, &found);
         };
         let mut out = PathSample {
             alpha: 1.0,
             ..PathSample::default()
         };
-        self.first_vertex_light_samples(&first, sampler, index, &mut out, counts);
-        let next = self.first_vertex_material_samples(&first, sampler, index, &mut out, counts);
+        self.first_vertex_light_samples(first, sampler, index, &mut out, counts);
+        let next = self.first_vertex_material_samples(first, sampler, index, &mut out, counts);
         out.direct = out.lobes.sum();
         if let Some((second, first_weights)) = next {
             let indirect = self.indirect(second, &first_weights, sampler, index, counts);
