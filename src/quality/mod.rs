@@ -402,6 +402,11 @@ pub struct Margins {
     /// Standard errors added to a bounce's measured bias (relMSE) before it is compared with a quarter of the
     /// target: a bounce is left out only when its bias is small with confidence, not merely lost in noise.
     pub bias_standard_errors: f64,
+    /// Standard errors taken off the measured sampler gain ([`pilot::PilotPlan::sampler_gain`]) before adaptive
+    /// sampling's stop is scaled by it. One, not two as on the bias: the gain grows with the samples per pixel, so
+    /// the gain measured at the pilots' 4 spp is already low for the frame's (default scene 1.05 at 4 spp, 1.14 at
+    /// 16; straight hair under the city map 1.28 and 1.47).
+    pub gain_standard_errors: f64,
     /// Share of the noise budget the adaptive rule aims at: its stop reads a point estimate of the image's noise,
     /// which falls on either side of the truth.
     pub noise_share: f64,
@@ -411,11 +416,13 @@ impl Margins {
     /// What auto uses (the study measured both, `docs/study/auto/`).
     pub const DEFAULT: Margins = Margins {
         bias_standard_errors: 2.0,
+        gain_standard_errors: 1.0,
         noise_share: 0.9,
     };
     /// The bare point estimates, for the study's comparison.
     pub const POINT: Margins = Margins {
         bias_standard_errors: 0.0,
+        gain_standard_errors: 0.0,
         noise_share: 1.0,
     };
 }
@@ -429,11 +436,14 @@ impl Default for Margins {
 /// The adaptive schedule for a frame whose pilots asked for `spp` samples per pixel on average, to a noise of
 /// `noise` (relative RMSE): the image-level rule ([`crate::render::adaptive::Rule::Image`]) from a quarter of `spp`
 /// (at least `quality.min_spp` and 2, the fewest that give a variance) to 8× it (at most `quality.max_spp`), to
-/// `noise_share` × `noise` ([`Margins::noise_share`]).
+/// `noise_share` × `noise` ([`Margins::noise_share`]) of true noise: the rule's stop reads the independent-samples
+/// variance s² / n, which overstates a stratified sampler's error by `sampler_gain`
+/// ([`pilot::PilotPlan::sampler_gain`]), so the schedule's target is √`sampler_gain` times that.
 pub fn adaptive_schedule(
     spp: u32,
     noise: f64,
     noise_share: f64,
+    sampler_gain: f64,
     quality: &QualityConfig,
 ) -> crate::render::adaptive::Schedule {
     let min = (spp / 4).max(quality.min_spp).max(2).min(quality.max_spp);
@@ -441,7 +451,7 @@ pub fn adaptive_schedule(
     crate::render::adaptive::Schedule {
         min,
         max,
-        target: noise_share * noise,
+        target: noise_share * noise * sampler_gain.max(1.0).sqrt(),
         rule: crate::render::adaptive::Rule::Image,
         cost: Some(cost::WEIGHTS),
     }
@@ -489,21 +499,20 @@ pub fn plan_frame_with(
     let maps =
         (settings.shadows.mode == ShadowMode::DeepOpacity).then(|| frame.shadow_maps(&settings));
     let maps_seconds = start.elapsed().as_secs_f64();
-    let p = pilot::plan(
-        frame,
-        &settings,
-        maps.as_ref(),
-        quality,
-        fixed,
-        margins.bias_standard_errors,
-    );
+    let p = pilot::plan(frame, &settings, maps.as_ref(), quality, fixed, margins);
     settings.integrator.path_length = p.path_length;
     settings.integrator.light_samples = p.light_samples;
     settings.integrator.material_samples = p.material_samples;
     settings.film.spp = p.spp;
     decisions.extend(p.decisions.iter().cloned());
     if !fixed.spp {
-        let schedule = adaptive_schedule(p.spp, p.noise_budget, margins.noise_share, quality);
+        let schedule = adaptive_schedule(
+            p.spp,
+            p.noise_budget,
+            margins.noise_share,
+            p.sampler_gain,
+            quality,
+        );
         settings.adaptive = Some(schedule);
         decisions.push(Decision {
             key: "adaptive sampling",
@@ -511,9 +520,15 @@ pub fn plan_frame_with(
             reason: format!(
                 "every pixel takes {} samples, then rounds give samples in proportion to √(v/c), each pixel's \
                  relative variance v per sample over its predicted cost c per sample (the least predicted time for \
-                 a given image error) until the image's estimated noise is under {:.4} = {} × the noise budget \
-                 {:.4}, from a quarter to 8× the pilots' {} spp (the spp AOV shows each pixel's)",
-                schedule.min, schedule.target, margins.noise_share, p.noise_budget, p.spp
+                 a given image error) until the image's noise estimated from independent samples is under {:.4} \
+                 = {} × the noise budget {:.4} × √(sampler gain {:.3}), from a quarter to 8× the pilots' {} spp \
+                 (the spp AOV shows each pixel's)",
+                schedule.min,
+                schedule.target,
+                margins.noise_share,
+                p.noise_budget,
+                p.sampler_gain,
+                p.spp
             ),
         });
     }
