@@ -128,7 +128,7 @@ fn render_tiles(
     let tracer = frame.tracer.as_ref();
     let bounds = frame.hair_bounds();
     let camera = Camera::from_config(&settings.camera, bounds, width, height);
-    let filter = GaussianFilter::new(settings.film.filter_width);
+    let filter = GaussianFilter::shared(settings.film.filter_width);
     let integrator = Integrator::new(frame, settings, maps);
 
     let tiles_x = region.width().div_ceil(tile_side);
