@@ -66,7 +66,9 @@ impl GaussianFilter {
     pub fn shared(width: f32) -> Arc<GaussianFilter> {
         static CACHE: Mutex<Vec<(u32, Arc<GaussianFilter>)>> = Mutex::new(Vec::new());
         let key = width.to_bits();
-        let mut cache = CACHE.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        let mut cache = CACHE
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
         if let Some((_, f)) = cache.iter().find(|(k, _)| *k == key) {
             return Arc::clone(f);
         }
