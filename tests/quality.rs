@@ -348,6 +348,7 @@ fn the_image_rule_meets_the_target_with_fewer_samples_than_the_per_pixel_rule_an
         target: 0.75f64.sqrt() * f64::from(LOOSE),
         rule: Rule::Pixel,
         cost: None,
+        sampler_gain: 1.0,
     };
     let measure = |schedule: Schedule| {
         let mut settings = planned.settings.clone();

@@ -18,15 +18,18 @@
 //! 2. **Shadows** ([`decide_shadows`]): deep opacity maps where every light that matters is distant and small,
 //!    ray-traced shadows otherwise; the map resolution from the hair's size on screen.
 //! 3. **Path length**, **light and material samples** and **samples per pixel** ([`pilot`]): measured by pilot
-//!    renders of a few windows of the frame at full resolution (so a pixel integrates what it will in the frame):
-//!    bounces are added until the next one's bias (its pilots' estimate, at least the geometric continuation of
-//!    the two before, [`pilot::geometric_floor`]) is under a quarter of the target; the light/material sample
-//!    counts that reach a given noise at the least predicted cost ([`cost`]: CPU seconds per ray of each kind,
-//!    calibrated once); the mean samples per pixel from the per-pixel
-//!    variance of two independent pilot estimates.
+//!    renders of many small windows spread over the frame at full resolution (so a pixel integrates what it will
+//!    in the frame, and the windows' mean stands for the film's, [`pilot::windows`]): bounces are added until the
+//!    next one's bias (bounce 1 from two seeds' products, each later one scaled from the one before by the ratio
+//!    of their mean relative contributions, at least the geometric continuation of the two before,
+//!    [`pilot::geometric_floor`]) is under a quarter of the target; the light/material sample counts that reach a
+//!    given noise at the least predicted cost ([`cost`]: CPU seconds per ray of each kind, calibrated once); the
+//!    mean samples per pixel from the per-pixel variance of two independent pilot estimates; and how much faster
+//!    than independent samples the sampler's stratified samples converge (a 1-spp pair against the 4-spp one).
 //! 4. **Adaptive sampling** ([`adaptive_schedule`], [`crate::render::adaptive`]): the image-level rule, to the
 //!    noise budget target² − (bias left out)², the bias of all the bounces left out estimated from the pilots'
-//!    last two as a geometric tail ([`pilot::bias_left`]); a quarter to 8× the pilots' spp per pixel.
+//!    last two as a geometric tail ([`pilot::bias_left`]), its stop corrected by the sampler's gain; a quarter to
+//!    8× the pilots' spp per pixel.
 //!
 //! What a user fixes on the command line (`--curves`, `--shadows`, `--path-length`, `--spp`) is kept: auto decides
 //! only the rest.
@@ -437,8 +440,9 @@ impl Default for Margins {
 /// `noise` (relative RMSE): the image-level rule ([`crate::render::adaptive::Rule::Image`]) from a quarter of `spp`
 /// (at least `quality.min_spp` and 2, the fewest that give a variance) to 8× it (at most `quality.max_spp`), to
 /// `noise_share` × `noise` ([`Margins::noise_share`]) of true noise: the rule's stop reads the independent-samples
-/// variance s² / n, which overstates a stratified sampler's error by `sampler_gain`
-/// ([`pilot::PilotPlan::sampler_gain`]), so the schedule's target is √`sampler_gain` times that.
+/// variance s² / n, which overstates a stratified sampler's error by its gain, so the schedule carries the gain
+/// the pilots measured at 4 spp ([`pilot::PilotPlan::sampler_gain`]) and the stop divides by the gain at each
+/// pixel's count ([`crate::render::adaptive::Schedule::gain`]).
 pub fn adaptive_schedule(
     spp: u32,
     noise: f64,
@@ -451,9 +455,10 @@ pub fn adaptive_schedule(
     crate::render::adaptive::Schedule {
         min,
         max,
-        target: noise_share * noise * sampler_gain.max(1.0).sqrt(),
+        target: noise_share * noise,
         rule: crate::render::adaptive::Rule::Image,
         cost: Some(cost::WEIGHTS),
+        sampler_gain: sampler_gain.max(1.0),
     }
 }
 
@@ -520,14 +525,14 @@ pub fn plan_frame_with(
             reason: format!(
                 "every pixel takes {} samples, then rounds give samples in proportion to √(v/c), each pixel's \
                  relative variance v per sample over its predicted cost c per sample (the least predicted time for \
-                 a given image error) until the image's noise estimated from independent samples is under {:.4} \
-                 = {} × the noise budget {:.4} × √(sampler gain {:.3}), from a quarter to 8× the pilots' {} spp \
-                 (the spp AOV shows each pixel's)",
+                 a given image error) until the image's estimated noise (the pixels' variances over their counts, \
+                 divided by the sampler's gain at each count, {:.3} at 4 spp) is under {:.4} = {} × the noise \
+                 budget {:.4}, from a quarter to 8× the pilots' {} spp (the spp AOV shows each pixel's)",
                 schedule.min,
+                p.sampler_gain,
                 schedule.target,
                 margins.noise_share,
                 p.noise_budget,
-                p.sampler_gain,
                 p.spp
             ),
         });
