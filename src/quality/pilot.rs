@@ -1,9 +1,9 @@
 //! Pilot renders: a few windows of the frame at full resolution, rendered cheaply before the frame to measure what
 //! auto cannot know from the scene file — how much light each bounce adds and how noisy a sample is.
 //!
-//! The windows are a regular grid of small [`WINDOW`]² squares spread over the film (background included, as the error target
-//! counts every pixel). Each is rendered with [`Frame::render_region`], whose pixels equal the full frame's, so a
-//! pilot pixel integrates exactly what the frame's pixel will. Pilots are deterministic (fixed seeds, independent of
+//! The windows are a regular grid of small [`WINDOW`]² squares spread over the film (background included, as the
+//! error target counts every pixel). Each is rendered with [`Frame::render_region`], whose pixels equal the full
+//! frame's, so a pilot pixel integrates exactly what the frame's pixel will. Pilots are deterministic (fixed seeds, independent of
 //! the frame's seed and of the thread count), so the decisions are too.
 
 use rayon::prelude::*;
