@@ -3,8 +3,8 @@
 //!
 //! The windows are a regular grid of small [`WINDOW`]² squares spread over the film (background included, as the
 //! error target counts every pixel). Each is rendered with [`Frame::render_region`], whose pixels equal the full
-//! frame's, so a pilot pixel integrates exactly what the frame's pixel will. Pilots are deterministic (fixed seeds, independent of
-//! the frame's seed and of the thread count), so the decisions are too.
+//! frame's, so a pilot pixel integrates exactly what the frame's pixel will. Pilots are deterministic (fixed
+//! seeds, independent of the frame's seed and of the thread count), so the decisions are too.
 
 use rayon::prelude::*;
 
@@ -287,9 +287,9 @@ fn bounce_bias(before: [&[[f32; 3]]; 2], after: [&[[f32; 3]]; 2], windows: &[Reg
 /// sample variances; one sample has no stratification, so its relMSE is the per-sample variance itself. Two-seed
 /// renders of 128² frames (flat, path 1) measured the gain n · relMSE(n) / relMSE(1) at 4, 16, 64 spp as 1.05,
 /// 1.14, 1.23 on the default scene and 1.28, 1.47, 1.84 on straight hair under the city map (the strands' coverage
-/// of a pixel is what the filter dimensions stratify). The gain grows with n, so the gain at `PILOT_SPP` is a safe
-/// (low) correction for a frame of more samples; extrapolating it as a power of n would have overshot straight
-/// hair's at 64 spp (2.1 for 1.84).
+/// of a pixel is what the filter dimensions stratify). The gain grows with n; adaptive sampling extrapolates the
+/// gain at `PILOT_SPP` at half the rate seen between 1 and `PILOT_SPP` ([`crate::render::adaptive::Schedule::gain`]):
+/// at the full rate it would have overshot straight hair's at 64 spp (2.1 for 1.84).
 fn sampler_gain(one: &Pair, pilot: &Pair, standard_errors: f64) -> (f64, f64) {
     let (r1, e1) = one.rel_mse_over(pilot);
     let (rp, ep) = pilot.rel_mse_with_error();
@@ -314,9 +314,12 @@ fn sampler_gain(one: &Pair, pilot: &Pair, standard_errors: f64) -> (f64, f64) {
 fn cheapest_path_length(pairs: &[Pair], biases: &[f64], target: f64) -> (u32, f64, String) {
     let mut best: Option<(u32, f64, f64)> = None;
     let mut listed = Vec::new();
-    for (j, pair) in pairs.iter().enumerate().take(biases.len()) {
+    let last = pairs.len().min(biases.len()).saturating_sub(1);
+    for (j, pair) in pairs.iter().enumerate().take(last + 1) {
         let left = bias_left(biases[j], j.checked_sub(1).map(|i| biases[i]));
-        if left > 0.5 * target {
+        // The longest path rendered is always a candidate (its next bounce is under a quarter of the target, so
+        // its tail is within half), which keeps the choice total.
+        if left > 0.5 * target && j < last {
             continue;
         }
         let cost = pair.predicted_seconds() * pair.rel_mse() / (target * target - left * left);
@@ -325,13 +328,7 @@ fn cheapest_path_length(pairs: &[Pair], biases: &[f64], target: f64) -> (u32, f6
             best = Some((j as u32, left, cost));
         }
     }
-    let (j, left, _) = best.unwrap_or_else(|| {
-        // Unreachable while the last pair's next bounce is under a quarter of the target (its tail is at most
-        // half); kept total: the longest path rendered.
-        let j = pairs.len().min(biases.len()).saturating_sub(1);
-        let left = bias_left(biases[j], j.checked_sub(1).map(|i| biases[i]));
-        (j as u32, left, 0.0)
-    });
+    let (j, left, _) = best.expect("the longest path rendered is a candidate");
     (j, left, listed.join(", "))
 }
 
@@ -745,9 +742,6 @@ mod tests {
         assert_eq!(geometric_floor(&[0.0, 0.04]), None);
     }
 
-    /// Pilot pixels of a bounce found by few samples (each of 4 samples hits with probability 0.3, and a hit
-    /// carries the bounce, as on dense fur): the pixel's own mean rises with its bounce, so a denominator from it
-    /// underestimates the bias; the neighbours' does not.
     /// A later bounce's bias is the one before's scaled by the ratio of their mean relative contributions, at most
     /// 1, and unknown when the one before has no positive mean.
     #[test]
@@ -809,6 +803,9 @@ mod tests {
         assert!(point < 1.0 && gain == 1.0, "{point} {gain}");
     }
 
+    /// Pilot pixels of a bounce found by few samples (each of 4 samples hits with probability 0.3, and a hit
+    /// carries the bounce, as on dense fur): the pixel's own mean rises with its bounce, so a denominator from it
+    /// underestimates the bias; the neighbours' does not.
     #[test]
     fn a_bounce_found_by_few_samples_is_not_underestimated() {
         let ws = windows(256, 256);

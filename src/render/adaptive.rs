@@ -240,13 +240,26 @@ impl Schedule {
     /// only decides where the samples go: as a stop it overstated the noise, and the rule delivered 1.36–2.1×
     /// less than it aimed at).
     pub fn image_rel_mse(&self, taken: &[u32], pixels: &[Convergence]) -> f64 {
-        let sum: f64 = taken
+        Self::mean_over_counts(&self.gained_variances(taken, pixels), taken)
+    }
+
+    /// Each pixel's own v over the sampler's gain at its present count, v / g(n): what the stop and the round's
+    /// budget read (the gain only grows with more samples, so a round's goals from it are a little high, never
+    /// low).
+    fn gained_variances(&self, taken: &[u32], pixels: &[Convergence]) -> Vec<f64> {
+        pixels
             .iter()
-            .zip(pixels)
-            .map(|(&n, p)| {
-                let n = f64::from(n.max(1));
-                p.relative_variance() / (n * self.gain(n))
-            })
+            .zip(taken)
+            .map(|(p, &n)| p.relative_variance() / self.gain(f64::from(n.max(1))))
+            .collect()
+    }
+
+    /// The mean over pixels of `v / n` (`n` at least 1).
+    fn mean_over_counts(v: &[f64], taken: &[u32]) -> f64 {
+        let sum: f64 = v
+            .iter()
+            .zip(taken)
+            .map(|(v, &n)| v / f64::from(n.max(1)))
             .sum();
         sum / taken.len().max(1) as f64
     }
@@ -263,20 +276,15 @@ impl Schedule {
         pixels: &[Convergence],
     ) -> Option<Vec<u32>> {
         let budget = self.target * self.target;
-        if round >= MAX_ROUNDS || self.image_rel_mse(taken, pixels) <= budget {
+        // Each pixel's own v over the sampler's gain at its count ([`Schedule::gained_variances`]).
+        let own = self.gained_variances(taken, pixels);
+        if round >= MAX_ROUNDS || Self::mean_over_counts(&own, taken) <= budget {
             return None;
         }
         let count = taken.len() as f64;
         // Who gets the samples: the smoothed v (a hair-edge pixel whose first samples all missed gets its
-        // neighbours' share); how many: enough that the pixels' own v / n meet the budget.
+        // neighbours' share); how many: enough that the pixels' own v / (n g(n)) meet the budget.
         let v = smoothed_variances(width, pixels);
-        // Each pixel's own v over the sampler's gain at its present count (the gain only grows with more samples,
-        // so the round's goals are a little high, never low).
-        let own: Vec<f64> = pixels
-            .iter()
-            .zip(taken)
-            .map(|(p, &n)| p.relative_variance() / self.gain(f64::from(n.max(1))))
-            .collect();
         // Each pixel's cost per sample, if every pixel's was recorded; otherwise all equal.
         let c: Vec<f64> = pixels
             .iter()
