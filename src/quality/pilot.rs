@@ -73,13 +73,73 @@ pub fn windows(width: u32, height: u32) -> Vec<Region> {
     out
 }
 
-/// One pilot estimate: the beauty (RGB) of every window pixel, in window order, and the render's wall time.
+/// One pilot estimate: the beauty (RGB) of every window pixel, in window order, with each window's rays, and the
+/// render's wall time.
+#[derive(Clone)]
 struct Pilot {
     rgb: Vec<[f32; 3]>,
     seconds: f64,
     samples: u64,
     /// Rays traced, by kind (deterministic, unlike `seconds`: the cost decisions are made on).
     rays: RayCounts,
+    /// Each window's pixels in `rgb` (`start..start + len`) and its rays.
+    windows: Vec<(usize, usize, RayCounts)>,
+}
+
+impl Pilot {
+    /// The pilot of the windows `picked` (indices into this pilot's windows, in that order) alone; its time is
+    /// this one's share by pixels.
+    fn subset(&self, picked: &[usize]) -> Pilot {
+        let mut rgb = Vec::new();
+        let mut rays = RayCounts::default();
+        let mut windows = Vec::with_capacity(picked.len());
+        for &i in picked {
+            let (start, len, counts) = self.windows[i];
+            windows.push((rgb.len(), len, counts));
+            rgb.extend_from_slice(&self.rgb[start..start + len]);
+            rays.add(&counts);
+        }
+        let share = rgb.len() as f64 / self.rgb.len().max(1) as f64;
+        Pilot {
+            seconds: self.seconds * share,
+            samples: (self.samples as f64 * share).round() as u64,
+            rgb,
+            rays,
+            windows,
+        }
+    }
+
+    /// The pilot of `count` windows from two pilots of complementary windows: `a` holds the windows `a_picked`
+    /// (in that order), `b` the rest (in window order).
+    fn merge(a: &Pilot, a_picked: &[usize], b: &Pilot, count: usize) -> Pilot {
+        let mut parts = Vec::with_capacity(count);
+        let (mut ia, mut ib) = (0, 0);
+        for i in 0..count {
+            if a_picked.get(ia) == Some(&i) {
+                parts.push((a, ia));
+                ia += 1;
+            } else {
+                parts.push((b, ib));
+                ib += 1;
+            }
+        }
+        let mut rgb = Vec::new();
+        let mut rays = RayCounts::default();
+        let mut windows = Vec::with_capacity(count);
+        for (p, i) in parts {
+            let (start, len, counts) = p.windows[i];
+            windows.push((rgb.len(), len, counts));
+            rgb.extend_from_slice(&p.rgb[start..start + len]);
+            rays.add(&counts);
+        }
+        Pilot {
+            rgb,
+            seconds: a.seconds + b.seconds,
+            samples: a.samples + b.samples,
+            rays,
+            windows,
+        }
+    }
 }
 
 fn render_windows(
@@ -100,10 +160,10 @@ fn render_windows(
     let mut rgb = Vec::new();
     let mut samples = 0u64;
     let mut rays = RayCounts::default();
-    for (_, counts) in &renders {
+    let mut spans = Vec::with_capacity(renders.len());
+    for (image, counts) in &renders {
         rays.add(counts);
-    }
-    for (image, _) in &renders {
+        let start = rgb.len();
         samples += (image.width * image.height) as u64 * u64::from(settings.film.spp);
         for y in 0..image.height {
             for x in 0..image.width {
@@ -111,12 +171,14 @@ fn render_windows(
                 rgb.push([p[0], p[1], p[2]]);
             }
         }
+        spans.push((start, rgb.len() - start, *counts));
     }
     Pilot {
         rgb,
         seconds,
         samples,
         rays,
+        windows: spans,
     }
 }
 
@@ -136,6 +198,16 @@ impl Pair {
         s.film.seed = SEEDS[1];
         let b = render_windows(frame, &s, maps, windows);
         Pair([a, b])
+    }
+
+    /// The pair of the windows `picked` alone ([`Pilot::subset`]).
+    fn subset(&self, picked: &[usize]) -> Pair {
+        Pair(self.0.each_ref().map(|p| p.subset(picked)))
+    }
+
+    /// The pair of all `count` windows from pairs of complementary windows ([`Pilot::merge`]).
+    fn merge(a: &Pair, a_picked: &[usize], b: &Pair, count: usize) -> Pair {
+        Pair([0, 1].map(|s| Pilot::merge(&a.0[s], a_picked, &b.0[s], count)))
     }
 
     /// The relative MSE of one estimate, E[(x − y)²] / 2 over (m² + 0.01) per pixel and channel (the variance of
@@ -183,6 +255,31 @@ impl Pair {
 
     fn rgb(&self) -> [&[[f32; 3]]; 2] {
         [&self.0[0].rgb, &self.0[1].rgb]
+    }
+}
+
+/// The windows (indices into `windows`, in order) on which the light and material sample candidates are compared:
+/// on the [`windows`] grid, every second column of every second row (a quarter, spread over the film as evenly as
+/// the whole grid), or all of them where that would leave fewer than 16.
+///
+/// The candidates' relMSE relative to the scene's samples on the same pixels is what decides, and the pixels' own
+/// spread (background against fur) is common to all of them, so a quarter of the windows decides nearly as well as
+/// all of them at a quarter of the cost: on the default scene (128², 64 windows) the candidates other than the
+/// path-length pilots' own were ~40 % of the pilots' predicted CPU time. (Every fourth window in row order would
+/// sit in two columns of an 8-wide grid.)
+fn comparison_windows(windows: &[Region]) -> Vec<usize> {
+    let columns = windows
+        .iter()
+        .take_while(|r| r.y0 == windows[0].y0)
+        .count()
+        .max(1);
+    let picked: Vec<usize> = (0..windows.len())
+        .filter(|i| (i % columns) % 2 == 0 && (i / columns) % 2 == 0)
+        .collect();
+    if picked.len() < 16 {
+        (0..windows.len()).collect()
+    } else {
+        picked
     }
 }
 
@@ -301,22 +398,30 @@ fn sampler_gain(one: &Pair, pilot: &Pair, standard_errors: f64) -> (f64, f64) {
     ((g * (1.0 - standard_errors * relative_error)).max(1.0), g)
 }
 
-/// The path length of least predicted cost for `target` among those rendered (`pairs[j]` at path length j, the
-/// last one's next bounce under a quarter of the target) whose bias left out, the geometric tail of
-/// `biases` (`biases[i]`: bounce i + 1, [`bias_left`]), is at most half the target: (path length, its bias left
-/// out, the candidates listed for the decision's reason).
+/// The path length of least predicted cost for `target` among those rendered (`pairs[j]` at path length j) whose
+/// bias left out, the geometric tail of `biases` (`biases[i]`: bounce i + 1, [`bias_left`]), is at most half the
+/// target: (path length, its bias left out, the candidates listed for the decision's reason). `biases` holds one
+/// bounce fewer than `pairs` paths: the longest path rendered, whose last bounce was under a quarter of the target,
+/// takes the next bounce as that one's geometric continuation ([`geometric_floor`], or half of it after bounce 1),
+/// so its tail is within half the target and the choice is total.
 ///
 /// The cost of reaching the target at path length j is its CPU seconds per sample times the samples its noise
 /// needs, ∝ seconds_j × relMSE_j / (target² − left_j²). A bounce just over a quarter of the target takes 1 % of
 /// target² as bias when left out and may cost a tenth more per sample to trace: on straight hair under the city
 /// map at 0.1 the pilots put bounce 2 at 0.029, the bounces after the first at 0.033 together (2 × 128-spp
-/// renders of the whole film), and path 1 met 0.1 at 20 spp where auto took path 2 and 21 spp.
+/// renders of the whole film), and path 1 met 0.1 at 20 spp where auto took path 2 and 21 spp. The longest path
+/// is a candidate because its pilots are rendered anyway and a deep bounce can cost little: on the fur ball
+/// (128²) the study's fits put path 3 at 0.070 s per spp against path 2's 0.074 (Russian roulette ends most paths
+/// early), and path 3 has no bias left to pay for, where auto took path 2 with 0.0315 of it.
 fn cheapest_path_length(pairs: &[Pair], biases: &[f64], target: f64) -> (u32, f64, String) {
     let mut best: Option<(u32, f64, f64)> = None;
     let mut listed = Vec::new();
-    let last = pairs.len().min(biases.len()).saturating_sub(1);
+    let last = pairs.len().min(biases.len() + 1).saturating_sub(1);
+    let continuation =
+        geometric_floor(biases).unwrap_or_else(|| 0.5 * biases.last().copied().unwrap_or(0.0));
     for (j, pair) in pairs.iter().enumerate().take(last + 1) {
-        let left = bias_left(biases[j], j.checked_sub(1).map(|i| biases[i]));
+        let next = biases.get(j).copied().unwrap_or(continuation);
+        let left = bias_left(next, j.checked_sub(1).map(|i| biases[i]));
         // The longest path rendered is always a candidate (its next bounce is under a quarter of the target, so
         // its tail is within half), which keeps the choice total.
         if left > 0.5 * target && j < last {
@@ -452,8 +557,8 @@ pub fn plan(
     pilot.film.spp = PILOT_SPP;
     let mut decisions = Vec::new();
     let spent = std::cell::Cell::new(0.0f64);
-    let render_pair = |settings: &RenderSettings| {
-        let pair = Pair::render(frame, settings, maps, &windows);
+    let render_pair = |settings: &RenderSettings, windows: &[Region]| {
+        let pair = Pair::render(frame, settings, maps, windows);
         spent.set(spent.get() + 2.0 * pair.predicted_seconds());
         pair
     };
@@ -477,12 +582,10 @@ pub fn plan(
         let mut floored = Vec::new();
         pilot.integrator.path_length = 0;
         // pairs[j]: the pilots at path length j.
-        let mut pairs = vec![render_pair(&pilot)];
-        let mut chosen = MAX_PATH_LENGTH;
-        let mut candidates = String::new();
+        let mut pairs = vec![render_pair(&pilot, &windows)];
         for k in 1..=MAX_PATH_LENGTH {
             pilot.integrator.path_length = k;
-            let next = render_pair(&pilot);
+            let next = render_pair(&pilot, &windows);
             let previous = pairs.last().expect("path length 0 was rendered");
             let bounce = bounce_bias(previous.rgb(), next.rgb(), &windows);
             let measured = match (biases.last(), measurements.last()) {
@@ -498,15 +601,13 @@ pub fn plan(
             let bias = geometric_floor(&biases).map_or(measured, |f| measured.max(f));
             floored.push(bias > measured);
             biases.push(bias);
+            pairs.push(next);
             if bias < 0.25 * target {
-                let (j, tail, listed) = cheapest_path_length(&pairs, &biases, target);
-                chosen = j;
-                left = Some(tail);
-                candidates = listed;
                 break;
             }
-            pairs.push(next);
         }
+        let (chosen, tail, candidates) = cheapest_path_length(&pairs, &biases, target);
+        left = Some(tail);
         kept = pairs.into_iter().nth(chosen as usize);
         let listed: Vec<String> = biases
             .iter()
@@ -548,53 +649,70 @@ pub fn plan(
         settings.integrator.material_samples,
     );
     let (pair, light_samples, material_samples) = if fixed.samples {
-        let pair = kept.take().unwrap_or_else(|| render_pair(&pilot));
+        let pair = kept.take().unwrap_or_else(|| render_pair(&pilot, &windows));
         (pair, scene_samples.0, scene_samples.1)
     } else {
-        let mut best: Option<(Pair, u32, u32, f64)> = None;
+        // The scene's samples on every window (the path-length pilots' pair when there is one); the other
+        // candidates on a subset of the windows only, compared with the scene's pair on the same windows, and the
+        // winner completed on the rest.
+        let base = kept.take().unwrap_or_else(|| render_pair(&pilot, &windows));
+        let picked = comparison_windows(&windows);
+        let rest: Vec<usize> = (0..windows.len()).filter(|i| !picked.contains(i)).collect();
+        let regions = |indices: &[usize]| indices.iter().map(|&i| windows[i]).collect::<Vec<_>>();
+        let base_subset = base.subset(&picked);
+        let mut best: Option<((u32, u32), Option<Pair>, f64)> = None;
         let mut listed = Vec::new();
         let mut measured: Vec<((u32, u32), f64, f64)> = Vec::new();
         for (l, m) in SAMPLE_CANDIDATES {
-            pilot.integrator.light_samples = l;
-            pilot.integrator.material_samples = m;
-            let reusable = kept.is_some() && (l, m) == scene_samples;
+            let is_base = (l, m) == scene_samples;
             if let (false, Some((v, seconds)), Some(b)) =
-                (reusable, predicted_both((l, m), &measured), best.as_ref())
+                (is_base, predicted_both((l, m), &measured), best.as_ref())
             {
-                if v * seconds > SKIP_MARGIN * b.3 {
+                if v * seconds > SKIP_MARGIN * b.2 {
                     listed.push(format!(
                         "{l} light + {m} material: not rendered, predicted from the three others relMSE \
-                         {v:.2e}, {seconds:.3} CPU s (over {SKIP_MARGIN} × the best's cost)"
+                         {v:.2e}, {seconds:.4} CPU s (over {SKIP_MARGIN} × the best's cost)"
                     ));
                     continue;
                 }
             }
-            let pair = match kept.take() {
-                Some(p) if (l, m) == scene_samples => p,
-                other => {
-                    kept = other;
-                    render_pair(&pilot)
-                }
-            };
-            let cost = pair.rel_mse() * pair.predicted_seconds();
-            measured.push(((l, m), pair.rel_mse(), pair.predicted_seconds()));
+            let rendered = (!is_base).then(|| {
+                pilot.integrator.light_samples = l;
+                pilot.integrator.material_samples = m;
+                render_pair(&pilot, &regions(&picked))
+            });
+            let p = rendered.as_ref().unwrap_or(&base_subset);
+            let cost = p.rel_mse() * p.predicted_seconds();
+            measured.push(((l, m), p.rel_mse(), p.predicted_seconds()));
             listed.push(format!(
-                "{l} light + {m} material: relMSE {:.2e} with {:.0} rays, predicted {:.3} CPU s",
-                pair.rel_mse(),
-                pair.rays(),
-                pair.predicted_seconds()
+                "{l} light + {m} material: relMSE {:.2e} with {:.0} rays, predicted {:.4} CPU s",
+                p.rel_mse(),
+                p.rays(),
+                p.predicted_seconds()
             ));
-            if best.as_ref().is_none_or(|b| cost < b.3) {
-                best = Some((pair, l, m, cost));
+            if best.as_ref().is_none_or(|b| cost < b.2) {
+                best = Some(((l, m), rendered, cost));
             }
         }
-        let (pair, l, m, _) = best.expect("candidates are not empty");
+        let ((l, m), rendered, _) = best.expect("candidates are not empty");
+        let pair = match rendered {
+            None => base,
+            Some(subset) if rest.is_empty() => subset,
+            Some(subset) => {
+                pilot.integrator.light_samples = l;
+                pilot.integrator.material_samples = m;
+                let completed = render_pair(&pilot, &regions(&rest));
+                Pair::merge(&subset, &picked, &completed, windows.len())
+            }
+        };
         decisions.push(Decision {
             key: "integrator.light_samples, material_samples",
             value: format!("{l}, {m}"),
             reason: format!(
                 "the least predicted cost for a given noise (relMSE × CPU s predicted from the rays of each kind) \
-                 among the pilots at {PILOT_SPP} spp: {}",
+                 among the pilots at {PILOT_SPP} spp on {} of the {} windows: {}",
+                picked.len(),
+                windows.len(),
                 listed.join("; ")
             ),
         });
@@ -640,7 +758,7 @@ pub fn plan(
         one.integrator.material_samples = material_samples;
         one.film.spp = GAIN_SPP;
         let standard_errors = margins.gain_standard_errors;
-        let (gain, point) = sampler_gain(&render_pair(&one), &pair, standard_errors);
+        let (gain, point) = sampler_gain(&render_pair(&one, &windows), &pair, standard_errors);
         decisions.push(Decision {
             key: "sampler gain",
             value: format!("{gain:.3}"),
@@ -758,9 +876,54 @@ mod tests {
         assert_eq!(next_bias(0.1, &bounce(0.0), &bounce(0.02)), None);
     }
 
+    /// The light/material candidates are compared on every second window of every second row of the grid: a
+    /// quarter spread over the whole film (not two columns of it), or every window where that leaves fewer than 16.
+    #[test]
+    fn the_sample_candidates_are_compared_on_a_spread_quarter_of_the_windows() {
+        let ws = windows(128, 128);
+        let picked = comparison_windows(&ws);
+        assert_eq!(picked.len(), 16);
+        let xs: std::collections::BTreeSet<u32> = picked.iter().map(|&i| ws[i].x0).collect();
+        let ys: std::collections::BTreeSet<u32> = picked.iter().map(|&i| ws[i].y0).collect();
+        assert_eq!((xs.len(), ys.len()), (4, 4), "{picked:?}");
+        // 640x480: 28 x 21 windows, 14 x 11 picked.
+        assert_eq!(comparison_windows(&windows(640, 480)).len(), 14 * 11);
+        // 96x72: 7 x 5 windows, a quarter would be 12: all of them.
+        assert_eq!(comparison_windows(&windows(96, 72)).len(), 35);
+    }
+
+    /// A subset of a pilot's windows and the rest merge back into the pilot: pixels and rays, in window order.
+    #[test]
+    fn a_pilot_split_into_windows_merges_back() {
+        let rays = |k: u64| RayCounts {
+            camera: k,
+            shadow: 2 * k,
+            ..RayCounts::default()
+        };
+        let full = Pilot {
+            rgb: (0..12).map(|i| [i as f32, 0.0, 1.0]).collect(),
+            seconds: 3.0,
+            samples: 48,
+            rays: rays(6),
+            windows: (0..3).map(|w| (4 * w, 4, rays(w as u64 + 1))).collect(),
+        };
+        let a = full.subset(&[0, 2]);
+        assert_eq!(a.rgb.len(), 8);
+        assert_eq!(a.rgb[4][0], 8.0);
+        assert_eq!(a.rays, rays(4));
+        let b = full.subset(&[1]);
+        let merged = Pilot::merge(&a, &[0, 2], &b, 3);
+        assert_eq!(merged.rgb, full.rgb);
+        assert_eq!(merged.rays, full.rays);
+        assert_eq!(merged.samples, full.samples);
+        assert!((merged.seconds - full.seconds).abs() < 1e-12);
+        assert_eq!(merged.windows, full.windows);
+    }
+
     /// A pair of pilot estimates from two seeds' pixel values.
     fn pair_of(a: Vec<[f32; 3]>, b: Vec<[f32; 3]>) -> Pair {
-        let pilot = |rgb| Pilot {
+        let pilot = |rgb: Vec<[f32; 3]>| Pilot {
+            windows: vec![(0, rgb.len(), RayCounts::default())],
             rgb,
             seconds: 0.0,
             samples: 0,
