@@ -255,7 +255,7 @@ fn render_quality_auto_prints_its_decisions_and_is_the_same_at_1_and_2_threads()
 }
 
 /// `study auto` end to end on a tiny scene: every file written, one row per method and target, auto's row
-/// consistent (met = error within target), and the 16 fixed configurations fitted.
+/// consistent (met = error within target), and the 24 fixed configurations fitted.
 #[test]
 fn study_auto_writes_its_table_and_fits() {
     let dir = tempfile::tempdir().unwrap();
@@ -286,7 +286,7 @@ fn study_auto_writes_its_table_and_fits() {
     assert!(o.status.success(), "{err}");
     let csv = std::fs::read_to_string(out.join("auto.csv")).unwrap();
     let fits = std::fs::read_to_string(out.join("auto-fits-tiny.csv")).unwrap();
-    assert_eq!(fits.lines().count(), 17, "{fits}");
+    assert_eq!(fits.lines().count(), 25, "{fits}");
     let md = std::fs::read_to_string(out.join("auto.md")).unwrap();
     assert_eq!(
         md.lines().filter(|l| l.starts_with("| tiny |")).count(),

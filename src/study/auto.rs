@@ -9,7 +9,7 @@
 //!    [`REFERENCE_PATH_LENGTH`], `reference_spp` samples, its own seed; cached by a hash of the scene and these
 //!    settings.
 //! 2. **Every fixed configuration** the other studies sweep: curves {round, flat} × shadows {ray-traced, deep
-//!    opacity} × path length {0, 1, 2, 3} (the scene's light and material samples). Each is rendered at
+//!    opacity} × path length 0–5 ([`FIXED_PATH_LENGTHS`]; the scene's light and material samples). Each is rendered at
 //!    [`FIT_SPP`] = 4 and 16 spp; the squared relative error is fitted as err²(n) = b² + v/n (bias and noise), and
 //!    the spp that meets a target T is v / (T² − b²), none when b ≥ T. Its time is predicted from the 16-spp
 //!    render's time per sample plus the map build.
@@ -42,8 +42,17 @@ use crate::scene::{ShadowMode, TransmittanceMode};
 
 use super::{cache, cached_reference, create_dir, load_scene, StudyError};
 
-/// Indirect bounces of the reference (the fixed configurations sweep 0–3 below it).
-pub const REFERENCE_PATH_LENGTH: u32 = 4;
+/// Indirect bounces of the reference: deep enough that no path length auto or the fixed sweep takes is near it.
+/// At 4 (before 3 Dec 2026) auto chose path 5 on the Cornell box at 0.05 (its pilots measured bounce 5 above a
+/// quarter of the target) and was marked a miss at 0.0514 against a reference that left bounce 5 out; the fixed
+/// configurations' bias was measured against the same truncated image. Russian roulette keeps the deep bounces
+/// cheap.
+pub const REFERENCE_PATH_LENGTH: u32 = 10;
+/// The path lengths of the fixed configurations: 0 to 5 (to 3 before 3 Dec 2026; the Cornell box's light needs
+/// more bounces than the hair scenes').
+pub const FIXED_PATH_LENGTHS: std::ops::RangeInclusive<u32> = 0..=5;
+/// How many fixed configurations there are: curves × shadows × path lengths.
+const FIXED_CONFIGS: usize = 2 * 2 * (*FIXED_PATH_LENGTHS.end() as usize + 1);
 /// The two sample counts each fixed configuration is fitted from.
 pub const FIT_SPP: [u32; 2] = [4, 16];
 /// Most spp a fixed configuration or auto may be rendered at in the study.
@@ -352,14 +361,14 @@ fn fit_all(
     Ok(fits)
 }
 
-/// The 16 fixed configurations, in the order of the fits' table.
+/// The [`FIXED_CONFIGS`] fixed configurations, in the order of the fits' table.
 fn configs() -> impl Iterator<Item = (CurveKind, ShadowMode, u32)> {
     [CurveKind::Round, CurveKind::Flat]
         .into_iter()
         .flat_map(|c| {
             [ShadowMode::Raytraced, ShadowMode::DeepOpacity]
                 .into_iter()
-                .flat_map(move |s| (0..REFERENCE_PATH_LENGTH).map(move |p| (c, s, p)))
+                .flat_map(move |s| FIXED_PATH_LENGTHS.map(move |p| (c, s, p)))
         })
 }
 
@@ -389,7 +398,7 @@ fn fits_csv(fits: &[Fit], exact: bool) -> String {
     csv
 }
 
-/// A cached fits table ([`fits_csv`] exact), `None` unless it lists all 16 configurations in order.
+/// A cached fits table ([`fits_csv`] exact), `None` unless it lists all [`FIXED_CONFIGS`] configurations in order.
 fn parse_fits(text: &str) -> Option<Vec<Fit>> {
     let mut fits = Vec::new();
     for ((curves, shadows, path_length), line) in configs().zip(text.lines().skip(1)) {
@@ -412,7 +421,7 @@ fn parse_fits(text: &str) -> Option<Vec<Fit>> {
             setup_seconds: num(4)?,
         });
     }
-    (fits.len() == 16).then_some(fits)
+    (fits.len() == FIXED_CONFIGS).then_some(fits)
 }
 
 /// One scene's measurements at one target.
@@ -539,8 +548,8 @@ fn study_scene(path: &Path, config: &AutoStudyConfig) -> Result<Vec<Row>, StudyE
     let frame_of = |c: CurveKind| &frames[usize::from(c == CurveKind::Flat)];
     let base = scene.render_settings();
     let stem = path.file_stem().unwrap_or_default().to_string_lossy();
-    // Reference, 16 configurations × 2 fits, then per target four renders.
-    let steps = 1 + 2 * 16 + 4 * config.targets.len() as u64;
+    // Reference, every configuration × 2 fits, then per target four renders.
+    let steps = 1 + 2 * FIXED_CONFIGS as u64 + 4 * config.targets.len() as u64;
     let progress = indicatif::ProgressBar::new(steps);
     progress.set_style(
         indicatif::ProgressStyle::with_template(
@@ -594,7 +603,7 @@ fn study_scene(path: &Path, config: &AutoStudyConfig) -> Result<Vec<Row>, StudyE
         .and_then(|t| parse_fits(&t));
     let fits = match cached {
         Some(f) => {
-            progress.inc(2 * 16);
+            progress.inc(2 * FIXED_CONFIGS as u64);
             f
         }
         None => {
@@ -611,7 +620,7 @@ fn study_scene(path: &Path, config: &AutoStudyConfig) -> Result<Vec<Row>, StudyE
     let shipped_config = Config {
         curves: scene.hair.curves,
         shadows: base.shadows.mode,
-        path_length: base.integrator.path_length.min(REFERENCE_PATH_LENGTH - 1),
+        path_length: base.integrator.path_length.min(*FIXED_PATH_LENGTHS.end()),
     };
     let mut rows = Vec::new();
     for &target in &config.targets {
