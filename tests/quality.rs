@@ -457,3 +457,60 @@ fn calibrate_cost_model() {
         }
     }
 }
+
+/// The pilots' renders ([`cuticle::render::render_bounces`]): one render at path length 3, cut after each vertex,
+/// gives what a render at each shorter path length gives — the same pixels (to float rounding) and the same rays.
+/// Opaque strands, so that the cut's last vertex (a closest-hit ray that may go on) and the short render's (a
+/// visibility ray that only looks for light) see the same light.
+#[test]
+fn one_render_cut_after_each_vertex_equals_the_renders_at_each_path_length() {
+    let s = scene(&format!(
+        "[hair]\nprocedural = {{ kind = \"fur-ball\", strands = 4000 }}\nopacity = 1.0\n\
+         [film]\nresolution = [24, 16]\nspp = 4\naovs = []\n[integrator]\npath_length = 3\n{SUN}{SKY}"
+    ));
+    let frame = Frame::load(s.resolve().unwrap()).unwrap();
+    let pool = thread_pool(Some(2)).unwrap();
+    let region = cuticle::render::Region::full(24, 16);
+    let cut =
+        pool.install(|| cuticle::render::render_bounces(&frame, &frame.settings, None, region));
+    assert_eq!(cut.pixels.len(), 4);
+    let mut worst = 0.0f32;
+    for j in 0..4u32 {
+        let mut settings = frame.settings.clone();
+        settings.integrator.path_length = j;
+        let r = pool.install(|| {
+            frame.render_region(&settings, None, 0.0, Options::default(), region, None)
+        });
+        assert_eq!(
+            cut.rays[j as usize], r.stats.rays,
+            "rays at path length {j}"
+        );
+        for (p, c) in cut.pixels[j as usize].iter().enumerate() {
+            let (x, y) = (p % 24, p / 24);
+            for ch in 0..3 {
+                let want = r.image.get(x, y, ch);
+                let d = (c[ch] - want).abs() / (want.abs() + 1e-3);
+                worst = worst.max(d);
+                assert!(
+                    d < 1e-4,
+                    "path {j} pixel ({x}, {y}) channel {ch}: {} against {want}",
+                    c[ch]
+                );
+            }
+        }
+    }
+    println!("worst relative difference {worst:e}");
+    // The bounces matter in this scene: the cuts differ.
+    let mean = |j: usize| cut.pixels[j].iter().map(|p| p.x).sum::<f32>();
+    println!(
+        "sums of R at path lengths 0-3: {:?}",
+        (0..4).map(mean).collect::<Vec<_>>()
+    );
+    assert!(
+        mean(1) > 1.01 * mean(0) && mean(2) > mean(1),
+        "{} {} {}",
+        mean(0),
+        mean(1),
+        mean(2)
+    );
+}

@@ -2,16 +2,17 @@
 //! auto cannot know from the scene file — how much light each bounce adds and how noisy a sample is.
 //!
 //! The windows are a regular grid of small [`WINDOW`]² squares spread over the film (background included, as the
-//! error target counts every pixel). Each is rendered with [`Frame::render_region`], whose pixels equal the full
-//! frame's, so a pilot pixel integrates exactly what the frame's pixel will. Pilots are deterministic (fixed
-//! seeds, independent of the frame's seed and of the thread count), so the decisions are too.
+//! error target counts every pixel). Each is rendered with [`render_bounces`], whose pixel is the mean of the
+//! same camera samples the frame's pixel takes (with the pilots' seeds), so a pilot pixel integrates exactly what
+//! the frame's pixel will, and which gives every shorter path length's estimate of it from one render. Pilots are
+//! deterministic (fixed seeds, independent of the frame's seed and of the thread count), so the decisions are
+//! too.
 
 use rayon::prelude::*;
 
-use crate::image::Image;
 use crate::render::integrator::{RayCounts, MAX_PATH_LENGTH};
 use crate::render::settings::RenderSettings;
-use crate::render::{Frame, Options, Region};
+use crate::render::{render_bounces, BounceRender, Frame, Region};
 use crate::shadow::ShadowMaps;
 
 use super::{Decision, QualityConfig};
@@ -142,43 +143,61 @@ impl Pilot {
     }
 }
 
+/// The pilot estimate of `settings` over `windows`, at its path length.
 fn render_windows(
     frame: &Frame,
     settings: &RenderSettings,
     maps: Option<&ShadowMaps>,
     windows: &[Region],
 ) -> Pilot {
-    let start = std::time::Instant::now();
-    let renders: Vec<(Image, RayCounts)> = windows
-        .par_iter()
-        .map(|&r| {
-            let r = frame.render_region(settings, maps, 0.0, Options { progress: false }, r, None);
-            (r.image, r.stats.rays)
-        })
-        .collect();
-    let seconds = start.elapsed().as_secs_f64();
-    let mut rgb = Vec::new();
-    let mut samples = 0u64;
-    let mut rays = RayCounts::default();
-    let mut spans = Vec::with_capacity(renders.len());
-    for (image, counts) in &renders {
-        rays.add(counts);
-        let start = rgb.len();
-        samples += (image.width * image.height) as u64 * u64::from(settings.film.spp);
-        for y in 0..image.height {
-            for x in 0..image.width {
-                let p = image.pixel(x, y);
-                rgb.push([p[0], p[1], p[2]]);
-            }
-        }
-        spans.push((start, rgb.len() - start, *counts));
-    }
-    Pilot {
-        rgb,
+    let (renders, seconds) = render_bounce_windows(frame, settings, maps, windows);
+    Pilot::cut(
+        &renders,
+        settings.integrator.path_length as usize,
         seconds,
-        samples,
-        rays,
-        windows: spans,
+        settings.film.spp,
+    )
+}
+
+/// [`render_bounces`] of every window (in parallel) and the wall time it took.
+fn render_bounce_windows(
+    frame: &Frame,
+    settings: &RenderSettings,
+    maps: Option<&ShadowMaps>,
+    windows: &[Region],
+) -> (Vec<BounceRender>, f64) {
+    let start = std::time::Instant::now();
+    let renders = windows
+        .par_iter()
+        .map(|&r| render_bounces(frame, settings, maps, r))
+        .collect();
+    (renders, start.elapsed().as_secs_f64())
+}
+
+impl Pilot {
+    /// The pilot estimate at path length `j` cut from `renders` (one per window, at a path length ≥ `j`) that took
+    /// `seconds` of wall time at `spp`; the time is shared by the cuts in proportion to their predicted cost.
+    fn cut(renders: &[BounceRender], j: usize, seconds: f64, spp: u32) -> Pilot {
+        let mut rgb = Vec::new();
+        let mut rays = RayCounts::default();
+        let mut all = RayCounts::default();
+        let mut windows = Vec::with_capacity(renders.len());
+        for r in renders {
+            let start = rgb.len();
+            rgb.extend(r.pixels[j].iter().map(|p| p.to_array()));
+            windows.push((start, rgb.len() - start, r.rays[j]));
+            rays.add(&r.rays[j]);
+            all.add(r.rays.last().expect("path length 0 at least"));
+        }
+        let share = super::cost::WEIGHTS.seconds(&rays)
+            / super::cost::WEIGHTS.seconds(&all).max(f64::MIN_POSITIVE);
+        Pilot {
+            samples: rgb.len() as u64 * u64::from(spp),
+            rgb,
+            seconds: seconds * share.min(1.0),
+            rays,
+            windows,
+        }
     }
 }
 
@@ -256,6 +275,44 @@ impl Pair {
     fn rgb(&self) -> [&[[f32; 3]]; 2] {
         [&self.0[0].rgb, &self.0[1].rgb]
     }
+}
+
+/// The path length of the first pilot render of the path-length search: every shorter one is cut from it
+/// ([`bounce_pairs`]). Three is what the hair scenes need at 0.1 (default, straight hair under the city map and
+/// the fur ball stop at bounce 3, under the sunset map at 2), and a vertex the search did not need costs little
+/// (Russian roulette ends most paths before it).
+const FIRST_PILOT_PATH_LENGTH: u32 = 3;
+/// How many bounces each further pilot render of the search adds.
+const PILOT_PATH_LENGTH_STEP: u32 = 2;
+
+/// The pilot pairs at every path length 0 ..= `settings`' from one render per seed ([`render_bounces`]): a render
+/// at path length j traces the same paths up to vertex j as one at K > j, so cutting the longer one's samples
+/// gives j's estimate and its rays without tracing the shared vertices again (one path-3 render per seed instead
+/// of the four renders at path lengths 0 to 3, which traced vertex 0 four times). Returns the pairs and their
+/// predicted CPU seconds.
+fn bounce_pairs(
+    frame: &Frame,
+    settings: &RenderSettings,
+    maps: Option<&ShadowMaps>,
+    windows: &[Region],
+) -> (Vec<Pair>, f64) {
+    let lengths = settings.integrator.path_length as usize + 1;
+    let seeds = SEEDS.map(|seed| {
+        let mut s = settings.clone();
+        s.film.seed = seed;
+        render_bounce_windows(frame, &s, maps, windows)
+    });
+    let pairs: Vec<Pair> = (0..lengths)
+        .map(|j| {
+            Pair(
+                seeds
+                    .each_ref()
+                    .map(|(renders, seconds)| Pilot::cut(renders, j, *seconds, settings.film.spp)),
+            )
+        })
+        .collect();
+    let predicted = 2.0 * pairs[lengths - 1].predicted_seconds();
+    (pairs, predicted)
 }
 
 /// The windows (indices into `windows`, in order) on which the light and material sample candidates are compared:
@@ -465,8 +522,17 @@ fn next_bias(last: f64, before: &Bounce, this: &Bounce) -> Option<f64> {
         .then(|| last * (this.relative_mean / before.relative_mean).clamp(0.0, 1.0))
 }
 
+/// The largest ratio of one bounce's bias to the one before's that the geometric extrapolations
+/// ([`geometric_floor`], [`bias_left`]) carry on: a bounce that grew is not extrapolated as growing, and the tail
+/// next / (1 − r) stays within 4× the next bounce. It was ½ until 3 Dec 2026: in the Cornell box (a closed box of
+/// diffuse walls) the pilots measured bounces 1, 2, 3 at 0.156, 0.089, 0.050 (ratios 0.57, 0.56); capped at ½ the
+/// tail after path 5 came out 0.0124, auto chose path 5 for 0.05 and measured 0.0527 against a path-10 reference.
+/// The hair scenes' ratios are 0.3–0.5 (the fur ball's 32-spp renders 0.35, 0.45, 0.50, 0.45), below either cap.
+pub const MAX_BOUNCE_RATIO: f64 = 0.75;
+
 /// The least bias (relative RMSE) the next bounce is taken to have, from the estimates of the bounces before it
-/// (`None` before the third): the last one times the ratio of the last two (at most ½, as in [`bias_left`]).
+/// (`None` before the third): the last one times the ratio of the last two (at most [`MAX_BOUNCE_RATIO`], as in
+/// [`bias_left`]).
 ///
 /// A deep bounce on dense fur is found by few of the pilots' 4 samples per pixel, so its product estimate is
 /// heavy-tailed: most pixels see none of it and the mean, and its standard error, come out low. On the fur ball
@@ -476,17 +542,20 @@ fn next_bias(last: f64, before: &Bounce, this: &Bounce) -> Option<f64> {
 /// first two, well measured, bounds the next one better than its own noisy estimate.
 pub fn geometric_floor(before: &[f64]) -> Option<f64> {
     match before {
-        [.., older, last] if *older > 0.0 => Some(last * (last / older).clamp(0.0, 0.5)),
+        [.., older, last] if *older > 0.0 => {
+            Some(last * (last / older).clamp(0.0, MAX_BOUNCE_RATIO))
+        }
         _ => None,
     }
 }
 
 /// The relative RMSE of the bias of every bounce after the chosen ones, from the measured bias of the first left
 /// out (`next`, relative RMSE) and of the last kept (`last`, `None` for path length 0): the bounces' bias falls
-/// about geometrically, so the tail is next / (1 − r) with r = next / last, r at most ½ (and ½ when unknown).
+/// about geometrically, so the tail is next / (1 − r) with r = next / last, r at most [`MAX_BOUNCE_RATIO`] (and ½
+/// when unknown).
 pub fn bias_left(next: f64, last: Option<f64>) -> f64 {
     let r = match last {
-        Some(l) if l > 0.0 => (next / l).clamp(0.0, 0.5),
+        Some(l) if l > 0.0 => (next / l).clamp(0.0, MAX_BOUNCE_RATIO),
         _ => 0.5,
     };
     next / (1.0 - r)
@@ -580,14 +649,26 @@ pub fn plan(
         let mut biases = Vec::new();
         let mut measurements: Vec<Bounce> = Vec::new();
         let mut floored = Vec::new();
-        pilot.integrator.path_length = 0;
-        // pairs[j]: the pilots at path length j.
-        let mut pairs = vec![render_pair(&pilot, &windows)];
+        // pairs[j]: the pilots at path length j, every one cut from a render at the longest ([`bounce_pairs`]),
+        // rendered again longer when the last bounce is still over a quarter of the target.
+        let mut pairs: Vec<Pair> = Vec::new();
         for k in 1..=MAX_PATH_LENGTH {
-            pilot.integrator.path_length = k;
-            let next = render_pair(&pilot, &windows);
-            let previous = pairs.last().expect("path length 0 was rendered");
-            let bounce = bounce_bias(previous.rgb(), next.rgb(), &windows);
+            if k as usize >= pairs.len() {
+                let longest = if pairs.is_empty() {
+                    FIRST_PILOT_PATH_LENGTH
+                } else {
+                    k + PILOT_PATH_LENGTH_STEP - 1
+                };
+                pilot.integrator.path_length = longest.min(MAX_PATH_LENGTH);
+                let (cut, predicted) = bounce_pairs(frame, &pilot, maps, &windows);
+                spent.set(spent.get() + predicted);
+                pairs = cut;
+            }
+            let bounce = bounce_bias(
+                pairs[k as usize - 1].rgb(),
+                pairs[k as usize].rgb(),
+                &windows,
+            );
             let measured = match (biases.last(), measurements.last()) {
                 (Some(&last), Some(before)) => next_bias(last, before, &bounce),
                 _ => None,
@@ -601,11 +682,11 @@ pub fn plan(
             let bias = geometric_floor(&biases).map_or(measured, |f| measured.max(f));
             floored.push(bias > measured);
             biases.push(bias);
-            pairs.push(next);
             if bias < 0.25 * target {
                 break;
             }
         }
+        pairs.truncate(biases.len() + 1);
         let (chosen, tail, candidates) = cheapest_path_length(&pairs, &biases, target);
         left = Some(tail);
         kept = pairs.into_iter().nth(chosen as usize);
@@ -855,8 +936,14 @@ mod tests {
         let floor = geometric_floor(&[0.150, 0.053]).unwrap();
         assert!((floor - 0.053 * 0.053 / 0.150).abs() < 1e-12, "{floor}");
         assert!(floor > 0.25 * 0.05);
-        // The ratio is capped at ½ (a bounce that grew is not extrapolated as growing).
-        assert_eq!(geometric_floor(&[0.01, 0.04]), Some(0.02));
+        // The ratio is capped (a bounce that grew is not extrapolated as growing).
+        assert_eq!(
+            geometric_floor(&[0.01, 0.04]),
+            Some(0.04 * MAX_BOUNCE_RATIO)
+        );
+        // The Cornell box's bounces fall by 0.56-0.57 each: carried on, not cut to a half.
+        let cornell = geometric_floor(&[0.156, 0.089, 0.050]).unwrap();
+        assert!((cornell - 0.050 * 0.050 / 0.089).abs() < 1e-12, "{cornell}");
         assert_eq!(geometric_floor(&[0.0, 0.04]), None);
     }
 

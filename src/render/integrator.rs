@@ -171,6 +171,20 @@ pub struct PathSample {
     pub albedo: Vec3,
 }
 
+/// What [`Integrator::sample_recording`] reports of each path vertex: the light it adds to the beauty and the rays
+/// traced for it. The pilots of `--quality auto` ([`crate::quality::pilot`]) read every path length's estimate from
+/// one render this way; [`Integrator::sample`] records nothing (`()`, compiled away).
+pub trait BounceRecorder {
+    /// Vertex `b` (0: the camera ray and the first vertex, direct light; `b` ≥ 1: bounce `b`) added `radiance` to
+    /// the beauty and traced `rays`.
+    fn vertex(&mut self, b: u32, radiance: Vec3, rays: &RayCounts);
+}
+
+impl BounceRecorder for () {
+    #[inline(always)]
+    fn vertex(&mut self, _: u32, _: Vec3, _: &RayCounts) {}
+}
+
 /// A shading point's scattering: a hair fibre (hair frame, strand tint on the diffuse lobe) or a two-sided Lambert
 /// surface.
 // The hair variant carries the Chiang view (~150 bytes): a vertex lives on the stack for one path step, and
@@ -505,11 +519,27 @@ impl<'a> Integrator<'a> {
         index: u32,
         counts: &mut RayCounts,
     ) -> PathSample {
+        self.sample_recording(ray, sampler, index, counts, &mut ())
+    }
+
+    /// [`Integrator::sample`], reporting each vertex's light and rays to `record` ([`BounceRecorder`]).
+    #[inline]
+    pub fn sample_recording<R: BounceRecorder>(
+        &self,
+        ray: &Ray,
+        sampler: &CameraSample,
+        index: u32,
+        counts: &mut RayCounts,
+        record: &mut R,
+    ) -> PathSample {
+        let before = *counts;
         counts.camera += 1;
         // Matched by reference: the vertex (a few hundred bytes with Chiang's view terms) is not moved out.
         let found = self.find(ray, None, counts);
         let Found::Surface(first) = &found else {
-            return self.seen_directly(ray, &found);
+            let out = self.seen_directly(ray, &found);
+            record.vertex(0, out.beauty, &counts.since(&before));
+            return out;
         };
         let mut out = PathSample {
             alpha: 1.0,
@@ -518,8 +548,9 @@ impl<'a> Integrator<'a> {
         self.first_vertex_light_samples(first, sampler, index, &mut out, counts);
         let next = self.first_vertex_material_samples(first, sampler, index, &mut out, counts);
         out.direct = out.lobes.sum();
+        record.vertex(0, out.direct, &counts.since(&before));
         if let Some((second, first_weights)) = next {
-            let indirect = self.indirect(second, &first_weights, sampler, index, counts);
+            let indirect = self.indirect(second, &first_weights, sampler, index, counts, record);
             out.indirect = indirect.sum();
             add_lobes(&mut out.lobes, &indirect, Vec3::ONE);
         }
@@ -685,21 +716,24 @@ impl<'a> Integrator<'a> {
     /// first vertex's lobes (`first_weights`, its f cos θi / p_m) and clamped ([`Integrator::add_indirect`]). The
     /// path ends after `path_length` bounces, where a vertex has no continuation, or by Russian roulette
     /// ([`roulette`]) before each further vertex.
-    fn indirect(
+    fn indirect<R: BounceRecorder>(
         &self,
         mut v: Vertex,
         first_weights: &LobeValues,
         sampler: &CameraSample,
         index: u32,
         counts: &mut RayCounts,
+        record: &mut R,
     ) -> LobeValues {
         let path_length = self.settings.path_length;
         // Path throughput after the first vertex; the first vertex's own weight stays split by lobe.
         let mut rest = Vec3::ONE;
         let mut indirect = LobeValues::default();
         for b in 1..=path_length {
+            let before = *counts;
             let (radiance, next) = self.deeper_vertex(&v, b, sampler, index, counts);
-            self.add_indirect(&mut indirect, first_weights, rest * radiance);
+            let added = self.add_indirect(&mut indirect, first_weights, rest * radiance);
+            record.vertex(b, added, &counts.since(&before));
             let Some((next, weight)) = next else {
                 break;
             };
@@ -795,17 +829,22 @@ impl<'a> Integrator<'a> {
 
     /// Adds light `l` (already multiplied by the throughput after the first vertex) arriving through the first
     /// vertex, split by its lobes, clamped per [`Settings::clamp`].
+    /// Returns what it added to the beauty (the sum over lobes).
     #[inline]
-    fn add_indirect(&self, acc: &mut LobeValues, first_weights: &LobeValues, l: Vec3) {
+    fn add_indirect(&self, acc: &mut LobeValues, first_weights: &LobeValues, l: Vec3) -> Vec3 {
         let mut scale = l;
+        let weight = first_weights.sum();
         if self.settings.clamp > 0.0 {
-            let c = (first_weights.sum() * l).max_element();
+            let c = (weight * l).max_element();
             if c > self.settings.clamp {
                 scale *= self.settings.clamp / c;
             }
         }
         if scale.is_finite() {
             add_lobes(acc, first_weights, scale);
+            weight * scale
+        } else {
+            Vec3::ZERO
         }
     }
 }

@@ -111,6 +111,90 @@ pub fn render_with_tile_side(
     .image
 }
 
+/// What [`render_bounces`] made: every path length's estimate of a region from one render.
+#[derive(Debug, Clone)]
+pub struct BounceRender {
+    /// `pixels[j][p]`: the beauty of pixel `p` (row-major in the region) cut at path length `j` (0 ..= the
+    /// settings' path length): the camera sample's light from vertices 0 ..= j, averaged over the pixel's samples.
+    pub pixels: Vec<Vec<Vec3>>,
+    /// `rays[j]`: the rays a render at path length `j` traces (those of vertices 0 ..= j).
+    pub rays: Vec<RayCounts>,
+}
+
+/// Renders `region` once at `settings` (`film.spp` samples per pixel, no adaptive sampling, no AOVs) and returns
+/// the beauty every shorter path length would have given ([`BounceRender`]), for the pilots of `--quality auto`.
+///
+/// A render at path length j traces the same paths as one at K > j up to vertex j (same sample streams; Russian
+/// roulette acts only before a further vertex), so its pixel is the sum of the first j + 1 vertices' light of the
+/// longer render's samples. Under light sampling alone the last vertex skips its material sample, so there the
+/// cut estimate differs in its last vertex (the same light, another estimator); under MIS and material sampling
+/// it is the same. The beauty is the mean of the pixel's samples with a finite beauty, as the film's.
+pub fn render_bounces(
+    frame: &Frame,
+    settings: &RenderSettings,
+    maps: Option<&ShadowMaps>,
+    region: Region,
+) -> BounceRender {
+    /// One camera sample's light and rays by vertex.
+    struct Vertices {
+        radiance: [Vec3; integrator::MAX_PATH_LENGTH as usize + 1],
+        rays: [RayCounts; integrator::MAX_PATH_LENGTH as usize + 1],
+    }
+    impl integrator::BounceRecorder for Vertices {
+        #[inline]
+        fn vertex(&mut self, b: u32, radiance: Vec3, rays: &RayCounts) {
+            self.radiance[b as usize] += radiance;
+            self.rays[b as usize].add(rays);
+        }
+    }
+    let [width, height] = settings.film.resolution;
+    let maps = maps.filter(|_| settings.shadows.mode == ShadowMode::DeepOpacity);
+    let camera = Camera::from_config(&settings.camera, frame.hair_bounds(), width, height);
+    let filter = GaussianFilter::shared(settings.film.filter_width);
+    let integrator = Integrator::new(frame, settings, maps);
+    let lengths = settings.integrator.path_length as usize + 1;
+    let mut pixels = vec![Vec::with_capacity((region.width() * region.height()) as usize); lengths];
+    let mut counts = RayCounts::default();
+    let mut v = Vertices {
+        radiance: [Vec3::ZERO; integrator::MAX_PATH_LENGTH as usize + 1],
+        rays: [RayCounts::default(); integrator::MAX_PATH_LENGTH as usize + 1],
+    };
+    let mut rays = vec![RayCounts::default(); lengths];
+    for y in region.y0..region.y1 {
+        for x in region.x0..region.x1 {
+            let pixel = PixelSampler::new(x, y, settings.film.seed);
+            let mut sums = vec![Vec3::ZERO; lengths];
+            let mut kept = 0u32;
+            for i in 0..settings.film.spp {
+                let sampler = CameraSample::new(&pixel, i);
+                let (dx, dy) = filter.sample(sampler.get_2d(i, dim::FILTER));
+                let ray = camera.ray(x as f32 + 0.5 + dx, y as f32 + 0.5 + dy);
+                v.radiance[..lengths].fill(Vec3::ZERO);
+                let s = integrator.sample_recording(&ray, &sampler, i, &mut counts, &mut v);
+                if !s.beauty.is_finite() {
+                    continue;
+                }
+                kept += 1;
+                let mut prefix = Vec3::ZERO;
+                for (sum, r) in sums.iter_mut().zip(&v.radiance[..lengths]) {
+                    prefix += *r;
+                    *sum += prefix;
+                }
+            }
+            let k = if kept > 0 { 1.0 / kept as f32 } else { 0.0 };
+            for (j, sum) in sums.into_iter().enumerate() {
+                pixels[j].push(sum * k);
+            }
+        }
+    }
+    let mut prefix = RayCounts::default();
+    for (j, r) in rays.iter_mut().enumerate() {
+        prefix.add(&v.rays[j]);
+        *r = prefix;
+    }
+    BounceRender { pixels, rays }
+}
+
 /// The pixel loop: renders `region` of `frame` with `settings` (and `maps` in deep-opacity mode) on the current
 /// rayon pool, in work tiles of `tile_side`² pixels ([`TILE`] but in tests). Once `cancel` holds a non-zero value
 /// no new tile starts (tiles already running finish).
