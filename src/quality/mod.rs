@@ -19,7 +19,8 @@
 //!    ray-traced shadows otherwise; the map resolution from the hair's size on screen.
 //! 3. **Path length**, **light and material samples** and **samples per pixel** ([`pilot`]): measured by pilot
 //!    renders of many small windows spread over the frame at full resolution (so a pixel integrates what it will
-//!    in the frame, and the windows' mean stands for the film's, [`pilot::windows`]): bounces are added until the
+//!    in the frame, and the windows' mean stands for the film's, [`pilot::windows`]; every path length is cut from
+//!    one render per seed, [`crate::render::render_bounces`]): bounces are added until the
 //!    next one's bias (bounce 1 from two seeds' products, each later one scaled from the one before by the ratio
 //!    of their mean relative contributions, at least the geometric continuation of the two before,
 //!    [`pilot::geometric_floor`]) is under a quarter of the target; the light/material sample counts that reach a
