@@ -76,7 +76,6 @@ pub fn windows(width: u32, height: u32) -> Vec<Region> {
 
 /// One pilot estimate: the beauty (RGB) of every window pixel, in window order, with each window's rays, and the
 /// render's wall time.
-#[derive(Clone)]
 struct Pilot {
     rgb: Vec<[f32; 3]>,
     seconds: f64,
@@ -85,93 +84,6 @@ struct Pilot {
     rays: RayCounts,
     /// Each window's pixels in `rgb` (`start..start + len`) and its rays.
     windows: Vec<(usize, usize, RayCounts)>,
-}
-
-impl Pilot {
-    /// The pilot of the windows `picked` (indices into this pilot's windows, in that order) alone; its time is
-    /// this one's share by pixels.
-    fn subset(&self, picked: &[usize]) -> Pilot {
-        let mut rgb = Vec::new();
-        let mut rays = RayCounts::default();
-        let mut windows = Vec::with_capacity(picked.len());
-        for &i in picked {
-            let (start, len, counts) = self.windows[i];
-            windows.push((rgb.len(), len, counts));
-            rgb.extend_from_slice(&self.rgb[start..start + len]);
-            rays.add(&counts);
-        }
-        let share = rgb.len() as f64 / self.rgb.len().max(1) as f64;
-        Pilot {
-            seconds: self.seconds * share,
-            samples: (self.samples as f64 * share).round() as u64,
-            rgb,
-            rays,
-            windows,
-        }
-    }
-
-    /// The pilot of `count` windows from two pilots of complementary windows: `a` holds the windows `a_picked`
-    /// (in that order), `b` the rest (in window order).
-    fn merge(a: &Pilot, a_picked: &[usize], b: &Pilot, count: usize) -> Pilot {
-        let mut parts = Vec::with_capacity(count);
-        let (mut ia, mut ib) = (0, 0);
-        for i in 0..count {
-            if a_picked.get(ia) == Some(&i) {
-                parts.push((a, ia));
-                ia += 1;
-            } else {
-                parts.push((b, ib));
-                ib += 1;
-            }
-        }
-        let mut rgb = Vec::new();
-        let mut rays = RayCounts::default();
-        let mut windows = Vec::with_capacity(count);
-        for (p, i) in parts {
-            let (start, len, counts) = p.windows[i];
-            windows.push((rgb.len(), len, counts));
-            rgb.extend_from_slice(&p.rgb[start..start + len]);
-            rays.add(&counts);
-        }
-        Pilot {
-            rgb,
-            seconds: a.seconds + b.seconds,
-            samples: a.samples + b.samples,
-            rays,
-            windows,
-        }
-    }
-}
-
-/// The pilot estimate of `settings` over `windows`, at its path length.
-fn render_windows(
-    frame: &Frame,
-    settings: &RenderSettings,
-    maps: Option<&ShadowMaps>,
-    windows: &[Region],
-) -> Pilot {
-    let (renders, seconds) = render_bounce_windows(frame, settings, maps, windows);
-    Pilot::cut(
-        &renders,
-        settings.integrator.path_length as usize,
-        seconds,
-        settings.film.spp,
-    )
-}
-
-/// [`render_bounces`] of every window (in parallel) and the wall time it took.
-fn render_bounce_windows(
-    frame: &Frame,
-    settings: &RenderSettings,
-    maps: Option<&ShadowMaps>,
-    windows: &[Region],
-) -> (Vec<BounceRender>, f64) {
-    let start = std::time::Instant::now();
-    let renders = windows
-        .par_iter()
-        .map(|&r| render_bounces(frame, settings, maps, r))
-        .collect();
-    (renders, start.elapsed().as_secs_f64())
 }
 
 impl Pilot {
@@ -199,24 +111,105 @@ impl Pilot {
             windows,
         }
     }
+
+    /// The windows `parts` (each a pilot and one of its window indices), in that order, as one pilot; its time and
+    /// samples are the caller's.
+    fn gather<'a>(
+        parts: impl Iterator<Item = (&'a Pilot, usize)>,
+        seconds: f64,
+        samples: u64,
+    ) -> Pilot {
+        let mut rgb = Vec::new();
+        let mut rays = RayCounts::default();
+        let mut windows = Vec::new();
+        for (p, i) in parts {
+            let (start, len, counts) = p.windows[i];
+            windows.push((rgb.len(), len, counts));
+            rgb.extend_from_slice(&p.rgb[start..start + len]);
+            rays.add(&counts);
+        }
+        Pilot {
+            rgb,
+            seconds,
+            samples,
+            rays,
+            windows,
+        }
+    }
+
+    /// The pilot of the windows `picked` (indices into this pilot's windows, in that order) alone; its time is
+    /// this one's share by pixels.
+    fn subset(&self, picked: &[usize]) -> Pilot {
+        let pixels: usize = picked.iter().map(|&i| self.windows[i].1).sum();
+        let share = pixels as f64 / self.rgb.len().max(1) as f64;
+        Pilot::gather(
+            picked.iter().map(|&i| (self, i)),
+            self.seconds * share,
+            (self.samples as f64 * share).round() as u64,
+        )
+    }
+
+    /// The pilot of `count` windows from two pilots of complementary windows: `a` holds the windows `a_picked`
+    /// (in that order), `b` the rest (in window order).
+    fn merge(a: &Pilot, a_picked: &[usize], b: &Pilot, count: usize) -> Pilot {
+        let (mut ia, mut ib) = (0, 0);
+        let parts = (0..count).map(|i| {
+            if a_picked.get(ia) == Some(&i) {
+                ia += 1;
+                (a, ia - 1)
+            } else {
+                ib += 1;
+                (b, ib - 1)
+            }
+        });
+        Pilot::gather(parts, a.seconds + b.seconds, a.samples + b.samples)
+    }
+}
+
+/// [`render_bounces`] of every window (in parallel) with each of the two [`SEEDS`], and the wall time each took.
+fn render_seeds(
+    frame: &Frame,
+    settings: &RenderSettings,
+    maps: Option<&ShadowMaps>,
+    windows: &[Region],
+) -> [(Vec<BounceRender>, f64); 2] {
+    SEEDS.map(|seed| {
+        let mut s = settings.clone();
+        s.film.seed = seed;
+        let start = std::time::Instant::now();
+        let renders = windows
+            .par_iter()
+            .map(|&r| render_bounces(frame, &s, maps, r))
+            .collect();
+        (renders, start.elapsed().as_secs_f64())
+    })
 }
 
 /// Two independent pilot estimates (the two seeds) of one setting.
 struct Pair([Pilot; 2]);
 
 impl Pair {
+    /// The pair of `settings` over `windows`, at its path length.
     fn render(
         frame: &Frame,
         settings: &RenderSettings,
         maps: Option<&ShadowMaps>,
         windows: &[Region],
     ) -> Pair {
-        let mut s = settings.clone();
-        s.film.seed = SEEDS[0];
-        let a = render_windows(frame, &s, maps, windows);
-        s.film.seed = SEEDS[1];
-        let b = render_windows(frame, &s, maps, windows);
-        Pair([a, b])
+        Pair::cut(
+            &render_seeds(frame, settings, maps, windows),
+            settings.integrator.path_length as usize,
+            settings.film.spp,
+        )
+    }
+
+    /// The pair at path length `j` cut from both seeds' renders ([`Pilot::cut`]).
+    fn cut(seeds: &[(Vec<BounceRender>, f64); 2], j: usize, spp: u32) -> Pair {
+        Pair(
+            seeds
+                .each_ref()
+                .map(|(renders, seconds)| Pilot::cut(renders, j, *seconds, spp)),
+        )
     }
 
     /// The pair of the windows `picked` alone ([`Pilot::subset`]).
@@ -297,19 +290,9 @@ fn bounce_pairs(
     windows: &[Region],
 ) -> (Vec<Pair>, f64) {
     let lengths = settings.integrator.path_length as usize + 1;
-    let seeds = SEEDS.map(|seed| {
-        let mut s = settings.clone();
-        s.film.seed = seed;
-        render_bounce_windows(frame, &s, maps, windows)
-    });
+    let seeds = render_seeds(frame, settings, maps, windows);
     let pairs: Vec<Pair> = (0..lengths)
-        .map(|j| {
-            Pair(
-                seeds
-                    .each_ref()
-                    .map(|(renders, seconds)| Pilot::cut(renders, j, *seconds, settings.film.spp)),
-            )
-        })
+        .map(|j| Pair::cut(&seeds, j, settings.film.spp))
         .collect();
     let predicted = 2.0 * pairs[lengths - 1].predicted_seconds();
     (pairs, predicted)

@@ -190,10 +190,10 @@ fn rel_rmse(image: &Image, reference: &Image) -> Result<f64, StudyError> {
 ///
 /// An image x independent of the reference has E[(x − ref)²] = E[(x − truth)²] + E[(ref − truth)²], so the
 /// measured relMSE less the reference's is the image's own error. Until 3 Dec 2026 the reference's noise was left
-/// in: at 512 spp it is a relative RMSE of ~0.017 on the default scene, ~0.028 on the fur ball and ~0.039 on the
-/// Cornell box (their variance × spp over 512), so an image had to reach √(0.05² − 0.039²) = 0.031 to "meet" 0.05
-/// on the Cornell box — the fixed search, which sees the reference, found the spp that does; auto, which does not,
-/// carried margins for it.
+/// in: at 512 spp the halves measure it at a relative RMSE of 0.0135 on the default scene, 0.0240 on the fur ball
+/// and 0.0323 on the Cornell box (the tenth `study auto` run), so an image had to reach √(0.05² − 0.0323²) = 0.038
+/// to "meet" 0.05 on the Cornell box — the fixed search, which sees the reference, found the spp that does; auto,
+/// which does not, carried margins for it.
 struct Yardstick {
     image: Image,
     noise2: f64,
