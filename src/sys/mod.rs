@@ -7,3 +7,4 @@
 
 pub mod embree;
 pub mod oiio;
+pub mod prefetch;
