@@ -218,7 +218,7 @@ impl Tracer for BvhTracer {
     fn transmittance(&self, ray: &Ray, ignore_strand: Option<u32>) -> Result<f32, InvalidRay> {
         let q = self.query(ray)?;
         let mut seen = Seen::new(ignore_strand);
-        self.bvh.for_each(&q.ray, |p, tfar| {
+        self.bvh.for_each_unordered(&q.ray, |p, tfar| {
             if seen.skips(p.strand, p.opacity) || !q.occludes(p, tfar) {
                 return Control::Continue;
             }

@@ -714,6 +714,24 @@ fn check_embree_hits_inside_boxes(strands: &Strands, rays: &[Ray], what: &str) -
                     "{what}, {kind:?}, {bounding:?}: ray {i}: the wide walk never offered embree's segment {}",
                     hit.segment
                 );
+                // The unordered walk offers the same segments (leaves deferred, none lost), each once.
+                let mut ordered = Vec::new();
+                wide.for_each(ray, |p, _| {
+                    ordered.push(p.segment);
+                    Control::Continue
+                });
+                let mut unordered = Vec::new();
+                wide.for_each_unordered(ray, |p, _| {
+                    unordered.push(p.segment);
+                    Control::Continue
+                });
+                ordered.sort_unstable();
+                unordered.sort_unstable();
+                assert_eq!(
+                    ordered, unordered,
+                    "{what}, {kind:?}, {bounding:?}: ray {i}"
+                );
+                assert!(wide.for_each_unordered(&up_to_hit, |p, _| stop_at(p.segment)));
                 checked += 1;
             }
         }
