@@ -26,7 +26,8 @@
 //!    [`pilot::geometric_floor`]) is under a quarter of the target; the light/material sample counts that reach a
 //!    given noise at the least predicted cost ([`cost`]: CPU seconds per ray of each kind, calibrated once); the
 //!    mean samples per pixel from the per-pixel variance of two independent pilot estimates; and how much faster
-//!    than independent samples the sampler's stratified samples converge (a 1-spp pair against the 4-spp one).
+//!    than independent samples the sampler's stratified samples converge (the pilot pixels' sample variances against
+//!    the variance of the two pilot estimates).
 //! 4. **Adaptive sampling** ([`adaptive_schedule`], [`crate::render::adaptive`]): the image-level rule, to the
 //!    noise budget target² − (bias left out)², the bias of all the bounces left out estimated from the pilots'
 //!    last two as a geometric tail ([`pilot::bias_left`]), its stop corrected by the sampler's gain; a quarter to

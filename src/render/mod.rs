@@ -117,6 +117,9 @@ pub struct BounceRender {
     /// `pixels[j][p]`: the beauty of pixel `p` (row-major in the region) cut at path length `j` (0 ..= the
     /// settings' path length): the camera sample's light from vertices 0 ..= j, averaged over the pixel's samples.
     pub pixels: Vec<Vec<Vec3>>,
+    /// `variances[j][p]`: the sample variance (n − 1 in the denominator) of the samples `pixels[j][p]` is the mean
+    /// of, per channel: what adaptive sampling reads of a pixel.
+    pub variances: Vec<Vec<Vec3>>,
     /// `rays[j]`: the rays a render at path length `j` traces (those of vertices 0 ..= j).
     pub rays: Vec<RayCounts>,
 }
@@ -154,6 +157,7 @@ pub fn render_bounces(
     let integrator = Integrator::new(frame, settings, maps);
     let lengths = settings.integrator.path_length as usize + 1;
     let mut pixels = vec![Vec::with_capacity((region.width() * region.height()) as usize); lengths];
+    let mut variances = pixels.clone();
     let mut counts = RayCounts::default();
     let mut v = Vertices {
         radiance: [Vec3::ZERO; integrator::MAX_PATH_LENGTH as usize + 1],
@@ -163,7 +167,8 @@ pub fn render_bounces(
     for y in region.y0..region.y1 {
         for x in region.x0..region.x1 {
             let pixel = PixelSampler::new(x, y, settings.film.seed);
-            let mut sums = vec![Vec3::ZERO; lengths];
+            // Σx and Σx² of each cut, in f64.
+            let mut sums = vec![[[0.0f64; 3]; 2]; lengths];
             let mut kept = 0u32;
             for i in 0..settings.film.spp {
                 let sampler = CameraSample::new(&pixel, i);
@@ -176,14 +181,26 @@ pub fn render_bounces(
                 }
                 kept += 1;
                 let mut prefix = Vec3::ZERO;
-                for (sum, r) in sums.iter_mut().zip(&v.radiance[..lengths]) {
+                for ([sum, squares], r) in sums.iter_mut().zip(&v.radiance[..lengths]) {
                     prefix += *r;
-                    *sum += prefix;
+                    for (c, x) in prefix.to_array().into_iter().enumerate() {
+                        sum[c] += f64::from(x);
+                        squares[c] += f64::from(x) * f64::from(x);
+                    }
                 }
             }
-            let k = if kept > 0 { 1.0 / kept as f32 } else { 0.0 };
-            for (j, sum) in sums.into_iter().enumerate() {
-                pixels[j].push(sum * k);
+            let k = f64::from(kept);
+            for (j, [sum, squares]) in sums.into_iter().enumerate() {
+                let mean = sum.map(|s| if kept > 0 { s / k } else { 0.0 });
+                let variance = std::array::from_fn(|c| {
+                    if kept > 1 {
+                        ((squares[c] - sum[c] * mean[c]) / (k - 1.0)).max(0.0)
+                    } else {
+                        0.0
+                    }
+                });
+                pixels[j].push(Vec3::from_array(mean.map(|m| m as f32)));
+                variances[j].push(Vec3::from_array(variance.map(|v: f64| v as f32)));
             }
         }
     }
@@ -192,7 +209,11 @@ pub fn render_bounces(
         prefix.add(&v.rays[j]);
         *r = prefix;
     }
-    BounceRender { pixels, rays }
+    BounceRender {
+        pixels,
+        variances,
+        rays,
+    }
 }
 
 /// The pixel loop: renders `region` of `frame` with `settings` (and `maps` in deep-opacity mode) on the current
