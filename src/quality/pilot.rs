@@ -237,18 +237,11 @@ impl Pair {
         let [a, b] = &self.0;
         let [ma, mb] = &means.0;
         mean_and_error(
-            a.rgb
-                .iter()
-                .zip(&b.rgb)
-                .zip(ma.rgb.iter().zip(&mb.rgb))
-                .flat_map(|((x, y), (p, q))| {
-                    (0..3).filter_map(move |c| {
-                        let (x, y) = (f64::from(x[c]), f64::from(y[c]));
-                        let m = 0.5 * (f64::from(p[c]) + f64::from(q[c]));
-                        (x.is_finite() && y.is_finite() && m.is_finite())
-                            .then(|| 0.5 * (x - y) * (x - y) / (m * m + 0.01))
-                    })
-                }),
+            channels([&a.rgb, &b.rgb, &ma.rgb, &mb.rgb]).filter_map(|[x, y, p, q]| {
+                let m = 0.5 * (p + q);
+                (x.is_finite() && y.is_finite() && m.is_finite())
+                    .then(|| 0.5 * (x - y) * (x - y) / (m * m + 0.01))
+            }),
         )
     }
 
@@ -417,6 +410,15 @@ fn bounce_bias(before: [&[[f32; 3]]; 2], after: [&[[f32; 3]]; 2], windows: &[Reg
     }
 }
 
+/// Four pixel arrays of the same windows walked together, one item per pixel and channel: the four values in `f64`.
+fn channels<'a>(arrays: [&'a [[f32; 3]]; 4]) -> impl Iterator<Item = [f64; 4]> + 'a {
+    let [a, b, c, d] = arrays;
+    a.iter()
+        .zip(b)
+        .zip(c.iter().zip(d))
+        .flat_map(|((a, b), (c, d))| (0..3).map(move |k| [a[k], b[k], c[k], d[k]].map(f64::from)))
+}
+
 /// How much less relMSE the sampler's stratified samples have at [`PILOT_SPP`] than independent samples would,
 /// from the pilot `pair` alone: g with n · relMSE(n) = σ² / g, lowered by `standard_errors` of its statistical
 /// error (delta method) and never under 1. Returns (that, the point estimate).
@@ -440,19 +442,13 @@ fn sampler_gain(pair: &Pair, standard_errors: f64) -> (f64, f64) {
     let n = f64::from(PILOT_SPP);
     let (rp, ep) = pair.rel_mse_with_error();
     let [a, b] = &pair.0;
-    let (sv, es) = mean_and_error(
-        a.rgb
-            .iter()
-            .zip(&b.rgb)
-            .zip(a.var.iter().zip(&b.var))
-            .flat_map(|((x, y), (vx, vy))| {
-                (0..3).filter_map(move |c| {
-                    let m = 0.5 * (f64::from(x[c]) + f64::from(y[c]));
-                    let v = 0.5 * (f64::from(vx[c]) + f64::from(vy[c]));
-                    (m.is_finite() && v.is_finite()).then(|| v / (m * m + 0.01))
-                })
-            }),
-    );
+    let (sv, es) = mean_and_error(channels([&a.rgb, &b.rgb, &a.var, &b.var]).filter_map(
+        |[x, y, vx, vy]| {
+            let m = 0.5 * (x + y);
+            let v = 0.5 * (vx + vy);
+            (m.is_finite() && v.is_finite()).then(|| v / (m * m + 0.01))
+        },
+    ));
     if !(sv > 0.0 && rp > 0.0) {
         return (1.0, 1.0);
     }
