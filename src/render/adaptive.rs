@@ -839,6 +839,18 @@ mod tests {
         );
     }
 
+    /// The image rule from 8 to 65 536 samples per pixel for `target`, without a cost model or sampler gain.
+    fn image_rule(target: f64) -> Schedule {
+        Schedule {
+            min: 8,
+            max: 1 << 16,
+            target,
+            rule: Rule::Image,
+            cost: None,
+            sampler_gain: 1.0,
+        }
+    }
+
     /// With a cost model, of two pixels equally noisy the one whose samples cost 16× less gets more samples
     /// (its goal is √(v/c) · Σ√(v c) / room: 4× the other's before the caps); without one, or with equal costs,
     /// they get the same.
@@ -858,15 +870,8 @@ mod tests {
             }
             p
         };
-        let schedule = Schedule {
-            min: 8,
-            max: 1 << 16,
-            // Without costs each goal is v / target² = 12 (whole, so no rounding), under the round's cap of 16.
-            target: (stats.relative_variance() / 12.0).sqrt(),
-            rule: Rule::Image,
-            cost: None,
-            sampler_gain: 1.0,
-        };
+        // Without costs each goal is v / target² = 12 (whole, so no rounding), under the round's cap of 16.
+        let schedule = image_rule((stats.relative_variance() / 12.0).sqrt());
         let next = |p: &[Convergence]| schedule.next_round(0, 2, &[8, 8], p).expect("grows");
         let plain = next(&[stats, stats]);
         assert_eq!(plain, vec![12, 12]);
@@ -887,14 +892,7 @@ mod tests {
             stats.add(Vec3::splat(lcg(&mut state)));
         }
         let pixels = vec![stats; 1000];
-        let schedule = Schedule {
-            min: 8,
-            max: 1 << 16,
-            target: (stats.relative_variance() / 11.3).sqrt(),
-            rule: Rule::Image,
-            cost: None,
-            sampler_gain: 1.0,
-        };
+        let schedule = image_rule((stats.relative_variance() / 11.3).sqrt());
         let next = schedule
             .next_round(0, 1000, &[8; 1000], &pixels)
             .expect("grows");
