@@ -1,4 +1,5 @@
-//! The only module with `unsafe` code: the Embree bindings, the OpenImageIO shim and a cache prefetch hint, each wrapped in a safe API.
+//! The only module with `unsafe` code: the Embree bindings, the OpenImageIO shim and a cache prefetch hint, each
+//! wrapped in a safe API.
 //! Everything above this module is safe Rust (`#![deny(unsafe_code)]` at the crate root).
 //!
 //! From the crate, `sys` imports only `crate::ray` (the plain ray the Embree queries take and validate). Decisions
