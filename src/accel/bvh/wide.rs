@@ -648,11 +648,11 @@ impl WideBvh {
                 if mask != 0 {
                     // Hit children sorted by entry distance without data-dependent branches: each lane's key is
                     // its entry distance's bits (t ≥ tnear ≥ 0, and non-negative floats order as their bits do;
-                    // the sign bit is cleared for −0) with the lane number in the two lowest bits, missed lanes all ones by a table
-                    // ([`MISSED_LANES`]: camera rays' walk 129.4 M → 126.0 M instructions, callgrind, fur ball flat 96²); a five-comparator sorting
-                    // network of integer min/max (conditional moves, where a swap of lane numbers compiled to a
-                    // branch that mispredicted 3.5 M times in the flat fur-ball benchmark, 40 % of the walk's
-                    // mispredictions) orders them. The farther ones are stacked so that the nearer are popped
+                    // the sign bit is cleared for −0) with the lane number in the two lowest bits, missed lanes
+                    // all ones by a table ([`MISSED_LANES`]: camera rays' walk 129.4 M → 126.0 M instructions,
+                    // callgrind, fur ball flat 96²); a five-comparator sorting network of integer min/max
+                    // (conditional moves, where a swap of lane numbers compiled to a branch that mispredicted
+                    // 3.5 M times in the flat fur-ball benchmark, 40 % of the walk's mispredictions) orders them. The farther ones are stacked so that the nearer are popped
                     // first, and the nearest entered. Dropping the distances' two lowest bits only reorders
                     // children whose entry distances agree to 2⁻²¹ relative, which changes no query's answer.
                     if mask.is_power_of_two() {
