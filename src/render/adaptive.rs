@@ -385,10 +385,11 @@ impl Schedule {
                 break;
             }
         }
-        // Fractional goals are rounded up or down by a fixed hash of the pixel and the round (up with probability
-        // their fraction), so the round's total is its goals' sum, not a sample more per pixel: rounding every goal
-        // up, the default scene at target 0.1 (128²) took a mean 8.95 spp and 558 k rays, rounded so 8.8 and 546 k,
-        // delivering 0.0917 and 0.0930 (against one 256-spp half of the study's reference; target 0.1). Should no pixel grow so, every goal is rounded up instead.
+        // Fractional goals are rounded up or down by a fixed hash of the pixel and the round (up with probability their
+        // fraction), so the round's total is its goals' sum, not a sample more per pixel: rounding every goal up, the
+        // default scene at target 0.1 (128²) took a mean 8.95 spp and 558 k rays, rounded so 8.8 and 546 k, delivering
+        // 0.0917 and 0.0930 (against one 256-spp half of the study's reference; target 0.1). Should no pixel grow so,
+        // every goal is rounded up instead.
         let totals = |dither: bool| {
             let mut grows = false;
             let next: Vec<u32> = taken
