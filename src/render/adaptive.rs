@@ -52,6 +52,7 @@ use rayon::prelude::*;
 use super::film::{PixelSums, Tile};
 use super::integrator::{PathSample, RayCost, RayCounts};
 use super::Region;
+use crate::util::hash::{mix64, GOLDEN_GAMMA};
 
 /// Mean and variance accumulators of one pixel's beauty (Welford's update, in f64 for long runs).
 #[derive(Debug, Clone, Copy, Default)]
@@ -416,12 +417,10 @@ impl Schedule {
     }
 }
 
-/// A number in [0, 1) fixed by a pixel's index and the round (SplitMix64's finaliser): the same for any thread count.
+/// A number in [0, 1) fixed by a pixel's index and the round (the crate's integer hash, [`mix64`]): the same for any
+/// thread count.
 fn unit_hash(pixel: usize, round: usize) -> f64 {
-    let mut z = (pixel as u64) ^ ((round as u64) << 48) ^ 0x9e37_79b9_7f4a_7c15;
-    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-    z ^= z >> 31;
+    let z = mix64((pixel as u64) ^ ((round as u64) << 48) ^ GOLDEN_GAMMA);
     (z >> 11) as f64 / (1u64 << 53) as f64
 }
 

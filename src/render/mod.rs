@@ -28,6 +28,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::image::Image;
+use crate::ray::Ray;
 use crate::shadow::ShadowMaps;
 
 use camera::Camera;
@@ -111,6 +112,20 @@ pub fn render_with_tile_side(
     .image
 }
 
+/// Sample `i`'s camera ray through pixel (x, y): the pixel's centre offset by the reconstruction filter's draw from
+/// `sampler`. The frame ([`render_tiles`]) and the pilots' cut renders ([`render_bounces`]) trace the same rays.
+fn camera_ray(
+    camera: &Camera,
+    filter: &GaussianFilter,
+    sampler: &CameraSample,
+    x: u32,
+    y: u32,
+    i: u32,
+) -> Ray {
+    let (dx, dy) = filter.sample(sampler.get_2d(i, dim::FILTER));
+    camera.ray(x as f32 + 0.5 + dx, y as f32 + 0.5 + dy)
+}
+
 /// What [`render_bounces`] made: every path length's estimate of a region from one render.
 #[derive(Debug, Clone)]
 pub struct BounceRender {
@@ -172,8 +187,7 @@ pub fn render_bounces(
             let mut kept = 0u32;
             for i in 0..settings.film.spp {
                 let sampler = CameraSample::new(&pixel, i);
-                let (dx, dy) = filter.sample(sampler.get_2d(i, dim::FILTER));
-                let ray = camera.ray(x as f32 + 0.5 + dx, y as f32 + 0.5 + dy);
+                let ray = camera_ray(&camera, &filter, &sampler, x, y, i);
                 v.radiance[..lengths].fill(Vec3::ZERO);
                 let s = integrator.sample_recording(&ray, &sampler, i, &mut counts, &mut v);
                 if !s.beauty.is_finite() {
@@ -263,8 +277,7 @@ fn render_tiles(
     let sample_pixel = |x: u32, y: u32, i: u32, counts: &mut RayCounts| {
         let pixel = PixelSampler::new(x, y, seed);
         let sampler = CameraSample::new(&pixel, i);
-        let (dx, dy) = filter.sample(sampler.get_2d(i, dim::FILTER));
-        let ray = camera.ray(x as f32 + 0.5 + dx, y as f32 + 0.5 + dy);
+        let ray = camera_ray(&camera, &filter, &sampler, x, y, i);
         integrator.sample(&ray, &sampler, i, counts)
     };
     let write_centre = |x: u32, y: u32, pixel: &mut [f32], counts: &mut RayCounts| {

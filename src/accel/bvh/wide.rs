@@ -585,6 +585,23 @@ impl WideBvh {
         self.walk::<true, _>(&mut r, |primitive, r| visit(primitive, r.tfar))
     }
 
+    /// Offers the entries of `leaf` to `primitive` in order; true when one of them stops the walk.
+    #[inline(always)]
+    fn offer<F: FnMut(&Primitive, &mut WideRay) -> Control>(
+        &self,
+        leaf: Child,
+        r: &mut WideRay,
+        primitive: &mut F,
+    ) -> bool {
+        let first = leaf.index as usize;
+        for p in &self.primitives[first..first + leaf.count as usize] {
+            if primitive(p, r) == Control::Stop {
+                return true;
+            }
+        }
+        false
+    }
+
     /// Hints the cache to load a stacked child's node or first leaf entry before it is popped.
     #[inline(always)]
     fn prefetch(&self, child: Child) {
@@ -626,13 +643,8 @@ impl WideBvh {
                 } else {
                     Some(current)
                 };
-                if let Some(leaf) = leaf {
-                    let first = leaf.index as usize;
-                    for p in &self.primitives[first..first + leaf.count as usize] {
-                        if primitive(p, r) == Control::Stop {
-                            return true;
-                        }
-                    }
+                if leaf.is_some_and(|leaf| self.offer(leaf, r, &mut primitive)) {
+                    return true;
                 }
             } else {
                 let (tmin, mask, children) = if current.count == 0 {
@@ -652,9 +664,10 @@ impl WideBvh {
                     // all ones by a table ([`MISSED_LANES`]: camera rays' walk 129.4 M → 126.0 M instructions,
                     // callgrind, fur ball flat 96²); a five-comparator sorting network of integer min/max
                     // (conditional moves, where a swap of lane numbers compiled to a branch that mispredicted
-                    // 3.5 M times in the flat fur-ball benchmark, 40 % of the walk's mispredictions) orders them. The farther ones are stacked so that the nearer are popped
-                    // first, and the nearest entered. Dropping the distances' two lowest bits only reorders
-                    // children whose entry distances agree to 2⁻²¹ relative, which changes no query's answer.
+                    // 3.5 M times in the flat fur-ball benchmark, 40 % of the walk's mispredictions) orders them.
+                    // The farther ones are stacked so that the nearer are popped first, and the nearest entered.
+                    // Dropping the distances' two lowest bits only reorders children whose entry distances agree
+                    // to 2⁻²¹ relative, which changes no query's answer.
                     if mask.is_power_of_two() {
                         current = children[mask.trailing_zeros() as usize];
                         self.prefetch(current);
@@ -688,18 +701,9 @@ impl WideBvh {
             }
             loop {
                 let Some((child, t)) = stack.pop() else {
-                    if DEFER {
-                        for k in waiting.saturating_sub(DEFERRED)..waiting {
-                            let leaf = deferred[k % DEFERRED];
-                            let first = leaf.index as usize;
-                            for p in &self.primitives[first..first + leaf.count as usize] {
-                                if primitive(p, r) == Control::Stop {
-                                    return true;
-                                }
-                            }
-                        }
-                    }
-                    return false;
+                    return DEFER
+                        && (waiting.saturating_sub(DEFERRED)..waiting)
+                            .any(|k| self.offer(deferred[k % DEFERRED], r, &mut primitive));
                 };
                 if t <= r.tfar {
                     current = child;
