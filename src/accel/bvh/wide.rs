@@ -13,7 +13,7 @@
 //!   around a few segments of a strand is mostly empty space. For each child of at most [`OBB_MAX`] segments the
 //!   collapse also bounds the segments' quarter spans in a frame whose third axis is their mean chord direction
 //!   ([`Obb`]); a node whose children's oriented boxes have at most [`OBB_AREA`] of the aligned boxes' surface
-//!   area stores them ([`Obbs4`]: per lane the affine map onto the cube [−1, 1]³, a child for which the aligned
+//!   area stores them ([`Obbs4`]: per lane the affine map onto the cube [0, 1]³, a child for which the aligned
 //!   box is smaller keeping it in the identity frame), and the walk transforms the ray into each lane's frame.
 //!   Our trees are still built by the aligned SAH (Woop et al. also split in the oriented frame: not done), so
 //!   oriented nodes appear only where the aligned tree already groups a strand's neighbouring segments: 97 800 of
@@ -21,12 +21,19 @@
 //!   ([`super::BuildOptions::default`]) the oriented lanes bound each segment on its own, which replaced the
 //!   per-segment span capsules the leaves used to test (112 bytes per segment): 229 → 193 bytes per segment
 //!   (Embree: 143; 138 with four segments per leaf), last-level cache misses in the ray loops ÷ 2.5.
-//! - **Quantised oriented lanes** ([`Obbs4`]; the encoding of Embree's `CurveNi` leaves, after Ylitie, Karras &
-//!   Laine 2017): 16-bit frames and 16-bit bounds relative to the node's box, rounded outwards, 172 bytes per
-//!   oriented node instead of 240. Measured (estimated cycles with 15 per mispredicted branch, flat, same loops as
-//!   below): 1.096 G → 1.083 G, last-level misses 0.477 M → 0.275 M, L1 misses 12.1 M → 9.6 M, for 6 % more
-//!   instructions (the widening of the integers); 8-bit frames as Embree's halve the misses again (0.230 M) but
-//!   widen in four instructions instead of two here: 1.116 G.
+//! - **Oriented lanes as affine maps onto the unit cube** ([`Obbs4`], the form of Embree's oriented nodes), 240
+//!   bytes per node. From 2 to 3 Dec 2026 they were quantised instead (the encoding of Embree's `CurveNi` leaves,
+//!   after Ylitie, Karras & Laine 2017: 16-bit frames and bounds relative to the node's box, 172 bytes per node),
+//!   which saved cache misses (estimated cycles 1.096 G → 1.083 G against orthonormal `f32` frames with lower and
+//!   upper bounds) but cost ~110 instructions per node test, a third of the camera rays' walk (perf). The unit-cube
+//!   map needs no bounds and no widening: camera rays' `intersect` 126.0 M → 118.8 M instructions (callgrind,
+//!   `bench trace scenes/furball.toml --curves flat --threads 1 --repetitions 1 --res 96x96 --backend bvh`), and
+//!   `bench trace scenes/furball.toml --curves flat --threads 1 --repetitions 3`, BVH ÷ Embree, two interleaved
+//!   runs each: camera 2.06 / 2.06 → 1.94 / 1.89, secondary 1.78 / 1.81 → 1.68 / 1.68, exact shadows 1.82 / 1.81 →
+//!   1.66 / 1.69, stochastic 1.73 / 1.74 → 1.66 / 1.67; memory 162.5 → 193 bytes per segment (Embree 143). Huge
+//!   pages for the node and leaf arrays (`madvise(MADV_HUGEPAGE)`, as Embree does: it held 51 MB of its tree on
+//!   2 MiB pages here) were tried on top: secondary and shadow rays 0–6 % faster, camera rays unchanged, build
+//!   1.85× → 2.3× Embree's (the huge-page faults themselves, also when advised before the first write): not kept.
 //! - **Leaves** hold each segment's control points, ids and opacity in one 80-byte entry ([`Primitive`]), so a
 //!   curve test reads one place, as Embree's curve leaves also store their control points.
 //!
@@ -130,74 +137,39 @@ impl Boxes4 {
     }
 }
 
-/// Four oriented boxes, quantised (Embree's `CurveNi` leaves encode each curve's oriented bounds the same way; the
-/// idea of compressed boxes is Ylitie, Karras & Laine 2017): the node's box of all four is mapped onto about
-/// [0, 18.5]³ by `(x − offset) · scale` (one scale for all axes, so the map stays a similarity), and each lane
-/// holds a 16-bit frame (its axes times [`FRAME_SCALE`], rounded; Embree's 8-bit rows cost two more instructions
-/// to widen here) and its extent along each of those rows as 16-bit integers, the lower bound rounded down and the
-/// upper up, so the box in that slightly skewed frame holds the lane's oriented box (corners included). 172 bytes
-/// per node with the children where the `f32` lanes took 240. An axis-aligned child is the identity frame, so any
-/// child can sit in an oriented node's lane.
+/// Four oriented boxes as Embree's oriented BVH nodes store them (Woop et al. 2014): per lane the affine map of
+/// world space onto the unit cube [0, 1]³ of the lane's box, row i being the box's axis i divided by its extent
+/// along it. A ray's slab distances are then −o/d and (1 − o)/d for the ray's origin o and direction d in each
+/// lane's map: no bounds to load. An axis-aligned child is the map of its box, so any child can sit in an
+/// oriented node's lane. Rounding: the map is rounded to `f32`, which moves a box's faces by a few ulps of its
+/// centre's coordinates, and the ray's origin is mapped with a relative error of a few ulps of its distance
+/// from the box: both are far below the 10⁻⁵ of the coordinates' scale every box is padded by ([`Obb::around`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Obbs4 {
-    offset: [f32; 3],
-    scale: f32,
-    /// `rows[i][j][lane]`: component j of the lane's row i.
-    rows: [[[i16; 4]; 3]; 3],
-    lower: [[i16; 4]; 3],
-    upper: [[i16; 4]; 3],
+    /// `m[i][j]`: component j of each lane's row i.
+    m: [[Vec4; 3]; 3],
+    /// Each lane's translation along row i.
+    t: [Vec4; 3],
 }
 
-/// The frame rows' length in [`Obbs4`]: directions to 0.05 % (Embree's 8-bit rows, 126, are good to 0.4 %, which
-/// widens a thin box by 0.4 % of its length).
-const FRAME_SCALE: f32 = 1008.0;
-
-/// [`Obbs4`]'s quantised coordinates span [0, `QUANTISED_SPAN`] along each axis of the node's box, so a point is
-/// at most 32 from the offset, and its coordinate along a row at most 32 · 1009 = 32 288 < 2¹⁵ − 1 − 1 (the
-/// margin): the bounds fit `i16`, with a resolution of 1 / 18 600 of the node's box.
-const QUANTISED_SPAN: f32 = 32.0 / 1.732_050_8;
-
 impl Obbs4 {
-    /// The quantised lanes of up to four oriented boxes (a lane without a box stays empty: the caller masks it).
+    /// The lanes of up to four oriented boxes (a lane without a box maps everything outside the cube: the caller
+    /// masks it anyway).
     fn new(lanes: &[Obb]) -> Obbs4 {
-        let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
-        for c in lanes.iter().flat_map(Obb::corners) {
-            lo = lo.min(c.as_vec3());
-            hi = hi.max(c.as_vec3());
-        }
-        let size = (hi - lo).max_element().max(f32::MIN_POSITIVE);
         let mut q = Obbs4 {
-            offset: lo.to_array(),
-            scale: QUANTISED_SPAN / size,
-            rows: [[[0; 4]; 3]; 3],
-            lower: [[1; 4]; 3],
-            upper: [[-1; 4]; 3],
+            m: [[Vec4::ZERO; 3]; 3],
+            t: [Vec4::splat(2.0); 3],
         };
-        let offset = lo.as_dvec3();
-        let scale = f64::from(q.scale);
         for (lane, o) in lanes.iter().enumerate() {
-            let rows: [[i16; 3]; 3] = std::array::from_fn(|i| {
-                (o.axes[i] * FRAME_SCALE)
-                    .round()
-                    .to_array()
-                    .map(|c| c as i16)
-            });
-            for (i, frame_row) in rows.iter().enumerate() {
-                let row = glam::DVec3::from_array(frame_row.map(f64::from));
-                let (mut min, mut max) = (f64::INFINITY, f64::NEG_INFINITY);
-                for c in o.corners() {
-                    let p = row.dot((c - offset) * scale);
-                    min = min.min(p);
-                    max = max.max(p);
+            let centre = o.centre.as_dvec3();
+            for i in 0..3 {
+                // x ↦ (axisᵢ · (x − centre) + halfᵢ) / (2 halfᵢ), in f64 and rounded once.
+                let scale = 0.5 / f64::from(o.half[i]);
+                let row = o.axes[i].as_dvec3() * scale;
+                for j in 0..3 {
+                    q.m[i][j][lane] = row[j] as f32;
                 }
-                // One unit more each way for the rounding of the ray's transform (its relative error, a few
-                // f32 epsilons of coordinates below 2¹⁵, is far below one unit).
-                let bound = |v: f64| v.clamp(-32767.0, 32767.0) as i16;
-                q.lower[i][lane] = bound(min.floor() - 1.0);
-                q.upper[i][lane] = bound(max.ceil() + 1.0);
-                for (stored, &c) in q.rows[i].iter_mut().zip(frame_row) {
-                    stored[lane] = c;
-                }
+                q.t[i][lane] = (0.5 - row.dot(centre)) as f32;
             }
         }
         q
@@ -206,32 +178,35 @@ impl Obbs4 {
     /// Entry distances and the mask of lanes crossed within `[tnear, tfar]` (as [`Boxes4::test`]).
     #[inline(always)]
     fn test(&self, r: &WideRay) -> (Vec4, u32) {
-        // A sign extension from memory and a conversion per four lanes.
-        let wide = |v: [i16; 4]| Vec4::from_array(v.map(f32::from));
-        // The ray in the node's quantised coordinates (scalar, once per node).
-        let o: [Vec4; 3] = std::array::from_fn(|a| {
-            Vec4::splat((r.origin_scalar[a] - self.offset[a]) * self.scale)
-        });
-        let d: [Vec4; 3] = std::array::from_fn(|a| Vec4::splat(r.dir_scalar[a] * self.scale));
         let mut tmin = Vec4::splat(r.tnear);
         let mut far = Vec4::INFINITY;
         for i in 0..3 {
-            let row = [
-                wide(self.rows[i][0]),
-                wide(self.rows[i][1]),
-                wide(self.rows[i][2]),
-            ];
-            let o = row[0].mul_add(o[0], row[1].mul_add(o[1], row[2] * o[2]));
-            let d = row[0].mul_add(d[0], row[1].mul_add(d[1], row[2] * d[2]));
+            let m = &self.m[i];
+            let o = m[0].mul_add(
+                r.origin[0],
+                m[1].mul_add(r.origin[1], m[2].mul_add(r.origin[2], self.t[i])),
+            );
+            let d = m[0].mul_add(r.dir[0], m[1].mul_add(r.dir[1], m[2] * r.dir[2]));
             // 1 / d with |1 / d| at most 2⁶⁴ (see the module docs); ±0 gives ±2⁶⁴.
             let inv = (Vec4::ONE / d).clamp(Vec4::splat(-MAX_INVERSE), Vec4::splat(MAX_INVERSE));
-            let t0 = (wide(self.lower[i]) - o) * inv;
-            let t1 = (wide(self.upper[i]) - o) * inv;
+            // The slab [0, 1]: −o / d and (1 − o) / d.
+            let a = o * inv;
+            let (t0, t1) = (-a, inv - a);
             tmin = tmin.max(t0.min(t1));
             far = far.min(t0.max(t1));
         }
         let tmax = Vec4::splat(r.tfar).min(far * FAR_SCALE);
         (tmin, tmin.cmple(tmax).bitmask())
+    }
+
+    /// Lane `lane`'s row i and translation (tests).
+    #[cfg(test)]
+    fn row(&self, lane: usize, i: usize) -> (Vec3, f32) {
+        let m = &self.m[i];
+        (
+            Vec3::new(m[0][lane], m[1][lane], m[2][lane]),
+            self.t[i][lane],
+        )
     }
 }
 
@@ -245,6 +220,7 @@ struct Obb {
 
 impl Obb {
     /// The eight corners, world space, in `f64` (no rounding worth the name).
+    #[cfg(test)]
     fn corners(&self) -> [glam::DVec3; 8] {
         let half = self.half.as_dvec3();
         std::array::from_fn(|k| {
@@ -307,9 +283,8 @@ impl Obb {
 /// A ray prepared for [`Boxes4::test`] and [`Obbs4::test`]: every component splatted across four lanes.
 #[derive(Debug, Clone, Copy)]
 struct WideRay {
-    origin_scalar: [f32; 3],
-    dir_scalar: [f32; 3],
     origin: [Vec4; 3],
+    dir: [Vec4; 3],
     inv_dir: [Vec4; 3],
     tnear: f32,
     tfar: f32,
@@ -326,9 +301,8 @@ impl WideRay {
         };
         let splat = |v: [f32; 3]| v.map(Vec4::splat);
         WideRay {
-            origin_scalar: ray.origin.to_array(),
-            dir_scalar: ray.dir.to_array(),
             origin: splat(ray.origin.to_array()),
+            dir: splat(ray.dir.to_array()),
             inv_dir: splat(ray.dir.to_array().map(|d| 1.0 / safe(d))),
             tnear: ray.tnear,
             tfar: ray.tfar,
@@ -781,13 +755,12 @@ impl WideBvh {
             });
         }
         let b = &self.oriented[node.index as usize].boxes;
-        let offset = Vec3::from_array(b.offset);
         (0..3).all(|i| {
-            let row = Vec3::from_array(b.rows[i].map(|c| f32::from(c[lane])));
-            // In quantised units: the sphere's centre along the row and its radius times the row's length.
-            let p = row.dot((x - offset) * b.scale);
-            let reach = (r - tolerance) * b.scale * row.length();
-            p - reach >= f32::from(b.lower[i][lane]) && p + reach <= f32::from(b.upper[i][lane])
+            // In the lane's unit cube: the sphere's centre along the row and its radius times the row's length.
+            let (row, t) = b.row(lane, i);
+            let p = row.dot(x) + t;
+            let reach = (r - tolerance) * row.length();
+            p - reach >= 0.0 && p + reach <= 1.0
         })
     }
 }
@@ -807,7 +780,7 @@ fn range(binary: &[super::Node], i: usize) -> (u32, u32) {
 }
 
 #[cfg(test)]
-mod quantised_tests {
+mod oriented_lane_tests {
     use super::*;
     use crate::util::hash::{hash64, unit_f32};
     use crate::util::sampling::uniform_sphere;
@@ -832,15 +805,26 @@ mod quantised_tests {
             .collect()
     }
 
-    /// Every point of each lane's oriented box (corners and random inner points) lies in the quantised lane, and
-    /// a ray from far away through such a point enters the lane no later than the point: the quantisation only
-    /// ever grows a box.
+    /// Every point of each lane's oriented box (corners and random inner points) lies in the lane's unit cube
+    /// once the box is padded as the build pads it ([`Obb::around`]: 10⁻⁵ of the coordinates' scale), and a ray
+    /// from 5 scales away through such a point enters the lane no later than the point: the rounding of the map
+    /// and of the ray's transform stays inside the padding.
     #[test]
-    fn quantised_lanes_hold_their_oriented_boxes() {
+    fn lanes_hold_their_oriented_boxes() {
         for seed in 0..200u64 {
             let scale = [0.1, 1.0, 100.0][seed as usize % 3];
             let obbs = random_obbs(seed, scale);
-            let q = Obbs4::new(&obbs);
+            let padded: Vec<Obb> = obbs
+                .iter()
+                .map(|o| {
+                    let reach = o.centre.abs().max_element() + o.half.max_element();
+                    Obb {
+                        half: o.half + Vec3::splat(1e-5 * reach),
+                        ..*o
+                    }
+                })
+                .collect();
+            let q = Obbs4::new(&padded);
             let mut state = hash64(seed ^ 0x5eed);
             let mut u = || {
                 state = hash64(state);
@@ -858,17 +842,12 @@ mod quantised_tests {
                     );
                 }
                 for p in points {
-                    // Shrink corners a hair towards the centre: f32 corners may round outside the box.
-                    let p = o.centre + (p - o.centre) * (1.0 - 1e-5);
-                    let offset = Vec3::from_array(q.offset);
                     for i in 0..3 {
-                        let row = Vec3::from_array(q.rows[i].map(|c| f32::from(c[lane])));
-                        let x = row.dot((p - offset) * q.scale);
+                        let (row, t) = q.row(lane, i);
+                        let x = row.dot(p) + t;
                         assert!(
-                            f32::from(q.lower[i][lane]) <= x && x <= f32::from(q.upper[i][lane]),
-                            "seed {seed} lane {lane} row {i}: {x} outside [{}, {}]",
-                            q.lower[i][lane],
-                            q.upper[i][lane]
+                            (0.0..=1.0).contains(&x),
+                            "seed {seed} lane {lane} row {i}: {x} outside [0, 1]"
                         );
                     }
                     let from = p + 5.0 * scale * uniform_sphere(u(), u());
