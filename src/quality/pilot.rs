@@ -469,7 +469,11 @@ fn sampler_gain(pair: &Pair, standard_errors: f64) -> (f64, f64) {
 /// so its tail is within half the target and the choice is total.
 ///
 /// The cost of reaching the target at path length j is its CPU seconds per sample times the samples its noise
-/// needs, ∝ seconds_j × relMSE_j / (target² − left_j²). A bounce just over a quarter of the target takes 1 % of
+/// needs, ∝ seconds_j × relMSE_j / (target² − left_j²), relMSE_j over the longest path's means (the pilots' best
+/// stand-in for the converged image, which the target is measured against): over its own means, darker by the
+/// bounces it leaves out, a short path's relative noise read high (on the default scene at 0.1, path 2 7.62e-2
+/// against path 3 7.61e-2, where over the longest path's means path 2 is 7.29e-2; the fixed path-2 frame meets
+/// 0.1 at 14 spp where auto's path 3 took 9 spp at 1.37× its time). A bounce just over a quarter of the target takes 1 % of
 /// target² as bias when left out and may cost a tenth more per sample to trace: on straight hair under the city
 /// map at 0.1 the pilots put bounce 2 at 0.029, the bounces after the first at 0.033 together (2 × 128-spp
 /// renders of the whole film), and path 1 met 0.1 at 20 spp where auto took path 2 and 21 spp. The longest path
@@ -490,7 +494,8 @@ fn cheapest_path_length(pairs: &[Pair], biases: &[f64], target: f64) -> (u32, f6
         if left > 0.5 * target && j < last {
             continue;
         }
-        let cost = pair.predicted_seconds() * pair.rel_mse() / (target * target - left * left);
+        let cost = pair.predicted_seconds() * pair.rel_mse_over(&pairs[last]).0
+            / (target * target - left * left);
         listed.push(format!("path {j} {cost:.2e}"));
         if best.is_none_or(|b| cost < b.2) {
             best = Some((j as u32, left, cost));
@@ -927,6 +932,43 @@ mod tests {
         let noisy = [((1, 1), 1.0, 1.0), ((1, 4), 0.55, 1.3), ((4, 1), 0.55, 1.3)];
         let (v, s) = predicted_both((4, 4), &noisy).unwrap();
         assert!(v * s < SKIP_MARGIN * 1.0 * 1.0, "{v} {s}");
+    }
+
+    /// Path lengths are compared by their noise over the longest path's means: a short path, darker by the bounce
+    /// it leaves out, has the same absolute noise but is not read as relatively noisier. Here path 0 is half as
+    /// bright as path 1, as noisy per pixel, and two thirds of its rays: over its own means it would cost 2.6×
+    /// path 1 per unit of relMSE and lose; over path 1's it costs 2/3 and, its bias within budget, wins.
+    #[test]
+    fn path_lengths_are_compared_over_the_longest_paths_means() {
+        let pilot = |level: f32, sign: f32, camera: u64| {
+            let rgb: Vec<[f32; 3]> = (0..64)
+                .map(|i| {
+                    let s = if i % 2 == 0 { sign } else { -sign };
+                    [level + 0.1 * s; 3]
+                })
+                .collect();
+            Pilot {
+                var: vec![[0.01; 3]; rgb.len()],
+                rgb,
+                seconds: 1.0,
+                samples: 4,
+                rays: RayCounts {
+                    camera,
+                    ..RayCounts::default()
+                },
+                windows: Vec::new(),
+            }
+        };
+        let pair = |level, camera| Pair([pilot(level, 1.0, camera), pilot(level, -1.0, camera)]);
+        let pairs = [pair(0.5, 2_000_000), pair(1.0, 3_000_000)];
+        // Bounce 1's bias 0.02, within half of 0.1 when left out (its tail 0.04 with the unknown ratio ½).
+        let (chosen, left, listed) = cheapest_path_length(&pairs, &[0.02], 0.1);
+        assert_eq!(chosen, 0, "{listed}");
+        assert!((left - 0.04).abs() < 1e-12, "{left}");
+        // Over its own means path 0's relMSE is (1.01 / 0.26)× path 1's.
+        let own = pairs[0].rel_mse() / pairs[1].rel_mse();
+        // (f32 pixel values: to 1e-6 relative.)
+        assert!((own / (1.01 / 0.26) - 1.0).abs() < 1e-5, "{own}");
     }
 
     #[test]
