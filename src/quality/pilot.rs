@@ -473,13 +473,13 @@ fn sampler_gain(pair: &Pair, standard_errors: f64) -> (f64, f64) {
 /// stand-in for the converged image, which the target is measured against): over its own means, darker by the
 /// bounces it leaves out, a short path's relative noise read high (on the default scene at 0.1, path 2 7.62e-2
 /// against path 3 7.61e-2, where over the longest path's means path 2 is 7.29e-2; the fixed path-2 frame meets
-/// 0.1 at 14 spp where auto's path 3 took 9 spp at 1.37× its time). A bounce just over a quarter of the target takes 1 % of
-/// target² as bias when left out and may cost a tenth more per sample to trace: on straight hair under the city
-/// map at 0.1 the pilots put bounce 2 at 0.029, the bounces after the first at 0.033 together (2 × 128-spp
-/// renders of the whole film), and path 1 met 0.1 at 20 spp where auto took path 2 and 21 spp. The longest path
-/// is a candidate because its pilots are rendered anyway and a deep bounce can cost little: on the fur ball
-/// (128²) the study's fits put path 3 at 0.070 s per spp against path 2's 0.074 (Russian roulette ends most paths
-/// early), and path 3 has no bias left to pay for, where auto took path 2 with 0.0315 of it.
+/// 0.1 at 14 spp where auto's path 3 took 9 spp at 1.37× its time). A bounce just over a quarter of the target
+/// takes 1 % of target² as bias when left out and may cost a tenth more per sample to trace: on straight hair
+/// under the city map at 0.1 the pilots put bounce 2 at 0.029, the bounces after the first at 0.033 together
+/// (2 × 128-spp renders of the whole film), and path 1 met 0.1 at 20 spp where auto took path 2 and 21 spp. The
+/// longest path is a candidate because its pilots are rendered anyway and a deep bounce can cost little: on the
+/// fur ball (128²) the study's fits put path 3 at 0.070 s per spp against path 2's 0.074 (Russian roulette ends
+/// most paths early), and path 3 has no bias left to pay for, where auto took path 2 with 0.0315 of it.
 fn cheapest_path_length(pairs: &[Pair], biases: &[f64], target: f64) -> (u32, f64, String) {
     let mut best: Option<(u32, f64, f64)> = None;
     let mut listed = Vec::new();
@@ -940,26 +940,18 @@ mod tests {
     /// path 1 per unit of relMSE and lose; over path 1's it costs 2/3 and, its bias within budget, wins.
     #[test]
     fn path_lengths_are_compared_over_the_longest_paths_means() {
-        let pilot = |level: f32, sign: f32, camera: u64| {
-            let rgb: Vec<[f32; 3]> = (0..64)
-                .map(|i| {
-                    let s = if i % 2 == 0 { sign } else { -sign };
-                    [level + 0.1 * s; 3]
-                })
-                .collect();
-            Pilot {
-                var: vec![[0.01; 3]; rgb.len()],
-                rgb,
-                seconds: 1.0,
-                samples: 4,
-                rays: RayCounts {
-                    camera,
-                    ..RayCounts::default()
-                },
-                windows: Vec::new(),
+        let pair = |level: f32, camera: u64| {
+            let pixels = |sign: f32| -> Vec<[f32; 3]> {
+                (0..64)
+                    .map(|i| [level + if i % 2 == 0 { 0.1 } else { -0.1 } * sign; 3])
+                    .collect()
+            };
+            let mut pair = with_variances(pixels(1.0), pixels(-1.0), 0.01);
+            for p in &mut pair.0 {
+                p.rays.camera = camera;
             }
+            pair
         };
-        let pair = |level, camera| Pair([pilot(level, 1.0, camera), pilot(level, -1.0, camera)]);
         let pairs = [pair(0.5, 2_000_000), pair(1.0, 3_000_000)];
         // Bounce 1's bias 0.02, within half of 0.1 when left out (its tail 0.04 with the unknown ratio ½).
         let (chosen, left, listed) = cheapest_path_length(&pairs, &[0.02], 0.1);

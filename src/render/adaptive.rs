@@ -192,22 +192,27 @@ pub struct Schedule {
 fn smoothed_variances(width: usize, pixels: &[Convergence]) -> Vec<f64> {
     let v: Vec<f64> = pixels.iter().map(Convergence::relative_variance).collect();
     let width = width.max(1);
-    let height = v.len() / width;
+    let rows = v.len() / width * width;
     let mut out = v.clone();
-    for y in 0..height {
-        for x in 0..width {
-            let (mut sum, mut n) = (0.0, 0.0);
-            for yy in y.saturating_sub(1)..(y + 2).min(height) {
-                for xx in x.saturating_sub(1)..(x + 2).min(width) {
-                    sum += v[yy * width + xx];
-                    n += 1.0;
-                }
-            }
-            let i = y * width + x;
-            out[i] = v[i].max(sum / n);
+    for (i, o) in out.iter_mut().enumerate().take(rows) {
+        let (mut sum, mut n) = (0.0, 0.0);
+        for j in neighbourhood(width, v.len(), i) {
+            sum += v[j];
+            n += 1.0;
         }
+        *o = v[i].max(sum / n);
     }
     out
+}
+
+/// The indices of pixel `i`'s 3×3 neighbourhood, itself included, row by row, clipped at the edges of a row-major
+/// film `width` pixels wide with `len` pixels in its whole rows.
+fn neighbourhood(width: usize, len: usize, i: usize) -> impl Iterator<Item = usize> {
+    let height = len / width;
+    let (x, y) = (i % width, i / width);
+    (y.saturating_sub(1)..(y + 2).min(height)).flat_map(move |yy| {
+        (x.saturating_sub(1)..(x + 2).min(width)).map(move |xx| yy * width + xx)
+    })
 }
 
 /// Rounds after the first at most (a safeguard: doubling from `min` reaches any `max` ≤ 65536 in 16).
@@ -274,20 +279,15 @@ impl Schedule {
     /// 1.6× slower than needed at 8–16 spp (it is biased low there).
     fn gained_variances(&self, width: usize, taken: &[u32], pixels: &[Convergence]) -> Vec<f64> {
         let width = width.max(1);
-        let height = pixels.len() / width;
         (0..pixels.len())
             .map(|i| {
-                let (x, y) = (i % width, i / width);
                 let (mut sum, mut k) = ([0.0f64; 3], 0.0);
-                for yy in y.saturating_sub(1)..(y + 2).min(height) {
-                    for xx in x.saturating_sub(1)..(x + 2).min(width) {
-                        let j = yy * width + xx;
-                        if j != i && pixels[j].n > 0 {
-                            for (s, m) in sum.iter_mut().zip(pixels[j].mean) {
-                                *s += m;
-                            }
-                            k += 1.0;
+                for j in neighbourhood(width, pixels.len(), i) {
+                    if j != i && pixels[j].n > 0 {
+                        for (s, m) in sum.iter_mut().zip(pixels[j].mean) {
+                            *s += m;
                         }
+                        k += 1.0;
                     }
                 }
                 let p = &pixels[i];

@@ -151,8 +151,6 @@ impl Measured {
     }
 }
 
-/// The process's CPU time so far (user + system, all threads), seconds, from `/proc/self/stat` (Linux; clock
-/// ticks of 1/100 s, the fixed USER_HZ of that interface); 0 where it cannot be read.
 /// Renders that take under this many CPU seconds are timed [`TIMING_RUNS`] times, the fastest kept: sub-second
 /// renders vary by 10–25 % between runs on a shared VM (straight-sunset's fixed path-1 frame at 18 spp, 128²: 0.60
 /// and 0.47 CPU s in the twelfth and thirteenth runs), more than the ratios the study reports. Every render is
@@ -178,6 +176,8 @@ fn fastest_of<T>(mut render: impl FnMut() -> (T, f64)) -> (T, f64, f64) {
     (result, seconds, cpu_best)
 }
 
+/// The process's CPU time so far (user + system, all threads), seconds, from `/proc/self/stat` (Linux; clock
+/// ticks of 1/100 s, the fixed USER_HZ of that interface); 0 where it cannot be read.
 fn cpu_seconds() -> f64 {
     let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else {
         return 0.0;
