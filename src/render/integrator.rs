@@ -80,6 +80,9 @@ pub struct Settings {
     pub strategy: Strategy,
     /// Which lights the first vertex's light samples go to.
     pub light_selection: LightSelection,
+    /// Light-sample Russian roulette below this unshadowed contribution; 0 = off
+    /// ([`crate::render::settings::IntegratorConfig::light_threshold`]).
+    pub light_threshold: f32,
 }
 
 /// Counters of rays, kept per tile and summed.
@@ -649,15 +652,40 @@ impl<'a> Integrator<'a> {
         let (fcos, pdf_m) = self.eval(v, ls.wi);
         let w = self.first.light_weight(&ls, count, pdf_m);
         let scale = ls.radiance * (w / (ls.pdf * count));
-        let unshadowed = luminance(fcos.sum() * scale);
+        let contribution = fcos.sum() * scale;
+        let unshadowed = luminance(contribution);
         if unshadowed <= 0.0 {
             return;
         }
-        let vis = self.visibility(j, v, ls.wi, ls.distance, draw.key(d), counts);
         out.unshadowed += unshadowed;
+        let Some(kept) = self.light_roulette(contribution, draw, 0) else {
+            return;
+        };
+        let vis = kept * self.visibility(j, v, ls.wi, ls.distance, draw.key(d), counts);
         out.lit += unshadowed * vis;
         if vis > 0.0 {
             add_lobes(&mut out.lobes, &fcos, scale * vis);
+        }
+    }
+
+    /// Light-sample Russian roulette ([`Settings::light_threshold`], Cycles' light threshold): a light sample
+    /// of vertex `b` whose unshadowed `contribution` (without the path's throughput) has its largest channel c
+    /// under the threshold t traces its shadow ray with probability p = c / t (dimension `LIGHT_TERMINATE` of
+    /// `draw`). The factor its visibility is multiplied by: 1 at or above t, 1/p if kept, `None` if dropped (no
+    /// ray; the estimate stays unbiased, E = p · 1/p).
+    #[inline]
+    fn light_roulette(&self, contribution: Vec3, draw: Draw, b: u32) -> Option<f32> {
+        let t = self.settings.light_threshold;
+        if t <= 0.0 {
+            return Some(1.0);
+        }
+        let p = contribution.max_element() / t;
+        if p >= 1.0 {
+            Some(1.0)
+        } else if draw.get(dim::vertex(b, dim::LIGHT_TERMINATE)) < p {
+            Some(1.0 / p)
+        } else {
+            None
         }
     }
 
@@ -821,8 +849,11 @@ impl<'a> Integrator<'a> {
             // n_j = P(j): one sample, of the chosen light.
             let count = mis.light_count(ls.delta, p_select);
             let w = mis.light_weight(&ls, count, pdf_m);
-            let vis = self.visibility(j, v, ls.wi, ls.distance, draw.key(d), counts);
-            radiance += f * ls.radiance * (vis * w / (count * ls.pdf));
+            let contribution = f * ls.radiance * (w / (count * ls.pdf));
+            if let Some(kept) = self.light_roulette(contribution, draw, b) {
+                let vis = kept * self.visibility(j, v, ls.wi, ls.distance, draw.key(d), counts);
+                radiance += f * ls.radiance * (vis * w / (count * ls.pdf));
+            }
         }
         radiance
     }

@@ -15,7 +15,7 @@ use crate::util::hash::hash64;
 /// | `vertex(b, LIGHT)` = 3 + 8b | 2 | path vertex b: light sample |
 /// | `vertex(b, MATERIAL)` = 5 + 8b | 3 | path vertex b: material (BSDF) sample |
 /// | `vertex(b, ROULETTE)` = 8 + 8b | 1 | path vertex b: Russian roulette |
-/// | 9 + 8b | 1 | spare |
+/// | `vertex(b, LIGHT_TERMINATE)` = 9 + 8b | 1 | path vertex b: the light sample's roulette (`light_threshold`) |
 ///
 /// Vertex 0 is the first shading point; its light samples also read scramblings salted per light
 /// ([`PixelSampler::get_salted`]), in the same dimensions.
@@ -26,7 +26,7 @@ pub mod dim {
     pub const FILTER: u32 = 0;
     /// The first dimension of path vertex 0, after the filter's.
     pub const FIRST_VERTEX: u32 = 2;
-    /// Dimensions per path vertex (7 used, 1 spare).
+    /// Dimensions per path vertex.
     pub const PER_VERTEX: u32 = 8;
     /// Offset in a vertex's block: the light chosen in proportion to its selection weight (1 dimension).
     pub const LIGHT_SELECT: u32 = 0;
@@ -36,10 +36,14 @@ pub mod dim {
     pub const MATERIAL: u32 = 3;
     /// Offset in a vertex's block: Russian roulette after the vertex (1 dimension).
     pub const ROULETTE: u32 = 6;
+    /// Offset in a vertex's block: whether a dim light sample traces its shadow ray (1 dimension, apart from the
+    /// light sample's own two so that the choice is independent of where the sample fell).
+    pub const LIGHT_TERMINATE: u32 = 7;
     /// The most path vertices whose blocks fit in [`COUNT`] dimensions (31).
     pub const MAX_VERTICES: u32 = (COUNT - FIRST_VERTEX) / PER_VERTEX;
 
-    /// Dimension `offset` (one of [`LIGHT_SELECT`], [`LIGHT`], [`MATERIAL`], [`ROULETTE`]) of path vertex `b`
+    /// Dimension `offset` (one of [`LIGHT_SELECT`], [`LIGHT`], [`MATERIAL`], [`ROULETTE`], [`LIGHT_TERMINATE`]) of
+    /// path vertex `b`
     /// (0 = the first shading point; `b` < [`MAX_VERTICES`]).
     #[inline]
     pub const fn vertex(b: u32, offset: u32) -> u32 {
@@ -59,6 +63,7 @@ pub mod dim {
                     (LIGHT, 2, "light"),
                     (MATERIAL, 3, "material"),
                     (ROULETTE, 1, "roulette"),
+                    (LIGHT_TERMINATE, 1, "light terminate"),
                 ] {
                     r.push((vertex(b, offset), width, format!("vertex {b} {name}")));
                 }
@@ -94,6 +99,7 @@ pub mod dim {
                 [LIGHT_SELECT, LIGHT, MATERIAL, ROULETTE].map(|o| vertex(2, o)),
                 [18, 19, 21, 24]
             );
+            assert_eq!(vertex(1, LIGHT_TERMINATE), 17);
             assert_eq!(MAX_VERTICES, 31);
         }
     }
