@@ -14,6 +14,8 @@
 #   WORK (mktemp -d)              renders, logs and times
 #   BIN (./target/release/cuticle)
 #   CHART_ONLY=1                  no renders: redraw the chart and the read-out from $OUT/equal-error.csv
+#   REUSE_REFS=1                  keep references already in $WORK (ref_NAME.exr, .t, .r from an earlier run with the
+#                                 same REF_SPP and code), e.g. when only the sweep is to be redone
 #   UNBIASED=1 (default)          also render "cycles-unbiased": Cycles with Clamp Indirect 0 and Filter Glossy 0,
 #                                 Blender's two biased noise reductions off (its own reference cannot see their bias,
 #                                 cuticle has neither on); UNBIASED=0 for Blender's defaults only
@@ -72,7 +74,12 @@ if [ "${CHART_ONLY:-0}" != 1 ]; then
   }
 
   echo "references, $REF_SPP spp, seed $REF_SEED"
-  for who in $RENDERERS; do render "ref_$who" "$who" "$REF_SPP" "$REF_SEED"; done
+  for who in $RENDERERS; do
+    if [ "${REUSE_REFS:-0}" = 1 ] && [ -s "$WORK/ref_$who.exr" ] && [ -s "$WORK/ref_$who.t" ] && [ -s "$WORK/ref_$who.r" ]; then
+      echo "  ref_$who: reused from $WORK"; continue
+    fi
+    render "ref_$who" "$who" "$REF_SPP" "$REF_SEED"
+  done
   TMP_CSV=$WORK/equal-error.csv
   echo "renderer,spp,seed,wall_s,render_s,rmse" > "$TMP_CSV"
   for who in $RENDERERS; do
