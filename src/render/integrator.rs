@@ -658,7 +658,8 @@ impl<'a> Integrator<'a> {
             return;
         }
         out.unshadowed += unshadowed;
-        let Some(kept) = self.light_roulette(contribution, draw, 0) else {
+        let u = || draw.get(dim::vertex(0, dim::LIGHT_TERMINATE));
+        let Some(kept) = self.light_roulette(contribution, u) else {
             return;
         };
         let vis = kept * self.visibility(j, v, ls.wi, ls.distance, draw.key(d), counts);
@@ -669,12 +670,12 @@ impl<'a> Integrator<'a> {
     }
 
     /// Light-sample Russian roulette ([`Settings::light_threshold`], Cycles' light threshold): a light sample
-    /// of vertex `b` whose unshadowed `contribution` (without the path's throughput) has its largest channel c
-    /// under the threshold t traces its shadow ray with probability p = c / t (dimension `LIGHT_TERMINATE` of
-    /// `draw`). The factor its visibility is multiplied by: 1 at or above t, 1/p if kept, `None` if dropped (no
+    /// whose unshadowed `contribution` (without the path's throughput) has its largest channel c under the
+    /// threshold t traces its shadow ray with probability p = c / t, deciding with the uniform number `u` (read
+    /// only then). The factor its visibility is multiplied by: 1 at or above t, 1/p if kept, `None` if dropped (no
     /// ray; the estimate stays unbiased, E = p · 1/p).
     #[inline]
-    fn light_roulette(&self, contribution: Vec3, draw: Draw, b: u32) -> Option<f32> {
+    fn light_roulette(&self, contribution: Vec3, u: impl FnOnce() -> f32) -> Option<f32> {
         let t = self.settings.light_threshold;
         if t <= 0.0 {
             return Some(1.0);
@@ -682,7 +683,7 @@ impl<'a> Integrator<'a> {
         let p = contribution.max_element() / t;
         if p >= 1.0 {
             Some(1.0)
-        } else if draw.get(dim::vertex(b, dim::LIGHT_TERMINATE)) < p {
+        } else if u() < p {
             Some(1.0 / p)
         } else {
             None
@@ -832,7 +833,10 @@ impl<'a> Integrator<'a> {
         if self.lights.is_empty() {
             return radiance;
         }
-        let (j, p_select, _) = self
+        // The selection draw's remainder within the chosen light's bin is a fresh uniform number, independent of
+        // the light sample's dimensions: the light threshold's roulette reads it, so that a deeper vertex needs no
+        // Sobol set beyond its light and material dimensions' (dimension 9 + 8b would start a fifth at b = 1).
+        let (j, p_select, u_rest) = self
             .select
             .sample_discrete(draw.get(dim::vertex(b, dim::LIGHT_SELECT)));
         let light = &self.lights[j];
@@ -850,7 +854,7 @@ impl<'a> Integrator<'a> {
             let count = mis.light_count(ls.delta, p_select);
             let w = mis.light_weight(&ls, count, pdf_m);
             let contribution = f * ls.radiance * (w / (count * ls.pdf));
-            if let Some(kept) = self.light_roulette(contribution, draw, b) {
+            if let Some(kept) = self.light_roulette(contribution, || u_rest) {
                 let vis = kept * self.visibility(j, v, ls.wi, ls.distance, draw.key(d), counts);
                 radiance += f * ls.radiance * (vis * w / (count * ls.pdf));
             }

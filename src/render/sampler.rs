@@ -15,7 +15,8 @@ use crate::util::hash::hash64;
 /// | `vertex(b, LIGHT)` = 3 + 8b | 2 | path vertex b: light sample |
 /// | `vertex(b, MATERIAL)` = 5 + 8b | 3 | path vertex b: material (BSDF) sample |
 /// | `vertex(b, ROULETTE)` = 8 + 8b | 1 | path vertex b: Russian roulette |
-/// | `vertex(b, LIGHT_TERMINATE)` = 9 + 8b | 1 | path vertex b: the light sample's roulette (`light_threshold`) |
+/// | `vertex(0, LIGHT_TERMINATE)` = 9 | 1 | the first vertex's light-sample roulette (`light_threshold`; deeper vertices reuse their light-selection draw's remainder) |
+/// | 9 + 8b, b ≥ 1 | 1 | spare |
 ///
 /// Vertex 0 is the first shading point; its light samples also read scramblings salted per light
 /// ([`PixelSampler::get_salted`]), in the same dimensions.
@@ -36,8 +37,9 @@ pub mod dim {
     pub const MATERIAL: u32 = 3;
     /// Offset in a vertex's block: Russian roulette after the vertex (1 dimension).
     pub const ROULETTE: u32 = 6;
-    /// Offset in a vertex's block: whether a dim light sample traces its shadow ray (1 dimension, apart from the
-    /// light sample's own two so that the choice is independent of where the sample fell).
+    /// Offset in vertex 0's block: whether a dim light sample traces its shadow ray (1 dimension, apart from the
+    /// light sample's own two so that the choice is independent of where the sample fell; vertex 0's samples under
+    /// `lights = "all"` have no selection draw whose remainder could serve).
     pub const LIGHT_TERMINATE: u32 = 7;
     /// The most path vertices whose blocks fit in [`COUNT`] dimensions (31).
     pub const MAX_VERTICES: u32 = (COUNT - FIRST_VERTEX) / PER_VERTEX;
