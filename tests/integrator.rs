@@ -5,7 +5,7 @@ use std::path::Path;
 
 mod common;
 
-use common::render_scene;
+use common::{render_scene, render_scene_with_stats};
 use cuticle::image::Image;
 use cuticle::scene::{LightSelection, Scene, ShadowMode, Strategy};
 
@@ -431,9 +431,10 @@ light_samples = 2
 #[test]
 fn light_threshold_roulette_keeps_the_expectation_and_traces_fewer_shadow_rays() {
     // A sun and a dim sky over the small fur ball, one bounce: many light samples of the sun land where the fibre
-    // sends little of it towards the camera (checked: dropping them without the 1/p of the kept ones fails here). With the threshold at 0.05 (five times Cycles' default, so that
+    // sends little of it towards the camera. With the threshold at 0.05 (five times Cycles' default, so that
     // roulette decides a large share of them) the dim ones trace their shadow ray with probability
-    // contribution / threshold and count 1/p when they do: the image keeps its expectation, with fewer rays.
+    // contribution / threshold and count 1/p when they do: the image keeps its expectation, with fewer rays
+    // (checked: dropping them without the 1/p of the kept ones fails here).
     let scene = parse(
         &format!(
             "{SMALL_FURBALL}
@@ -456,18 +457,15 @@ lights = \"one\"
         ),
         Path::new("."),
     );
-    let run = |threshold: f32, seed: u32| {
+    // The same seed for both: they draw the same light samples and shadow rays, so their difference is the
+    // roulette's alone (a dropped dim sample against 1/p times a kept one), and a bias shows far above the noise.
+    let run = |threshold: f32| {
         let mut s = scene.clone();
         s.integrator.light_threshold = threshold;
-        s.film.seed = seed;
-        let frame = cuticle::render::Frame::load(s.resolve().unwrap()).unwrap();
-        let pool = cuticle::render::thread_pool(Some(2)).unwrap();
-        pool.install(|| frame.render(cuticle::render::Options::default()))
+        render_scene_with_stats(&s, 2)
     };
-    // The same seed: both renders draw the same light samples and shadow rays, so their difference is the
-    // roulette's alone (a dropped dim sample against 1/p times a kept one), and a bias shows far above the noise.
-    let (all, all_stats) = run(0.0, 1);
-    let (kept, kept_stats) = run(0.05, 1);
+    let (all, all_stats) = run(0.0);
+    let (kept, kept_stats) = run(0.05);
     let (all_rays, kept_rays) = (all_stats.rays.shadow, kept_stats.rays.shadow);
     println!("shadow rays: every light sample {all_rays}, threshold 0.05 {kept_rays}");
     assert!(

@@ -856,6 +856,8 @@ impl<'a> Integrator<'a> {
             let contribution = f * ls.radiance * (w / (count * ls.pdf));
             if let Some(kept) = self.light_roulette(contribution, || u_rest) {
                 let vis = kept * self.visibility(j, v, ls.wi, ls.distance, draw.key(d), counts);
+                // Not `contribution * vis`: this order of operations keeps every image without a threshold bit
+                // for bit what it was (fractional visibilities round differently the other way).
                 radiance += f * ls.radiance * (vis * w / (count * ls.pdf));
             }
         }

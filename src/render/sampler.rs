@@ -65,11 +65,16 @@ pub mod dim {
                     (LIGHT, 2, "light"),
                     (MATERIAL, 3, "material"),
                     (ROULETTE, 1, "roulette"),
-                    (LIGHT_TERMINATE, 1, "light terminate"),
                 ] {
                     r.push((vertex(b, offset), width, format!("vertex {b} {name}")));
                 }
             }
+            // Only vertex 0 reads LIGHT_TERMINATE (deeper vertices reuse their selection draw's remainder).
+            r.push((
+                vertex(0, LIGHT_TERMINATE),
+                1,
+                "vertex 0 light terminate".to_string(),
+            ));
             r
         }
 
@@ -101,7 +106,7 @@ pub mod dim {
                 [LIGHT_SELECT, LIGHT, MATERIAL, ROULETTE].map(|o| vertex(2, o)),
                 [18, 19, 21, 24]
             );
-            assert_eq!(vertex(1, LIGHT_TERMINATE), 17);
+            assert_eq!(vertex(0, LIGHT_TERMINATE), 9);
             assert_eq!(MAX_VERTICES, 31);
         }
     }
