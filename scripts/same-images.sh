@@ -22,6 +22,7 @@ cases=(
   "default||--res 96x72 --spp 4"
   "furball|scenes/furball.toml|--res 96x96 --spp 4"
   "furball-round-dom|scenes/furball-shadows.toml|--res 96x96 --spp 4 --curves round"
+  "furball-peer|scenes/furball-peer.toml|--res 96x96 --spp 4"
   "cornell-box|scenes/thesis/cornell-box.toml|--res 64x64 --spp 4"
   "straight-city-marschner|scenes/thesis/straight-city-marschner.toml|--res 60x80 --spp 4"
   "straight-city-ishair|scenes/thesis/straight-city-ishair.toml|--res 60x80 --spp 4 --shadows deep-opacity"

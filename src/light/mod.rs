@@ -115,6 +115,12 @@ impl Light {
         }
     }
 
+    /// Whether a ray can hit the light ([`Light::intersect`] can be `Some`): area lights only.
+    #[inline]
+    pub fn intersects(&self) -> bool {
+        matches!(self, Light::Area(_))
+    }
+
     /// For an area light, the nearest hit of `ray` in [tnear, tfar]: its parameter t and the radiance leaving
     /// the light towards the ray's origin (0 from the back of a one-sided emitter). `None` for other lights.
     #[inline]

@@ -4,6 +4,7 @@
 use glam::Vec3;
 
 use crate::ray::Ray;
+use crate::shape::ShapeHit;
 
 use super::mis::Mis;
 use super::{Integrator, RayCounts, ShadowMode, Surface, TransmittanceMode, Vertex};
@@ -18,9 +19,37 @@ pub(super) enum Found {
     Escaped,
 }
 
+impl Found {
+    /// What the ray reached, without the shading point (a few bytes to pass around instead of a vertex).
+    #[inline]
+    pub(super) fn reached(&self) -> Reached {
+        match *self {
+            Found::Surface(_) => Reached::Surface,
+            Found::Emitter(radiance, j) => Reached::Emitter(radiance, j),
+            Found::Escaped => Reached::Escaped,
+        }
+    }
+}
+
+/// [`Found`] without the shading point: what the light a material sample brings back depends on.
+#[derive(Debug, Clone, Copy)]
+pub(super) enum Reached {
+    Surface,
+    Emitter(Vec3, usize),
+    Escaped,
+}
+
+/// What a ray meets besides hair: a shape (its hit) or an area light (its radiance towards the ray and index).
+#[derive(Debug, Clone, Copy)]
+enum NonHair {
+    Shape(ShapeHit),
+    Emitter(Vec3, usize),
+}
+
 impl Integrator<'_> {
     /// The nearest of hair, shapes and area lights along `ray`. `stochastic` = Some((key, ignore_strand)) for
     /// light-carrying rays (strands present with probability = opacity), `None` for camera rays (all opaque).
+    #[inline(always)]
     pub(super) fn find(
         &self,
         ray: &Ray,
@@ -38,22 +67,51 @@ impl Integrator<'_> {
                 return Found::Escaped;
             }
         };
-        if let Some(found) = self.find_non_hair(ray, hair.map_or(ray.tfar, |h| h.t)) {
-            return found;
-        }
-        match hair {
-            Some(h) => Found::Surface(self.hair_vertex(ray, &h)),
-            None => Found::Escaped,
+        match self.nearest_non_hair(ray, hair.map_or(ray.tfar, |h| h.t)).1 {
+            Some(other) => self.non_hair_found(ray, other),
+            None => match hair {
+                Some(h) => Found::Surface(self.hair_vertex(ray, &h)),
+                None => Found::Escaped,
+            },
         }
     }
 
     /// The nearest area light or shape along `ray` before `tfar` (hair is the caller's business), if any.
     fn find_non_hair(&self, ray: &Ray, tfar: f32) -> Option<Found> {
-        self.nearest_non_hair(ray, tfar).1
+        let other = self.nearest_non_hair(ray, tfar).1?;
+        Some(self.non_hair_found(ray, other))
     }
 
-    /// [`Integrator::find_non_hair`] with the distance it found it at (`tfar` if nothing).
-    fn nearest_non_hair(&self, ray: &Ray, tfar: f32) -> (f32, Option<Found>) {
+    /// What `ray` found in a [`NonHair`]: an emitter, or the shading point on a shape.
+    fn non_hair_found(&self, ray: &Ray, other: NonHair) -> Found {
+        match other {
+            NonHair::Emitter(radiance, i) => Found::Emitter(radiance, i),
+            NonHair::Shape(s) => {
+                let wo = -ray.dir.normalize();
+                let normal = if s.normal.dot(wo) >= 0.0 {
+                    s.normal
+                } else {
+                    -s.normal
+                };
+                Found::Surface(Vertex {
+                    p: ray.at(s.t),
+                    wo,
+                    surface: Surface::Lambert {
+                        normal,
+                        albedo: s.albedo,
+                    },
+                })
+            }
+        }
+    }
+
+    /// The nearest area light or shape along `ray` before `tfar`, and the distance it lies at (`tfar` if nothing).
+    /// Returns at once in scenes with neither ([`Integrator::non_hair`]).
+    #[inline]
+    fn nearest_non_hair(&self, ray: &Ray, tfar: f32) -> (f32, Option<NonHair>) {
+        if !self.non_hair {
+            return (tfar, None);
+        }
         let mut tmax = tfar;
         let shape = self.shapes.intersect(ray, tmax);
         if let Some(s) = shape {
@@ -70,26 +128,10 @@ impl Integrator<'_> {
                 }
             }
         }
-        if let Some((radiance, i)) = emitter {
-            return (tmax, Some(Found::Emitter(radiance, i)));
+        match (emitter, shape) {
+            (Some((radiance, i)), _) => (tmax, Some(NonHair::Emitter(radiance, i))),
+            (None, shape) => (tmax, shape.map(NonHair::Shape)),
         }
-        let found = shape.map(|s| {
-            let wo = -ray.dir.normalize();
-            let normal = if s.normal.dot(wo) >= 0.0 {
-                s.normal
-            } else {
-                -s.normal
-            };
-            Found::Surface(Vertex {
-                p: ray.at(s.t),
-                wo,
-                surface: Surface::Lambert {
-                    normal,
-                    albedo: s.albedo,
-                },
-            })
-        });
-        (tmax, found)
     }
 
     /// Visibility along a light sample's shadow ray, in [0, 1].
@@ -151,6 +193,7 @@ impl Integrator<'_> {
 
     /// Traces a material sample leaving `v` along `wi`, drawn with density `pdf` (per sample) at a vertex weighted
     /// by `mis`: (Σ_j w_m,j L_e,j of the lights it reaches, where the ray went).
+    #[inline(always)]
     pub(super) fn trace_material_sample(
         &self,
         v: &Vertex,
@@ -167,12 +210,15 @@ impl Integrator<'_> {
             // No self-shadowing: the light a material sample sees ignores hair (shapes and emitters still count),
             // while the continuation still scatters at the hair it meets — a second ray, in this diagnostic mode.
             let lit = self.find_non_hair(&ray, ray.tfar).unwrap_or(Found::Escaped);
-            let le = self.emitted_along(v, mis, &ray, &lit, pdf);
+            let le = self.emitted_along(v, mis, &ray, lit.reached(), pdf);
             counts.material += 1;
             return (le, self.find(&ray, Some((key, ignore)), counts));
         }
         let found = self.find(&ray, Some((key, ignore)), counts);
-        (self.emitted_along(v, mis, &ray, &found, pdf), found)
+        (
+            self.emitted_along(v, mis, &ray, found.reached(), pdf),
+            found,
+        )
     }
 
     /// [`Integrator::trace_material_sample`] for a material sample that does not continue the path (it only looks
@@ -192,11 +238,12 @@ impl Integrator<'_> {
         let (origin, tnear, ignore) = self.spawn(v, wi);
         let ray = Ray::segment(origin, wi, tnear, f32::INFINITY);
         counts.material += 1;
-        let (t_end, found) = self.nearest_non_hair(&ray, ray.tfar);
-        let found = match found {
+        let (t_end, other) = self.nearest_non_hair(&ray, ray.tfar);
+        let reached = match other {
             // A shape emits nothing: whatever hair lies before it, the sample brings no light.
-            Some(Found::Surface(_)) => return Vec3::ZERO,
-            f => f.unwrap_or(Found::Escaped),
+            Some(NonHair::Shape(_)) => return Vec3::ZERO,
+            Some(NonHair::Emitter(radiance, j)) => Reached::Emitter(radiance, j),
+            None => Reached::Escaped,
         };
         if self.settings.shadows != ShadowMode::None && t_end > tnear {
             let blocked = self
@@ -211,28 +258,28 @@ impl Integrator<'_> {
                 return Vec3::ZERO;
             }
         }
-        self.emitted_along(v, mis, &ray, &found, pdf)
+        self.emitted_along(v, mis, &ray, reached, pdf)
     }
 
     /// The emitted radiance a material sample from `v` along `ray` (density `pdf` per sample) finds in `found`,
     /// each light's share weighted by [`Mis::material_weight`] against that light's own density for the direction:
     /// every non-delta infinite light if it escaped, the area light it hit, nothing at a surface.
-    fn emitted_along(&self, v: &Vertex, mis: &Mis, ray: &Ray, found: &Found, pdf: f32) -> Vec3 {
+    fn emitted_along(&self, v: &Vertex, mis: &Mis, ray: &Ray, reached: Reached, pdf: f32) -> Vec3 {
         let p_material = mis.material_density(pdf);
         let weight = |j: usize| {
             let p_light = mis.light_density(&self.lights[j], self.select.pmf(j), v.p, ray.dir);
             mis.material_weight(p_material, p_light)
         };
-        match *found {
-            Found::Escaped => self
+        match reached {
+            Reached::Escaped => self
                 .lights
                 .iter()
                 .enumerate()
                 .filter(|(_, l)| l.is_infinite() && !l.is_delta())
                 .map(|(j, l)| l.le(ray.dir) * weight(j))
                 .fold(Vec3::ZERO, |a, b| a + b),
-            Found::Emitter(radiance, j) => radiance * weight(j),
-            Found::Surface(_) => Vec3::ZERO,
+            Reached::Emitter(radiance, j) => radiance * weight(j),
+            Reached::Surface => Vec3::ZERO,
         }
     }
 }
