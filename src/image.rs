@@ -395,6 +395,34 @@ impl Outputs {
         )
     }
 
+    /// [`Outputs::exr`] of `image` at `path` and [`Outputs::png_preview`] of it at `preview`, the two written and
+    /// verified at once on two threads (a render's last serial step: on the 512² peer frame the EXR took 0.04 s and
+    /// the preview 0.025 s one after the other). Either's error is returned (the EXR's first) and neither file is
+    /// staged then.
+    pub fn exr_with_preview(
+        &mut self,
+        path: &Path,
+        preview: &Path,
+        image: &Image,
+        info: &ExrInfo,
+    ) -> Result<(), ImageError> {
+        let (mut exr, mut png) = (Outputs::new(), Outputs::new());
+        let (exr_result, png_result) = std::thread::scope(|s| {
+            let png_thread = s.spawn(|| png.png_preview(preview, image));
+            let exr_result = exr.exr(path, image, info);
+            // A panic in the preview's thread is re-raised here, as it would have been without the thread.
+            let png_result = png_thread
+                .join()
+                .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+            (exr_result, png_result)
+        });
+        exr_result?;
+        png_result?;
+        self.staged.append(&mut exr.staged);
+        self.staged.append(&mut png.staged);
+        Ok(())
+    }
+
     /// Writes one file with `write_to` into a temporary file beside `path`, flushes it, and checks it with
     /// `verify` (why it is wrong, or `Ok`). On failure the temporary file is removed; when the file system is full
     /// (a small file cannot be written beside it either) the error is the operating system's.
@@ -818,6 +846,32 @@ mod tests {
             back.get(1, 2, back.channel_index("depth.Z").unwrap()),
             f32::INFINITY
         );
+    }
+
+    #[test]
+    fn exr_and_preview_are_written_together_or_not_at_all() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut image = Image::new(4, 3, names(&["R", "G", "B"]));
+        image.set(2, 1, 0, 0.5);
+        let (exr, png) = (dir.path().join("a.exr"), dir.path().join("a.png"));
+        let mut outputs = Outputs::new();
+        outputs
+            .exr_with_preview(&exr, &png, &image, &ExrInfo::default())
+            .unwrap();
+        assert_eq!(outputs.commit().unwrap(), [exr.clone(), png.clone()]);
+        assert_eq!(read(&exr).unwrap().get(2, 1, 0), 0.5);
+        assert_eq!(read(&png).unwrap().width, 4);
+        // The preview cannot be written (its directory does not exist): the EXR, written fine on the other
+        // thread, is not staged either, and its temporary file is gone.
+        let dir = tempfile::tempdir().unwrap();
+        let (exr, png) = (dir.path().join("b.exr"), dir.path().join("no/b.png"));
+        let mut outputs = Outputs::new();
+        let err = outputs
+            .exr_with_preview(&exr, &png, &image, &ExrInfo::default())
+            .unwrap_err();
+        assert!(err.to_string().contains("b.png"), "{err}");
+        assert!(outputs.commit().unwrap().is_empty());
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
     }
 
     #[test]

@@ -539,8 +539,7 @@ fn render_command(args: RenderArgs) -> Result<()> {
             }
         }
         if exr_output {
-            outputs.exr(&path, &r.image, &info)?;
-            outputs.png_preview(&path.with_extension("png"), &r.image)?;
+            outputs.exr_with_preview(&path, &path.with_extension("png"), &r.image, &info)?;
         } else {
             outputs.png_preview(&path, &r.image)?;
         }
@@ -620,8 +619,7 @@ fn merge_command(args: &MergeArgs) -> Result<()> {
     cuticle::image::check_output(&preview)?;
     let merged = cuticle::farm::merge(&args.tiles)?;
     let mut outputs = cuticle::image::Outputs::new();
-    outputs.exr(&args.output, &merged.image, &merged.info)?;
-    outputs.png_preview(&preview, &merged.image)?;
+    outputs.exr_with_preview(&args.output, &preview, &merged.image, &merged.info)?;
     for p in outputs.commit()? {
         eprintln!("wrote {}", p.display());
     }
