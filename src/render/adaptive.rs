@@ -542,9 +542,10 @@ pub(super) fn render_rounds(
                 for x in t.x0..t.x1 {
                     let p = &w.pixels[k];
                     k += 1;
-                    let pixel = t.pixel_mut(x, y);
-                    p.sums.write(p.taken, pixel);
-                    centre(x, y, pixel, &mut w.counts);
+                    t.set_pixel(x, y, |pixel| {
+                        p.sums.write(p.taken, pixel);
+                        centre(x, y, pixel, &mut w.counts);
+                    });
                 }
             }
             (w.tile, w.counts)

@@ -16,7 +16,6 @@
 use crate::accel::{Backend, CurveKind};
 use crate::hair::{HairError, HairSource};
 
-use super::film::CHANNELS;
 use super::settings::{RenderSettings, ShadowMode};
 
 /// Peak bytes per curve segment of the acceleration structure while it is built, including the curve buffers
@@ -42,7 +41,7 @@ pub const STRAND_BYTES_PER_POINT: u64 = 32 + 16 + 8;
 pub const STRAND_BYTES_PER_STRAND: u64 = 4 + 4 + 4 + 12 + 2 * 16;
 
 /// Copies of the film alive at the end of a render: the finished tiles, the assembled [`crate::image::Image`], and
-/// the conversion OpenImageIO's writer makes (each all [`CHANNELS`] × f32 per pixel).
+/// the conversion OpenImageIO's writer makes (each the channels the film keeps, f32 per pixel).
 pub const FILM_COPIES: u64 = 3;
 
 /// Per worker thread: its stack (Rust's default for spawned threads, 2 MiB) and scratch.
@@ -173,8 +172,10 @@ pub fn estimate(
         .map_or(200, |e| e.2);
     let [w, h] = settings.film.resolution;
     let pixels = u64::from(w) * u64::from(h);
+    // The tiles and the image hold the channels the film keeps ([`super::film::Layout`]), not all of CHANNELS.
+    let channels = super::film::Layout::new(&settings.film).len() as u64;
     let film = pixels
-        .saturating_mul(CHANNELS.len() as u64 * 4)
+        .saturating_mul(channels * 4)
         .saturating_mul(FILM_COPIES);
     let shadow_maps = if settings.shadows.mode == ShadowMode::DeepOpacity {
         let d = &settings.shadows.deep_opacity;

@@ -93,14 +93,42 @@ pub fn aov_layers() -> Vec<&'static str> {
 /// The layers filled by the unfiltered ray through the pixel centre ([`write_centre`]).
 pub const CENTRE_LAYERS: [&str; 3] = ["depth", "tangent", "strand"];
 
-/// `image` (of [`CHANNELS`]) with only the beauty and the AOV layers `film` keeps (`film.aovs`).
-pub(super) fn select_layers(image: Image, film: &FilmConfig) -> Image {
-    let keep: Vec<usize> = (0..image.channels.len())
-        .filter(|&c| {
-            let layer = layer_of(&image.channels[c]);
-            layer == "beauty" || film.keeps_aov(layer)
-        })
-        .collect();
+/// The channels a frame keeps: the beauty and the AOV layers `film.aovs` names, as indices into [`CHANNELS`] in
+/// its order. Tiles store only these (a pixel's other channels are computed and dropped at once): on the peer
+/// scene, which keeps the beauty alone, its tiles hold 4 floats a pixel instead of 38.
+#[derive(Debug, Clone)]
+pub(super) struct Layout {
+    keep: std::sync::Arc<[usize]>,
+}
+
+impl Layout {
+    /// The channels `film` keeps.
+    pub(super) fn new(film: &FilmConfig) -> Layout {
+        let keep: Vec<usize> = (0..CHANNELS.len())
+            .filter(|&c| {
+                let layer = layer_of(CHANNELS[c]);
+                layer == "beauty" || film.keeps_aov(layer)
+            })
+            .collect();
+        Layout { keep: keep.into() }
+    }
+
+    /// How many.
+    pub(super) fn len(&self) -> usize {
+        self.keep.len()
+    }
+
+    /// Their names.
+    pub(super) fn names(&self) -> Vec<String> {
+        self.keep.iter().map(|&c| CHANNELS[c].to_string()).collect()
+    }
+}
+
+/// `image` (of [`CHANNELS`]) with only the channels `film` keeps ([`Layout`]): what the tiles' own selection must
+/// give.
+#[cfg(test)]
+fn select_layers(image: Image, film: &FilmConfig) -> Image {
+    let keep = Layout::new(film).keep;
     if keep.len() == image.channels.len() {
         return image;
     }
@@ -112,7 +140,7 @@ pub(super) fn select_layers(image: Image, film: &FilmConfig) -> Image {
         .chunks_exact(from)
         .zip(out.data.chunks_exact_mut(to))
     {
-        for (d, &c) in dst.iter_mut().zip(&keep) {
+        for (d, &c) in dst.iter_mut().zip(keep.iter()) {
             *d = src[c];
         }
     }
@@ -265,45 +293,55 @@ pub(super) fn write_centre(depth: f32, tangent: Vec3, strand: f32, pixel: &mut [
     pixel[at::STRAND] = strand;
 }
 
-/// A rectangle of pixels rendered as one unit of parallel work: `x0..x1` × `y0..y1`, all channels interleaved.
+/// A rectangle of pixels rendered as one unit of parallel work: `x0..x1` × `y0..y1`, the channels its [`Layout`]
+/// keeps interleaved.
 pub(super) struct Tile {
     pub x0: u32,
     pub y0: u32,
     pub x1: u32,
     pub y1: u32,
+    layout: Layout,
     pub pixels: Vec<f32>,
 }
 
 impl Tile {
-    /// A zeroed tile.
-    pub(super) fn new(x0: u32, y0: u32, x1: u32, y1: u32) -> Tile {
-        let n = ((x1 - x0) * (y1 - y0)) as usize * CHANNELS.len();
+    /// A zeroed tile keeping `layout`'s channels.
+    pub(super) fn new(x0: u32, y0: u32, x1: u32, y1: u32, layout: &Layout) -> Tile {
+        let n = ((x1 - x0) * (y1 - y0)) as usize * layout.keep.len();
         Tile {
             x0,
             y0,
             x1,
             y1,
+            layout: layout.clone(),
             pixels: vec![0.0; n],
         }
     }
 
-    /// The channels of pixel (`x`, `y`) (image coordinates inside the tile).
-    pub(super) fn pixel_mut(&mut self, x: u32, y: u32) -> &mut [f32] {
-        let nc = CHANNELS.len();
+    /// Sets pixel (`x`, `y`) (image coordinates inside the tile): `fill` writes it as all of [`CHANNELS`] (starting
+    /// from zeros), the tile keeps its layout's.
+    #[inline]
+    pub(super) fn set_pixel(&mut self, x: u32, y: u32, fill: impl FnOnce(&mut [f32])) {
+        let mut full = [0.0f32; CHANNELS.len()];
+        fill(&mut full);
+        let nc = self.layout.keep.len();
         let o = (((y - self.y0) * (self.x1 - self.x0) + (x - self.x0)) as usize) * nc;
-        &mut self.pixels[o..o + nc]
+        for (d, &c) in self.pixels[o..o + nc]
+            .iter_mut()
+            .zip(self.layout.keep.iter())
+        {
+            *d = full[c];
+        }
     }
 }
 
-/// The frame of `width` × `height` pixels assembled from its tiles.
-pub(super) fn assemble(width: u32, height: u32, tiles: &[Tile]) -> Image {
-    let nc = CHANNELS.len();
-    let mut image = Image::new(
-        width as usize,
-        height as usize,
-        CHANNELS.iter().map(|c| c.to_string()).collect(),
-    );
+/// The frame of `width` × `height` pixels assembled from its tiles, with the channels of their `layout`.
+pub(super) fn assemble(width: u32, height: u32, tiles: &[Tile], layout: &Layout) -> Image {
+    let names = layout.names();
+    let nc = names.len();
+    let mut image = Image::new(width as usize, height as usize, names);
     for tile in tiles {
+        debug_assert_eq!(tile.layout.keep, layout.keep);
         let tw = (tile.x1 - tile.x0) as usize;
         for (row, chunk) in tile.pixels.chunks(tw * nc).enumerate() {
             let o = ((tile.y0 as usize + row) * width as usize + tile.x0 as usize) * nc;
@@ -431,14 +469,41 @@ mod tests {
     }
 
     #[test]
-    fn tiles_land_where_they_belong() {
-        let nc = CHANNELS.len();
-        let mut a = Tile::new(0, 0, 2, 1);
-        let mut b = Tile::new(2, 0, 3, 1);
-        a.pixel_mut(1, 0)[0] = 1.0;
-        b.pixel_mut(2, 0)[0] = 2.0;
-        let image = assemble(3, 1, &[a, b]);
-        assert_eq!(image.data[nc], 1.0);
-        assert_eq!(image.data[2 * nc], 2.0);
+    fn tiles_land_where_they_belong_with_the_channels_kept() {
+        let film = |aovs: &[&str]| FilmConfig {
+            aovs: aovs.iter().map(|a| a.to_string()).collect(),
+            ..FilmConfig::default()
+        };
+        // Pixel (x, y) channel c holds 100 x + 1000 y + c in every channel of CHANNELS.
+        let fill = |x: u32, y: u32| {
+            move |p: &mut [f32]| {
+                for (c, v) in p.iter_mut().enumerate() {
+                    *v = (100 * x + 1000 * y) as f32 + c as f32;
+                }
+            }
+        };
+        let render = |layout: &Layout| {
+            let mut a = Tile::new(0, 0, 2, 2, layout);
+            let mut b = Tile::new(2, 0, 3, 2, layout);
+            for y in 0..2 {
+                a.set_pixel(0, y, fill(0, y));
+                a.set_pixel(1, y, fill(1, y));
+                b.set_pixel(2, y, fill(2, y));
+            }
+            assemble(3, 2, &[a, b], layout)
+        };
+        let everything = render(&Layout::new(&film(&["all"])));
+        assert_eq!(everything.channels.len(), CHANNELS.len());
+        assert_eq!(everything.get(2, 1, 5), 1205.0);
+        assert_eq!(everything.get(1, 0, 0), 100.0);
+        for aovs in [&[][..], &["spp", "depth"], &["lobe_TT"]] {
+            let f = film(aovs);
+            let kept = render(&Layout::new(&f));
+            assert_eq!(kept, select_layers(everything.clone(), &f), "{aovs:?}");
+        }
+        assert_eq!(
+            render(&Layout::new(&film(&[]))).channels,
+            ["R", "G", "B", "A"]
+        );
     }
 }

@@ -297,6 +297,7 @@ fn render_tiles(
         };
         film::write_centre(depth, tangent, id, pixel);
     };
+    let layout = film::Layout::new(&settings.film);
     let new_tile = |tx: u32, ty: u32| {
         let (x0, y0) = (region.x0 + tx * tile_side, region.y0 + ty * tile_side);
         Tile::new(
@@ -304,6 +305,7 @@ fn render_tiles(
             y0,
             (x0 + tile_side).min(region.x1),
             (y0 + tile_side).min(region.y1),
+            &layout,
         )
     };
     let cancelled = || cancel.is_some_and(|c| c.load(Ordering::Relaxed) != 0);
@@ -354,9 +356,10 @@ fn render_tiles(
                                 i
                             }
                         };
-                        let pixel = tile.pixel_mut(x, y);
-                        sums.write(taken, pixel);
-                        write_centre(x, y, pixel, &mut counts);
+                        tile.set_pixel(x, y, |pixel| {
+                            sums.write(taken, pixel);
+                            write_centre(x, y, pixel, &mut counts);
+                        });
                     }
                 }
                 progress.inc(1);
@@ -384,10 +387,7 @@ fn render_tiles(
             t
         })
         .collect();
-    let image = film::select_layers(
-        film::assemble(region.width(), region.height(), &tiles),
-        &settings.film,
-    );
+    let image = film::assemble(region.width(), region.height(), &tiles, &layout);
     let stats = RenderStats {
         seconds: start.elapsed().as_secs_f64(),
         rays,
