@@ -39,6 +39,18 @@ pub(super) enum Reached {
     Escaped,
 }
 
+impl Reached {
+    /// What a ray reached when hair is left out: a shape, an area light, or nothing.
+    #[inline]
+    fn without_hair(other: Option<NonHair>) -> Reached {
+        match other {
+            Some(NonHair::Shape(_)) => Reached::Surface,
+            Some(NonHair::Emitter(radiance, j)) => Reached::Emitter(radiance, j),
+            None => Reached::Escaped,
+        }
+    }
+}
+
 /// What a ray meets besides hair: a shape (its hit) or an area light (its radiance towards the ray and index).
 #[derive(Debug, Clone, Copy)]
 enum NonHair {
@@ -67,12 +79,12 @@ impl Integrator<'_> {
                 return Found::Escaped;
             }
         };
-        match self.nearest_non_hair(ray, hair.map_or(ray.tfar, |h| h.t)).1 {
-            Some(other) => self.non_hair_found(ray, other),
-            None => match hair {
-                Some(h) => Found::Surface(self.hair_vertex(ray, &h)),
-                None => Found::Escaped,
-            },
+        if let Some(found) = self.find_non_hair(ray, hair.map_or(ray.tfar, |h| h.t)) {
+            return found;
+        }
+        match hair {
+            Some(h) => Found::Surface(self.hair_vertex(ray, &h)),
+            None => Found::Escaped,
         }
     }
 
@@ -209,8 +221,8 @@ impl Integrator<'_> {
         if self.settings.shadows == ShadowMode::None {
             // No self-shadowing: the light a material sample sees ignores hair (shapes and emitters still count),
             // while the continuation still scatters at the hair it meets — a second ray, in this diagnostic mode.
-            let lit = self.find_non_hair(&ray, ray.tfar).unwrap_or(Found::Escaped);
-            let le = self.emitted_along(v, mis, &ray, lit.reached(), pdf);
+            let lit = Reached::without_hair(self.nearest_non_hair(&ray, ray.tfar).1);
+            let le = self.emitted_along(v, mis, &ray, lit, pdf);
             counts.material += 1;
             return (le, self.find(&ray, Some((key, ignore)), counts));
         }
@@ -239,12 +251,11 @@ impl Integrator<'_> {
         let ray = Ray::segment(origin, wi, tnear, f32::INFINITY);
         counts.material += 1;
         let (t_end, other) = self.nearest_non_hair(&ray, ray.tfar);
-        let reached = match other {
+        let reached = Reached::without_hair(other);
+        if let Reached::Surface = reached {
             // A shape emits nothing: whatever hair lies before it, the sample brings no light.
-            Some(NonHair::Shape(_)) => return Vec3::ZERO,
-            Some(NonHair::Emitter(radiance, j)) => Reached::Emitter(radiance, j),
-            None => Reached::Escaped,
-        };
+            return Vec3::ZERO;
+        }
         if self.settings.shadows != ShadowMode::None && t_end > tnear {
             let blocked = self
                 .tracer
