@@ -289,6 +289,15 @@ impl Environment {
         4.0 * PI * PI * scene_radius * scene_radius * luminance(self.average_radiance())
     }
 
+    /// The radiance of a constant environment (what [`Environment::le`] gives for every valid direction), `None`
+    /// for a map.
+    pub fn constant_radiance(&self) -> Option<Vec3> {
+        match &self.source {
+            Source::Constant(l) => Some(*l),
+            Source::Map(_) => None,
+        }
+    }
+
     /// The radiance arriving from direction `dir` (world space, any non-zero length; the direction an escaping ray
     /// travels), nearest texel. 0 for a zero or non-finite `dir`.
     #[inline]

@@ -115,6 +115,18 @@ impl Light {
         }
     }
 
+    /// [`Light::le`] when it is the same for every direction (a delta [`Distant`] light and an area light: 0; a
+    /// constant environment: its radiance), else `None`. A camera ray that escapes a scene whose lights all have
+    /// one sees their sum without a lookup per ray ([`crate::render::integrator::Integrator`]).
+    #[inline]
+    pub fn uniform_le(&self) -> Option<Vec3> {
+        match self {
+            Light::Distant(l) => l.is_delta().then_some(Vec3::ZERO),
+            Light::Environment(l) => l.constant_radiance(),
+            Light::Area(_) => Some(Vec3::ZERO),
+        }
+    }
+
     /// Whether a ray can hit the light ([`Light::intersect`] can be `Some`): area lights only.
     #[inline]
     pub fn intersects(&self) -> bool {
@@ -311,6 +323,32 @@ mod tests {
 
     /// A sun of irradiance π and a white environment of radiance 1 give a surface facing either the same
     /// irradiance, so a light sample picks them alike (their powers differ fourfold).
+    #[test]
+    fn a_uniform_le_is_le_in_every_direction_and_only_there() {
+        let sun = Light::Distant(distant::Distant::new(Vec3::NEG_Y, Vec3::splat(PI), 0.0).unwrap());
+        let disk =
+            Light::Distant(distant::Distant::new(Vec3::NEG_Y, Vec3::splat(PI), 0.27).unwrap());
+        let sky = Light::Environment(
+            environment::Environment::constant(Vec3::new(0.2, 0.5, 1.0)).unwrap(),
+        );
+        assert_eq!(sun.uniform_le(), Some(Vec3::ZERO));
+        assert_eq!(sky.uniform_le(), Some(Vec3::new(0.2, 0.5, 1.0)));
+        // A sun with a disk is seen only inside it (towards +y, against its travel): no uniform value.
+        assert_eq!(disk.uniform_le(), None);
+        assert!(disk.le(Vec3::Y).max_element() > 0.0 && disk.le(Vec3::X) == Vec3::ZERO);
+        for k in 0..200 {
+            let t = k as f32 * 0.37;
+            let dir = Vec3::new(
+                t.sin() * (2.0 * t).cos(),
+                t.cos(),
+                t.sin() * (2.0 * t).sin() + 0.1,
+            ) * (1.0 + t);
+            for light in [&sun, &sky] {
+                assert_eq!(light.uniform_le(), Some(light.le(dir)), "{dir:?}");
+            }
+        }
+    }
+
     #[test]
     fn a_sun_and_an_environment_of_equal_irradiance_are_picked_alike() {
         let r = 2.5;

@@ -282,6 +282,11 @@ pub struct Integrator<'a> {
     epsilon: f32,
     /// Whether camera rays that escape see the infinite lights.
     background_visible: bool,
+    /// What an escaping camera ray sees when every light's [`Light::le`] is the same in every direction (a
+    /// constant environment, delta suns): their sum, taken once instead of two lookups with a normalisation each
+    /// per background sample (~170 of a background sample's ~1 570 instructions on the peer frame). The same
+    /// values in the same order, so the same bits.
+    uniform_background: Option<Vec3>,
     /// Deep opacity maps, in `shadows = "deep-opacity"` mode.
     maps: Option<&'a ShadowMaps>,
     /// Whether a material sample can add direct light: false when the strategy is light-only or every light is a
@@ -335,6 +340,7 @@ impl<'a> Integrator<'a> {
             select: Distribution1D::new(&weights),
             epsilon: 1e-4 * scene_radius.max(1e-3),
             background_visible,
+            uniform_background: lights.iter().map(Light::uniform_le).sum(),
             non_hair: !frame.shapes.is_empty() || lights.iter().any(Light::intersects),
             maps,
             material_finds_light: settings.strategy != Strategy::Light
@@ -577,7 +583,9 @@ impl<'a> Integrator<'a> {
                 out.alpha = 1.0;
             }
             Found::Escaped if self.background_visible => {
-                out.beauty = self.lights.iter().map(|l| l.le(ray.dir.normalize())).sum();
+                out.beauty = self
+                    .uniform_background
+                    .unwrap_or_else(|| self.lights.iter().map(|l| l.le(ray.dir.normalize())).sum());
             }
             Found::Escaped | Found::Surface(_) => {}
         }
