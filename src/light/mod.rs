@@ -321,8 +321,6 @@ mod tests {
 
     use std::f32::consts::PI;
 
-    /// A sun of irradiance π and a white environment of radiance 1 give a surface facing either the same
-    /// irradiance, so a light sample picks them alike (their powers differ fourfold).
     #[test]
     fn a_uniform_le_is_le_in_every_direction_and_only_there() {
         let sun = Light::Distant(distant::Distant::new(Vec3::NEG_Y, Vec3::splat(PI), 0.0).unwrap());
@@ -349,6 +347,8 @@ mod tests {
         }
     }
 
+    /// A sun of irradiance π and a white environment of radiance 1 give a surface facing either the same
+    /// irradiance, so a light sample picks them alike (their powers differ fourfold).
     #[test]
     fn a_sun_and_an_environment_of_equal_irradiance_are_picked_alike() {
         let r = 2.5;

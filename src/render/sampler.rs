@@ -4,7 +4,9 @@
 use std::cell::Cell;
 use std::sync::OnceLock;
 
-use wide::u32x8;
+use sobol_burley::parts::{
+    hash_int4, owen_scramble_int4_rev, owen_scramble_rev, sobol_int4_rev, Int4,
+};
 
 use crate::util::hash::hash64;
 
@@ -168,112 +170,67 @@ impl PixelSampler {
     }
 }
 
-/// How many dimensions a [`CameraSample`] computes at once: four `sobol_burley` sets (16 dimensions), two AVX2
-/// vectors of eight lanes.
+/// How many dimensions a [`CameraSample`] computes at once: four `sobol_burley` sets (16 dimensions).
 const BATCH: usize = 16;
 
 /// How many batches a [`CameraSample`] keeps: dimensions 0 to 31, the filter's and path vertices 0 to 3 (a path of
 /// up to 3 bounces); deeper dimensions are computed one at a time.
 const CACHED_BATCHES: usize = 2;
 
-/// Sobol's direction numbers of dimensions 0 to 31, bit-reversed as `sobol_burley` keeps them: `rows[b][k]` holds,
-/// for the 16 dimensions of batch b, the number XORed in when bit k (from the top) of the shuffled, bit-reversed
-/// index is set. Read once from the crate's own public `parts::sobol_rev` (an index with one bit set returns that
-/// bit's direction number), so the values are the crate's by construction.
+/// `sobol_burley`'s sets per batch.
+const SETS: usize = BATCH / 4;
+
+/// Sobol's direction numbers of dimensions 0 to 31, bit-reversed as `sobol_burley` keeps them: `rows[b][k][s]` is
+/// the four-lane number set 4b + s XORs in when bit k (from the top) of the shuffled, bit-reversed index is set.
+/// Read once from the crate's own public `parts::sobol_int4_rev` (an index with one bit set gives that bit's
+/// numbers), so the values are the crate's by construction.
 struct Directions {
-    rows: [[[u32x8; 2]; 16]; CACHED_BATCHES],
+    rows: [[[Int4; SETS]; 16]; CACHED_BATCHES],
 }
 
 fn directions() -> &'static Directions {
     static TABLE: OnceLock<Directions> = OnceLock::new();
-    TABLE.get_or_init(|| {
-        let rows = std::array::from_fn(|b| {
+    TABLE.get_or_init(|| Directions {
+        rows: std::array::from_fn(|b| {
             std::array::from_fn(|k| {
-                std::array::from_fn(|half| {
-                    u32x8::new(std::array::from_fn(|lane| {
-                        let dimension = (b * BATCH + 8 * half + lane) as u32;
-                        sobol_burley::parts::sobol_rev(1u32 << (31 - k), dimension)
-                    }))
-                })
+                std::array::from_fn(|s| sobol_int4_rev(1u32 << (31 - k), (SETS * b + s) as u32))
             })
-        });
-        Directions { rows }
+        }),
     })
-}
-
-/// Reverses the bits of each lane (the crate's `Int4::reverse_bits`, eight lanes wide).
-#[inline(always)]
-fn reverse_bits(mut n: u32x8) -> u32x8 {
-    for (shift, mask) in [
-        (1u32, 0x5555_5555u32),
-        (2, 0x3333_3333),
-        (4, 0x0f0f_0f0f),
-        (8, 0x00ff_00ff),
-    ] {
-        let m = u32x8::splat(mask);
-        n = ((n >> shift) & m) | ((n & m) << shift);
-    }
-    (n >> 16u32) | (n << 16u32)
-}
-
-/// `sobol_burley::parts::hash` in eight lanes.
-#[inline(always)]
-fn hash_x8(mut n: u32x8) -> u32x8 {
-    n ^= u32x8::splat(0xe6fe3beb);
-    n = n ^ (n >> 16u32);
-    n = n * u32x8::splat(0x7feb352d);
-    n = n ^ (n >> 15u32);
-    n = n * u32x8::splat(0x846ca68b);
-    n ^ (n >> 16u32)
-}
-
-/// `sobol_burley::parts::owen_scramble_int4_rev` in eight lanes.
-#[inline(always)]
-fn owen_scramble_x8(mut n: u32x8, scramble: u32x8) -> u32x8 {
-    n = n ^ (n * u32x8::splat(0x3d20adea));
-    n += scramble;
-    n = n * ((scramble >> 16u32) | u32x8::splat(1));
-    n = n ^ (n * u32x8::splat(0x05526c56));
-    n ^ (n * u32x8::splat(0x53a22864))
 }
 
 /// Dimensions 16b to 16b + 15 of sample `index` (< 2¹⁶) for scrambling seed `seed`: exactly what
 /// `sobol_burley::sample_4d` gives for sets 4b to 4b + 3 (tested), with the index's scrambling and the walk over
-/// its bits done once for all four sets, eight lanes per instruction.
+/// its bits done once for the four sets, and each set finished by the crate's own scrambling, bit reversal and
+/// conversion (`parts`), as `sample_4d` finishes it.
 #[inline]
 fn sample_16d(index: u32, batch: usize, seed: u32) -> [f32; BATCH] {
-    use sobol_burley::parts::{hash, owen_scramble_rev};
     let rows = &directions().rows[batch];
-    let shuffled = owen_scramble_rev(index.reverse_bits(), hash(seed ^ 0x79c68e4a));
-    let mut acc = [u32x8::splat(0); 2];
-    // Bit k of the top 16 (from the top) selects row k, as in `sobol_int4_rev`.
+    let shuffled = owen_scramble_rev(
+        index.reverse_bits(),
+        sobol_burley::parts::hash(seed ^ 0x79c68e4a),
+    );
+    let mut acc: [Int4; SETS] = [[0u32; 4].into(); SETS];
+    // Each set bit among the top 16 XORs in its row (`sobol_int4_rev`'s walk; XOR's order does not matter).
     let mut bits = shuffled >> 16;
     while bits != 0 {
-        let k = 15 - (31 - bits.leading_zeros()) as usize;
-        bits &= !(1u32 << (15 - k));
-        acc[0] ^= rows[k][0];
-        acc[1] ^= rows[k][1];
-    }
-    let seed_mul = seed.wrapping_mul(0x9c8f2d3b);
-    let set = (4 * batch) as u32;
-    let mut out = [0.0f32; BATCH];
-    for (half, sobol) in acc.into_iter().enumerate() {
-        let (s0, s1) = (set + 2 * half as u32, set + 2 * half as u32 + 1);
-        let scramble = u32x8::new([
-            s0 ^ 0x912f69ba,
-            s0 ^ 0x174f18ab,
-            s0 ^ 0x691e72ca,
-            s0 ^ 0xb40cc1b8,
-            s1 ^ 0x912f69ba,
-            s1 ^ 0x174f18ab,
-            s1 ^ 0x691e72ca,
-            s1 ^ 0xb40cc1b8,
-        ]) ^ u32x8::splat(seed_mul);
-        let bits = reverse_bits(owen_scramble_x8(sobol, hash_x8(scramble)));
-        let floats = ((bits >> 9u32) | u32x8::splat(0x3f800000)).to_array();
-        for (o, f) in out[8 * half..8 * half + 8].iter_mut().zip(floats) {
-            *o = f32::from_bits(f) - 1.0;
+        let row = &rows[15 - bits.trailing_zeros() as usize];
+        bits &= bits - 1;
+        for (a, r) in acc.iter_mut().zip(row) {
+            *a ^= *r;
         }
+    }
+    // `sample_4d`'s Owen scrambling of each set, from the seed and the set's number.
+    let seed_mul: Int4 = [seed.wrapping_mul(0x9c8f2d3b); 4].into();
+    let mut out = [0.0f32; BATCH];
+    for (s, (sobol, o)) in acc.into_iter().zip(out.chunks_exact_mut(4)).enumerate() {
+        let set: Int4 = [(SETS * batch + s) as u32; 4].into();
+        let scramble = seed_mul ^ set ^ [0x912f69ba, 0x174f18ab, 0x691e72ca, 0xb40cc1b8].into();
+        o.copy_from_slice(
+            &owen_scramble_int4_rev(sobol, hash_int4(scramble))
+                .reverse_bits()
+                .to_f32_norm(),
+        );
     }
     out
 }
