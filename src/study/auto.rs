@@ -158,7 +158,7 @@ impl Measured {
 /// was 3 s until 4 Dec 2026; the long renders vary as much: auto's Cornell box at 0.05 (the same 307-spp frame,
 /// 18 CPU s) took 17.5 and 23.7 CPU s in two runs minutes apart, and a single timing put it at 1.41× the fixed
 /// frame where the run before measured 1.11×. Every render of the study is now timed three times (about twice the
-/// study's time: 12 minutes for the seven shipped scenes).
+/// study's time: 12.5 minutes for the seven shipped scenes with their references and fits reused, 6.2 before).
 const REPEAT_BELOW_CPU_SECONDS: f64 = 30.0;
 /// How many times a render under [`REPEAT_BELOW_CPU_SECONDS`] is timed.
 const TIMING_RUNS: usize = 3;
