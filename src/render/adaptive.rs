@@ -931,6 +931,15 @@ mod tests {
     }
 
     /// The image rule from 8 to 65 536 samples per pixel for `target`, without a cost model or sampler gain.
+    /// The image rule from 16 to 64 samples, no cost model, no gain.
+    fn sixteen_to_64(target: f64) -> Schedule {
+        Schedule {
+            min: 16,
+            max: 64,
+            ..image_rule(target)
+        }
+    }
+
     fn image_rule(target: f64) -> Schedule {
         Schedule {
             min: 8,
@@ -1010,14 +1019,7 @@ mod tests {
             }
         }
         let taken = vec![16; 50];
-        let at = |target: f64| Schedule {
-            min: 16,
-            max: 64,
-            target,
-            rule: Rule::Image,
-            cost: None,
-            sampler_gain: 1.0,
-        };
+        let at = sixteen_to_64;
         let e = at(1.0).image_rel_mse(50, &taken, &stats).sqrt();
         assert_eq!(at(1.01 * e).next_round(0, 50, &taken, &stats), None);
         let next = at(0.5 * e).next_round(0, 50, &taken, &stats).unwrap();
@@ -1101,14 +1103,7 @@ mod tests {
             }
         }
         let taken = vec![16; 50];
-        let at = |target: f64| Schedule {
-            min: 16,
-            max: 64,
-            target,
-            rule: Rule::Image,
-            cost: None,
-            sampler_gain: 1.0,
-        };
+        let at = sixteen_to_64;
         let means = Schedule::robust_means(50, &stats);
         let model =
             Schedule::mean_over_counts(&at(1.0).gained_variances(&means, &taken, &stats), &taken);
