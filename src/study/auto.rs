@@ -750,11 +750,15 @@ fn study_scene(path: &Path, config: &AutoStudyConfig) -> Result<(Vec<Row>, f64),
         progress.set_message(format!("target {target}"));
         // The fastest fixed configuration by the fits (a lower bound where it misses), then the fastest that
         // measured meets the target (see [`fastest_measured`]); the first render of the second is the first.
-        let render_fixed = |config: Config, spp: u32, what: &str| -> Result<Measured, StudyError> {
+        let fixed_settings = |config: Config, spp: u32| {
             let mut s = base.clone();
             s.shadows.mode = config.shadows;
             s.integrator.path_length = config.path_length;
             s.film.spp = spp;
+            s
+        };
+        let render_fixed = |config: Config, spp: u32, what: &str| -> Result<Measured, StudyError> {
+            let s = fixed_settings(config, spp);
             let (image, seconds, cpu_seconds) = fastest_of(|| render(frame_of(config.curves), &s));
             Ok(Measured {
                 what: what.into(),
@@ -768,7 +772,7 @@ fn study_scene(path: &Path, config: &AutoStudyConfig) -> Result<(Vec<Row>, f64),
             })
         };
         progress.inc(1);
-        let (fastest, measured_fastest) = fastest_measured(&fits, t, |config, spp, first| {
+        let (_, mut measured_fastest) = fastest_measured(&fits, t, |config, spp, first| {
             render_fixed(
                 config,
                 spp,
@@ -840,32 +844,25 @@ fn study_scene(path: &Path, config: &AutoStudyConfig) -> Result<(Vec<Row>, f64),
         let mut auto = auto_with(quality::Margins::DEFAULT, "auto")?;
         let point = auto_with(quality::Margins::POINT, "auto point estimates")?;
         // Auto and the fastest fixed frame that met the target, timed again in turns ([`INTERLEAVED_TIMINGS`]).
-        let mut measured_fastest = measured_fastest;
         if let Some(best) = measured_fastest.best {
             let fixed = &mut measured_fastest.renders[best];
-            let mut fixed_settings = base.clone();
             if let Some(c) = fixed.config {
-                fixed_settings.shadows.mode = c.shadows;
-                fixed_settings.integrator.path_length = c.path_length;
-                fixed_settings.film.spp = fixed.spp;
+                let settings = fixed_settings(c, fixed.spp);
                 for _ in 0..INTERLEAVED_TIMINGS {
                     let (_, seconds, cpu) =
                         time_once(&mut || plan_and_render(quality::Margins::DEFAULT));
                     auto.seconds = auto.seconds.min(seconds);
                     auto.cpu_seconds = auto.cpu_seconds.min(cpu);
                     let (_, seconds, cpu) =
-                        time_once(&mut || render(frame_of(c.curves), &fixed_settings));
+                        time_once(&mut || render(frame_of(c.curves), &settings));
                     fixed.seconds = fixed.seconds.min(seconds);
                     fixed.cpu_seconds = fixed.cpu_seconds.min(cpu);
                 }
             }
         }
-        // The fits' pick is the search's first render: when it is also the fastest that met, the same timings.
-        let mut fastest = fastest;
-        if let (Some(0), Some(first)) = (measured_fastest.best, fastest.as_mut()) {
-            first.seconds = measured_fastest.renders[0].seconds;
-            first.cpu_seconds = measured_fastest.renders[0].cpu_seconds;
-        }
+        // The fits' pick is the search's first render (taken after the timings above, which it shares when it is
+        // also the fastest that met).
+        let fastest = measured_fastest.renders.first().cloned();
         rows.push(Row {
             target,
             auto,
