@@ -522,9 +522,10 @@ pub fn plan_frame_with(
     settings.film.spp = p.spp;
     decisions.extend(p.decisions.iter().cloned());
     if !fixed.spp {
+        // The stop reads the noise over the frame's own means; the budget is over the converged image's.
         let schedule = adaptive_schedule(
             p.spp,
-            p.noise_budget,
+            p.noise_budget / p.darkening.sqrt(),
             margins.noise_share,
             p.sampler_gain,
             quality,
@@ -538,12 +539,14 @@ pub fn plan_frame_with(
                  relative variance v per sample over its predicted cost c per sample (the least predicted time for \
                  a given image error) until the image's estimated noise (the pixels' variances over their counts, \
                  divided by the sampler's gain at each count, {:.3} at 4 spp) is under {:.4} = {} × the noise \
-                 budget {:.4}, from a quarter to 8× the pilots' {} spp (the spp AOV shows each pixel's)",
+                 budget {:.4} / √{:.3} (over the frame's own means, darker than the converged image's), from a \
+                 quarter to 8× the pilots' {} spp (the spp AOV shows each pixel's)",
                 schedule.min,
                 p.sampler_gain,
                 schedule.target,
                 margins.noise_share,
                 p.noise_budget,
+                p.darkening,
                 p.spp
             ),
         });
