@@ -191,6 +191,12 @@ fn time_once<T>(render: &mut impl FnMut() -> (T, f64)) -> (T, f64, f64) {
 /// depend on when each render happened to run.
 const INTERLEAVED_TIMINGS: usize = 2;
 
+/// [`INTERLEAVED_TIMINGS`] where both frames are under [`REPEAT_BELOW_CPU_SECONDS`]: their clocks scatter most
+/// (the default scene's auto frame at 0.1, the same deterministic render: 0.51 and 0.66 CPU s in the sixteenth and
+/// seventeenth runs, 1.11× and 1.27× the fixed frame's, where four alternating CLI runs put its pixel loop within
+/// 1.00–1.05× the fixed one's), and six more turns cost a few seconds per row.
+const INTERLEAVED_TIMINGS_SHORT: usize = 6;
+
 /// The process's CPU time so far (user + system, all threads), seconds, from `/proc/self/stat` (Linux; clock
 /// ticks of 1/100 s, the fixed USER_HZ of that interface); 0 where it cannot be read.
 fn cpu_seconds() -> f64 {
@@ -848,7 +854,13 @@ fn study_scene(path: &Path, config: &AutoStudyConfig) -> Result<(Vec<Row>, f64),
             let fixed = &mut measured_fastest.renders[best];
             if let Some(c) = fixed.config {
                 let settings = fixed_settings(c, fixed.spp);
-                for _ in 0..INTERLEAVED_TIMINGS {
+                let short = auto.cpu_seconds.max(fixed.cpu_seconds) < REPEAT_BELOW_CPU_SECONDS;
+                let turns = if short {
+                    INTERLEAVED_TIMINGS_SHORT
+                } else {
+                    INTERLEAVED_TIMINGS
+                };
+                for _ in 0..turns {
                     let (_, seconds, cpu) =
                         time_once(&mut || plan_and_render(quality::Margins::DEFAULT));
                     auto.seconds = auto.seconds.min(seconds);
