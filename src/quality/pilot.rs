@@ -10,6 +10,7 @@
 
 use rayon::prelude::*;
 
+use crate::render::adaptive::neighbourhood;
 use crate::render::integrator::{RayCounts, MAX_PATH_LENGTH};
 use crate::render::settings::RenderSettings;
 use crate::render::{render_bounces, BounceRender, Frame, Region};
@@ -383,18 +384,12 @@ fn bounce_bias(before: [&[[f32; 3]]; 2], after: [&[[f32; 3]]; 2], windows: &[Reg
         let (w, h) = (r.width() as usize, r.height() as usize);
         let first = relative.len();
         for p in 0..w * h {
-            let (x, y) = (p % w, p / w);
             let i = start + p;
             for c in 0..3 {
                 let (mut sum, mut n) = (0.0f64, 0u32);
-                for ny in y.saturating_sub(1)..(y + 2).min(h) {
-                    for nx in x.saturating_sub(1)..(x + 2).min(w) {
-                        let j = start + ny * w + nx;
-                        if j != i {
-                            sum += 0.5 * (value(after, 0, j, c) + value(after, 1, j, c));
-                            n += 1;
-                        }
-                    }
+                for j in neighbourhood(w, w * h, p).filter(|&q| q != p) {
+                    sum += 0.5 * (value(after, 0, start + j, c) + value(after, 1, start + j, c));
+                    n += 1;
                 }
                 let m = if n > 0 {
                     sum / f64::from(n)
@@ -408,16 +403,13 @@ fn bounce_bias(before: [&[[f32; 3]]; 2], after: [&[[f32; 3]]; 2], windows: &[Reg
             }
         }
         for p in 0..w * h {
-            let (x, y) = (p % w, p / w);
             for c in 0..3 {
                 let (mut a, mut b, mut n) = (0.0f64, 0.0f64, 0.0f64);
-                for ny in y.saturating_sub(1)..(y + 2).min(h) {
-                    for nx in x.saturating_sub(1)..(x + 2).min(w) {
-                        let [ea, eb] = relative[first + (ny * w + nx) * 3 + c];
-                        a += ea;
-                        b += eb;
-                        n += 1.0;
-                    }
+                for j in neighbourhood(w, w * h, p) {
+                    let [ea, eb] = relative[first + j * 3 + c];
+                    a += ea;
+                    b += eb;
+                    n += 1.0;
                 }
                 pooled.push(a / n * (b / n));
             }
@@ -425,20 +417,11 @@ fn bounce_bias(before: [&[[f32; 3]]; 2], after: [&[[f32; 3]]; 2], windows: &[Reg
         start += w * h;
     }
     debug_assert_eq!(start, before[0].len());
-    let finite = |t: &&f64| t.is_finite();
-    let (mean, standard_error) = mean_and_error(
-        relative
-            .iter()
-            .map(|[a, b]| a * b)
-            .filter(|t| t.is_finite()),
-    );
-    let (pooled_mean, _) = mean_and_error(pooled.iter().filter(finite).copied());
-    let means: Vec<f64> = relative
-        .iter()
-        .map(|[a, b]| 0.5 * (a + b))
-        .filter(|t| t.is_finite())
-        .collect();
-    let relative_mean = means.iter().sum::<f64>() / means.len().max(1) as f64;
+    let finite = |t: &f64| t.is_finite();
+    let (mean, standard_error) = mean_and_error(relative.iter().map(|[a, b]| a * b).filter(finite));
+    let (pooled_mean, _) = mean_and_error(pooled.iter().copied().filter(finite));
+    let (relative_mean, _) =
+        mean_and_error(relative.iter().map(|[a, b]| 0.5 * (a + b)).filter(finite));
     Bounce {
         mean,
         standard_error,
@@ -813,7 +796,8 @@ pub fn plan(
             reason: format!(
                 "the relative RMSE each bounce would leave out as bias, measured by the pilots (the first with {} \
                  standard errors, each later one scaled from the one before by the ratio of their mean relative \
-                 contributions or its own products pooled over 3×3 pixels, the larger; at least the last two's geometric ratio times the last, marked floor: {}), \
+                 contributions or its own products pooled over 3×3 pixels, the larger; at least the last two's \
+                 geometric ratio times the last, marked floor: {}), \
                  rendered until the next one is under a quarter of the target {}; of the path lengths whose \
                  bounces left out (a geometric tail) are within half the target, the least predicted cost for the \
                  target, CPU s × relMSE at {PILOT_SPP} spp / (target² − bias²): {}{}",

@@ -260,7 +260,7 @@ fn smoothed_variances(width: usize, pixels: &[Convergence]) -> Vec<f64> {
 
 /// The indices of pixel `i`'s 3×3 neighbourhood, itself included, row by row, clipped at the edges of a row-major
 /// film `width` pixels wide with `len` pixels in its whole rows.
-fn neighbourhood(width: usize, len: usize, i: usize) -> impl Iterator<Item = usize> {
+pub(crate) fn neighbourhood(width: usize, len: usize, i: usize) -> impl Iterator<Item = usize> {
     let height = len / width;
     let (x, y) = (i % width, i / width);
     (y.saturating_sub(1)..(y + 2).min(height)).flat_map(move |yy| {
@@ -316,9 +316,23 @@ impl Schedule {
     /// the samples go: as a stop it overstated the noise, and the rule delivered 1.36–2.1× less than it aimed at);
     /// the halves' is the mean of [`Convergence::split_rel_mse`].
     pub fn image_rel_mse(&self, width: usize, taken: &[u32], pixels: &[Convergence]) -> f64 {
+        let (_, model, split) = self.estimates(width, taken, pixels);
+        model.max(split)
+    }
+
+    /// What the stop reads ([`Schedule::image_rel_mse`] is the larger of the last two): each pixel's own v over
+    /// the sampler's gain at its count ([`Schedule::gained_variances`]), the model's image relMSE from them, and
+    /// the image's relMSE from the pixels' halves, all over the same robust denominators.
+    fn estimates(
+        &self,
+        width: usize,
+        taken: &[u32],
+        pixels: &[Convergence],
+    ) -> (Vec<f64>, f64, f64) {
         let means = Self::robust_means(width, pixels);
-        let model = Self::mean_over_counts(&self.gained_variances(&means, taken, pixels), taken);
-        model.max(Self::split_rel_mse(&means, pixels))
+        let own = self.gained_variances(&means, taken, pixels);
+        let model = Self::mean_over_counts(&own, taken);
+        (own, model, Self::split_rel_mse(&means, pixels))
     }
 
     /// Each pixel's own v over the sampler's gain at its present count, v / g(n): what the stop and the round's
@@ -410,12 +424,8 @@ impl Schedule {
         pixels: &[Convergence],
     ) -> Option<Vec<u32>> {
         let budget = self.target * self.target;
-        // Each pixel's own v over the sampler's gain at its count ([`Schedule::gained_variances`]), and the image's
-        // noise from the pixels' halves; the stop reads the larger.
-        let means = Self::robust_means(width, pixels);
-        let mut own = self.gained_variances(&means, taken, pixels);
-        let model = Self::mean_over_counts(&own, taken);
-        let split = Self::split_rel_mse(&means, pixels);
+        // The stop reads the larger of the model's and the halves' estimates ([`Schedule::estimates`]).
+        let (mut own, model, split) = self.estimates(width, taken, pixels);
         if round >= MAX_ROUNDS || model.max(split) <= budget {
             return None;
         }
@@ -930,7 +940,6 @@ mod tests {
         );
     }
 
-    /// The image rule from 8 to 65 536 samples per pixel for `target`, without a cost model or sampler gain.
     /// The image rule from 16 to 64 samples, no cost model, no gain.
     fn sixteen_to_64(target: f64) -> Schedule {
         Schedule {
@@ -940,6 +949,7 @@ mod tests {
         }
     }
 
+    /// The image rule from 8 to 65 536 samples per pixel for `target`, without a cost model or sampler gain.
     fn image_rule(target: f64) -> Schedule {
         Schedule {
             min: 8,
