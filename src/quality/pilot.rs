@@ -655,7 +655,8 @@ pub struct PilotPlan {
     pub decisions: Vec<Decision>,
     /// Predicted seconds of the frame's pixel loop at `spp`, from the pilots' time per sample.
     pub predicted_seconds: f64,
-    /// Predicted relative RMSE (noise only) at `spp` uniform samples per pixel.
+    /// Predicted relative RMSE (noise only) at `spp` uniform samples per pixel, over the converged image's means
+    /// as the target is ([`PilotPlan::darkening`]).
     pub predicted_noise: f64,
     /// The noise the frame may have, relative RMSE: √(target² − bias²) with the bias the pilots measured for the
     /// bounces left out (half the target when the path length was fixed).
@@ -953,7 +954,7 @@ pub fn plan(
         spp,
         decisions,
         predicted_seconds,
-        predicted_noise: (mean * f64::from(PILOT_SPP) / f64::from(spp)).sqrt(),
+        predicted_noise: (mean * darkening * f64::from(PILOT_SPP) / f64::from(spp)).sqrt(),
         noise_budget: noise_budget.sqrt(),
         sampler_gain,
         darkening,
