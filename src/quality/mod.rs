@@ -22,15 +22,16 @@
 //!    in the frame, and the windows' mean stands for the film's, [`pilot::windows`]; every path length is cut from
 //!    one render per seed, [`crate::render::render_bounces`]): bounces are added until the
 //!    next one's bias (bounce 1 from two seeds' products, each later one scaled from the one before by the ratio
-//!    of their mean relative contributions, at least the geometric continuation of the two before,
-//!    [`pilot::geometric_floor`]) is under a quarter of the target; the light/material sample counts that reach a
+//!    of their mean relative contributions or its own products pooled over 3×3 pixels, the larger) is under a
+//!    quarter of the target; the light/material sample counts that reach a
 //!    given noise at the least predicted cost ([`cost`]: CPU seconds per ray of each kind, calibrated once); the
 //!    mean samples per pixel from the per-pixel variance of two independent pilot estimates; and how much faster
 //!    than independent samples the sampler's stratified samples converge (the pilot pixels' sample variances against
 //!    the variance of the two pilot estimates).
 //! 4. **Adaptive sampling** ([`adaptive_schedule`], [`crate::render::adaptive`]): the image-level rule, to the
 //!    noise budget target² − (bias left out)², the bias of all the bounces left out estimated from the pilots'
-//!    last two as a geometric tail ([`pilot::bias_left`]), its stop the larger of the pixels' variances over
+//!    bounces as a geometric tail at their largest ratio ([`pilot::bias_left`], [`pilot::decay_ratio`]), its stop
+//!    the larger of the pixels' variances over
 //!    the sampler's gain and the pixels' own halves (the frame's convergence as measured); a quarter to 8× the
 //!    pilots' spp per pixel.
 //!

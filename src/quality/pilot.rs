@@ -482,11 +482,11 @@ fn sampler_gain(pair: &Pair, standard_errors: f64) -> (f64, f64) {
 }
 
 /// The path length of least predicted cost for `target` among those rendered (`pairs[j]` at path length j) whose
-/// bias left out, the geometric tail of `biases` (`biases[i]`: bounce i + 1, [`bias_left`]), is at most half the
-/// target: (path length, its bias left out, the candidates listed for the decision's reason). `biases` holds one
-/// bounce fewer than `pairs` paths: the longest path rendered, whose last bounce was under a quarter of the target,
-/// takes the next bounce as that one's geometric continuation ([`geometric_floor`], or half of it after bounce 1),
-/// so its tail is within half the target and the choice is total.
+/// bias left out, the geometric tail of `biases` (`biases[i]`: bounce i + 1, [`bias_left`] at the bounces'
+/// [`decay_ratio`]), is at most half the target: (path length, its bias left out, the candidates listed for the
+/// decision's reason). `biases` holds one bounce fewer than `pairs` paths: the longest path rendered, whose last
+/// bounce was under a quarter of the target, takes the next bounce as the last one times the decay ratio, so its
+/// tail is within half the target (the ratio is at most ¾) and the choice is total.
 ///
 /// The cost of reaching the target at path length j is its CPU seconds per sample times the samples its noise
 /// needs, ∝ seconds_j × relMSE_j / (target² − left_j²), relMSE_j over the longest path's means (the pilots' best
@@ -504,11 +504,11 @@ fn cheapest_path_length(pairs: &[Pair], biases: &[f64], target: f64) -> (u32, f6
     let mut best: Option<(u32, f64, f64)> = None;
     let mut listed = Vec::new();
     let last = pairs.len().min(biases.len() + 1).saturating_sub(1);
-    let continuation =
-        geometric_floor(biases).unwrap_or_else(|| 0.5 * biases.last().copied().unwrap_or(0.0));
+    let ratio = decay_ratio(biases);
+    let continuation = biases.last().copied().unwrap_or(0.0) * ratio;
     for (j, pair) in pairs.iter().enumerate().take(last + 1) {
         let next = biases.get(j).copied().unwrap_or(continuation);
-        let left = bias_left(next, j.checked_sub(1).map(|i| biases[i]));
+        let left = bias_left(next, ratio);
         // The longest path rendered is always a candidate (its next bounce is under a quarter of the target, so
         // its tail is within half), which keeps the choice total.
         if left > 0.5 * target && j < last {
@@ -589,42 +589,37 @@ fn pooled_bias(bounce: &Bounce) -> f64 {
 }
 
 /// The largest ratio of one bounce's bias to the one before's that the geometric extrapolations
-/// ([`geometric_floor`], [`bias_left`]) carry on: a bounce that grew is not extrapolated as growing, and the tail
+/// ([`decay_ratio`], [`bias_left`]) carry on: a bounce that grew is not extrapolated as growing, and the tail
 /// next / (1 − r) stays within 4× the next bounce. It was ½ until 3 Dec 2026: in the Cornell box (a closed box of
 /// diffuse walls) the pilots measured bounces 1, 2, 3 at 0.156, 0.089, 0.050 (ratios 0.57, 0.56); capped at ½ the
 /// tail after path 5 came out 0.0124, auto chose path 5 for 0.05 and measured 0.0527 against a path-10 reference.
 /// The hair scenes' ratios are 0.3–0.5 (the fur ball's 32-spp renders 0.35, 0.45, 0.50, 0.45), below either cap.
 pub const MAX_BOUNCE_RATIO: f64 = 0.75;
 
-/// The least bias (relative RMSE) the next bounce is taken to have, from the estimates of the bounces before it
-/// (`None` before the third): the last one times the ratio of the last two (at most [`MAX_BOUNCE_RATIO`], as in
-/// [`bias_left`]).
+/// The ratio by which the bounces' bias is taken to fall past the last one measured: the largest ratio of one
+/// bounce's estimate to the one before's in `biases` (bounces 1, 2, …; each ratio at most [`MAX_BOUNCE_RATIO`],
+/// none read where the one before is not positive), ½ with fewer than two bounces.
 ///
-/// A deep bounce on dense fur is found by few of the pilots' 4 samples per pixel, so its product estimate is
-/// heavy-tailed: most pixels see none of it and the mean, and its standard error, come out low. On the fur ball
-/// (`scenes/furball.toml`, 128², flat, 1 light + 1 material) the pilots measured bounces 1, 2, 3 at 0.150, 0.053,
-/// 0.009 (with 2 standard errors) where 32-spp renders of the whole film measure 0.147, 0.051, 0.023 (bounce 4
-/// 0.011, 5 0.005: ratios 0.35, 0.45, 0.50, 0.45): the bounces fall about geometrically, and the ratio of the
-/// first two, well measured, bounds the next one better than its own noisy estimate.
-pub fn geometric_floor(before: &[f64]) -> Option<f64> {
-    match before {
-        [.., older, last] if *older > 0.0 => {
-            Some(last * (last / older).clamp(0.0, MAX_BOUNCE_RATIO))
-        }
-        _ => None,
-    }
+/// The largest, not the last: the bounces do not fall at one rate. In the Cornell box (128², two 256-spp seeds
+/// per path length against path 10) bounces 1–6 measure 0.152, 0.083, 0.045, 0.020, 0.010, 0.0061 (ratios 0.55,
+/// 0.54, 0.44, 0.50, 0.61), and the pilots' pooled products read them to within 3 % (0.152, 0.083, 0.045, 0.020,
+/// 0.010, 0.0061); the bias left after path 3 measures ≈ 0.045 and after path 5 0.0143, where the last ratio
+/// gives 0.038 and 0.0092 (the tail of a sequence whose rate dips and recovers), and the largest (0.57) gives
+/// 0.050 and 0.0136. On the hair scenes the ratios grow with depth (the fur ball's 0.39, 0.45, 0.48), so the
+/// largest is the last there.
+pub fn decay_ratio(biases: &[f64]) -> f64 {
+    biases
+        .windows(2)
+        .filter(|w| w[0] > 0.0)
+        .map(|w| (w[1] / w[0]).clamp(0.0, MAX_BOUNCE_RATIO))
+        .reduce(f64::max)
+        .unwrap_or(0.5)
 }
 
 /// The relative RMSE of the bias of every bounce after the chosen ones, from the measured bias of the first left
-/// out (`next`, relative RMSE) and of the last kept (`last`, `None` for path length 0): the bounces' bias falls
-/// about geometrically, so the tail is next / (1 − r) with r = next / last, r at most [`MAX_BOUNCE_RATIO`] (and ½
-/// when unknown).
-pub fn bias_left(next: f64, last: Option<f64>) -> f64 {
-    let r = match last {
-        Some(l) if l > 0.0 => (next / l).clamp(0.0, MAX_BOUNCE_RATIO),
-        _ => 0.5,
-    };
-    next / (1.0 - r)
+/// out (`next`, relative RMSE) and the bounces' [`decay_ratio`] r: the tail is next / (1 − r).
+pub fn bias_left(next: f64, ratio: f64) -> f64 {
+    next / (1.0 - ratio)
 }
 
 /// The mean of `terms` and the standard error of that mean (0 and 0 for none).
@@ -728,7 +723,6 @@ pub fn plan(
     } else {
         let mut biases = Vec::new();
         let mut measurements: Vec<Bounce> = Vec::new();
-        let mut floored = Vec::new();
         // pairs[j]: the pilots at path length j, every one cut from a render at the longest ([`bounce_pairs`]),
         // rendered again longer when the last bounce is still over a quarter of the target.
         let mut pairs: Vec<Pair> = Vec::new();
@@ -768,10 +762,8 @@ pub fn plan(
                     .sqrt()
             });
             measurements.push(bounce);
-            let bias = geometric_floor(&biases).map_or(measured, |f| measured.max(f));
-            floored.push(bias > measured);
-            biases.push(bias);
-            if bias < 0.25 * target {
+            biases.push(measured);
+            if measured < 0.25 * target {
                 break;
             }
         }
@@ -786,10 +778,7 @@ pub fn plan(
         let listed: Vec<String> = biases
             .iter()
             .enumerate()
-            .map(|(i, b)| {
-                let floor = if floored[i] { " (floor)" } else { "" };
-                format!("bounce {} {:.4}{floor}", i + 1, b)
-            })
+            .map(|(i, b)| format!("bounce {} {:.4}", i + 1, b))
             .collect();
         decisions.push(Decision {
             key: "integrator.path_length",
@@ -797,14 +786,15 @@ pub fn plan(
             reason: format!(
                 "the relative RMSE each bounce would leave out as bias, measured by the pilots (the first with {} \
                  standard errors, each later one scaled from the one before by the ratio of their mean relative \
-                 contributions or its own products pooled over 3×3 pixels, the larger; at least the last two's \
-                 geometric ratio times the last, marked floor: {}), \
+                 contributions or its own products pooled over 3×3 pixels, the larger: {}), \
                  rendered until the next one is under a quarter of the target {}; of the path lengths whose \
-                 bounces left out (a geometric tail) are within half the target, the least predicted cost for the \
+                 bounces left out (a geometric tail at the bounces' largest ratio, {:.3}) are within half the \
+                 target, the least predicted cost for the \
                  target, CPU s × relMSE at {PILOT_SPP} spp / (target² − bias²): {}{}",
                 bias_standard_errors,
                 listed.join(", "),
                 quality.target,
+                decay_ratio(&biases),
                 candidates,
                 left.map_or(String::new(), |b| format!(
                     "; all bounces left out together about {b:.4}"
@@ -1051,23 +1041,28 @@ mod tests {
     }
 
     #[test]
-    fn a_deep_bounce_is_at_least_the_geometric_continuation_of_the_two_before() {
-        assert_eq!(geometric_floor(&[]), None);
-        assert_eq!(geometric_floor(&[0.15]), None);
-        // The fur ball's pilots: bounces 1 and 2 at 0.150 and 0.053 make bounce 3 at least 0.0187, over a
-        // quarter of 0.05 (0.0125): path 3, where its own estimate (0.0088) chose path 2 and missed the target.
-        let floor = geometric_floor(&[0.150, 0.053]).unwrap();
-        assert!((floor - 0.053 * 0.053 / 0.150).abs() < 1e-12, "{floor}");
-        assert!(floor > 0.25 * 0.05);
-        // The ratio is capped (a bounce that grew is not extrapolated as growing).
-        assert_eq!(
-            geometric_floor(&[0.01, 0.04]),
-            Some(0.04 * MAX_BOUNCE_RATIO)
-        );
-        // The Cornell box's bounces fall by 0.56-0.57 each: carried on, not cut to a half.
-        let cornell = geometric_floor(&[0.156, 0.089, 0.050]).unwrap();
-        assert!((cornell - 0.050 * 0.050 / 0.089).abs() < 1e-12, "{cornell}");
-        assert_eq!(geometric_floor(&[0.0, 0.04]), None);
+    fn the_tail_falls_at_the_largest_ratio_of_the_bounces_measured() {
+        assert_eq!(decay_ratio(&[]), 0.5);
+        assert_eq!(decay_ratio(&[0.15]), 0.5);
+        // A bounce that grew is not extrapolated as growing.
+        assert_eq!(decay_ratio(&[0.01, 0.04]), MAX_BOUNCE_RATIO);
+        assert_eq!(decay_ratio(&[0.0, 0.04]), 0.5);
+        // The Cornell box's pilots (pooled products, 128²) read bounces 1-5 at 0.156, 0.089, 0.050, 0.0214, 0.0102,
+        // where two 256-spp seeds per path length measure the bias left after path 3 at ≈ 0.045-0.049 and after
+        // path 5 at 0.0143: the rate dips (0.43) and recovers (0.61 for bounce 6), so the last ratio (0.48) reads
+        // those tails at 0.041 and 0.0092, and the largest (0.57) at 0.050 and 0.0136.
+        let cornell = [0.156, 0.089, 0.050, 0.0214, 0.0102];
+        let r = decay_ratio(&cornell);
+        assert!((r - 0.089 / 0.156).abs() < 1e-12, "{r}");
+        let after_3 = bias_left(cornell[3], r);
+        let after_5 = bias_left(cornell[4] * r, r);
+        assert!((0.045..0.055).contains(&after_3), "{after_3}");
+        assert!((0.0125..0.016).contains(&after_5), "{after_5}");
+        let last = cornell[4] / cornell[3];
+        assert!(bias_left(cornell[4] * last, last) < 0.0143 * 0.7);
+        // The fur ball's ratios grow with depth: the largest is the last.
+        let fur = [0.155, 0.058, 0.023];
+        assert!((decay_ratio(&fur) - 0.023 / 0.058).abs() < 1e-12);
     }
 
     /// A later bounce's bias is the one before's scaled by the ratio of their mean relative contributions, at most
