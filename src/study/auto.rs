@@ -879,28 +879,32 @@ fn study_scene(path: &Path, config: &AutoStudyConfig) -> Result<(Vec<Row>, f64),
             };
         let mut auto = auto_with(quality::Margins::DEFAULT, target, "auto")?;
         let point = auto_with(quality::Margins::POINT, target, "auto point estimates")?;
-        // Auto and the fastest fixed frame that met the target, timed again in turns ([`INTERLEAVED_TIMINGS`]).
-        if let Some(best) = measured_fastest.best {
-            let fixed = &mut measured_fastest.renders[best];
-            if let Some(c) = fixed.config {
-                let settings = fixed_settings(c, fixed.spp);
-                let short = auto.cpu_seconds.max(fixed.cpu_seconds) < REPEAT_BELOW_CPU_SECONDS;
-                let turns = if short {
-                    INTERLEAVED_TIMINGS_SHORT
-                } else {
-                    INTERLEAVED_TIMINGS
-                };
-                for _ in 0..turns {
-                    let (_, seconds, cpu) =
-                        time_once(&mut || plan_and_render(quality::Margins::DEFAULT, target));
-                    auto.seconds = auto.seconds.min(seconds);
-                    auto.cpu_seconds = auto.cpu_seconds.min(cpu);
-                    let (_, seconds, cpu) =
-                        time_once(&mut || render(frame_of(c.curves), &settings));
-                    fixed.seconds = fixed.seconds.min(seconds);
-                    fixed.cpu_seconds = fixed.cpu_seconds.min(cpu);
-                }
+        // Auto (asked for `asked`) and a fixed frame timed again in turns, each keeping its fastest
+        // ([`INTERLEAVED_TIMINGS`]): the same deterministic frames' clocks move between runs.
+        let in_turns = |asked: f32, auto: &mut Measured, fixed: &mut Measured| {
+            let Some(c) = fixed.config else {
+                return;
+            };
+            let settings = fixed_settings(c, fixed.spp);
+            let short = auto.cpu_seconds.max(fixed.cpu_seconds) < REPEAT_BELOW_CPU_SECONDS;
+            let turns = if short {
+                INTERLEAVED_TIMINGS_SHORT
+            } else {
+                INTERLEAVED_TIMINGS
+            };
+            for _ in 0..turns {
+                let (_, seconds, cpu) =
+                    time_once(&mut || plan_and_render(quality::Margins::DEFAULT, asked));
+                auto.seconds = auto.seconds.min(seconds);
+                auto.cpu_seconds = auto.cpu_seconds.min(cpu);
+                let (_, seconds, cpu) = time_once(&mut || render(frame_of(c.curves), &settings));
+                fixed.seconds = fixed.seconds.min(seconds);
+                fixed.cpu_seconds = fixed.cpu_seconds.min(cpu);
             }
+        };
+        // Auto and the fastest fixed frame that met the target.
+        if let Some(best) = measured_fastest.best {
+            in_turns(target, &mut auto, &mut measured_fastest.renders[best]);
         }
         // Where the shipped settings meet the target with a larger error than auto's and auto is not faster,
         // auto asked for the shipped frame's error (the "faster at equal error"): the target scaled by the
@@ -918,26 +922,7 @@ fn study_scene(path: &Path, config: &AutoStudyConfig) -> Result<(Vec<Row>, f64),
                 m.settings += &format!(" (target {asked:.4})");
                 // Timed in turns with the shipped frame, as auto is with the fastest fixed one.
                 if let Some(s) = shipped.as_mut() {
-                    if let Some(c) = s.config {
-                        let settings = fixed_settings(c, s.spp);
-                        let short = m.cpu_seconds.max(s.cpu_seconds) < REPEAT_BELOW_CPU_SECONDS;
-                        let turns = if short {
-                            INTERLEAVED_TIMINGS_SHORT
-                        } else {
-                            INTERLEAVED_TIMINGS
-                        };
-                        for _ in 0..turns {
-                            let (_, seconds, cpu) = time_once(&mut || {
-                                plan_and_render(quality::Margins::DEFAULT, asked)
-                            });
-                            m.seconds = m.seconds.min(seconds);
-                            m.cpu_seconds = m.cpu_seconds.min(cpu);
-                            let (_, seconds, cpu) =
-                                time_once(&mut || render(frame_of(c.curves), &settings));
-                            s.seconds = s.seconds.min(seconds);
-                            s.cpu_seconds = s.cpu_seconds.min(cpu);
-                        }
-                    }
+                    in_turns(asked, &mut m, s);
                 }
                 Some(m)
             }
