@@ -274,9 +274,10 @@ pub(crate) fn neighbourhood(width: usize, len: usize, i: usize) -> Neighbourhood
     }
 }
 
-/// The iterator of [`neighbourhood`]: columns `x0..x1` of rows `y..y1`, row by row. A plain counter pair, as the
-/// adaptive stop walks every pixel's neighbours every round (a `flat_map` over the row ranges cost the stop's
-/// decisions 113.7 M instructions on straight hair under the city map at 0.1, 128²; see the commit that made it).
+/// The iterator of [`neighbourhood`]: columns `x0..x1` (never empty) of rows `y..y1`, row by row. A plain counter
+/// pair, as the adaptive stop walks every pixel's neighbours every round: with a `flat_map` over the row ranges
+/// (and the sampler gain taken per pixel) the stop's decisions took 113.7 M instructions on straight hair under the
+/// city map at 0.1 (128², seven rounds), 105.6 M with this.
 pub(crate) struct Neighbourhood {
     width: usize,
     x0: usize,
@@ -291,7 +292,7 @@ impl Iterator for Neighbourhood {
 
     #[inline]
     fn next(&mut self) -> Option<usize> {
-        if self.y >= self.y1 || self.x0 >= self.x1 {
+        if self.y >= self.y1 {
             return None;
         }
         let i = self.y * self.width + self.x;

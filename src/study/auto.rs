@@ -301,7 +301,6 @@ impl Yardstick {
     }
 }
 
-/// Renders `settings` on `frame`, building maps if it uses them: the image and the seconds (maps + pixels).
 /// The target auto is asked for to reach the shipped frame's error ([`Row::equal_error`]): `target` × shipped's
 /// error / auto's (one secant step: auto's error is about proportional to its target), where the shipped frame met
 /// `target` with a larger error than auto's and auto was not faster; `None` otherwise.
@@ -313,6 +312,7 @@ fn equal_error_target(target: f64, shipped: &Measured, auto: &Measured) -> Optio
         .then(|| (target * shipped.rel_rmse / auto.rel_rmse) as f32)
 }
 
+/// Renders `settings` on `frame`, building maps if it uses them: the image and the seconds (maps + pixels).
 fn render(frame: &Frame, settings: &RenderSettings) -> (Image, f64) {
     let (image, stats) = frame.render_with(settings, Options::default());
     (image, stats.seconds + stats.shadow_build_seconds)
