@@ -246,6 +246,25 @@ impl Pair {
         )
     }
 
+    /// The relative MSE of one estimate of `self` as [`Pair::rel_mse_with_error`], but over denominators
+    /// (m² + 0.01) from per-pixel `means` (one per pixel and channel, in the pair's order, [`neighbour_means`]):
+    /// (mean, standard error of the mean).
+    fn rel_mse_over_means(&self, means: &[[f64; 3]]) -> (f64, f64) {
+        let [a, b] = &self.0;
+        debug_assert_eq!(a.rgb.len(), means.len());
+        mean_and_error(
+            a.rgb
+                .iter()
+                .zip(&b.rgb)
+                .zip(means)
+                .flat_map(|((x, y), m)| {
+                    (0..3).map(move |c| (f64::from(x[c]), f64::from(y[c]), m[c]))
+                })
+                .filter(|&(x, y, m)| x.is_finite() && y.is_finite() && m.is_finite())
+                .map(|(x, y, m)| 0.5 * (x - y) * (x - y) / (m * m + 0.01)),
+        )
+    }
+
     /// The mean relative MSE of one estimate (see [`Pair::rel_mse_with_error`]).
     fn rel_mse(&self) -> f64 {
         self.rel_mse_with_error().0
@@ -374,6 +393,7 @@ fn predicted_both(
 /// the squared bounce over the neighbourhood's squared mean.
 fn bounce_bias(before: [&[[f32; 3]]; 2], after: [&[[f32; 3]]; 2], windows: &[Region]) -> Bounce {
     let value = |img: [&[[f32; 3]]; 2], s: usize, i: usize, c: usize| f64::from(img[s][i][c]);
+    let means = neighbour_means(after, windows);
     // Per pixel and channel: each seed's bounce over the neighbours' denominator, (d_a / √den, d_b / √den).
     let mut relative = Vec::with_capacity(before[0].len() * 3);
     // Per pixel and channel: the two seeds' relative bounces pooled over the pixel's 3×3 neighbourhood in its
@@ -385,17 +405,7 @@ fn bounce_bias(before: [&[[f32; 3]]; 2], after: [&[[f32; 3]]; 2], windows: &[Reg
         let first = relative.len();
         for p in 0..w * h {
             let i = start + p;
-            for c in 0..3 {
-                let (mut sum, mut n) = (0.0f64, 0u32);
-                for j in neighbourhood(w, w * h, p).filter(|&q| q != p) {
-                    sum += 0.5 * (value(after, 0, start + j, c) + value(after, 1, start + j, c));
-                    n += 1;
-                }
-                let m = if n > 0 {
-                    sum / f64::from(n)
-                } else {
-                    0.5 * (value(after, 0, i, c) + value(after, 1, i, c))
-                };
+            for (c, &m) in means[i].iter().enumerate() {
                 let den = (m * m + 0.01).sqrt();
                 let da = value(after, 0, i, c) - value(before, 0, i, c);
                 let db = value(after, 1, i, c) - value(before, 1, i, c);
@@ -428,6 +438,39 @@ fn bounce_bias(before: [&[[f32; 3]]; 2], after: [&[[f32; 3]]; 2], windows: &[Reg
         relative_mean,
         pooled_mean,
     }
+}
+
+/// Each pilot pixel's mean from its neighbours alone, per channel: the mean of both seeds' `pair` values over the
+/// pixel's 3×3 neighbourhood in its window without the pixel (the pixel's own mean where it has no neighbours, in
+/// a 1×1 window); `pair` in `windows` order.
+///
+/// A relative error over a denominator that reads the pixel's own samples reads low where the samples are noisy:
+/// a sample that raised the error also raised the denominator. The neighbours' samples are independent of the
+/// pixel's. [`bounce_bias`] divides by these means, and so does [`cheapest_path_length`].
+fn neighbour_means(pair: [&[[f32; 3]]; 2], windows: &[Region]) -> Vec<[f64; 3]> {
+    let mean = |i: usize, c: usize| 0.5 * (f64::from(pair[0][i][c]) + f64::from(pair[1][i][c]));
+    let mut out = Vec::with_capacity(pair[0].len());
+    let mut start = 0usize;
+    for r in windows {
+        let (w, h) = (r.width() as usize, r.height() as usize);
+        for p in 0..w * h {
+            out.push(std::array::from_fn(|c| {
+                let (mut sum, mut n) = (0.0f64, 0u32);
+                for q in neighbourhood(w, w * h, p).filter(|&q| q != p) {
+                    sum += mean(start + q, c);
+                    n += 1;
+                }
+                if n > 0 {
+                    sum / f64::from(n)
+                } else {
+                    mean(start + p, c)
+                }
+            }));
+        }
+        start += w * h;
+    }
+    debug_assert_eq!(start, pair[0].len());
+    out
 }
 
 /// Four pixel arrays of the same windows walked together, one item per pixel and channel: the four values in `f64`.
@@ -500,7 +543,20 @@ fn sampler_gain(pair: &Pair, standard_errors: f64) -> (f64, f64) {
 /// longest path is a candidate because its pilots are rendered anyway and a deep bounce can cost little: on the
 /// fur ball (128²) the study's fits put path 3 at 0.070 s per spp against path 2's 0.074 (Russian roulette ends
 /// most paths early), and path 3 has no bias left to pay for, where auto took path 2 with 0.0315 of it.
-fn cheapest_path_length(pairs: &[Pair], biases: &[f64], target: f64) -> (u32, f64, String) {
+///
+/// The denominators are `means`, the longest path's pixel means from each pixel's neighbours alone
+/// ([`neighbour_means`]). Until 4 Dec 2026 they were the longest pair's own means per pixel, which read the
+/// longest path's own noise low (its bright samples raised its denominators) and so favoured it: over whole 128²
+/// films at 4 spp (two seeds, flat, path 1/2/3; "true" is over a 2 × 64-spp path-3 reference) default 2.77/3.07/3.24
+/// (e-2) for a true 2.85/3.28/3.56, sunset 3.76/3.91/3.98 for 4.17/4.46/4.67, fur ball 8.31/9.27/9.67 for
+/// 8.22/9.50/10.15, straight-city path 1/3 4.35/4.77 for 4.71/5.56 (path 3 ÷ path 1 1.10 for 1.18); over the
+/// neighbours' means 2.90/3.35/3.64, 4.16/4.44/4.69, 8.30/9.63/10.29 and 4.55/5.52: within 3.5 % of true.
+fn cheapest_path_length(
+    pairs: &[Pair],
+    means: &[[f64; 3]],
+    biases: &[f64],
+    target: f64,
+) -> (u32, f64, String) {
     let mut best: Option<(u32, f64, f64)> = None;
     let mut listed = Vec::new();
     let last = pairs.len().min(biases.len() + 1).saturating_sub(1);
@@ -514,7 +570,7 @@ fn cheapest_path_length(pairs: &[Pair], biases: &[f64], target: f64) -> (u32, f6
         if left > 0.5 * target && j < last {
             continue;
         }
-        let cost = pair.predicted_seconds() * pair.rel_mse_over(&pairs[last]).0
+        let cost = pair.predicted_seconds() * pair.rel_mse_over_means(means).0
             / (target * target - left * left);
         listed.push(format!("path {j} {cost:.2e}"));
         if best.is_none_or(|b| cost < b.2) {
@@ -768,7 +824,8 @@ pub fn plan(
             }
         }
         pairs.truncate(biases.len() + 1);
-        let (chosen, tail, candidates) = cheapest_path_length(&pairs, &biases, target);
+        let means = neighbour_means(pairs[pairs.len() - 1].rgb(), &windows);
+        let (chosen, tail, candidates) = cheapest_path_length(&pairs, &means, &biases, target);
         left = Some(tail);
         darkening = darkening_of(&pairs[chosen as usize], &pairs[pairs.len() - 1]);
         // The decisions after this one read pilots at PILOT_SPP: a pair from a further render is not theirs.
@@ -956,6 +1013,7 @@ pub fn plan(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rand::Rng;
 
     #[test]
     fn windows_lie_inside_the_film_and_do_not_overlap() {
@@ -1030,8 +1088,11 @@ mod tests {
             pair
         };
         let pairs = [pair(0.5, 2_000_000), pair(1.0, 3_000_000)];
+        // Path 1's pixels mean 1 everywhere, so its neighbours' means are 1 too.
+        let means = neighbour_means(pairs[1].rgb(), &[region(8, 8)]);
+        assert!(means.iter().flatten().all(|&m| (m - 1.0).abs() < 1e-6));
         // Bounce 1's bias 0.02, within half of 0.1 when left out (its tail 0.04 with the unknown ratio ½).
-        let (chosen, left, listed) = cheapest_path_length(&pairs, &[0.02], 0.1);
+        let (chosen, left, listed) = cheapest_path_length(&pairs, &means, &[0.02], 0.1);
         assert_eq!(chosen, 0, "{listed}");
         assert!((left - 0.04).abs() < 1e-12, "{left}");
         // Over its own means path 0's relMSE is (1.01 / 0.26)× path 1's.
@@ -1126,6 +1187,46 @@ mod tests {
         assert_eq!(merged.samples, full.samples);
         assert!((merged.seconds - full.seconds).abs() < 1e-12);
         assert_eq!(merged.windows, full.windows);
+    }
+
+    /// A `w`×`h` window at the film's corner.
+    fn region(w: u32, h: u32) -> Region {
+        Region {
+            x0: 0,
+            y0: 0,
+            x1: w,
+            y1: h,
+        }
+    }
+
+    /// Pixels whose estimates are skewed (mostly a little dim, now and then bright, as where few samples find a
+    /// bright path): each seed's pixel value 0.9 with probability 0.9 and 1.9 with 0.1, mean 1 and variance 0.09
+    /// (relMSE 0.089, as noisy as the shipped scenes' pilots), so the true relMSE of one estimate is 0.09 / 1.01.
+    /// Over the pair's own means a pixel whose seeds differ (one bright) divides its error by the bright mean:
+    /// 1² / 2 / (1.4² + 0.01) with probability 0.18, 0.51 of the truth. Over its neighbours' means (3×3 in 4×4
+    /// windows, both seeds) the pixel's own samples do not divide, and only the neighbours' noise is left (3 to
+    /// 8 pixels: 1/(m̃² + 0.01) is convex, so it reads 2–5 % high).
+    #[test]
+    fn a_pixels_own_bright_samples_do_not_divide_its_error() {
+        let mut rng = rand_pcg::Pcg32::new(7, 7);
+        let windows = vec![region(4, 4); 400];
+        let mut draw = || -> Vec<[f32; 3]> {
+            (0..16 * windows.len())
+                .map(|_| std::array::from_fn(|_| if rng.random::<f32>() < 0.1 { 1.9 } else { 0.9 }))
+                .collect()
+        };
+        let pair = with_variances(draw(), draw(), 0.0);
+        let truth = 0.09 / 1.01;
+        let own = pair.rel_mse() / truth;
+        let neighbours = pair
+            .rel_mse_over_means(&neighbour_means(pair.rgb(), &windows))
+            .0
+            / truth;
+        assert!((0.45..0.57).contains(&own), "own means: {own} of the truth");
+        assert!(
+            (0.95..1.1).contains(&neighbours),
+            "neighbours' means: {neighbours} of the truth"
+        );
     }
 
     /// A pair of pilot estimates from two seeds' pixel values, every pixel's sample variance `v`.
