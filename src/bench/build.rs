@@ -7,7 +7,7 @@
 //! Peak memory per build is measured in one process by resetting the kernel's high-water mark (`VmHWM`) before
 //! each build (`echo 5 > /proc/self/clear_refs`, Linux ≥ 4.0) and reading it after; where that is unavailable the
 //! column shows the process peak so far (marked `*`). CPU time is the process's user + system time
-//! (`/proc/self/stat`), so it counts Embree's TBB workers and rayon's alike: CPU ÷ wall shows whether a build ran in
+//! ([`crate::sys::clock`]), so it counts Embree's TBB workers and rayon's alike: CPU ÷ wall shows whether a build ran in
 //! parallel, and whether it was starved on a shared machine.
 
 use std::fmt;
@@ -168,8 +168,8 @@ pub fn build(config: &BuildConfig) -> Result<BuildReport, BuildBenchError> {
         for (backend, quality) in variants {
             for &kind in &config.kinds {
                 let peak_exact = reset_peak_rss();
-                let rss_before = status_kb("VmRSS:");
-                let cpu_before = cpu_seconds();
+                let rss_before = crate::measure::status_kb("VmRSS:");
+                let cpu_before = crate::sys::clock::process_cpu_seconds();
                 let (build_seconds, memory, probe) =
                     pool.install(|| -> Result<_, BenchError> {
                         let tracer: Box<dyn Tracer> = match quality {
@@ -178,8 +178,8 @@ pub fn build(config: &BuildConfig) -> Result<BuildReport, BuildBenchError> {
                             }
                             None => Box::new(BvhTracer::new(&strands, kind)),
                         };
-                        let cpu = cpu_seconds();
-                        let peak = status_kb("VmHWM:");
+                        let cpu = crate::sys::clock::process_cpu_seconds();
+                        let peak = crate::measure::status_kb("VmHWM:");
                         let start = Instant::now();
                         let hits = (0..PROBE_RAYS)
                             .into_par_iter()
@@ -217,7 +217,7 @@ pub fn build(config: &BuildConfig) -> Result<BuildReport, BuildBenchError> {
             }
         }
     }
-    report.process_peak_bytes = status_kb("VmHWM:").map(|kb| kb * 1024);
+    report.process_peak_bytes = crate::measure::status_kb("VmHWM:").map(|kb| kb * 1024);
     Ok(report)
 }
 
@@ -279,25 +279,6 @@ pub fn probe_ray(i: usize) -> Ray {
 /// Resets the process's peak resident memory to its current value (Linux `clear_refs` 5); whether it worked.
 fn reset_peak_rss() -> bool {
     std::fs::write("/proc/self/clear_refs", "5").is_ok()
-}
-
-/// A `kB` field of `/proc/self/status`.
-fn status_kb(field: &str) -> Option<u64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with(field))?;
-    line.split_whitespace().nth(1)?.parse().ok()
-}
-
-/// User + system CPU time of the process (all threads), seconds, from `/proc/self/stat` (fields 14 and 15, in
-/// clock ticks of 1/100 s: Linux's fixed `USER_HZ` for this file).
-fn cpu_seconds() -> Option<f64> {
-    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
-    // The command name (field 2) may contain spaces: count fields after its closing parenthesis.
-    let rest = &stat[stat.rfind(')')? + 1..];
-    let mut fields = rest.split_whitespace().skip(11);
-    let utime: u64 = fields.next()?.parse().ok()?;
-    let stime: u64 = fields.next()?.parse().ok()?;
-    Some((utime + stime) as f64 / 100.0)
 }
 
 impl fmt::Display for BuildReport {
@@ -420,10 +401,9 @@ mod tests {
     }
 
     #[test]
-    fn cpu_time_and_memory_fields_parse() {
+    fn memory_fields_parse() {
         if cfg!(target_os = "linux") {
-            assert!(cpu_seconds().is_some());
-            assert!(status_kb("VmRSS:").is_some_and(|kb| kb > 0));
+            assert!(crate::measure::status_kb("VmRSS:").is_some_and(|kb| kb > 0));
         }
     }
 }

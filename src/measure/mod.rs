@@ -44,10 +44,14 @@ impl Timing {
 
 /// Peak resident set size of this process (`VmHWM` in `/proc/self/status`), in bytes.
 pub fn peak_rss_bytes() -> Option<u64> {
+    status_kb("VmHWM:").map(|kb| kb * 1024)
+}
+
+/// A `kB` field of `/proc/self/status` (`field` with its colon, e.g. `"VmRSS:"`); `None` where it cannot be read.
+pub fn status_kb(field: &str) -> Option<u64> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
-    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb * 1024)
+    let line = status.lines().find(|l| l.starts_with(field))?;
+    line.split_whitespace().nth(1)?.parse().ok()
 }
 
 /// Resets this process's peak resident set size to its current size (writes `5` to `/proc/self/clear_refs`,

@@ -202,20 +202,10 @@ const INTERLEAVED_TIMINGS: usize = 2;
 /// 1.00–1.05× the fixed one's), and six more turns cost a few seconds per row.
 const INTERLEAVED_TIMINGS_SHORT: usize = 6;
 
-/// The process's CPU time so far (user + system, all threads), seconds, from `/proc/self/stat` (Linux; clock
-/// ticks of 1/100 s, the fixed USER_HZ of that interface); 0 where it cannot be read.
+/// The process's CPU time so far (user + system, all threads), seconds ([`crate::sys::clock`]); 0 where it
+/// cannot be read.
 fn cpu_seconds() -> f64 {
-    let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else {
-        return 0.0;
-    };
-    // The fields after the command name (in parentheses, which may hold spaces): utime and stime are the 14th
-    // and 15th of the line, the 12th and 13th after the name.
-    let Some(rest) = stat.rfind(')').map(|i| &stat[i + 1..]) else {
-        return 0.0;
-    };
-    let f: Vec<&str> = rest.split_whitespace().collect();
-    let ticks = |i: usize| f.get(i).and_then(|v| v.parse::<f64>().ok()).unwrap_or(0.0);
-    (ticks(11) + ticks(12)) / 100.0
+    crate::sys::clock::process_cpu_seconds().unwrap_or(0.0)
 }
 
 /// The mean of the `spp` channel: the camera samples per pixel a render took.
