@@ -392,13 +392,8 @@ fn the_image_rule_meets_the_target_with_fewer_samples_than_the_per_pixel_rule_an
         .all(|(a, b)| a.to_bits() == b.to_bits()));
 }
 
-/// The process's CPU time so far (user + system), seconds, from `/proc/self/stat` (ticks of 1/100 s).
-fn process_cpu_seconds() -> f64 {
-    let stat = std::fs::read_to_string("/proc/self/stat").unwrap();
-    let rest = &stat[stat.rfind(')').unwrap() + 1..];
-    let f: Vec<&str> = rest.split_whitespace().collect();
-    (f[11].parse::<f64>().unwrap() + f[12].parse::<f64>().unwrap()) / 100.0
-}
+/// Camera samples per pixel of each calibration render: 16 makes the shortest renders ~0.5 CPU s.
+const CALIBRATION_SPP: u32 = 16;
 
 /// Measures what calibrated [`quality::cost`]'s weights: CPU time of the pixel loop against the ray counts, one
 /// thread, over the shipped scenes × curves × shadows × path length × light/material candidates. Prints CSV.
@@ -429,10 +424,10 @@ fn calibrate_cost_model() {
                         settings.integrator.path_length = path_length;
                         settings.integrator.light_samples = l;
                         settings.integrator.material_samples = m;
-                        settings.film.spp = 4;
+                        settings.film.spp = CALIBRATION_SPP;
                         let maps = (shadows == ShadowMode::DeepOpacity)
                             .then(|| pool.install(|| frame.shadow_maps(&settings)));
-                        let cpu = process_cpu_seconds();
+                        let cpu = cuticle::sys::clock::process_cpu_seconds().unwrap();
                         let (_, stats) = pool.install(|| {
                             frame.render_with_maps(
                                 &settings,
@@ -441,10 +436,10 @@ fn calibrate_cost_model() {
                                 Options::default(),
                             )
                         });
-                        let cpu = process_cpu_seconds() - cpu;
+                        let cpu = cuticle::sys::clock::process_cpu_seconds().unwrap() - cpu;
                         let r = stats.rays;
                         println!(
-                            "{path},{},{shadows:?},{path_length},{l},{m},4,{},{},{},{},{cpu:.2}",
+                            "{path},{},{shadows:?},{path_length},{l},{m},{CALIBRATION_SPP},{},{},{},{},{cpu:.4}",
                             curves.name(),
                             r.camera,
                             r.shadow,
