@@ -364,7 +364,7 @@ pub fn run(config: &AutoStudyConfig) -> Result<String, StudyError> {
             {
                 let _ = writeln!(
                     csv,
-                    "{name},{target},{},{},{},{:.3},{:.5},{},{:.2}",
+                    "{name},{target},{},{},{},{:.3},{:.5},{},{:.4}",
                     m.what,
                     m.settings,
                     m.spp,
@@ -382,7 +382,7 @@ pub fn run(config: &AutoStudyConfig) -> Result<String, StudyError> {
             let ratio = |m: &Option<Measured>| {
                 m.as_ref().map_or("–".to_string(), |m| {
                     format!(
-                        "{:.2} ({:.2})",
+                        "{:.2} ({:.3})",
                         auto.seconds / m.seconds,
                         auto.cpu_seconds / m.cpu_seconds.max(0.01)
                     )
