@@ -4,11 +4,11 @@
 //! adds, and — so that a cheaper build is never compared without what it costs later — the closest-hit throughput
 //! of [`PROBE_RAYS`] rays through the result, with their hit count (equal work, equal hits).
 //!
-//! Peak memory per build is measured in one process by resetting the kernel's high-water mark (`VmHWM`) before
-//! each build (`echo 5 > /proc/self/clear_refs`, Linux ≥ 4.0) and reading it after; where that is unavailable the
-//! column shows the process peak so far (marked `*`). CPU time is the process's user + system time
-//! ([`crate::sys::clock`]), so it counts Embree's TBB workers and rayon's alike: CPU ÷ wall shows whether a build ran in
-//! parallel, and whether it was starved on a shared machine.
+//! Peak memory per build is measured in one process by resetting the kernel's high-water mark (`VmHWM`) before each
+//! build (`echo 5 > /proc/self/clear_refs`, Linux ≥ 4.0) and reading it after; where that is unavailable the column
+//! shows the process peak so far (marked `*`). CPU time is the process's user + system time ([`crate::sys::clock`]), so
+//! it counts Embree's TBB workers and rayon's alike: CPU ÷ wall shows whether a build ran in parallel, and whether it
+//! was starved on a shared machine.
 
 use std::fmt;
 use std::time::Instant;

@@ -15,26 +15,26 @@ use crate::render::integrator::RayCounts;
 /// Seconds per ray (or map lookup) of each kind, shading included (the type lives with the ray counts it weighs).
 pub use crate::render::integrator::RayCost as CostWeights;
 
-/// The weights auto uses. Measured on this machine class (2-core AMD EPYC VM, x86-64-v3 release build, one thread,
-/// the machine loaded by other work: read them as ratios, camera 1 : shadow 3.6 : material 3.7 : lookup 1.8) by
-/// `cargo test --release --test quality calibrate_cost_model -- --ignored --nocapture`: the CPU time of the pixel
-/// loop of the default scene at 128², 4 spp (the test renders at 16 since, below), round and flat curves × ray-traced and deep-opacity shadows × path
-/// length 0–3 × the four light/material candidates (81 renders of 0.1–0.8 s), fitted by least squares over the
-/// four ray counts; the fit is within −16 % and +42 % of every render, within ±20 % of 72 of them (the CSV is
-/// `docs/study/auto/cost-calibration.csv`). Round curves cost ~15 % more per ray than flat; one set of weights
-/// serves both, as the candidates compared are always on the same curves.
+/// The weights auto uses. Measured on this machine class (2-core AMD EPYC VM, x86-64-v3 release build, one thread, the
+/// machine loaded by other work: read them as ratios, camera 1 : shadow 3.6 : material 3.7 : lookup 1.8) by `cargo test
+/// --release --test quality calibrate_cost_model -- --ignored --nocapture`: the CPU time of the pixel loop of the
+/// default scene at 128², 4 spp (the test renders at 16 since, below), round and flat curves × ray-traced and
+/// deep-opacity shadows × path length 0–3 × the four light/material candidates (81 renders of 0.1–0.8 s), fitted by
+/// least squares over the four ray counts; the fit is within −16 % and +42 % of every render, within ±20 % of 72 of
+/// them (the CSV is `docs/study/auto/cost-calibration.csv`). Round curves cost ~15 % more per ray than flat; one set of
+/// weights serves both, as the candidates compared are always on the same curves.
 ///
-/// Refitted and not adopted (4 Dec 2026): the same test at 16 spp on an idle machine over all four of its
-/// scenes, timed by the nanosecond CPU clock (`docs/study/auto/cost-calibration-16spp.csv`, 256 renders of
-/// 0.16–2.1 CPU s), fitted with one cost level per scene and curves (decisions compare candidates within a frame,
-/// so only the weights' ratios matter): these weights leave a relative RMS residual of 0.166, a refit of the four
-/// 0.152 (camera 1 : shadow 3.7 : material 2.6 : lookup 1.5), and a fifth weight for the rays traced after the
-/// first vertex (which start inside the hair: callgrind puts straight hair's path-3 frame under the city map at
-/// +9.4 % of its path-1 frame's instructions, and its path 2 under the sunset map at +7.0 %, where these weights
-/// predict +6.5 % and +4.7 %) 0.125. But single renders scatter by ±5 % (the sunset scene's flat path 1/2/3 at 0.459/0.437/0.432 CPU s for
-/// rising ray counts), and the residuals by path length within a scene and curves — what the path-length
-/// decision reads — are no flatter with either refit (sunset flat paths 1 → 2: −0.021 → +0.074 here, −0.014 →
-/// +0.081 refitted, +0.010 → +0.128 with the fifth weight).
+/// Refitted and not adopted (4 Dec 2026): the same test at 16 spp on an idle machine over all four of its scenes, timed
+/// by the nanosecond CPU clock (`docs/study/auto/cost-calibration-16spp.csv`, 256 renders of 0.16–2.1 CPU s), fitted
+/// with one cost level per scene and curves (decisions compare candidates within a frame, so only the weights' ratios
+/// matter): these weights leave a relative RMS residual of 0.166, a refit of the four 0.152 (camera 1 : shadow 3.7 :
+/// material 2.6 : lookup 1.5), and a fifth weight for the rays traced after the first vertex (which start inside the
+/// hair: callgrind puts straight hair's path-3 frame under the city map at +9.4 % of its path-1 frame's instructions,
+/// and its path 2 under the sunset map at +7.0 %, where these weights predict +6.5 % and +4.7 %) 0.125. But single
+/// renders scatter by ±5 % (the sunset scene's flat path 1/2/3 at 0.459/0.437/0.432 CPU s for rising ray counts), and
+/// the residuals by path length within a scene and curves — what the path-length decision reads — are no flatter with
+/// either refit (sunset flat paths 1 → 2: −0.021 → +0.074 here, −0.014 → +0.081 refitted, +0.010 → +0.128 with the
+/// fifth weight).
 pub const WEIGHTS: CostWeights = CostWeights {
     camera: 0.92e-6,
     shadow: 3.34e-6,
