@@ -237,12 +237,8 @@ impl Pair {
     fn rel_mse_over(&self, means: &Pair) -> (f64, f64) {
         let [a, b] = &self.0;
         let [ma, mb] = &means.0;
-        mean_and_error(
-            channels([&a.rgb, &b.rgb, &ma.rgb, &mb.rgb]).filter_map(|[x, y, p, q]| {
-                let m = 0.5 * (p + q);
-                (x.is_finite() && y.is_finite() && m.is_finite())
-                    .then(|| 0.5 * (x - y) * (x - y) / (m * m + 0.01))
-            }),
+        rel_mse_of(
+            channels([&a.rgb, &b.rgb, &ma.rgb, &mb.rgb]).map(|[x, y, p, q]| (x, y, 0.5 * (p + q))),
         )
     }
 
@@ -252,16 +248,10 @@ impl Pair {
     fn rel_mse_over_means(&self, means: &[[f64; 3]]) -> (f64, f64) {
         let [a, b] = &self.0;
         debug_assert_eq!(a.rgb.len(), means.len());
-        mean_and_error(
-            a.rgb
-                .iter()
-                .zip(&b.rgb)
-                .zip(means)
-                .flat_map(|((x, y), m)| {
-                    (0..3).map(move |c| (f64::from(x[c]), f64::from(y[c]), m[c]))
-                })
-                .filter(|&(x, y, m)| x.is_finite() && y.is_finite() && m.is_finite())
-                .map(|(x, y, m)| 0.5 * (x - y) * (x - y) / (m * m + 0.01)),
+        rel_mse_of(
+            a.rgb.iter().zip(&b.rgb).zip(means).flat_map(|((x, y), m)| {
+                (0..3).map(move |c| (f64::from(x[c]), f64::from(y[c]), m[c]))
+            }),
         )
     }
 
@@ -471,6 +461,17 @@ fn neighbour_means(pair: [&[[f32; 3]]; 2], windows: &[Region]) -> Vec<[f64; 3]> 
     }
     debug_assert_eq!(start, pair[0].len());
     out
+}
+
+/// The relative MSE of one of two independent estimates (x, y) of a pixel channel over (m² + 0.01), from
+/// (x, y, m) per pixel and channel, the non-finite left out: (mean, standard error of the mean) ([`Pair`]'s
+/// relative MSEs, over whichever means).
+fn rel_mse_of(terms: impl Iterator<Item = (f64, f64, f64)>) -> (f64, f64) {
+    mean_and_error(
+        terms
+            .filter(|&(x, y, m)| x.is_finite() && y.is_finite() && m.is_finite())
+            .map(|(x, y, m)| 0.5 * (x - y) * (x - y) / (m * m + 0.01)),
+    )
 }
 
 /// Four pixel arrays of the same windows walked together, one item per pixel and channel: the four values in `f64`.

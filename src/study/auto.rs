@@ -438,7 +438,7 @@ pub fn run(config: &AutoStudyConfig) -> Result<String, StudyError> {
                 ratio(&shipped)
                     + &match (&equal_error, &shipped) {
                         (Some(e), Some(s)) => format!(
-                            "; auto asked for its error: {:.4} in {:.2} CPU s, {:.2}",
+                            "; auto asked for its error: {:.4} in {:.2} CPU s, {:.3}",
                             e.rel_rmse,
                             e.cpu_seconds,
                             e.cpu_seconds / s.cpu_seconds.max(0.01)
