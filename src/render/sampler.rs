@@ -266,16 +266,24 @@ impl<'s> CameraSample<'s> {
 
     /// [`PixelSampler::get_salted`], from the kept batches when the read is of this sample, unsalted, in the first
     /// [`CACHED_BATCHES`] batches and in the first Sobol block.
-    #[inline]
+    #[inline(always)]
     pub fn get_salted(&self, index: u32, dimension: u32, salt: u32) -> f32 {
         let batch = dimension as usize / BATCH;
         if index != self.index || salt != 0 || batch >= CACHED_BATCHES || index >> 16 != 0 {
-            return self.sampler.get_salted(index, dimension, salt);
+            return self.uncached(index, dimension, salt);
         }
         if self.filled.get() & (1u32 << batch) == 0 {
             self.fill(batch);
         }
         self.batches[batch][dimension as usize % BATCH].get()
+    }
+
+    /// [`PixelSampler::get_salted`] for a read the kept batches do not hold (out of line: the reads above are
+    /// inlined where the path reads them, about ten per camera sample).
+    #[cold]
+    #[inline(never)]
+    fn uncached(&self, index: u32, dimension: u32, salt: u32) -> f32 {
+        self.sampler.get_salted(index, dimension, salt)
     }
 
     /// Computes batch `batch` (out of line: once per batch and sample, where the reads above are many and inlined).
