@@ -563,8 +563,9 @@ impl<'a> Integrator<'a> {
         let next = self.first_vertex_material_samples(first, sampler, index, &mut out, counts);
         out.direct = out.lobes.sum();
         record.vertex(0, out.direct, &counts.since(&before));
-        if let Some((second, first_weights)) = next {
-            let indirect = self.indirect(&second, &first_weights, sampler, index, counts, record);
+        // By reference: the second vertex is not moved out of `next`.
+        if let Some((second, first_weights)) = &next {
+            let indirect = self.indirect(second, first_weights, sampler, index, counts, record);
             out.indirect = indirect.sum();
             add_lobes(&mut out.lobes, &indirect, Vec3::ONE);
         }
@@ -777,15 +778,17 @@ impl<'a> Integrator<'a> {
         let mut deeper;
         for b in 1..=path_length {
             let before = *counts;
-            let (radiance, next) = self.deeper_vertex(v, b, sampler, index, counts);
-            let added = self.add_indirect(&mut indirect, first_weights, rest * radiance);
+            // The step kept whole and its vertex moved out only to go on: destructuring it copied the
+            // continuation (a few hundred bytes) at every vertex, the last one's included.
+            let step = self.deeper_vertex(v, b, sampler, index, counts);
+            let added = self.add_indirect(&mut indirect, first_weights, rest * step.0);
             record.vertex(b, added, &counts.since(&before));
-            let Some((next, weight)) = next else {
-                break;
-            };
             if b == path_length {
                 break;
             }
+            let Some((next, weight)) = step.1 else {
+                break;
+            };
             let u = sampler.get(index, dim::vertex(b, dim::ROULETTE));
             let Some(survivor) = roulette(first_weights, rest * weight, u) else {
                 break;
