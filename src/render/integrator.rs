@@ -245,17 +245,13 @@ impl Draw<'_> {
     /// Dimensions `dimension` and `dimension + 1`.
     #[inline]
     fn get_2(&self, dimension: u32) -> [f32; 2] {
-        [self.get(dimension), self.get(dimension + 1)]
+        self.sampler.get_n(self.index, dimension, self.salt)
     }
 
     /// Dimensions `dimension` to `dimension + 2`.
     #[inline]
     fn get_3(&self, dimension: u32) -> [f32; 3] {
-        [
-            self.get(dimension),
-            self.get(dimension + 1),
-            self.get(dimension + 2),
-        ]
+        self.sampler.get_n(self.index, dimension, self.salt)
     }
 
     /// The key of the ray drawn from `dimension` (its strands' stochastic presence).

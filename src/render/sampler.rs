@@ -278,6 +278,26 @@ impl<'s> CameraSample<'s> {
         self.batches[batch][dimension as usize % BATCH].get()
     }
 
+    /// `N` consecutive dimensions from `dimension` ([`CameraSample::get_salted`] of each): one check and one fill
+    /// when they lie in one kept batch, as a light sample's two and a material sample's three do.
+    #[inline(always)]
+    pub fn get_n<const N: usize>(&self, index: u32, dimension: u32, salt: u32) -> [f32; N] {
+        let (first, last) = (dimension as usize, dimension as usize + N - 1);
+        let batch = first / BATCH;
+        if index != self.index
+            || salt != 0
+            || batch != last / BATCH
+            || batch >= CACHED_BATCHES
+            || index >> 16 != 0
+        {
+            return std::array::from_fn(|k| self.get_salted(index, dimension + k as u32, salt));
+        }
+        if self.filled.get() & (1u32 << batch) == 0 {
+            self.fill(batch);
+        }
+        std::array::from_fn(|k| self.batches[batch][first % BATCH + k].get())
+    }
+
     /// [`PixelSampler::get_salted`] for a read the kept batches do not hold (out of line: the reads above are
     /// inlined where the path reads them, about ten per camera sample).
     #[cold]
@@ -343,6 +363,31 @@ mod tests {
             assert_eq!(c.get(index + 1, 3), s.get(index + 1, 3));
             assert_eq!(c.get_2d(index, 4), s.get_2d(index, 4));
             assert_eq!(c.key(index, 4, 1), s.key(index, 4, 1));
+            // Runs of two and three, within a batch, across the batches' border (14..17), past the kept ones, salted
+            // and of another index, on a fresh sample (so that the run's own check fills the batch).
+            for (d, salt, other) in [
+                (5, 0, 0),
+                (14, 0, 0),
+                (15, 0, 0),
+                (30, 0, 0),
+                (31, 0, 0),
+                (40, 0, 0),
+                (3, 2, 0),
+                (3, 0, 1),
+            ] {
+                let fresh = CameraSample::new(&s, index);
+                let i = index + other;
+                let three: [f32; 3] = fresh.get_n(i, d, salt);
+                let two: [f32; 2] = fresh.get_n(i, d, salt);
+                for k in 0..3u32 {
+                    assert_eq!(
+                        three[k as usize],
+                        s.get_salted(i, d + k, salt),
+                        "index {i} dim {d}+{k} salt {salt}"
+                    );
+                }
+                assert_eq!(two, [three[0], three[1]]);
+            }
         }
     }
 
