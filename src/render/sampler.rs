@@ -268,21 +268,35 @@ impl<'s> CameraSample<'s> {
     /// [`CACHED_BATCHES`] batches and in the first Sobol block.
     #[inline(always)]
     pub fn get_salted(&self, index: u32, dimension: u32, salt: u32) -> f32 {
-        let batch = dimension as usize / BATCH;
-        if index != self.index || salt != 0 || batch >= CACHED_BATCHES || index >> 16 != 0 {
-            return self.uncached(index, dimension, salt);
+        let d = dimension as usize;
+        match self.kept(index, d, d, salt) {
+            Some(batch) => batch[d % BATCH].get(),
+            None => self.uncached(index, dimension, salt),
         }
-        if self.filled.get() & (1u32 << batch) == 0 {
-            self.fill(batch);
-        }
-        self.batches[batch][dimension as usize % BATCH].get()
     }
 
     /// `N` consecutive dimensions from `dimension` ([`CameraSample::get_salted`] of each): one check and one fill
     /// when they lie in one kept batch, as a light sample's two and a material sample's three do.
     #[inline(always)]
     pub fn get_n<const N: usize>(&self, index: u32, dimension: u32, salt: u32) -> [f32; N] {
-        let (first, last) = (dimension as usize, dimension as usize + N - 1);
+        let first = dimension as usize;
+        match self.kept(index, first, first + N - 1, salt) {
+            Some(batch) => std::array::from_fn(|k| batch[first % BATCH + k].get()),
+            None => std::array::from_fn(|k| self.get_salted(index, dimension + k as u32, salt)),
+        }
+    }
+
+    /// The kept batch holding dimensions `first` to `last` of sample `index`, filled if it was not yet; `None` for a
+    /// read the kept batches do not hold (another index, a salt, a run across batches, a deeper dimension, a later
+    /// Sobol block).
+    #[inline(always)]
+    fn kept(
+        &self,
+        index: u32,
+        first: usize,
+        last: usize,
+        salt: u32,
+    ) -> Option<&[Cell<f32>; BATCH]> {
         let batch = first / BATCH;
         if index != self.index
             || salt != 0
@@ -290,12 +304,12 @@ impl<'s> CameraSample<'s> {
             || batch >= CACHED_BATCHES
             || index >> 16 != 0
         {
-            return std::array::from_fn(|k| self.get_salted(index, dimension + k as u32, salt));
+            return None;
         }
         if self.filled.get() & (1u32 << batch) == 0 {
             self.fill(batch);
         }
-        std::array::from_fn(|k| self.batches[batch][first % BATCH + k].get())
+        Some(&self.batches[batch])
     }
 
     /// [`PixelSampler::get_salted`] for a read the kept batches do not hold (out of line: the reads above are
