@@ -217,7 +217,7 @@ pub fn build(config: &BuildConfig) -> Result<BuildReport, BuildBenchError> {
             }
         }
     }
-    report.process_peak_bytes = crate::measure::status_kb("VmHWM:").map(|kb| kb * 1024);
+    report.process_peak_bytes = crate::measure::peak_rss_bytes();
     Ok(report)
 }
 
