@@ -871,9 +871,9 @@ impl ChiangFibre<'_> {
         let inv_cos = 1.0 / (sc_i.1 as f32).max(COS_THETA_MIN);
         let f = |p: usize| view.ap[p] * (mn[p] * inv_cos);
         let lobes = LobeValues {
-            r: f(0),
-            tt: f(1),
-            trt: f(2) + f(3),
+            r: f(0).into(),
+            tt: f(1).into(),
+            trt: (f(2) + f(3)).into(),
             ..Default::default()
         };
         let pdf = if m_uniform(self.model) {

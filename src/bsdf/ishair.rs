@@ -371,11 +371,11 @@ impl IsHair {
         // N_R = N_TRT−g = cos(φ/2) from the half-angle vector (see `Angles`).
         let n_r = a.cos_half_phi;
         LobeValues {
-            r: p.color_r * (s * exp_lobe(e_r) * n_r),
-            tt: p.color_tt * (s * exp_lobe(e_tt + e_n_tt)),
-            trt: p.color_trt * (s * m_trt * n_r),
-            glint: p.color_trt * (s * p.glint * exp_lobe(e_trt + e_n_g)),
-            diffuse: diffuse_f(p.k_d) * w_d,
+            r: (p.color_r * (s * exp_lobe(e_r) * n_r)).into(),
+            tt: (p.color_tt * (s * exp_lobe(e_tt + e_n_tt))).into(),
+            trt: (p.color_trt * (s * m_trt * n_r)).into(),
+            glint: (p.color_trt * (s * p.glint * exp_lobe(e_trt + e_n_g))).into(),
+            diffuse: (diffuse_f(p.k_d) * w_d).into(),
         }
     }
 

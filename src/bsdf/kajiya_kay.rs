@@ -30,7 +30,7 @@ use super::gaussian::TruncatedGaussian;
 use super::{check, check_color, Balance, Bsdf, BsdfError, BsdfSample, Lobe, LobeValues, Sampling};
 use crate::util::color::luminance;
 use crate::util::sampling::{uniform_sphere, UNIFORM_SPHERE_PDF};
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 use std::f32::consts::{FRAC_1_PI, FRAC_PI_2, PI, TAU};
 
 /// Kajiya-Kay diffuse + specular, with RGB diffuse colour.
@@ -235,8 +235,8 @@ impl Bsdf for KajiyaKay {
         let (sin_i, cos_i) = sin_cos_theta(wi);
         let (d, s) = self.terms(sin_i, cos_i, sin_o, cos_o);
         LobeValues {
-            r: Vec3::splat(s),
-            diffuse: d,
+            r: Vec3A::splat(s),
+            diffuse: d.into(),
             ..LobeValues::default()
         }
     }
@@ -358,7 +358,7 @@ mod tests {
         for t in THETA_O_DEG {
             let a = testing::albedo(&m, testing::wo_at(t)).diffuse;
             assert!(
-                (a - Vec3::ONE).abs().max_element() < 1e-3,
+                (a - Vec3A::ONE).abs().max_element() < 1e-3,
                 "θo {t}°: diffuse albedo {a}"
             );
         }
@@ -535,6 +535,8 @@ mod tests {
         );
         let (d, s) = m.eval(Vec3::X, wo, wi);
         let l = m.eval_lobes(wo, wi);
-        assert!((l.diffuse - d).length() < 1e-7 && (l.r.x - s).abs() < 1e-6 * s.max(1.0));
+        assert!(
+            (l.diffuse - Vec3A::from(d)).length() < 1e-7 && (l.r.x - s).abs() < 1e-6 * s.max(1.0)
+        );
     }
 }

@@ -304,9 +304,9 @@ impl Marschner {
         let cos_d = a.cos_theta_d.max(COS_THETA_MIN);
         let s = w_s * a.cos_half_phi / (8.0 * cos_d * cos_d);
         LobeValues {
-            r: self.c[0] * (s * m[0]),
-            trt: self.c[1] * (s * m[1]),
-            diffuse: diffuse_f(self.params.k_d) * w_d,
+            r: (self.c[0] * (s * m[0])).into(),
+            trt: (self.c[1] * (s * m[1])).into(),
+            diffuse: (diffuse_f(self.params.k_d) * w_d).into(),
             ..LobeValues::default()
         }
     }

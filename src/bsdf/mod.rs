@@ -44,7 +44,7 @@ pub mod material;
 #[cfg(test)]
 mod testing;
 
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 
 pub use material::{HitBsdf, Material, Scattering};
 
@@ -120,26 +120,26 @@ impl Lobe {
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct LobeValues {
     /// [`Lobe::R`].
-    pub r: Vec3,
+    pub r: Vec3A,
     /// [`Lobe::Tt`].
-    pub tt: Vec3,
+    pub tt: Vec3A,
     /// [`Lobe::Trt`].
-    pub trt: Vec3,
+    pub trt: Vec3A,
     /// [`Lobe::Glint`].
-    pub glint: Vec3,
+    pub glint: Vec3A,
     /// [`Lobe::Diffuse`].
-    pub diffuse: Vec3,
+    pub diffuse: Vec3A,
 }
 
 impl LobeValues {
     /// The sum of all lobes: the model's f.
     #[inline]
     pub fn sum(&self) -> Vec3 {
-        self.r + self.tt + self.trt + self.glint + self.diffuse
+        Vec3::from(self.r + self.tt + self.trt + self.glint + self.diffuse)
     }
 
     /// The value of one lobe.
-    pub fn get(&self, lobe: Lobe) -> Vec3 {
+    pub fn get(&self, lobe: Lobe) -> Vec3A {
         match lobe {
             Lobe::R => self.r,
             Lobe::Tt => self.tt,
@@ -150,7 +150,7 @@ impl LobeValues {
     }
 
     /// A mutable reference to one lobe's value.
-    pub fn get_mut(&mut self, lobe: Lobe) -> &mut Vec3 {
+    pub fn get_mut(&mut self, lobe: Lobe) -> &mut Vec3A {
         match lobe {
             Lobe::R => &mut self.r,
             Lobe::Tt => &mut self.tt,

@@ -6,7 +6,7 @@ use super::frame::{from_spherical, sin_cos_theta, theta_h_range};
 use super::histogram::sampled_vs_analytic;
 use super::{Bsdf, LobeValues};
 use crate::util::stats::{chi_square, sidak};
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 use rand::Rng;
 use rand_pcg::Pcg32;
 use std::f32::consts::{FRAC_PI_2, FRAC_PI_4, PI};
@@ -82,7 +82,7 @@ pub fn albedo<B: Bsdf + ?Sized>(model: &B, wo: Vec3) -> LobeValues {
             }
         }
     });
-    let v = |k: usize| Vec3::new(acc[k][0] as f32, acc[k][1] as f32, acc[k][2] as f32);
+    let v = |k: usize| Vec3A::new(acc[k][0] as f32, acc[k][1] as f32, acc[k][2] as f32);
     LobeValues {
         r: v(0),
         tt: v(1),
@@ -116,7 +116,8 @@ pub fn sampled_furnace<B: Bsdf + ?Sized>(model: &B, wo: Vec3, n: usize, seed: u6
 }
 
 /// The mean channel of a colour.
-pub fn mean(c: Vec3) -> f64 {
+pub fn mean(c: impl Into<Vec3>) -> f64 {
+    let c = c.into();
     (c.x + c.y + c.z) as f64 / 3.0
 }
 

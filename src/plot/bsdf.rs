@@ -155,7 +155,7 @@ fn lobe_series(data: &[(f32, LobeValues)]) -> Vec<Series> {
     };
     let total = Series::line("total", hex(0xb0b0b0), 7, curve(&|v| luminance(v.sum())));
     let lobes = Lobe::ALL.into_iter().filter_map(|lobe| {
-        let points = curve(&|v| luminance(v.get(lobe)));
+        let points = curve(&|v| luminance(v.get(lobe).into()));
         points
             .iter()
             .any(|p| p.1 > 0.0)

@@ -228,11 +228,12 @@ impl PixelSums {
     /// Adds one camera sample.
     pub(super) fn add(&mut self, s: &PathSample) {
         let l = &s.lobes;
-        let finite = [
-            s.beauty, s.direct, s.indirect, s.albedo, l.r, l.tt, l.trt, l.glint, l.diffuse,
-        ]
-        .iter()
-        .all(|v| v.is_finite())
+        let finite = [s.beauty, s.direct, s.indirect, s.albedo]
+            .iter()
+            .all(|v| v.is_finite())
+            && [l.r, l.tt, l.trt, l.glint, l.diffuse]
+                .iter()
+                .all(|v| v.is_finite())
             && (s.alpha + s.lit + s.unshadowed).is_finite();
         if !finite {
             self.dropped += 1;
@@ -268,12 +269,12 @@ impl PixelSums {
         put(at::BEAUTY, &(self.beauty * k).to_array());
         put(at::ALPHA, &[self.alpha * k]);
         for (at, v) in [
-            (at::DIFFUSE, l.diffuse),
-            (at::SPECULAR, specular),
-            (at::LOBE_R, l.r),
-            (at::LOBE_TT, l.tt),
-            (at::LOBE_TRT, l.trt),
-            (at::LOBE_GLINT, l.glint),
+            (at::DIFFUSE, l.diffuse.into()),
+            (at::SPECULAR, specular.into()),
+            (at::LOBE_R, l.r.into()),
+            (at::LOBE_TT, l.tt.into()),
+            (at::LOBE_TRT, l.trt.into()),
+            (at::LOBE_GLINT, l.glint.into()),
             (at::DIRECT, self.direct * k),
             (at::INDIRECT, self.indirect * k),
             (at::ALBEDO, self.albedo * k),
@@ -453,7 +454,7 @@ mod tests {
             ..Default::default()
         };
         let mut bad = good;
-        bad.lobes.tt = Vec3::new(0.0, f32::INFINITY, 0.0);
+        bad.lobes.tt = glam::Vec3A::new(0.0, f32::INFINITY, 0.0);
         let mut nan = good;
         nan.unshadowed = f32::NAN;
         let before = dropped_samples();

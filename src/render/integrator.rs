@@ -33,7 +33,7 @@
 //! shapes count as diffuse), for direct and indirect light alike, so that R + TT + TRT + glint = specular and
 //! specular + diffuse = direct + indirect. Beauty = direct + indirect + emitters and background seen directly.
 
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 
 use crate::accel::{CurveKind, Tracer};
 use crate::bsdf::chiang::{h_from_normal, h_from_ribbon, Chiang, ChiangView};
@@ -301,7 +301,7 @@ pub struct Integrator<'a> {
 /// f · cos θi per lobe from f per lobe at local `wi_l`, the diffuse lobe tinted by `tint`.
 #[inline]
 fn fcos(mut lobes: LobeValues, tint: Vec3, wi_l: Vec3) -> LobeValues {
-    lobes.diffuse *= tint;
+    lobes.diffuse *= Vec3A::from(tint);
     lobes.scaled(sin_cos_theta(wi_l).1)
 }
 
@@ -309,7 +309,7 @@ fn fcos(mut lobes: LobeValues, tint: Vec3, wi_l: Vec3) -> LobeValues {
 #[inline]
 fn add_lobes(acc: &mut LobeValues, weights: &LobeValues, scale: Vec3) {
     for lobe in Lobe::ALL {
-        *acc.get_mut(lobe) += weights.get(lobe) * scale;
+        *acc.get_mut(lobe) += weights.get(lobe) * Vec3A::from(scale);
     }
 }
 
@@ -435,7 +435,7 @@ impl<'a> Integrator<'a> {
                     return (LobeValues::default(), 0.0);
                 }
                 let lobes = LobeValues {
-                    diffuse: albedo * (cos * std::f32::consts::FRAC_1_PI),
+                    diffuse: (albedo * (cos * std::f32::consts::FRAC_1_PI)).into(),
                     ..LobeValues::default()
                 };
                 (lobes, cos * std::f32::consts::FRAC_1_PI)
