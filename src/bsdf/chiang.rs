@@ -97,7 +97,7 @@ use super::{check, check_color, Bsdf, BsdfError, BsdfSample, Lobe, LobeValues, S
 use crate::util::color::luminance;
 use crate::util::lanes::{exp_f32x4, exp_f64x4};
 use crate::util::sampling::{uniform_sphere, UNIFORM_SPHERE_PDF};
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 use std::f32::consts::{FRAC_PI_8, PI, TAU};
 use wide::{f32x4, f64x4, CmpLe};
 
@@ -718,8 +718,8 @@ pub struct ChiangFibre<'a> {
 /// What depends on ωo (and h) only.
 #[derive(Debug, Clone, Copy)]
 struct View {
-    /// A_p.
-    ap: [Vec3; P_MAX + 1],
+    /// A_p (four lanes each: f per lobe is one product).
+    ap: [Vec3A; P_MAX + 1],
     /// P(p) = lum(A_p)/Σ lum(A_p).
     ap_pdf: [f32; P_MAX + 1],
     /// Φ(p) for p = 0, 1, 2.
@@ -832,7 +832,7 @@ impl ChiangFibre<'_> {
             (sin_o64, cos_o64),
         ];
         View {
-            ap,
+            ap: ap.map(Vec3A::from),
             ap_pdf,
             phis,
             tilted,
@@ -871,9 +871,9 @@ impl ChiangFibre<'_> {
         let inv_cos = 1.0 / (sc_i.1 as f32).max(COS_THETA_MIN);
         let f = |p: usize| view.ap[p] * (mn[p] * inv_cos);
         let lobes = LobeValues {
-            r: f(0).into(),
-            tt: f(1).into(),
-            trt: (f(2) + f(3)).into(),
+            r: f(0),
+            tt: f(1),
+            trt: f(2) + f(3),
             ..Default::default()
         };
         let pdf = if m_uniform(self.model) {
