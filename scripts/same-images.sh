@@ -26,6 +26,9 @@ cases=(
   "cornell-box|scenes/thesis/cornell-box.toml|--res 64x64 --spp 4"
   "straight-city-marschner|scenes/thesis/straight-city-marschner.toml|--res 60x80 --spp 4"
   "straight-city-ishair|scenes/thesis/straight-city-ishair.toml|--res 60x80 --spp 4 --shadows deep-opacity"
+  # --quality auto: the pilots, the decisions and the adaptive rounds (deterministic for any thread count).
+  "default-auto||--res 64x48 --quality auto --target 0.1"
+  "straight-city-auto|scenes/thesis/straight-city-marschner.toml|--res 64x64 --quality auto --target 0.1"
 )
 status=0
 for c in "${cases[@]}"; do
