@@ -7,7 +7,7 @@
 //! A checksum of the results is returned to `black_box` so no call can be optimised away.
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion, Throughput};
-use cuticle::bsdf::chiang::{Chiang, ChiangParams};
+use cuticle::bsdf::chiang::{directions, Chiang, ChiangParams, ChiangView, ViewLanes, LANES};
 use cuticle::bsdf::ishair::{IsHair, IsHairParams, LobeSelection};
 use cuticle::bsdf::kajiya_kay::{KajiyaKay, KajiyaKayParams};
 use cuticle::bsdf::marschner::{Marschner, MarschnerParams};
@@ -16,6 +16,7 @@ use cuticle::util::sampling::uniform_sphere;
 use glam::Vec3;
 use rand::Rng;
 use rand_pcg::Pcg32;
+use wide::f32x8;
 
 /// Calls per measured iteration.
 const BATCH: usize = 1024;
@@ -98,6 +99,50 @@ fn bsdfs(c: &mut Criterion) {
     // offset across the fibre (the cost does not depend on h).
     let chiang = Chiang::new(ChiangParams::default()).unwrap();
     bench_model(c, "chiang", &chiang.at(0.3), &x);
+    bench_chiang_lanes(c, &chiang, &x);
+}
+
+/// Chiang's eval on its own (the views taken beforehand, as a shading point reuses its view): one shading point at
+/// a time (`Chiang::eval_viewed`, the renderer's path) against eight at once (`Chiang::eval_lanes`, step 1 of
+/// `docs/wavefront.md`), on the same 1024 (view, ωi) pairs with random offsets h.
+fn bench_chiang_lanes(c: &mut Criterion, chiang: &Chiang, x: &Inputs) {
+    let mut rng = Pcg32::new(2026, 12);
+    let views: Vec<ChiangView> = (0..BATCH)
+        .map(|k| chiang.at(rng.random_range(-1.0f32..=1.0)).viewed(x.wo[k]))
+        .collect();
+    let lanes: Vec<(ViewLanes, [f32x8; 3])> = views
+        .chunks_exact(LANES)
+        .zip(x.wi.chunks_exact(LANES))
+        .map(|(v, w)| {
+            (
+                ViewLanes::new(v.try_into().unwrap()),
+                directions(w.try_into().unwrap()),
+            )
+        })
+        .collect();
+    let mut g = c.benchmark_group("chiang-lanes");
+    g.throughput(Throughput::Elements(BATCH as u64));
+    g.bench_function("eval one at a time", |b| {
+        b.iter(|| {
+            let mut acc = 0.0f32;
+            for (v, &wi) in views.iter().zip(&x.wi) {
+                let (f, pdf) = chiang.eval_viewed(black_box(v), black_box(wi));
+                acc += f.sum().x + pdf;
+            }
+            acc
+        })
+    });
+    g.bench_function("eval eight at once", |b| {
+        b.iter(|| {
+            let mut acc = 0.0f32;
+            for (v, wi) in &lanes {
+                let e = chiang.eval_lanes(black_box(v), black_box(wi));
+                acc += (e.r[0] + e.tt[0] + e.trt[0] + e.pdf).reduce_add();
+            }
+            acc
+        })
+    });
+    g.finish();
 }
 
 criterion_group! {

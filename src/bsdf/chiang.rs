@@ -91,6 +91,10 @@
 //! The roughness fits were made for βm, βn ∈ [0, 1]; below 1e-3 the lobes are narrower than f32 directions
 //! resolve.
 
+mod lanes;
+
+pub use lanes::{directions, EvalLanes, ViewLanes, LANES};
+
 use super::frame::{atan2, phi as azimuth, wrap_phi, COS_THETA_MIN};
 use super::fresnel::dielectric;
 use super::{check, check_color, Bsdf, BsdfError, BsdfSample, Lobe, LobeValues, Sampling};

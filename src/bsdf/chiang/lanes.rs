@@ -1,0 +1,275 @@
+//! Chiang's eval for eight shading points at once: step 1 of `docs/wavefront.md` (issue 15, target 3), where a
+//! batch of paths is shaded one f32×8 vector (AVX2) at a time and the scalar [`Chiang::eval_viewed`] evaluates one
+//! path's four lobes as one f64×4 vector. Not yet called by the renderer: the integrator that batches paths is the
+//! plan's next step, and this kernel's measured cost (`cargo bench --bench bsdf -- chiang-lanes`) is what says
+//! whether it is worth building.
+//!
+//! The same model, written for f32 lanes:
+//! - M_p (d'Eon et al. 2011) as exp(ln c − (1 − cos(θi + θo′))/v − a) I₀(a) for a = cos θi cos θo′/v ≤ 10 and
+//!   exp(ln c − (1 − cos(θi + θo′))/v) I₀ₑ(a) above, the scalar model's two expansions cut to 16 terms. The scalar
+//!   model forms cos θi cos θo′ − sin θi sin θo′ − 1 in f64, where the difference of terms ~1/v is exact enough;
+//!   here 1 − cos(θi + θo′) is sin²(θi + θo′)/(1 + cos(θi + θo′)) (or 1 − cos where the cosine is negative), which
+//!   no rounding of nearly equal terms enters, so f32 keeps M_p's relative precision also for narrow lobes.
+//! - N_p, the trimmed logistic at φ − Φ(p) wrapped to [−π, π], and φ by `wide`'s arctangent.
+//! - f_p = A_p M_p N_p / cos θi per lobe and the mixture pdf Σ P(p) M_p N_p, as [`Chiang::eval_viewed`] gives them.
+
+use super::{m_uniform, Chiang, ChiangView, I0_ASYMPTOTIC, I0_SERIES, M_P_SWITCH, P_MAX};
+use crate::bsdf::frame::COS_THETA_MIN;
+use crate::bsdf::LobeValues;
+use glam::{Vec3, Vec3A};
+use std::f32::consts::{PI, TAU};
+use wide::{f32x8, CmpGt, CmpLe};
+
+/// Shading points per batch: one f32×8 vector.
+pub const LANES: usize = 8;
+
+/// Eight [`ChiangView`]s, lane by lane (structure of arrays).
+#[derive(Debug, Clone, Copy)]
+pub struct ViewLanes {
+    /// ωo's components in the normal plane (y, z): φ is measured from it.
+    wo_y: f32x8,
+    wo_z: f32x8,
+    /// A_p per p and colour channel.
+    ap: [[f32x8; 3]; P_MAX + 1],
+    /// P(p).
+    ap_pdf: [f32x8; P_MAX + 1],
+    /// Φ(p) for p = 0, 1, 2.
+    phis: [f32x8; P_MAX],
+    /// (sin θo′, |cos θo′|) per p.
+    tilted_sin: [f32x8; P_MAX + 1],
+    tilted_cos: [f32x8; P_MAX + 1],
+}
+
+impl ViewLanes {
+    /// The eight views in lanes 0 to 7.
+    pub fn new(views: &[ChiangView; LANES]) -> ViewLanes {
+        let lane = |f: &dyn Fn(&ChiangView) -> f32| f32x8::new(views.each_ref().map(f));
+        ViewLanes {
+            wo_y: lane(&|v| v.wo.y),
+            wo_z: lane(&|v| v.wo.z),
+            ap: std::array::from_fn(|p| std::array::from_fn(|c| lane(&|v| v.view.ap[p][c]))),
+            ap_pdf: std::array::from_fn(|p| lane(&|v| v.view.ap_pdf[p])),
+            phis: std::array::from_fn(|p| lane(&|v| v.view.phis[p])),
+            tilted_sin: std::array::from_fn(|p| lane(&|v| v.view.tilted[p].0 as f32)),
+            tilted_cos: std::array::from_fn(|p| lane(&|v| v.view.tilted[p].1 as f32)),
+        }
+    }
+}
+
+/// Eight directions as three vectors (x, y, z), the layout [`Chiang::eval_lanes`] reads.
+pub fn directions(w: &[Vec3; LANES]) -> [f32x8; 3] {
+    std::array::from_fn(|c| f32x8::new(w.each_ref().map(|v| v[c])))
+}
+
+/// f per lobe (R, TT, TRT with the residual; RGB each) and the pdf of eight evaluations.
+#[derive(Debug, Clone, Copy)]
+pub struct EvalLanes {
+    /// f of R, per colour channel.
+    pub r: [f32x8; 3],
+    /// f of TT.
+    pub tt: [f32x8; 3],
+    /// f of TRT and the residual p ≥ 3.
+    pub trt: [f32x8; 3],
+    /// The sampling pdf at ωi.
+    pub pdf: f32x8,
+}
+
+impl EvalLanes {
+    /// Lane `k` as [`Chiang::eval_viewed`] returns it.
+    pub fn lane(&self, k: usize) -> (LobeValues, f32) {
+        let rgb = |c: &[f32x8; 3]| {
+            Vec3A::from(Vec3::new(
+                c[0].as_array_ref()[k],
+                c[1].as_array_ref()[k],
+                c[2].as_array_ref()[k],
+            ))
+        };
+        (
+            LobeValues {
+                r: rgb(&self.r),
+                tt: rgb(&self.tt),
+                trt: rgb(&self.trt),
+                ..Default::default()
+            },
+            self.pdf.as_array_ref()[k],
+        )
+    }
+}
+
+/// Σ_{k<16} c_k x^k by Estrin's scheme, in f32 lanes.
+#[inline(always)]
+fn estrin16(c: &[f64; 32], x: f32x8) -> f32x8 {
+    let x2 = x * x;
+    let x4 = x2 * x2;
+    let x8 = x4 * x4;
+    let k = |i: usize| f32x8::splat(c[i] as f32);
+    let a: [f32x8; 8] = std::array::from_fn(|i| k(2 * i + 1).mul_add(x, k(2 * i)));
+    let b: [f32x8; 4] = std::array::from_fn(|i| a[2 * i + 1].mul_add(x2, a[2 * i]));
+    let d0 = b[1].mul_add(x4, b[0]);
+    let d1 = b[3].mul_add(x4, b[2]);
+    d1.mul_add(x8, d0)
+}
+
+impl Chiang {
+    /// [`Chiang::eval_viewed`] for eight (view, ωi) pairs at once: lane k evaluates `views` lane k at ωi's lane k
+    /// (`wi`: x, y, z, each a vector of the eight directions' component, as a batch of paths keeps them).
+    pub fn eval_lanes(&self, views: &ViewLanes, wi: &[f32x8; 3]) -> EvalLanes {
+        let [x, y, z] = *wi;
+        let one = f32x8::splat(1.0);
+        // (sin θi, cos θi) of unit length.
+        let rho = y.mul_add(y, z * z).sqrt();
+        let inv_len = one / x.mul_add(x, rho * rho).sqrt();
+        let (sin_i, cos_i) = (x * inv_len, rho * inv_len);
+        // φ = φi − φo.
+        let phi = views
+            .wo_y
+            .mul_sub(z, views.wo_z * y)
+            .atan2(views.wo_y.mul_add(y, views.wo_z * z));
+        let switch = f32x8::splat(M_P_SWITCH as f32);
+        let mut mn = [f32x8::ZERO; P_MAX + 1];
+        for (p, mn_p) in mn.iter_mut().enumerate() {
+            let l = &self.longitudinal[p.min(P_MAX - 1)];
+            let (inv_v, log_norm) = (
+                f32x8::splat(l.inv_v as f32),
+                f32x8::splat(l.log_norm as f32),
+            );
+            let (so, co) = (views.tilted_sin[p], views.tilted_cos[p]);
+            let a = cos_i * co * inv_v;
+            // 1 − cos(θi + θo′) without cancellation.
+            let sin_sum = sin_i.mul_add(co, cos_i * so);
+            let cos_sum = cos_i.mul_sub(co, sin_i * so);
+            let one_minus_cos = cos_sum
+                .cmp_gt(f32x8::ZERO)
+                .blend(sin_sum * sin_sum / (one + cos_sum), one - cos_sum);
+            let series = a.cmp_le(switch);
+            let exponent = log_norm - one_minus_cos * inv_v - series.blend(a, f32x8::ZERO);
+            // Each expansion only where a lane needs it (TRT's and the residual's wide lobes never reach the
+            // asymptotic one at the usual roughness, TT's narrow one seldom stays in the series).
+            let small = if series.any() {
+                let a = a.min(switch);
+                let y = f32x8::splat(0.25) * a * a;
+                y.mul_add(estrin16(&I0_SERIES, y), one)
+            } else {
+                f32x8::ZERO
+            };
+            let large = if series.all() {
+                f32x8::ZERO
+            } else {
+                let inv_a = one / a.max(switch);
+                estrin16(&I0_ASYMPTOTIC, inv_a) * (inv_a * f32x8::splat(1.0 / TAU)).sqrt()
+            };
+            let m_p = exponent.exp() * series.blend(small, large);
+            *mn_p = if p < P_MAX {
+                let d = phi - views.phis[p];
+                let d = (d - f32x8::splat(TAU) * (d / f32x8::splat(TAU)).round())
+                    .max(f32x8::splat(-PI))
+                    .min(f32x8::splat(PI));
+                let e = (-d.abs() * f32x8::splat(self.azimuthal.inv_s)).exp();
+                let e1 = e + one;
+                m_p * (e * f32x8::splat(self.azimuthal.norm) / (e1 * e1))
+            } else {
+                m_p * f32x8::splat(0.5 / PI)
+            };
+        }
+        let inv_cos = one / cos_i.max(f32x8::splat(COS_THETA_MIN));
+        let f =
+            |p: usize| -> [f32x8; 3] { std::array::from_fn(|c| views.ap[p][c] * mn[p] * inv_cos) };
+        let (f2, f3) = (f(2), f(3));
+        let pdf = if m_uniform(self) {
+            f32x8::splat(crate::util::sampling::UNIFORM_SPHERE_PDF)
+        } else {
+            (0..=P_MAX).fold(f32x8::ZERO, |s, p| views.ap_pdf[p].mul_add(mn[p], s))
+        };
+        EvalLanes {
+            r: f(0),
+            tt: f(1),
+            trt: std::array::from_fn(|c| f2[c] + f3[c]),
+            pdf,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bsdf::chiang::ChiangParams;
+    use crate::util::sampling::uniform_sphere;
+    use rand::Rng;
+    use rand_pcg::Pcg32;
+
+    /// The largest relative difference of the lanes from the scalar model over `batches` batches of random views
+    /// and directions (every lobe and channel and the pdf; values under `floor` of the batch's largest compared
+    /// absolutely, as a fraction of that largest), and whether every lane value was finite.
+    fn worst(model: &Chiang, rng: &mut Pcg32, batches: usize) -> (f64, bool) {
+        let mut worst = 0.0f64;
+        let mut finite = true;
+        for _ in 0..batches {
+            let mut views = Vec::with_capacity(LANES);
+            let mut wi = [Vec3::ZERO; LANES];
+            for w in wi.iter_mut() {
+                let h = rng.random_range(-1.0f32..=1.0);
+                let wo = uniform_sphere(rng.random(), rng.random());
+                views.push(model.at(h).viewed(wo));
+                *w = uniform_sphere(rng.random(), rng.random());
+            }
+            let views: [ChiangView; LANES] = views.try_into().unwrap();
+            let got = model.eval_lanes(&ViewLanes::new(&views), &directions(&wi));
+            for k in 0..LANES {
+                let (want, want_pdf) = model.eval_viewed(&views[k], wi[k]);
+                let (lane, lane_pdf) = got.lane(k);
+                let pairs = [(want.r, lane.r), (want.tt, lane.tt), (want.trt, lane.trt)];
+                let scale = pairs
+                    .iter()
+                    .map(|(w, _)| w.max_element())
+                    .fold(want_pdf, f32::max)
+                    .max(1e-30) as f64;
+                let mut compare = |w: f32, l: f32| {
+                    finite &= l.is_finite();
+                    let (w, l) = (w as f64, l as f64);
+                    let rel = (l - w).abs() / w.abs().max(1e-3 * scale);
+                    worst = worst.max(rel);
+                };
+                for (w, l) in pairs {
+                    for c in 0..3 {
+                        compare(w[c], l[c]);
+                    }
+                }
+                compare(want_pdf, lane_pdf);
+            }
+        }
+        (worst, finite)
+    }
+
+    #[test]
+    fn eight_lanes_give_the_scalar_models_values_to_f32_precision() {
+        let mut rng = Pcg32::new(27, 8);
+        let mut overall = 0.0f64;
+        for beta_m in [0.001f32, 0.005, 0.02, 0.1, 0.3, 0.6, 1.0] {
+            for beta_n in [0.001f32, 0.05, 0.3, 0.9, 1.0] {
+                let model = Chiang::new(ChiangParams {
+                    beta_m,
+                    beta_n,
+                    ..ChiangParams::default()
+                })
+                .unwrap();
+                let (w, finite) = worst(&model, &mut rng, 64);
+                assert!(
+                    finite,
+                    "βm {beta_m} βn {beta_n}: a lane value is not finite"
+                );
+                // f32 directions carry ~6e-8 rad of rounding, which moves M_p by (θ − θc)/v of it: at three
+                // standard deviations of the narrowest lobe (TT, v/4) 3.6e-7/√v relative — the precision f itself
+                // has from f32 inputs (0.05 % at βm = 0.001, 2.4e-5 at 0.02). Beyond that, 1e-4.
+                let v = f64::from(crate::bsdf::chiang::longitudinal_variance(beta_m));
+                let tolerance = 1e-4 + 3.6e-7 / v.sqrt();
+                println!("βm {beta_m} βn {beta_n}: {w:.2e} (tolerance {tolerance:.1e})");
+                assert!(
+                    w < tolerance,
+                    "βm {beta_m} βn {beta_n}: lanes off the scalar model by {w:e} (relative)"
+                );
+                overall = overall.max(w);
+            }
+        }
+        println!("chiang lanes: worst relative difference from the scalar model {overall:.2e}");
+    }
+}
