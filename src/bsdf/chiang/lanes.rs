@@ -19,7 +19,7 @@ use crate::bsdf::LobeValues;
 use crate::util::color::REC709_LUMINANCE;
 use glam::{Vec3, Vec3A};
 use std::f32::consts::{PI, TAU};
-use wide::{f32x8, CmpGt, CmpLe, CmpLt};
+use wide::{f32x8, CmpEq, CmpGt, CmpLe, CmpLt};
 
 /// Shading points per batch: one f32×8 vector.
 pub const LANES: usize = 8;
@@ -143,6 +143,115 @@ impl Chiang {
             phis,
             tilted_sin: tilted.map(|t| t.0),
             tilted_cos: tilted.map(|t| t.1),
+        }
+    }
+}
+
+/// Eight material samples ([`Chiang::sample_lanes`]).
+#[derive(Debug, Clone, Copy)]
+pub struct SampleLanes {
+    /// The sampled ωi (x, y, z vectors, local frame, unit length).
+    pub wi: [f32x8; 3],
+    /// The order p each lane's sampler drew (0 R, 1 TT, 2 TRT, 3 the residual; [`P_MAX`] + 1 in a uniformly
+    /// sampled model).
+    pub p: [u8; LANES],
+    /// f per lobe and the pdf at ωi ([`Chiang::eval_lanes`] there).
+    pub eval: EvalLanes,
+}
+
+impl Chiang {
+    /// [`Chiang::sample_viewed`] for eight views at once with lane k's random numbers (`u[0]`, `u[1]`, `u[2]`
+    /// lane k): the order p by P(p) (the remainder of u₀, rescaled, turns the longitudinal lobe's azimuth), sin θi
+    /// by d'Eon et al.'s inverse CDF, φi by the trimmed logistic about Φ(p) (uniform for the residual), then f and
+    /// the pdf at the sampled ωi. Lanes whose A_p all vanish keep the scalar model's fallback (the last p with
+    /// P(p) > 0, remainder ½).
+    pub fn sample_lanes(&self, views: &ViewLanes, u: [f32x8; 3]) -> SampleLanes {
+        let one = f32x8::splat(1.0);
+        if m_uniform(self) {
+            let sin_i = (one - f32x8::splat(2.0) * u[0]).max(-one).min(one);
+            let cos_i = (one - sin_i * sin_i).max(f32x8::ZERO).sqrt();
+            let (s, c) = (f32x8::splat(TAU) * u[1]).sin_cos();
+            let wi = [sin_i, cos_i * c, cos_i * s];
+            return SampleLanes {
+                wi,
+                p: [P_MAX as u8 + 1; LANES],
+                eval: self.eval_lanes(views, &wi),
+            };
+        }
+        // p by P(p), as the scalar model subtracts: r < q_p picks p, else r −= q_p.
+        let mut r = u[0];
+        let mut chosen = f32x8::ZERO; // all-ones lanes once a p was picked
+        let mut p_of = f32x8::splat(-1.0);
+        let mut remainder = f32x8::splat(0.5);
+        for p in 0..=P_MAX {
+            let q = views.ap_pdf[p];
+            let take = r.cmp_lt(q) & !chosen;
+            p_of = take.blend(f32x8::splat(p as f32), p_of);
+            remainder = take.blend((r / q).min(one), remainder);
+            chosen |= take;
+            r -= q;
+        }
+        // The fallback: the last p with P(p) > 0.
+        let mut last = f32x8::ZERO;
+        for p in 0..=P_MAX {
+            last = views.ap_pdf[p]
+                .cmp_gt(f32x8::ZERO)
+                .blend(f32x8::splat(p as f32), last);
+        }
+        let p_of = chosen.blend(p_of, last);
+        let pick = |values: [f32x8; P_MAX + 1]| {
+            (0..=P_MAX).fold(values[0], |acc, p| {
+                p_of.cmp_eq(f32x8::splat(p as f32)).blend(values[p], acc)
+            })
+        };
+        let (sin_o, cos_o) = (pick(views.tilted_sin), pick(views.tilted_cos));
+        let lobe_constant =
+            |f: &dyn Fn(usize) -> f32| pick(std::array::from_fn(|p| f32x8::splat(f(p))));
+        let v = lobe_constant(&|p| self.longitudinal[p.min(P_MAX - 1)].v as f32);
+        let one_minus_e =
+            lobe_constant(&|p| (1.0 - self.longitudinal[p.min(P_MAX - 1)].exp_m2_over_v) as f32);
+        // sin θi ([`super::Longitudinal::sample_sin_theta`]): w = cos t − 1 = v ln(ξ + (1 − ξ) e^{−2/v}) ∈ [−2, 0]
+        // with ξ = 1 − u₁, i.e. v ln(1 + x), x = −u₁ (1 − e^{−2/v}), by Kahan's ln(1 + x) = ln(y) x / (y − 1),
+        // y = 1 + x rounded: the scalar model takes the logarithm in f64, where a wide lobe's argument near 1 keeps
+        // its digits; this keeps them in f32.
+        let x = -u[1] * one_minus_e;
+        let y1 = one + x;
+        let ln1p = (y1 - one)
+            .cmp_eq(f32x8::ZERO)
+            .blend(x, y1.ln() * (x / (y1 - one)));
+        let w = (v * ln1p).max(f32x8::splat(-2.0));
+        let (cos_t, sin_t) = (
+            one + w,
+            (-w * (f32x8::splat(2.0) + w)).max(f32x8::ZERO).sqrt(),
+        );
+        let cos_phi = (f32x8::splat(TAU) * remainder).cos();
+        let sin_i = (sin_t * cos_phi)
+            .mul_sub(cos_o, cos_t * sin_o)
+            .max(-one)
+            .min(one);
+        let cos_i = (one - sin_i * sin_i).max(f32x8::ZERO).sqrt();
+        // φi − φo: Φ(p) plus the trimmed logistic's draw ([`super::Azimuthal::sample`]), uniform for the residual.
+        let a = &self.azimuthal;
+        let (lo, th) = (
+            f32x8::splat(a.cdf_lo as f32),
+            f32x8::splat(a.tanh_half as f32),
+        );
+        let q = u[2].mul_add(th, lo);
+        let q_c = (one - u[2]).mul_add(th, lo);
+        let logistic = (f32x8::splat(a.s) * (q / q_c).ln())
+            .max(f32x8::splat(-PI))
+            .min(f32x8::splat(PI));
+        let phis = pick([views.phis[0], views.phis[1], views.phis[2], f32x8::ZERO]);
+        let residual = p_of.cmp_eq(f32x8::splat(P_MAX as f32));
+        let dphi = residual.blend(f32x8::splat(TAU) * u[2], phis + logistic);
+        let phi_i = views.wo_z.atan2(views.wo_y) + dphi;
+        let (s, c) = phi_i.sin_cos();
+        let wi = [sin_i, cos_i * c, cos_i * s];
+        let p = p_of.as_array_ref().map(|p| p as u8);
+        SampleLanes {
+            wi,
+            p,
+            eval: self.eval_lanes(views, &wi),
         }
     }
 }
@@ -429,5 +538,75 @@ mod tests {
         println!(
             "chiang view lanes: worst relative difference from the scalar model {overall:.2e}"
         );
+    }
+
+    #[test]
+    fn eight_lanes_draw_the_scalar_models_samples() {
+        // Same views, same random numbers: the lanes must draw the scalar model's order p and, to f32 precision,
+        // its direction (so its distribution, which the scalar model's χ² tests check). The two subtract the
+        // orders' probabilities in the same order, so no lane is expected to pick another.
+        let mut rng = Pcg32::new(27, 10);
+        let (mut n, mut other_p, mut worst_angle) = (0usize, 0usize, 0.0f64);
+        for beta_m in [0.01f32, 0.1, 0.3, 1.0] {
+            for beta_n in [0.01f32, 0.3, 1.0] {
+                let model = Chiang::new(ChiangParams {
+                    beta_m,
+                    beta_n,
+                    ..ChiangParams::default()
+                })
+                .unwrap();
+                for _ in 0..64 {
+                    let views: [ChiangView; LANES] = std::array::from_fn(|_| {
+                        model
+                            .at(rng.random_range(-1.0f32..=1.0))
+                            .viewed(uniform_sphere(rng.random(), rng.random()))
+                    });
+                    let u: [[f32; 3]; LANES] = std::array::from_fn(|_| rng.random());
+                    let lanes = model.sample_lanes(
+                        &ViewLanes::new(&views),
+                        std::array::from_fn(|c| f32x8::new(u.map(|u| u[c]))),
+                    );
+                    for k in 0..LANES {
+                        let Some((want, _)) = model.sample_viewed(&views[k], u[k]) else {
+                            continue;
+                        };
+                        n += 1;
+                        let lobe = match lanes.p[k] {
+                            0 => Some(crate::bsdf::Lobe::R),
+                            1 => Some(crate::bsdf::Lobe::Tt),
+                            _ => Some(crate::bsdf::Lobe::Trt),
+                        };
+                        if lobe != want.lobe {
+                            other_p += 1;
+                            continue;
+                        }
+                        let wi = Vec3::new(
+                            lanes.wi[0].as_array_ref()[k],
+                            lanes.wi[1].as_array_ref()[k],
+                            lanes.wi[2].as_array_ref()[k],
+                        );
+                        assert!(
+                            (wi.length() - 1.0).abs() < 1e-5,
+                            "βm {beta_m}: |ωi| {}",
+                            wi.length()
+                        );
+                        // The chord between the two, in f64: the angle for angles this small (an f32 dot product's
+                        // arccosine cannot resolve under ~3e-4 rad).
+                        let angle = (0..3)
+                            .map(|c| (f64::from(wi[c]) - f64::from(want.wi[c])).powi(2))
+                            .sum::<f64>()
+                            .sqrt();
+                        worst_angle = worst_angle.max(angle);
+                        assert!(
+                            angle < 2e-5,
+                            "βm {beta_m} βn {beta_n}: ωi {wi} against {} ({angle:e} rad)",
+                            want.wi
+                        );
+                    }
+                }
+            }
+        }
+        println!("chiang sample lanes: {n} samples, {other_p} of another order, worst angle {worst_angle:.1e} rad");
+        assert_eq!(other_p, 0, "{other_p} of {n} lanes drew another order");
     }
 }
