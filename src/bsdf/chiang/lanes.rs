@@ -312,7 +312,9 @@ fn estrin16(c: &[f64; 32], x: f32x8) -> f32x8 {
 
 impl Chiang {
     /// [`Chiang::eval_viewed`] for eight (view, ωi) pairs at once: lane k evaluates `views` lane k at ωi's lane k
-    /// (`wi`: x, y, z, each a vector of the eight directions' component, as a batch of paths keeps them).
+    /// (`wi`: x, y, z, each a vector of the eight directions' component, as a batch of paths keeps them). Lanes
+    /// are independent: a lane without a path (a zero direction) gives NaN in that lane only, for the caller to
+    /// ignore.
     pub fn eval_lanes(&self, views: &ViewLanes, wi: &[f32x8; 3]) -> EvalLanes {
         let [x, y, z] = *wi;
         let one = f32x8::splat(1.0);
