@@ -611,4 +611,92 @@ mod tests {
         println!("chiang sample lanes: {n} samples, {other_p} of another order, worst angle {worst_angle:.1e} rad");
         assert_eq!(other_p, 0, "{other_p} of {n} lanes drew another order");
     }
+
+    #[test]
+    fn grazing_directions_and_edge_offsets_stay_finite_and_match() {
+        // The sweep every BSDF here passes, through the lanes: ωo and ωi along the fibre (θ = ±90°), a hair's
+        // breadth from it, and across it; h at the fibre's edges and centre; the roughness range's ends. Every lane
+        // value finite and non-negative; and within the views test's tolerance of the scalar model where both
+        // directions' azimuths are defined: a direction whose normal-plane component is ρ has its azimuth only to
+        // ~6e-8/ρ rad in f32, which N_p at βn = 0.001 (s ≈ 1.7e-4) turns into differences of that over s between
+        // any two f32 evaluations — unbounded at the axis, so the comparison skips ρ < 0.01 (0.6° off the axis).
+        let thetas = [-90.0f32, -89.99, -60.0, 0.0, 45.0, 89.99, 90.0].map(f32::to_radians);
+        let phis = [0.0f32, 1.0, PI];
+        let hs = [-1.0f32, -0.9999, 0.0, 0.5, 0.9999, 1.0];
+        let dir = |t: f32, p: f32| Vec3::new(t.sin(), t.cos() * p.cos(), t.cos() * p.sin());
+        let mut cases = Vec::new();
+        for &to in &thetas {
+            for &ti in &thetas {
+                for &pi in &phis {
+                    for &h in &hs {
+                        cases.push((h, dir(to, 0.3), dir(ti, 0.3 + pi)));
+                    }
+                }
+            }
+        }
+        for beta_m in [0.001f32, 0.3, 1.0] {
+            for beta_n in [0.001f32, 0.3, 1.0] {
+                let model = Chiang::new(ChiangParams {
+                    beta_m,
+                    beta_n,
+                    ..ChiangParams::default()
+                })
+                .unwrap();
+                let v = f64::from(crate::bsdf::chiang::longitudinal_variance(beta_m));
+                let tolerance = 1e-4 + 1.8e-6 / v.sqrt();
+                for batch in cases.chunks_exact(LANES) {
+                    let h = f32x8::new(std::array::from_fn(|k| batch[k].0));
+                    let wo: [Vec3; LANES] = std::array::from_fn(|k| batch[k].1);
+                    let wi: [Vec3; LANES] = std::array::from_fn(|k| batch[k].2);
+                    let views = model.view_lanes(h, &directions(&wo));
+                    let got = model.eval_lanes(&views, &directions(&wi));
+                    let drawn = model.sample_lanes(
+                        &views,
+                        [f32x8::splat(0.37), f32x8::splat(0.61), f32x8::splat(0.83)],
+                    );
+                    for k in 0..LANES {
+                        let (want, want_pdf) =
+                            model.eval_viewed(&model.at(batch[k].0).viewed(wo[k]), wi[k]);
+                        let (lane, lane_pdf) = got.lane(k);
+                        let scale = [want.r, want.tt, want.trt]
+                            .iter()
+                            .map(|w| w.max_element())
+                            .fold(want_pdf, f32::max)
+                            .max(1e-30) as f64;
+                        let mut values = vec![(want_pdf, lane_pdf)];
+                        for (w, l) in [(want.r, lane.r), (want.tt, lane.tt), (want.trt, lane.trt)] {
+                            values.extend((0..3).map(|c| (w[c], l[c])));
+                        }
+                        let rho = |w: Vec3| (w.y * w.y + w.z * w.z).sqrt();
+                        let defined = rho(wo[k]) >= 0.01 && rho(wi[k]) >= 0.01;
+                        for (w, l) in values {
+                            assert!(
+                                l.is_finite() && l >= 0.0,
+                                "βm {beta_m} βn {beta_n} case {:?}: {l}",
+                                batch[k]
+                            );
+                            let rel =
+                                (l as f64 - w as f64).abs() / (w.abs() as f64).max(1e-3 * scale);
+                            assert!(
+                                !defined || rel < tolerance,
+                                "βm {beta_m} βn {beta_n} case {:?}: {l} against {w}",
+                                batch[k]
+                            );
+                        }
+                        let (s, _) = drawn.eval.lane(k);
+                        let w = Vec3::new(
+                            drawn.wi[0].as_array_ref()[k],
+                            drawn.wi[1].as_array_ref()[k],
+                            drawn.wi[2].as_array_ref()[k],
+                        );
+                        assert!(
+                            w.is_finite() && (w.length() - 1.0).abs() < 1e-5,
+                            "sampled ωi {w}"
+                        );
+                        assert!(s.sum().is_finite(), "f at the sampled ωi");
+                    }
+                }
+            }
+        }
+    }
 }
