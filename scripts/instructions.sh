@@ -7,8 +7,9 @@
 #
 #   scripts/instructions.sh [SCENE] [extra render arguments...]
 #
-# Default: scenes/furball-peer.toml at 64x64, 4 spp (about 1.5 min per pass on this machine class). Extra
-# arguments go to `cuticle render` after the defaults (e.g. `--curves flat`, or `--res 128x128` to override).
+# Default: scenes/furball-peer.toml at RES=64x64, SPP=4 (about 1.5 min per pass on this machine class; set RES
+# and SPP in the environment to change them: `cuticle render` refuses an option given twice). Extra arguments go to
+# `cuticle render` (e.g. `--curves flat`).
 # Needs valgrind and ../shared/data for the scenes that read it.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -25,7 +26,7 @@ collected() {
     --toggle-collect='cuticle::render::render_tiles' "$@" 2>&1 | sed -n 's/.*Collected : \([0-9]*\).*/\1/p'
 }
 
-args=(render "$scene" --res 64x64 --spp 4 --threads 1 --quiet -o "$work/frame.exr" "$@")
+args=(render "$scene" --res "${RES:-64x64}" --spp "${SPP:-4}" --threads 1 --quiet -o "$work/frame.exr" "$@")
 total=$(collected "$bin" "${args[@]}")
 own=$(collected --toggle-collect='rtcIntersect1' --toggle-collect='rtcOccluded1' "$bin" "${args[@]}")
 [ -n "$total" ] && [ -n "$own" ] || { echo "callgrind gave no count" >&2; exit 1; }
