@@ -34,14 +34,17 @@
 //! specular + diffuse = direct + indirect. Beauty = direct + indirect + emitters and background seen directly.
 
 use glam::{Vec3, Vec3A};
+use wide::f32x8;
 
 use crate::accel::{CurveKind, Tracer};
-use crate::bsdf::chiang::{h_from_normal, h_from_ribbon, Chiang, ChiangView};
+use crate::bsdf::chiang::{
+    directions, h_from_normal, h_from_ribbon, Chiang, ChiangView, ViewLanes, LANES,
+};
 use crate::bsdf::frame::{sin_cos_theta, strand_noise, HairFrame};
 use crate::bsdf::{Bsdf, HitBsdf, Lobe, LobeValues, Material};
 use crate::hair::strands::tube_exit;
 use crate::hair::Strands;
-use crate::light::{Distribution1D, Light};
+use crate::light::{Distribution1D, Light, LightSample};
 use crate::ray::Ray;
 use crate::shadow::ShadowMaps;
 use crate::shape::Shapes;
@@ -569,6 +572,183 @@ impl<'a> Integrator<'a> {
         out
     }
 
+    /// Whether [`Integrator::sample_lanes`] can shade this frame's first vertices in lanes: Chiang's model, one
+    /// light chosen per sample (`lights = "one"`) with one light and one material sample.
+    pub fn lanes_fit(&self) -> bool {
+        self.chiang.is_some()
+            && !self.lights.is_empty()
+            && self.first.selection == LightSelection::One
+            && self.first.light_samples == 1
+            && self.first.material_samples == 1
+    }
+
+    /// [`Integrator::sample`] of eight camera samples (`rays[k]` with `samplers[k]`, sample `indices[k]`), their
+    /// first vertices shaded together where they are on Chiang fibres: the light samples' f and pdf by
+    /// [`Chiang::eval_lanes`], the material samples by [`Chiang::sample_lanes`], everything else (light choice,
+    /// rays, MIS, the deeper vertices) per sample as [`Integrator::sample`] does it. Step 2 of
+    /// `docs/wavefront.md`, experimental: the lanes draw the same samples with f32 arithmetic, so images differ
+    /// from [`Integrator::sample`]'s by its rounding. Needs [`Integrator::lanes_fit`].
+    pub fn sample_lanes(
+        &self,
+        rays: &[Ray; LANES],
+        samplers: &[CameraSample; LANES],
+        indices: &[u32; LANES],
+        counts: &mut RayCounts,
+    ) -> [PathSample; LANES] {
+        let model = self.chiang.expect("lanes_fit: a Chiang material");
+        let found: [Found; LANES] = std::array::from_fn(|k| {
+            counts.camera += 1;
+            self.find(&rays[k], None, counts)
+        });
+        let mut outs: [PathSample; LANES] = std::array::from_fn(|k| match &found[k] {
+            Found::Surface(_) => PathSample {
+                alpha: 1.0,
+                ..PathSample::default()
+            },
+            other => self.seen_directly(&rays[k], other),
+        });
+        // The lanes on a Chiang fibre: (vertex, frame, tint, view).
+        let hair = |k: usize| match &found[k] {
+            Found::Surface(v) => match &v.surface {
+                Surface::Hair {
+                    frame,
+                    tint,
+                    chiang: Some(view),
+                    ..
+                } => Some((v, *frame, *tint, view)),
+                _ => None,
+            },
+            _ => None,
+        };
+        let lanes: [Option<(&Vertex, HairFrame, Vec3, &ChiangView)>; LANES] =
+            std::array::from_fn(hair);
+        let Some(any) = lanes.iter().flatten().next().map(|l| l.3) else {
+            // No lane on a fibre: nothing to shade together.
+            for k in 0..LANES {
+                if let Found::Surface(v) = &found[k] {
+                    self.shade_first(v, &samplers[k], indices[k], &mut outs[k], counts);
+                }
+            }
+            return outs;
+        };
+        // Empty lanes evaluate a copy of a full one's view, their results unused.
+        let views = ViewLanes::from_refs(std::array::from_fn(|k| lanes[k].map_or(any, |l| l.3)));
+        let draw = |k: usize| Draw {
+            sampler: &samplers[k],
+            index: indices[k],
+            salt: 0,
+        };
+        // Light samples: the light and its direction per lane, f and pdf in lanes.
+        let mis = &self.first;
+        let light: [Option<(usize, f32, LightSample)>; LANES] = std::array::from_fn(|k| {
+            let (v, ..) = lanes[k]?;
+            let u_select = draw(k).get(dim::vertex(0, dim::LIGHT_SELECT));
+            let (j, p_select, _) = self.select.sample_discrete(u_select);
+            let delta = self.lights[j].is_delta();
+            if p_select <= 0.0 || !mis.samples_light(delta) {
+                return None;
+            }
+            let ls = self.first_vertex_light_draw(v, j, draw(k))?;
+            Some((j, mis.light_count(delta, p_select), ls))
+        });
+        let wi_l: [Vec3; LANES] = std::array::from_fn(|k| match (&lanes[k], &light[k]) {
+            (Some(l), Some((_, _, ls))) => l.1.to_local(ls.wi),
+            _ => Vec3::X,
+        });
+        let evals = model.eval_lanes(&views, &directions(&wi_l));
+        for k in 0..LANES {
+            if let (Some((v, _, tint, _)), Some((j, count, ls))) = (&lanes[k], &light[k]) {
+                let (lobes, pdf) = evals.lane(k);
+                let fcos = fcos(lobes, *tint, wi_l[k]);
+                self.first_vertex_light_finish(
+                    v,
+                    *j,
+                    *count,
+                    draw(k),
+                    ls,
+                    fcos,
+                    pdf,
+                    &mut outs[k],
+                    counts,
+                );
+            }
+        }
+        // Material samples, drawn in lanes.
+        let u: [[f32; 3]; LANES] = std::array::from_fn(|k| match lanes[k] {
+            Some(_) => draw(k).get_3(dim::vertex(0, dim::MATERIAL)),
+            None => [0.5; 3],
+        });
+        let drawn =
+            model.sample_lanes(&views, std::array::from_fn(|c| f32x8::new(u.map(|u| u[c]))));
+        for k in 0..LANES {
+            let Some((v, frame, tint, _)) = &lanes[k] else {
+                if let Found::Surface(v) = &found[k] {
+                    self.shade_first(v, &samplers[k], indices[k], &mut outs[k], counts);
+                }
+                continue;
+            };
+            let mut next = None;
+            let (lobes, pdf) = drawn.eval.lane(k);
+            if pdf > 0.0 && pdf.is_finite() {
+                let wi_l = Vec3::new(
+                    drawn.wi[0].as_array_ref()[k],
+                    drawn.wi[1].as_array_ref()[k],
+                    drawn.wi[2].as_array_ref()[k],
+                );
+                let sample = (
+                    frame.to_world(wi_l).normalize(),
+                    fcos(lobes, *tint, wi_l),
+                    pdf,
+                );
+                self.first_vertex_material_finish(
+                    v,
+                    0,
+                    draw(k),
+                    sample,
+                    &mut outs[k],
+                    counts,
+                    &mut next,
+                );
+            }
+            let out = &mut outs[k];
+            out.direct = out.lobes.sum();
+            if let Some((second, first_weights)) = &next {
+                let indirect = self.indirect(
+                    second,
+                    first_weights,
+                    &samplers[k],
+                    indices[k],
+                    counts,
+                    &mut (),
+                );
+                out.indirect = indirect.sum();
+                add_lobes(&mut out.lobes, &indirect, Vec3::ONE);
+            }
+            out.beauty = out.direct + out.indirect;
+        }
+        outs
+    }
+
+    /// [`Integrator::sample`]'s steps 2–5 for a camera ray that found the surface `v` (`out` as it starts).
+    fn shade_first(
+        &self,
+        v: &Vertex,
+        sampler: &CameraSample,
+        index: u32,
+        out: &mut PathSample,
+        counts: &mut RayCounts,
+    ) {
+        self.first_vertex_light_samples(v, sampler, index, out, counts);
+        let next = self.first_vertex_material_samples(v, sampler, index, out, counts);
+        out.direct = out.lobes.sum();
+        if let Some((second, first_weights)) = &next {
+            let indirect = self.indirect(second, first_weights, sampler, index, counts, &mut ());
+            out.indirect = indirect.sum();
+            add_lobes(&mut out.lobes, &indirect, Vec3::ONE);
+        }
+        out.beauty = out.direct + out.indirect;
+    }
+
     /// Step 1, a camera ray that found no surface (`found` is an emitter or nothing): the area light's L_e, with
     /// alpha 1; or the background, Σ L_e of the infinite lights (black unless the environment is visible), with
     /// alpha 0.
@@ -655,12 +835,37 @@ impl<'a> Integrator<'a> {
         out: &mut PathSample,
         counts: &mut RayCounts,
     ) {
-        let d = dim::vertex(0, dim::LIGHT);
-        let Some(ls) = self.lights[j].sample_li(v.p, draw.get_2(d)) else {
+        let Some(ls) = self.first_vertex_light_draw(v, j, draw) else {
             return;
         };
         let (fcos, pdf_m) = self.eval(v, ls.wi);
-        let w = self.first.light_weight(&ls, count, pdf_m);
+        self.first_vertex_light_finish(v, j, count, draw, &ls, fcos, pdf_m, out, counts);
+    }
+
+    /// The light sample's direction: [`Light::sample_li`] of light `j` at `v` with the draw's numbers.
+    #[inline]
+    fn first_vertex_light_draw(&self, v: &Vertex, j: usize, draw: Draw) -> Option<LightSample> {
+        self.lights[j].sample_li(v.p, draw.get_2(dim::vertex(0, dim::LIGHT)))
+    }
+
+    /// The rest of [`Integrator::first_vertex_light_sample`] once f · cos θi per lobe (`fcos`) and the material's
+    /// pdf (`pdf_m`) at the light sample `ls` are known.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    fn first_vertex_light_finish(
+        &self,
+        v: &Vertex,
+        j: usize,
+        count: f32,
+        draw: Draw,
+        ls: &LightSample,
+        fcos: LobeValues,
+        pdf_m: f32,
+        out: &mut PathSample,
+        counts: &mut RayCounts,
+    ) {
+        let d = dim::vertex(0, dim::LIGHT);
+        let w = self.first.light_weight(ls, count, pdf_m);
         let scale = ls.radiance * (w / (ls.pdf * count));
         let contribution = fcos.sum() * scale;
         let unshadowed = luminance(contribution);
@@ -725,29 +930,51 @@ impl<'a> Integrator<'a> {
             let Some((wi, fcos, pdf)) = self.sample_material(v, draw.get_3(d)) else {
                 continue;
             };
-            let weights = fcos.scaled(1.0 / pdf);
-            if k == 0 {
-                out.albedo = weights.sum();
-            }
-            let continues = k == 0 && self.settings.path_length > 0;
-            if !self.material_finds_light && !continues {
-                continue;
-            }
-            let le = if continues {
-                let (le, found) =
-                    self.trace_material_sample(v, &self.first, wi, pdf, draw.key(d), counts);
-                if let Found::Surface(second) = found {
-                    next = Some((second, weights));
-                }
-                le
-            } else {
-                self.trace_material_light(v, &self.first, wi, pdf, draw.key(d), counts)
-            };
-            if le.max_element() > 0.0 {
-                add_lobes(&mut out.lobes, &weights, le / n_m as f32);
-            }
+            self.first_vertex_material_finish(v, k, draw, (wi, fcos, pdf), out, counts, &mut next);
         }
         next
+    }
+
+    /// The rest of material sample `k` of [`Integrator::first_vertex_material_samples`] once its direction
+    /// (world space), f · cos θi per lobe and pdf are drawn: the albedo pass, the ray, the light it finds, and the
+    /// second vertex into `next` if it continues the path.
+    #[inline]
+    fn first_vertex_material_finish(
+        &self,
+        v: &Vertex,
+        k: u32,
+        draw: Draw,
+        (wi, fcos, pdf): (Vec3, LobeValues, f32),
+        out: &mut PathSample,
+        counts: &mut RayCounts,
+        next: &mut Option<(Vertex, LobeValues)>,
+    ) {
+        let d = dim::vertex(0, dim::MATERIAL);
+        let weights = fcos.scaled(1.0 / pdf);
+        if k == 0 {
+            out.albedo = weights.sum();
+        }
+        let continues = k == 0 && self.settings.path_length > 0;
+        if !self.material_finds_light && !continues {
+            return;
+        }
+        let le = if continues {
+            let (le, found) =
+                self.trace_material_sample(v, &self.first, wi, pdf, draw.key(d), counts);
+            if let Found::Surface(second) = found {
+                *next = Some((second, weights));
+            }
+            le
+        } else {
+            self.trace_material_light(v, &self.first, wi, pdf, draw.key(d), counts)
+        };
+        if le.max_element() > 0.0 {
+            add_lobes(
+                &mut out.lobes,
+                &weights,
+                le / self.first.material_samples as f32,
+            );
+        }
     }
 
     /// Step 4, the path beyond the first vertex, from the second vertex `v`: the light each deeper vertex sends

@@ -27,6 +27,7 @@ use std::time::Instant;
 use glam::Vec3;
 use rayon::prelude::*;
 
+use crate::bsdf::chiang::LANES;
 use crate::image::Image;
 use crate::ray::Ray;
 use crate::shadow::ShadowMaps;
@@ -271,6 +272,8 @@ fn render_tiles(
     let adaptive = settings.adaptive;
     let seed = settings.film.seed;
     let centre_ray = settings.film.traces_centre_ray();
+    // Experimental (`integrator.lanes`, docs/wavefront.md step 2): first vertices shaded eight at a time.
+    let lanes = settings.integrator.lanes && integrator.lanes_fit();
     let tiles: Vec<(u32, u32)> = (0..tiles_y)
         .flat_map(|ty| (0..tiles_x).map(move |tx| (tx, ty)))
         .collect();
@@ -333,7 +336,36 @@ fn render_tiles(
                         let mut sums = PixelSums::default();
                         let taken = match adaptive {
                             None => {
-                                for i in 0..spp {
+                                let mut i = 0;
+                                if lanes {
+                                    let pixel = PixelSampler::new(x, y, seed);
+                                    while i + LANES as u32 <= spp {
+                                        let indices: [u32; LANES] =
+                                            std::array::from_fn(|k| i + k as u32);
+                                        let samplers =
+                                            indices.map(|j| CameraSample::new(&pixel, j));
+                                        let rays: [Ray; LANES] = std::array::from_fn(|k| {
+                                            camera_ray(
+                                                &camera,
+                                                &filter,
+                                                &samplers[k],
+                                                x,
+                                                y,
+                                                indices[k],
+                                            )
+                                        });
+                                        for s in integrator.sample_lanes(
+                                            &rays,
+                                            &samplers,
+                                            &indices,
+                                            &mut counts,
+                                        ) {
+                                            sums.add(&s);
+                                        }
+                                        i += LANES as u32;
+                                    }
+                                }
+                                for i in i..spp {
                                     sums.add(&sample_pixel(x, y, i, &mut counts));
                                 }
                                 spp

@@ -186,6 +186,12 @@ pub struct IntegratorConfig {
     /// (`light_sampling_threshold`, 0.01 by default there, same test); 0 = off (cuticle's default, every light
     /// sample traced).
     pub light_threshold: f32,
+    /// Experimental (issue 15, `docs/wavefront.md` step 2): shade the first vertices of eight camera samples at
+    /// once, Chiang's view terms evaluated and sampled in f32×8 lanes, where the frame fits (Chiang's model,
+    /// `lights = "one"`, one light and one material sample, a fixed spp; elsewhere this does nothing). The lanes
+    /// draw the same samples with f32 arithmetic, so the image differs from the default one by that rounding
+    /// (RMS 2e-4 on the peer scene at 128²). Off by default.
+    pub lanes: bool,
 }
 
 impl Default for IntegratorConfig {
@@ -198,6 +204,7 @@ impl Default for IntegratorConfig {
             strategy: Strategy::Mis,
             lights: LightSelection::All,
             light_threshold: 0.0,
+            lanes: false,
         }
     }
 }

@@ -44,15 +44,24 @@ pub struct ViewLanes {
 impl ViewLanes {
     /// The eight views in lanes 0 to 7.
     pub fn new(views: &[ChiangView; LANES]) -> ViewLanes {
-        let lane = |f: &dyn Fn(&ChiangView) -> f32| f32x8::new(views.each_ref().map(f));
+        ViewLanes::from_refs(views.each_ref())
+    }
+
+    /// [`ViewLanes::new`] of views kept elsewhere (no copy of the views).
+    pub fn from_refs(views: [&ChiangView; LANES]) -> ViewLanes {
+        #[inline(always)]
+        fn lane(views: &[&ChiangView; LANES], f: impl Fn(&ChiangView) -> f32) -> f32x8 {
+            f32x8::new(std::array::from_fn(|k| f(views[k])))
+        }
+        let v = &views;
         ViewLanes {
-            wo_y: lane(&|v| v.wo.y),
-            wo_z: lane(&|v| v.wo.z),
-            ap: std::array::from_fn(|p| std::array::from_fn(|c| lane(&|v| v.view.ap[p][c]))),
-            ap_pdf: std::array::from_fn(|p| lane(&|v| v.view.ap_pdf[p])),
-            phis: std::array::from_fn(|p| lane(&|v| v.view.phis[p])),
-            tilted_sin: std::array::from_fn(|p| lane(&|v| v.view.tilted[p].0 as f32)),
-            tilted_cos: std::array::from_fn(|p| lane(&|v| v.view.tilted[p].1 as f32)),
+            wo_y: lane(v, |v| v.wo.y),
+            wo_z: lane(v, |v| v.wo.z),
+            ap: std::array::from_fn(|p| std::array::from_fn(|c| lane(v, |v| v.view.ap[p][c]))),
+            ap_pdf: std::array::from_fn(|p| lane(v, |v| v.view.ap_pdf[p])),
+            phis: std::array::from_fn(|p| lane(v, |v| v.view.phis[p])),
+            tilted_sin: std::array::from_fn(|p| lane(v, |v| v.view.tilted[p].0 as f32)),
+            tilted_cos: std::array::from_fn(|p| lane(v, |v| v.view.tilted[p].1 as f32)),
         }
     }
 }
