@@ -938,6 +938,8 @@ impl<'a> Integrator<'a> {
     /// The rest of material sample `k` of [`Integrator::first_vertex_material_samples`] once its direction
     /// (world space), f · cos θi per lobe and pdf are drawn: the albedo pass, the ray, the light it finds, and the
     /// second vertex into `next` if it continues the path.
+    // The sample's state and the path's three outputs, as `first_vertex_light_finish` takes them.
+    #[allow(clippy::too_many_arguments)]
     #[inline]
     fn first_vertex_material_finish(
         &self,
