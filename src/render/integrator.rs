@@ -37,9 +37,7 @@ use glam::{Vec3, Vec3A};
 use wide::f32x8;
 
 use crate::accel::{CurveKind, Tracer};
-use crate::bsdf::chiang::{
-    directions, h_from_normal, h_from_ribbon, Chiang, ChiangView, ViewLanes, LANES,
-};
+use crate::bsdf::chiang::{directions, h_from_normal, h_from_ribbon, Chiang, ChiangView, LANES};
 use crate::bsdf::frame::{sin_cos_theta, strand_noise, HairFrame};
 use crate::bsdf::{Bsdf, HitBsdf, Lobe, LobeValues, Material};
 use crate::hair::strands::tube_exit;
@@ -354,7 +352,7 @@ impl<'a> Integrator<'a> {
 
     /// The shading point of a strand hit.
     #[inline(always)]
-    fn hair_vertex(&self, ray: &Ray, hit: &crate::accel::Hit) -> Vertex {
+    fn hair_vertex(&self, ray: &Ray, hit: &crate::accel::Hit, view: bool) -> Vertex {
         let wo = -ray.dir.normalize();
         let point = self.strands.eval(hit.segment, hit.u);
         // A degenerate strand (repeated points) has no tangent: shade it as a fibre perpendicular to the view.
@@ -387,6 +385,7 @@ impl<'a> Integrator<'a> {
         };
         let chiang = self
             .chiang
+            .filter(|_| view)
             .map(|model| model.at(h).viewed(frame.to_local(wo)));
         Vertex {
             p: ray.at(hit.t),
@@ -598,7 +597,7 @@ impl<'a> Integrator<'a> {
         let model = self.chiang.expect("lanes_fit: a Chiang material");
         let found: [Found; LANES] = std::array::from_fn(|k| {
             counts.camera += 1;
-            self.find(&rays[k], None, counts)
+            self.find_with(&rays[k], None, counts, false)
         });
         let mut outs: [PathSample; LANES] = std::array::from_fn(|k| match &found[k] {
             Found::Surface(_) => PathSample {
@@ -607,22 +606,16 @@ impl<'a> Integrator<'a> {
             },
             other => self.seen_directly(&rays[k], other),
         });
-        // The lanes on a Chiang fibre: (vertex, frame, tint, view).
+        // The lanes on a fibre (every fibre is Chiang's here): (vertex, frame, tint, h).
         let hair = |k: usize| match &found[k] {
             Found::Surface(v) => match &v.surface {
-                Surface::Hair {
-                    frame,
-                    tint,
-                    chiang: Some(view),
-                    ..
-                } => Some((v, *frame, *tint, view)),
+                Surface::Hair { frame, tint, h, .. } => Some((v, *frame, *tint, *h)),
                 _ => None,
             },
             _ => None,
         };
-        let lanes: [Option<(&Vertex, HairFrame, Vec3, &ChiangView)>; LANES] =
-            std::array::from_fn(hair);
-        let Some(any) = lanes.iter().flatten().next().map(|l| l.3) else {
+        let lanes: [Option<(&Vertex, HairFrame, Vec3, f32)>; LANES] = std::array::from_fn(hair);
+        if lanes.iter().all(Option::is_none) {
             // No lane on a fibre: nothing to shade together.
             for k in 0..LANES {
                 if let Found::Surface(v) = &found[k] {
@@ -631,8 +624,11 @@ impl<'a> Integrator<'a> {
             }
             return outs;
         };
-        // Empty lanes evaluate a copy of a full one's view, their results unused.
-        let views = ViewLanes::from_refs(std::array::from_fn(|k| lanes[k].map_or(any, |l| l.3)));
+        // The views in lanes (empty lanes take h = 0 and ωo across the fibre, their results unused).
+        let h = f32x8::new(lanes.map(|l| l.map_or(0.0, |l| l.3)));
+        let wo_l: [Vec3; LANES] =
+            lanes.map(|l| l.map_or(Vec3::Y, |(v, frame, ..)| frame.to_local(v.wo)));
+        let views = model.view_lanes(h, &directions(&wo_l));
         let draw = |k: usize| Draw {
             sampler: &samplers[k],
             index: indices[k],

@@ -68,6 +68,19 @@ impl Integrator<'_> {
         stochastic: Option<(u64, Option<u32>)>,
         counts: &mut RayCounts,
     ) -> Found {
+        self.find_with(ray, stochastic, counts, true)
+    }
+
+    /// [`Integrator::find`], a hair vertex with Chiang's view terms only if `view` (the lanes of
+    /// [`Integrator::sample_lanes`] take them eight at a time).
+    #[inline(always)]
+    pub(super) fn find_with(
+        &self,
+        ray: &Ray,
+        stochastic: Option<(u64, Option<u32>)>,
+        counts: &mut RayCounts,
+        view: bool,
+    ) -> Found {
         let hair = match stochastic {
             None => self.tracer.intersect(ray),
             Some((key, ignore)) => self.tracer.intersect_stochastic(ray, ignore, key),
@@ -83,7 +96,7 @@ impl Integrator<'_> {
             return found;
         }
         match hair {
-            Some(h) => Found::Surface(self.hair_vertex(ray, &h)),
+            Some(h) => Found::Surface(self.hair_vertex(ray, &h, view)),
             None => Found::Escaped,
         }
     }
