@@ -559,16 +559,32 @@ impl<'a> Integrator<'a> {
         };
         self.first_vertex_light_samples(first, sampler, index, &mut out, counts);
         let next = self.first_vertex_material_samples(first, sampler, index, &mut out, counts);
+        self.finish_path(&mut out, &next, (sampler, index), counts, record, &before);
+        out
+    }
+
+    /// Step 5 once the first vertex is shaded (`out`'s lobes hold its light, `next` the second vertex if the path
+    /// goes on): the direct pass, the deeper vertices into the indirect pass, the beauty; vertex 0's light and rays
+    /// (since `before`) reported to `record`.
+    #[inline]
+    fn finish_path<R: BounceRecorder>(
+        &self,
+        out: &mut PathSample,
+        next: &Option<(Vertex, LobeValues)>,
+        (sampler, index): (&CameraSample, u32),
+        counts: &mut RayCounts,
+        record: &mut R,
+        before: &RayCounts,
+    ) {
         out.direct = out.lobes.sum();
-        record.vertex(0, out.direct, &counts.since(&before));
+        record.vertex(0, out.direct, &counts.since(before));
         // By reference: the second vertex is not moved out of `next`.
-        if let Some((second, first_weights)) = &next {
+        if let Some((second, first_weights)) = next {
             let indirect = self.indirect(second, first_weights, sampler, index, counts, record);
             out.indirect = indirect.sum();
             add_lobes(&mut out.lobes, &indirect, Vec3::ONE);
         }
         out.beauty = out.direct + out.indirect;
-        out
     }
 
     /// Whether [`Integrator::sample_lanes`] can shade this frame's first vertices in lanes: Chiang's model, one
@@ -706,21 +722,15 @@ impl<'a> Integrator<'a> {
                     &mut next,
                 );
             }
-            let out = &mut outs[k];
-            out.direct = out.lobes.sum();
-            if let Some((second, first_weights)) = &next {
-                let indirect = self.indirect(
-                    second,
-                    first_weights,
-                    &samplers[k],
-                    indices[k],
-                    counts,
-                    &mut (),
-                );
-                out.indirect = indirect.sum();
-                add_lobes(&mut out.lobes, &indirect, Vec3::ONE);
-            }
-            out.beauty = out.direct + out.indirect;
+            let before = *counts;
+            self.finish_path(
+                &mut outs[k],
+                &next,
+                (&samplers[k], indices[k]),
+                counts,
+                &mut (),
+                &before,
+            );
         }
         outs
     }
@@ -736,13 +746,8 @@ impl<'a> Integrator<'a> {
     ) {
         self.first_vertex_light_samples(v, sampler, index, out, counts);
         let next = self.first_vertex_material_samples(v, sampler, index, out, counts);
-        out.direct = out.lobes.sum();
-        if let Some((second, first_weights)) = &next {
-            let indirect = self.indirect(second, first_weights, sampler, index, counts, &mut ());
-            out.indirect = indirect.sum();
-            add_lobes(&mut out.lobes, &indirect, Vec3::ONE);
-        }
-        out.beauty = out.direct + out.indirect;
+        let before = *counts;
+        self.finish_path(out, &next, (sampler, index), counts, &mut (), &before);
     }
 
     /// Step 1, a camera ray that found no surface (`found` is an emitter or nothing): the area light's L_e, with
