@@ -557,9 +557,7 @@ impl<'a> Integrator<'a> {
             alpha: 1.0,
             ..PathSample::default()
         };
-        self.first_vertex_light_samples(first, sampler, index, &mut out, counts);
-        let next = self.first_vertex_material_samples(first, sampler, index, &mut out, counts);
-        self.finish_path(&mut out, &next, (sampler, index), counts, record, &before);
+        self.shade_first(first, (sampler, index), &mut out, counts, record, &before);
         out
     }
 
@@ -635,11 +633,13 @@ impl<'a> Integrator<'a> {
             // No lane on a fibre: nothing to shade together.
             for k in 0..LANES {
                 if let Found::Surface(v) = &found[k] {
-                    self.shade_first(v, &samplers[k], indices[k], &mut outs[k], counts);
+                    let before = *counts;
+                    let at = (&samplers[k], indices[k]);
+                    self.shade_first(v, at, &mut outs[k], counts, &mut (), &before);
                 }
             }
             return outs;
-        };
+        }
         // The views in lanes (empty lanes take h = 0 and ωo across the fibre, their results unused).
         let h = f32x8::new(lanes.map(|l| l.map_or(0.0, |l| l.3)));
         let wo_l: [Vec3; LANES] =
@@ -695,18 +695,16 @@ impl<'a> Integrator<'a> {
         for k in 0..LANES {
             let Some((v, frame, tint, _)) = &lanes[k] else {
                 if let Found::Surface(v) = &found[k] {
-                    self.shade_first(v, &samplers[k], indices[k], &mut outs[k], counts);
+                    let before = *counts;
+                    let at = (&samplers[k], indices[k]);
+                    self.shade_first(v, at, &mut outs[k], counts, &mut (), &before);
                 }
                 continue;
             };
             let mut next = None;
             let (lobes, pdf) = drawn.eval.lane(k);
             if pdf > 0.0 && pdf.is_finite() {
-                let wi_l = Vec3::new(
-                    drawn.wi[0].as_array_ref()[k],
-                    drawn.wi[1].as_array_ref()[k],
-                    drawn.wi[2].as_array_ref()[k],
-                );
+                let wi_l = drawn.wi(k);
                 let sample = (
                     frame.to_world(wi_l).normalize(),
                     fcos(lobes, *tint, wi_l),
@@ -735,19 +733,21 @@ impl<'a> Integrator<'a> {
         outs
     }
 
-    /// [`Integrator::sample`]'s steps 2–5 for a camera ray that found the surface `v` (`out` as it starts).
-    fn shade_first(
+    /// [`Integrator::sample`]'s steps 2–5 for a camera ray that found the surface `v` (`out` as it starts; the
+    /// ray counts were `before` at the camera ray).
+    #[inline]
+    fn shade_first<R: BounceRecorder>(
         &self,
         v: &Vertex,
-        sampler: &CameraSample,
-        index: u32,
+        (sampler, index): (&CameraSample, u32),
         out: &mut PathSample,
         counts: &mut RayCounts,
+        record: &mut R,
+        before: &RayCounts,
     ) {
         self.first_vertex_light_samples(v, sampler, index, out, counts);
         let next = self.first_vertex_material_samples(v, sampler, index, out, counts);
-        let before = *counts;
-        self.finish_path(out, &next, (sampler, index), counts, &mut (), &before);
+        self.finish_path(out, &next, (sampler, index), counts, record, before);
     }
 
     /// Step 1, a camera ray that found no surface (`found` is an emitter or nothing): the area light's L_e, with

@@ -1,8 +1,7 @@
-//! Chiang's eval for eight shading points at once: step 1 of `docs/wavefront.md` (issue 15, target 3), where a
-//! batch of paths is shaded one f32×8 vector (AVX2) at a time and the scalar [`Chiang::eval_viewed`] evaluates one
-//! path's four lobes as one f64×4 vector. Not yet called by the renderer: the integrator that batches paths is the
-//! plan's next step, and this kernel's measured cost (`cargo bench --bench bsdf -- chiang-lanes`) is what says
-//! whether it is worth building.
+//! Chiang's view, eval and sample for eight shading points at once (steps 1–2 of `docs/wavefront.md`, issue 15):
+//! a batch of paths is shaded one f32×8 vector (AVX2) at a time, where the scalar [`Chiang::eval_viewed`]
+//! evaluates one path's four lobes as one f64×4 vector. The integrator's `integrator.lanes` path calls them
+//! (`Integrator::sample_lanes`); `cargo bench --bench bsdf -- chiang-lanes` measures the eval against the scalar one.
 //!
 //! The same model, written for f32 lanes:
 //! - M_p (d'Eon et al. 2011) as exp(ln c − (1 − cos(θi + θo′))/v − a) I₀(a) for a = cos θi cos θo′/v ≤ 10 and
@@ -44,16 +43,12 @@ pub struct ViewLanes {
 impl ViewLanes {
     /// The eight views in lanes 0 to 7.
     pub fn new(views: &[ChiangView; LANES]) -> ViewLanes {
-        ViewLanes::from_refs(views.each_ref())
-    }
-
-    /// [`ViewLanes::new`] of views kept elsewhere (no copy of the views).
-    pub fn from_refs(views: [&ChiangView; LANES]) -> ViewLanes {
+        // A generic closure, not `&dyn Fn`: called per field and lane, dynamic calls cost more than the copies.
         #[inline(always)]
-        fn lane(views: &[&ChiangView; LANES], f: impl Fn(&ChiangView) -> f32) -> f32x8 {
-            f32x8::new(std::array::from_fn(|k| f(views[k])))
+        fn lane(views: &[ChiangView; LANES], f: impl Fn(&ChiangView) -> f32) -> f32x8 {
+            f32x8::new(std::array::from_fn(|k| f(&views[k])))
         }
-        let v = &views;
+        let v = views;
         ViewLanes {
             wo_y: lane(v, |v| v.wo.y),
             wo_z: lane(v, |v| v.wo.z),
@@ -64,6 +59,16 @@ impl ViewLanes {
             tilted_cos: std::array::from_fn(|p| lane(v, |v| v.view.tilted[p].1 as f32)),
         }
     }
+}
+
+/// Lane `k` of three vectors (x, y, z or R, G, B).
+#[inline]
+fn lane_vec3(c: &[f32x8; 3], k: usize) -> Vec3 {
+    Vec3::new(
+        c[0].as_array_ref()[k],
+        c[1].as_array_ref()[k],
+        c[2].as_array_ref()[k],
+    )
 }
 
 /// The Fresnel reflectance of a dielectric of index `eta` at incidence cosine `cos_i` per lane
@@ -166,6 +171,13 @@ pub struct SampleLanes {
     pub p: [u8; LANES],
     /// f per lobe and the pdf at ωi ([`Chiang::eval_lanes`] there).
     pub eval: EvalLanes,
+}
+
+impl SampleLanes {
+    /// Lane `k`'s sampled ωi.
+    pub fn wi(&self, k: usize) -> Vec3 {
+        lane_vec3(&self.wi, k)
+    }
 }
 
 impl Chiang {
@@ -286,13 +298,7 @@ pub struct EvalLanes {
 impl EvalLanes {
     /// Lane `k` as [`Chiang::eval_viewed`] returns it.
     pub fn lane(&self, k: usize) -> (LobeValues, f32) {
-        let rgb = |c: &[f32x8; 3]| {
-            Vec3A::from(Vec3::new(
-                c[0].as_array_ref()[k],
-                c[1].as_array_ref()[k],
-                c[2].as_array_ref()[k],
-            ))
-        };
+        let rgb = |c: &[f32x8; 3]| Vec3A::from(lane_vec3(c, k));
         (
             LobeValues {
                 r: rgb(&self.r),
@@ -591,11 +597,7 @@ mod tests {
                             other_p += 1;
                             continue;
                         }
-                        let wi = Vec3::new(
-                            lanes.wi[0].as_array_ref()[k],
-                            lanes.wi[1].as_array_ref()[k],
-                            lanes.wi[2].as_array_ref()[k],
-                        );
+                        let wi = lanes.wi(k);
                         assert!(
                             (wi.length() - 1.0).abs() < 1e-5,
                             "βm {beta_m}: |ωi| {}",
@@ -693,11 +695,7 @@ mod tests {
                             );
                         }
                         let (s, _) = drawn.eval.lane(k);
-                        let w = Vec3::new(
-                            drawn.wi[0].as_array_ref()[k],
-                            drawn.wi[1].as_array_ref()[k],
-                            drawn.wi[2].as_array_ref()[k],
-                        );
+                        let w = drawn.wi(k);
                         assert!(
                             w.is_finite() && (w.length() - 1.0).abs() < 1e-5,
                             "sampled ωi {w}"
