@@ -5,7 +5,7 @@ use std::path::Path;
 
 mod common;
 
-use common::{render_scene, render_scene_with_stats};
+use common::{bit_differences, render_scene, render_scene_with_stats};
 use cuticle::image::Image;
 use cuticle::scene::{LightSelection, Scene, ShadowMode, Strategy};
 
@@ -574,12 +574,7 @@ fn bit_identical_with_one_and_two_threads_with_every_feature_on() {
         (b.width, b.height, &b.channels)
     );
     assert_eq!(a.data.len(), b.data.len());
-    let differing = a
-        .data
-        .iter()
-        .zip(&b.data)
-        .filter(|(x, y)| x.to_bits() != y.to_bits())
-        .count();
+    let differing = bit_differences(&a.data, &b.data);
     assert_eq!(
         differing, 0,
         "{differing} values differ between 1 and 2 threads"
@@ -689,11 +684,7 @@ fn deep_opacity_renders_are_bit_identical_with_one_and_two_threads() {
     scene.shadows.mode = ShadowMode::DeepOpacity;
     scene.shadows.deep_opacity.resolution = 256;
     let (a, b) = (render_scene(&scene, 1), render_scene(&scene, 2));
-    assert!(a
-        .data
-        .iter()
-        .zip(&b.data)
-        .all(|(x, y)| x.to_bits() == y.to_bits()));
+    assert_eq!(bit_differences(&a.data, &b.data), 0);
     let shadow = channel(&a, "shadow.Y");
     assert!(shadow.iter().all(|s| (0.0..=1.0).contains(s)));
     assert!(
@@ -887,12 +878,7 @@ fn first_vertices_shaded_in_lanes_give_the_default_image_to_f32_rounding() {
         "rays {ra} and {rb}"
     );
     let one = render_scene(&peer_like(true), 1);
-    let differing = lanes
-        .data
-        .iter()
-        .zip(&one.data)
-        .filter(|(x, y)| x.to_bits() != y.to_bits())
-        .count();
+    let differing = bit_differences(&lanes.data, &one.data);
     assert_eq!(
         differing, 0,
         "{differing} values differ between 1 and 2 threads"

@@ -24,11 +24,7 @@ fn one_and_two_threads_give_bit_identical_pixels() {
     let a = render_with_threads(&scene, 1);
     let b = render_with_threads(&scene, 2);
     assert_eq!(a.len(), b.len());
-    let differing = a
-        .iter()
-        .zip(&b)
-        .filter(|(x, y)| x.to_bits() != y.to_bits())
-        .count();
+    let differing = common::bit_differences(&a, &b);
     assert_eq!(
         differing, 0,
         "{differing} channel values differ between 1 and 2 threads"

@@ -18,3 +18,15 @@ pub fn render_scene_with_stats(scene: &Scene, threads: usize) -> (Image, RenderS
     assert_eq!(stats.rays.rejected, 0);
     (image, stats)
 }
+
+/// How many values of two equally long pixel buffers differ in any bit (the thread-count and tile-split
+/// determinism checks: 0 expected).
+// Not every test binary that includes this module compares images.
+#[allow(dead_code)]
+pub fn bit_differences(a: &[f32], b: &[f32]) -> usize {
+    assert_eq!(a.len(), b.len(), "buffers of different sizes");
+    a.iter()
+        .zip(b)
+        .filter(|(x, y)| x.to_bits() != y.to_bits())
+        .count()
+}
