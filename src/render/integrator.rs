@@ -629,14 +629,18 @@ impl<'a> Integrator<'a> {
             _ => None,
         };
         let lanes: [Option<(&Vertex, HairFrame, Vec3, f32)>; LANES] = std::array::from_fn(hair);
+        // A lane on another surface (or none): shaded alone, as `sample` does.
+        let shade_alone = |k: usize, out: &mut PathSample, counts: &mut RayCounts| {
+            if let Found::Surface(v) = &found[k] {
+                let before = *counts;
+                let at = (&samplers[k], indices[k]);
+                self.shade_first(v, at, out, counts, &mut (), &before);
+            }
+        };
         if lanes.iter().all(Option::is_none) {
             // No lane on a fibre: nothing to shade together.
-            for k in 0..LANES {
-                if let Found::Surface(v) = &found[k] {
-                    let before = *counts;
-                    let at = (&samplers[k], indices[k]);
-                    self.shade_first(v, at, &mut outs[k], counts, &mut (), &before);
-                }
+            for (k, out) in outs.iter_mut().enumerate() {
+                shade_alone(k, out, counts);
             }
             return outs;
         }
@@ -694,11 +698,7 @@ impl<'a> Integrator<'a> {
             model.sample_lanes(&views, std::array::from_fn(|c| f32x8::new(u.map(|u| u[c]))));
         for k in 0..LANES {
             let Some((v, frame, tint, _)) = &lanes[k] else {
-                if let Found::Surface(v) = &found[k] {
-                    let before = *counts;
-                    let at = (&samplers[k], indices[k]);
-                    self.shade_first(v, at, &mut outs[k], counts, &mut (), &before);
-                }
+                shade_alone(k, &mut outs[k], counts);
                 continue;
             };
             let mut next = None;
