@@ -43,6 +43,13 @@
 //! out 3–12 % under the stop's aim in relative RMSE, never over; with the model alone, and no margins, frames had
 //! missed the target itself by up to 8 % (fourteenth study run).
 //!
+//! Pixels that see only the **background** (every sample's camera ray hit nothing: the environment through the
+//! pixel filter) are read apart ([`Schedule::split_per_pixel`]): their samples differ only by where they fall in the
+//! pixel, and the stratified sampler converges on them at about m^−1.6, not the hair's m^−1.1, so both estimates
+//! above read them 2–4× too noisy. Their halves are divided by 2^α − 1, α the order the background pixels' own
+//! quarters against their halves measure (one octave below, pooled over the background) but at most 4/3
+//! ([`BACKGROUND_MAX_ORDER`]), and the model takes the same for them.
+//!
 //! Against the per-pixel rule ([`Rule::Pixel`]) this spends nothing on pixels whose error is already small
 //! relative to the image's, and lets a bright noisy pixel exceed the others: the image's error, not the worst
 //! pixel's, meets the target. What it cannot see (like any rule reading the samples) is a rare bright path that
@@ -86,6 +93,14 @@ pub struct Convergence {
     /// The sums per channel of the first P/2 and the first P samples, P the largest power of two ≤ n: the two
     /// halves of the pixel's first P samples ([`Convergence::split_rel_mse`]).
     halves: [[f32; 3]; 2],
+    /// The sums per channel of the first P/4, P/2, 3P/4 and P samples (P ≥ 4): the pixel's first P samples in
+    /// quarters, whose pairs measure the convergence one octave below the halves' ([`Convergence::split_terms`]).
+    quarters: [[f32; 3]; 4],
+    /// The sums per channel of the first 3·2ʲ samples, the latest such count reached: a later P = 2ʲ⁺² takes it as
+    /// its 3P/4.
+    at_three: [f32; 3],
+    /// Samples added whose camera ray hit nothing (alpha 0; [`Convergence::add_uncovered`]).
+    uncovered: u32,
 }
 
 impl Convergence {
@@ -103,7 +118,13 @@ impl Convergence {
         }
         if self.n.is_power_of_two() {
             let sums = self.mean.map(|m| (m * k) as f32);
+            if self.n >= 4 {
+                // halves = [S(P/4), S(P/2)] until the shift below.
+                self.quarters = [self.halves[0], self.halves[1], self.at_three, sums];
+            }
             self.halves = [self.halves[1], sums];
+        } else if self.n % 3 == 0 && (self.n / 3).is_power_of_two() {
+            self.at_three = self.mean.map(|m| (m * k) as f32);
         }
     }
 
@@ -120,8 +141,17 @@ impl Convergence {
     /// from the pilots, it sees how much faster than independent samples *this* frame's samples converge at the
     /// counts they reached.
     pub fn split_rel_mse(&self, means: [f64; 3]) -> f64 {
+        match self.split_terms(means) {
+            Some(t) => t.halves * f64::from(t.p) / f64::from(self.n),
+            None => 0.0,
+        }
+    }
+
+    /// The pixel's halves and quarters as relative MSEs over `means` (mean over RGB, [`SplitTerms`]); `None` with
+    /// fewer than 2 samples.
+    fn split_terms(&self, means: [f64; 3]) -> Option<SplitTerms> {
         if self.n < 2 {
-            return 0.0;
+            return None;
         }
         let p = 1u32 << (31 - self.n.leading_zeros());
         let half = f64::from(p / 2);
@@ -132,7 +162,37 @@ impl Convergence {
             let b = (f64::from(both[c]) - f64::from(first[c])) / half;
             sum += 0.25 * (a - b) * (a - b) / (means[c] * means[c] + 0.01);
         }
-        sum / 3.0 * f64::from(p) / f64::from(self.n)
+        let quarters = (p >= 4).then(|| {
+            let quarter = f64::from(p / 4);
+            let [s1, s2, s3, s4] = self.quarters.map(|s| s.map(f64::from));
+            let mut sum = 0.0;
+            for c in 0..3 {
+                let q = [s1[c], s2[c] - s1[c], s3[c] - s2[c], s4[c] - s3[c]].map(|x| x / quarter);
+                let d = 0.25 * ((q[0] - q[1]).powi(2) + (q[2] - q[3]).powi(2)) / 2.0;
+                sum += d / (means[c] * means[c] + 0.01);
+            }
+            sum / 3.0
+        });
+        Some(SplitTerms {
+            p,
+            halves: sum / 3.0,
+            quarters,
+        })
+    }
+
+    /// Adds one sample's beauty, of a camera ray that hit nothing (the background alone: alpha 0).
+    #[inline]
+    pub fn add_uncovered(&mut self, beauty: Vec3) {
+        self.add(beauty);
+        self.uncovered += 1;
+    }
+
+    /// Whether the pixel has samples and every one of them was a camera ray that hit nothing: its samples differ
+    /// only by where they fall in the pixel (the background seen through the pixel filter), with no light
+    /// transport's noise, and a stratified sampler's convergence on them is much faster than on the pixels that
+    /// see hair ([`Schedule::split_per_pixel`]).
+    pub fn background(&self) -> bool {
+        self.n > 0 && self.uncovered == self.n
     }
 
     /// Samples added.
@@ -197,6 +257,20 @@ impl Convergence {
     }
 }
 
+/// One pixel's aligned blocks compared, as relative MSEs ([`Convergence::split_terms`]): with P the largest power
+/// of two ≤ n, `halves` = (A − B)² / 4 of the means of samples [0, P/2) and [P/2, P), whose expectation is
+/// V(P/2) − V(P) (V(m) the variance of a mean of m samples), and `quarters` (P ≥ 4) the mean of the same over the
+/// quarters' two pairs, V(P/4) − V(P/2).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct SplitTerms {
+    /// P.
+    p: u32,
+    /// V(P/2) − V(P), this pixel's one-pair estimate.
+    halves: f64,
+    /// V(P/4) − V(P/2), the mean of two pairs; `None` below P = 4.
+    quarters: Option<f64>,
+}
+
 /// The 5 % quantile of χ² with `k` degrees of freedom (Wilson & Hilferty 1931: χ²/k is close to normal after a cube
 /// root), floored so tiny k cannot make it 0.
 fn chi2_lower_5(k: f64) -> f64 {
@@ -243,17 +317,52 @@ pub struct Schedule {
 /// edge all of its first samples may miss the strand that covers part of it, so it looks constant — and the image
 /// rule would leave it at its few samples; its neighbours' variance is the best prior it has.
 fn smoothed_variances(width: usize, pixels: &[Convergence]) -> Vec<f64> {
-    let v: Vec<f64> = pixels.iter().map(Convergence::relative_variance).collect();
+    let v: Vec<[f64; 2]> = pixels
+        .iter()
+        .map(|p| [p.relative_variance(), 1.0])
+        .collect();
+    box_sums(width, &v)
+        .iter()
+        .zip(&v)
+        .map(|(&[sum, n], &[own, _])| own.max(sum / n))
+        .collect()
+}
+
+/// The sums of `values` over each pixel's 3×3 neighbourhood, itself included, clipped at the edges of a row-major
+/// film `width` pixels wide (the pixels [`neighbourhood`] lists), for the pixels of its whole rows; a pixel past the
+/// last whole row gets its own value. Separable — a sum of three along each row, then of three of those down each
+/// column — so a pixel costs two passes of three adds per component where walking its neighbours costs nine.
+fn box_sums<const K: usize>(width: usize, values: &[[f64; K]]) -> Vec<[f64; K]> {
     let width = width.max(1);
-    let rows = v.len() / width * width;
-    let mut out = v.clone();
-    for (i, o) in out.iter_mut().enumerate().take(rows) {
-        let (mut sum, mut n) = (0.0, 0.0);
-        for j in neighbourhood(width, v.len(), i) {
-            sum += v[j];
-            n += 1.0;
+    let rows = values.len() / width;
+    let whole = rows * width;
+    let add = |a: [f64; K], b: [f64; K]| std::array::from_fn(|k| a[k] + b[k]);
+    let mut across = vec![[0.0; K]; whole];
+    for (row, out) in values[..whole]
+        .chunks_exact(width)
+        .zip(across.chunks_exact_mut(width))
+    {
+        for x in 0..width {
+            let mut s = row[x];
+            if x > 0 {
+                s = add(row[x - 1], s);
+            }
+            if x + 1 < width {
+                s = add(s, row[x + 1]);
+            }
+            out[x] = s;
         }
-        *o = v[i].max(sum / n);
+    }
+    let mut out = values.to_vec();
+    for (i, o) in out.iter_mut().enumerate().take(whole) {
+        let mut s = across[i];
+        if i >= width {
+            s = add(across[i - width], s);
+        }
+        if i + width < whole {
+            s = add(s, across[i + width]);
+        }
+        *o = s;
     }
     out
 }
@@ -274,10 +383,8 @@ pub(crate) fn neighbourhood(width: usize, len: usize, i: usize) -> Neighbourhood
     }
 }
 
-/// The iterator of [`neighbourhood`]: columns `x0..x1` (never empty) of rows `y..y1`, row by row. A plain counter
-/// pair, as the adaptive stop walks every pixel's neighbours every round: with a `flat_map` over the row ranges
-/// (and the sampler gain taken per pixel) the stop's decisions took 113.7 M instructions on straight hair under the
-/// city map at 0.1 (128², seven rounds), 105.6 M with this.
+/// The iterator of [`neighbourhood`]: columns `x0..x1` (never empty) of rows `y..y1`, row by row, a plain counter
+/// pair. (The adaptive stop, which sums every pixel's neighbours every round, uses the separable [`box_sums`].)
 pub(crate) struct Neighbourhood {
     width: usize,
     x0: usize,
@@ -367,9 +474,18 @@ impl Schedule {
         pixels: &[Convergence],
     ) -> (Vec<f64>, f64, f64) {
         let means = Self::robust_means(width, pixels);
-        let own = self.gained_variances(&means, taken, pixels);
+        let mut own = self.gained_variances(&means, taken, pixels);
+        let split = Self::split_per_pixel(&means, pixels);
+        // A background pixel's s² / (n g(n)) reads the hair's gain, far below its own (module docs): the model
+        // takes its corrected halves instead, as a per-sample v for the round's budget.
+        for ((o, (t, p)), &n) in own.iter_mut().zip(split.iter().zip(pixels)).zip(taken) {
+            if let (true, Some(t)) = (p.background(), t) {
+                *o = t * f64::from(n.max(1));
+            }
+        }
         let model = Self::mean_over_counts(&own, taken);
-        (own, model, Self::split_rel_mse(&means, pixels))
+        let count = pixels.len().max(1) as f64;
+        (own, model, split.iter().flatten().sum::<f64>() / count)
     }
 
     /// Each pixel's own v over the sampler's gain at its present count, v / g(n): what the stop and the round's
@@ -407,23 +523,33 @@ impl Schedule {
 
     /// Each pixel's robust mean per channel, the denominators of the stop (see [`Schedule::gained_variances`]).
     fn robust_means(width: usize, pixels: &[Convergence]) -> Vec<[f64; 3]> {
-        let width = width.max(1);
-        (0..pixels.len())
-            .map(|i| {
-                let (mut sum, mut k) = ([0.0f64; 3], 0.0);
-                for j in neighbourhood(width, pixels.len(), i) {
-                    if j != i && pixels[j].n > 0 {
-                        for (s, m) in sum.iter_mut().zip(pixels[j].mean) {
-                            *s += m;
-                        }
-                        k += 1.0;
-                    }
+        // Each pixel's mean and a 1 where it has samples, summed over its 3×3 neighbourhood; less its own, the
+        // neighbours' sums and count.
+        let own: Vec<[f64; 4]> = pixels
+            .iter()
+            .map(|p| {
+                let [r, g, b] = p.mean;
+                if p.n > 0 {
+                    [r, g, b, 1.0]
+                } else {
+                    [0.0; 4]
                 }
-                let p = &pixels[i];
+            })
+            .collect();
+        box_sums(width, &own)
+            .iter()
+            .zip(&own)
+            .zip(pixels)
+            .map(|((sums, mine), p)| {
+                let k = sums[3] - mine[3];
                 let n = f64::from(p.n);
                 std::array::from_fn(|c| {
                     let own = p.mean[c];
-                    let neighbours = if k > 0.0 { sum[c] / k } else { own };
+                    let neighbours = if k > 0.5 {
+                        ((sums[c] - mine[c]) / k).max(0.0)
+                    } else {
+                        own
+                    };
                     let without_max = if p.n > 1 {
                         ((n * own - p.max[c]) / (n - 1.0)).max(0.0)
                     } else {
@@ -435,14 +561,55 @@ impl Schedule {
             .collect()
     }
 
-    /// The image's relMSE (noise) from each pixel's two halves ([`Convergence::split_rel_mse`]), mean over the
-    /// pixels, over the denominators `means`.
-    fn split_rel_mse(means: &[[f64; 3]], pixels: &[Convergence]) -> f64 {
-        let sum: f64 = pixels
+    /// Each pixel's relMSE (noise) from its halves ([`Convergence::split_terms`]) over the denominators `means`;
+    /// `None` below 2 samples. A pixel that sees hair takes its halves as they are, V(P/2) − V(P) ≥ V(P) for any
+    /// sampler no slower than independent samples, times P / n for its samples past P. A background pixel
+    /// ([`Convergence::background`]) takes them divided by 2^α − 1 and times (P / n)^α, α the order of the
+    /// background pixels' own convergence, V(m) ∝ m^−α, from their quarters and halves pooled
+    /// ([`convergence_order`]), at most [`BACKGROUND_MAX_ORDER`].
+    ///
+    /// Why the background apart: its samples are the environment seen through the pixel filter, a function of the
+    /// sample's position in the pixel alone, on which Owen-scrambled Sobol points converge at about m^−1.6
+    /// (straight hair under the city map, 128², two-seed renders at 1–64 spp, path 3: the background's relMSE
+    /// falls by 2.8–3.4 per doubling, its gain n · relMSE(n) / relMSE(1) is 5.2 at 16 spp and 12.2 at 64, where
+    /// the pixels that see hair reach 1.22 and 1.36). Its halves read (2^α − 1) ≈ 2× its variance and its s² / n
+    /// over the hair's gain ~4×, and on that scene the background is 74 % of the pixels: at 0.1 the stop's last round
+    /// read 4.6e-4 of its 9.6e-3 budget from the background's halves, about three times its noise. The hair's order cannot be measured
+    /// so (one octave below is not its rate at the halves' octave: straight hair under the sunset map missed its
+    /// target when the whole image's was used, `docs/study/auto/README.md`), so its halves stay an upper bound.
+    fn split_per_pixel(means: &[[f64; 3]], pixels: &[Convergence]) -> Vec<Option<f64>> {
+        let terms: Vec<Option<SplitTerms>> = pixels
             .iter()
             .zip(means)
-            .map(|(p, &m)| p.split_rel_mse(m))
-            .sum();
+            .map(|(p, &m)| p.split_terms(m))
+            .collect();
+        let background: Vec<Option<SplitTerms>> = terms
+            .iter()
+            .zip(pixels)
+            .map(|(t, p)| t.filter(|_| p.background()))
+            .collect();
+        let alpha = convergence_order(&background).min(BACKGROUND_MAX_ORDER);
+        let over = 2f64.powf(alpha) - 1.0;
+        terms
+            .iter()
+            .zip(pixels)
+            .map(|(t, p)| {
+                t.map(|t| {
+                    let beyond = f64::from(t.p) / f64::from(p.n);
+                    if p.background() {
+                        t.halves * beyond.powf(alpha) / over
+                    } else {
+                        t.halves * beyond
+                    }
+                })
+            })
+            .collect()
+    }
+
+    /// The image's relMSE (noise) from its pixels' halves: the mean over the pixels of [`Schedule::split_per_pixel`].
+    #[cfg(test)]
+    fn split_rel_mse(means: &[[f64; 3]], pixels: &[Convergence]) -> f64 {
+        let sum: f64 = Self::split_per_pixel(means, pixels).iter().flatten().sum();
         sum / pixels.len().max(1) as f64
     }
 
@@ -470,6 +637,15 @@ impl Schedule {
         let budget = self.target * self.target;
         // The stop reads the larger of the model's and the halves' estimates ([`Schedule::estimates`]).
         let (mut own, model, split) = self.estimates(width, taken, pixels);
+        if std::env::var_os("CUTICLE_DEBUG_STOP").is_some() {
+            let mean_n = taken.iter().map(|&n| f64::from(n)).sum::<f64>() / taken.len() as f64;
+            eprintln!(
+                "round {round} mean spp {mean_n:.2} model {:.5} split {:.5} budget {:.5}",
+                model.sqrt(),
+                split.sqrt(),
+                budget.sqrt()
+            );
+        }
         if round >= MAX_ROUNDS || model.max(split) <= budget {
             return None;
         }
@@ -563,6 +739,37 @@ impl Schedule {
     }
 }
 
+/// The largest order of convergence, V(m) ∝ m^−α, that the stop credits the background with
+/// ([`Schedule::split_per_pixel`]): 4/3, the rate He & Wang (2015, "On the convergence rate of randomized quasi-Monte
+/// Carlo for discontinuous functions", SIAM J. Numer. Anal. 53) show for scrambled nets on a 2-D integrand with
+/// discontinuities, which the background seen through the pixel filter is (texel and object edges). The order the
+/// quarters measure one octave below is not safe alone: Sobol points' octaves alternate (edges in 64 directions,
+/// the test below, read 1.83 from the quarters at 8 samples where the halves' octave converges at about 1.5, and
+/// their noise 0.46–0.88× true at 5, 8, 12, 24 and 32 samples), while at most 4/3 it reads 1.06–1.30× true at 5–64
+/// samples. Straight hair under the city map measures 1.43–1.79 per octave from 1 to 64 spp.
+pub const BACKGROUND_MAX_ORDER: f64 = 4.0 / 3.0;
+
+/// The order α of the convergence of the pixels with `terms` (the background's, [`Schedule::split_per_pixel`]),
+/// V(m) ∝ m^−α, from their quarters and halves pooled: the quarters read V(P/4) − V(P/2) and the halves
+/// V(P/2) − V(P), whose ratio is 2^α; α in [1, 2] (1, independent samples' rate, when no pixel has quarters yet or
+/// the ratio says slower).
+fn convergence_order(terms: &[Option<SplitTerms>]) -> f64 {
+    let (mut halves, mut quarters) = (0.0f64, 0.0f64);
+    for t in terms.iter().flatten() {
+        if let Some(q) = t.quarters {
+            if t.halves.is_finite() && q.is_finite() {
+                halves += t.halves;
+                quarters += q;
+            }
+        }
+    }
+    if halves > 0.0 && quarters > 0.0 {
+        (quarters / halves).log2().clamp(1.0, 2.0)
+    } else {
+        1.0
+    }
+}
+
 /// A number in [0, 1) fixed by a pixel's index and the round (the crate's integer hash, [`mix64`]): the same for any
 /// thread count.
 fn unit_hash(pixel: usize, round: usize) -> f64 {
@@ -607,7 +814,11 @@ impl Work {
                         p.stats.add_cost(cost.seconds(&self.counts.since(&before)));
                     }
                     if s.beauty.is_finite() {
-                        p.stats.add(s.beauty);
+                        if s.alpha > 0.0 {
+                            p.stats.add(s.beauty);
+                        } else {
+                            p.stats.add_uncovered(s.beauty);
+                        }
                     }
                     p.sums.add(&s);
                     p.taken += 1;
@@ -1145,6 +1356,76 @@ mod tests {
             "halves {split:.3e}, truth {truth:.3e}"
         );
         assert!(split < 0.6 * iid, "halves {split:.3e}, s²/n {iid:.3e}");
+    }
+
+    /// Background pixels are read at their own convergence: stratified samples of a background with edges in
+    /// every direction (64 pixels, each a dim half-plane at its own angle and offset, 200 scramblings of each),
+    /// added as camera rays that hit nothing, are read above the variance of their means but well under what the
+    /// same samples read when added as samples that saw hair (the halves as they are, and s² / n). One sample
+    /// that hit something makes a pixel not background.
+    #[test]
+    fn background_pixels_are_read_at_their_own_faster_convergence() {
+        let (edges, seeds) = (64usize, 200usize);
+        let sample = |edge: usize, seed: usize, i: u32| {
+            let key = ((edge * seeds + seed) as u32).wrapping_mul(0x9e37_79b9);
+            let (u, v) = (
+                sobol_burley::sample(i, 0, key),
+                sobol_burley::sample(i, 1, key),
+            );
+            let angle = edge as f32 * 2.399_963; // the golden angle: directions spread over the circle
+            let offset = 0.2 + 0.6 * ((edge as f32 * 0.618_034) % 1.0);
+            let inside = (u - 0.5) * angle.cos() + (v - 0.5) * angle.sin() < offset - 0.5;
+            // Dim (0 or 0.01), so that every denominator m² + 0.01 is 0.01 within 0.1 %.
+            Vec3::splat(0.01 * f32::from(u8::from(inside)))
+        };
+        let pixels = edges * seeds;
+        for n in [5u32, 8, 12, 16, 32] {
+            let (mut background, mut hair) = (
+                vec![Convergence::default(); pixels],
+                vec![Convergence::default(); pixels],
+            );
+            for (k, (b, h)) in background.iter_mut().zip(&mut hair).enumerate() {
+                for i in 0..n {
+                    b.add_uncovered(sample(k / seeds, k % seeds, i));
+                    h.add(sample(k / seeds, k % seeds, i));
+                }
+                assert!(b.background() && !h.background());
+            }
+            // The truth: each edge's variance of its mean over its scramblings, mean over the edges, over 0.01.
+            let truth = background
+                .chunks(seeds)
+                .map(|c| {
+                    let mean = c.iter().map(|c| c.mean[0]).sum::<f64>() / seeds as f64;
+                    c.iter().map(|c| (c.mean[0] - mean).powi(2)).sum::<f64>() / (seeds - 1) as f64
+                })
+                .sum::<f64>()
+                / edges as f64
+                / 0.01;
+            let taken = vec![n; pixels];
+            let schedule = Schedule {
+                sampler_gain: 1.0,
+                ..sixteen_to_64(0.1)
+            };
+            let read = |stats: &[Convergence]| {
+                let (_, model, split) = schedule.estimates(seeds, &taken, stats);
+                (model / truth, split / truth)
+            };
+            let (model, split) = read(&background);
+            let (hair_model, hair_split) = read(&hair);
+            assert!(
+                (1.0..1.5).contains(&model) && (1.0..1.5).contains(&split),
+                "background: model {model:.3}, halves {split:.3} at {n} samples"
+            );
+            assert!(
+                hair_model > 1.5 * model && hair_split > 1.3 * split,
+                "seen as hair: model {hair_model:.3}, halves {hair_split:.3} at {n} samples"
+            );
+        }
+        let mut one_hit = Convergence::default();
+        one_hit.add_uncovered(Vec3::ONE);
+        assert!(one_hit.background());
+        one_hit.add(Vec3::ZERO);
+        assert!(!one_hit.background());
     }
 
     /// The image rule stops on the larger of its two estimates: pixels whose first half of samples is all 0 and
