@@ -740,9 +740,10 @@ impl Schedule {
 }
 
 /// The largest order of convergence, V(m) ∝ m^−α, that the stop credits the background with
-/// ([`Schedule::split_per_pixel`]): 4/3, the rate He & Wang (2015, "On the convergence rate of randomized quasi-Monte
-/// Carlo for discontinuous functions", SIAM J. Numer. Anal. 53) show for scrambled nets on a 2-D integrand with
-/// discontinuities, which the background seen through the pixel filter is (texel and object edges). The order the
+/// ([`Schedule::split_per_pixel`]): 4/3, the order of the mean squared error He & Wang (2015, "On the convergence rate
+/// of randomized quasi-Monte Carlo for discontinuous functions", SIAM J. Numer. Anal. 53) prove for scrambled nets on
+/// d-dimensional integrands with discontinuities, m^(−1 − 1/(2d − 1)), at d = 2: the background seen through a
+/// pinhole camera's pixel filter is such an integrand of the sample's 2-D position (texel and object edges). The order the
 /// quarters measure one octave below is not safe alone: Sobol points' octaves alternate (edges in 64 directions,
 /// the test below, read 1.83 from the quarters at 8 samples where the halves' octave converges at about 1.5, and
 /// their noise 0.46–0.88× true at 5, 8, 12, 24 and 32 samples), while at most 4/3 it reads 1.06–1.30× true at 5–64
