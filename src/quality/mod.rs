@@ -147,8 +147,10 @@ pub struct ScreenWidths {
     pub measured: usize,
 }
 
-/// Segments measured for [`screen_widths`] at most (evenly strided): enough for stable percentiles, microseconds.
-const WIDTH_SAMPLES: usize = 1 << 16;
+/// Segments measured for [`screen_widths`] at most (evenly strided): enough for stable percentiles (a quantile of
+/// 4 096 draws is within ±0.8 percentile points of the strands' at 1 standard error). 65 536 until 5 Dec 2026: on
+/// straight hair (50 000 segments, all measured) that took 25.7 M instructions, 0.8 % of its auto frame at 0.1.
+const WIDTH_SAMPLES: usize = 1 << 12;
 
 /// The strands' on-screen widths as the camera of `camera` sees them in a `width`×`height` film. `None` when no
 /// segment's midpoint is in view.
@@ -184,11 +186,14 @@ pub fn screen_widths(
     if widths.is_empty() {
         return None;
     }
-    widths.sort_by(f32::total_cmp);
-    let at = |q: f32| widths[((widths.len() - 1) as f32 * q).round() as usize];
+    let mut at = |q: f32| {
+        let k = ((widths.len() - 1) as f32 * q).round() as usize;
+        *widths.select_nth_unstable_by(k, f32::total_cmp).1
+    };
+    let (median, p90) = (at(0.5), at(0.9));
     Some(ScreenWidths {
-        median: at(0.5),
-        p90: at(0.9),
+        median,
+        p90,
         measured: widths.len(),
     })
 }
