@@ -415,19 +415,26 @@ fn render_command(args: RenderArgs) -> Result<()> {
     };
     let mut decisions = Vec::new();
     let frame = pool.install(|| {
-        Frame::load_adjusted(spec, limit, &limit_source, |strands, spec| {
-            if auto.is_some() && !fixed.curves {
-                let s = &spec.settings;
-                let (kind, d) = cuticle::quality::plan_curves(
-                    strands,
-                    &spec.material,
-                    &s.camera,
-                    s.film.resolution,
-                );
-                spec.curves = kind;
-                decisions.push(d);
-            }
-        })
+        // Auto samples adaptively unless --spp fixes the count: its memory is checked for that.
+        Frame::load_adjusted(
+            spec,
+            limit,
+            &limit_source,
+            auto.is_some() && !fixed.spp,
+            |strands, spec| {
+                if auto.is_some() && !fixed.curves {
+                    let s = &spec.settings;
+                    let (kind, d) = cuticle::quality::plan_curves(
+                        strands,
+                        &spec.material,
+                        &s.camera,
+                        s.film.resolution,
+                    );
+                    spec.curves = kind;
+                    decisions.push(d);
+                }
+            },
+        )
     })?;
     // The frame is built: load OpenImageIO in the background while it renders. Not earlier: `dlopen` holds the
     // loader's lock for the whole load (OpenImageIO pulls in some sixty libraries, ~0.1 s), and creating threads

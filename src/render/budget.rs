@@ -31,6 +31,13 @@ pub const ACCEL_BYTES_PER_SEGMENT: [(Backend, CurveKind, u64); 4] = [
     (Backend::Bvh, CurveKind::Flat, 400),
 ];
 
+/// Peak bytes per pixel of adaptive sampling's state beyond a fixed-spp frame's: each pixel's film sums and
+/// convergence statistics kept between rounds, the statistics copied for the round's decision and that decision's
+/// per-pixel vectors ([`super::adaptive`]). Measured: peak RSS of the default scene rendered with `--quality auto`
+/// against a fixed-spp render of the same film, 168 B per pixel at 1024² and 175 at 2048² (5 Dec 2026); rounded
+/// up.
+pub const ADAPTIVE_BYTES_PER_PIXEL: u64 = 192;
+
 /// Bytes per point of the model as read ([`crate::hair::HairModel`]: position 12, radius 4, transparency 4,
 /// colour 12) plus the B-spline strands made from it (control point 16, segment tables 8): both are alive while
 /// the strands are converted.
@@ -73,6 +80,8 @@ pub struct MemoryEstimate {
     pub film: u64,
     /// Deep opacity maps (0 unless the shadow mode uses them).
     pub shadow_maps: u64,
+    /// Adaptive sampling's per-pixel state (0 for a fixed spp).
+    pub adaptive: u64,
     /// Worker threads.
     pub threads: u64,
     /// Fixed costs ([`BASE_BYTES`]).
@@ -113,6 +122,7 @@ impl MemoryEstimate {
             self.accel,
             self.film,
             self.shadow_maps,
+            self.adaptive,
             self.threads,
             self.base,
         ]
@@ -127,6 +137,7 @@ impl MemoryEstimate {
             ("acceleration structure", self.accel),
             ("film and AOVs", self.film),
             ("deep opacity maps", self.shadow_maps),
+            ("adaptive sampling", self.adaptive),
             ("threads", self.threads),
             ("program", self.base),
         ];
@@ -155,7 +166,8 @@ impl MemoryEstimate {
 
 /// The estimate for a frame of `strands` strands holding `points` points in all, traced by `backend` as
 /// `curves`, rendered with `settings` on `threads` workers, with `lights` lights (each gets a deep opacity map in
-/// deep-opacity mode). Saturating arithmetic throughout: inputs come from files and users.
+/// deep-opacity mode); `adaptive`: whether it samples adaptively (`settings.adaptive`, or `--quality auto`, which
+/// sets that after the frame is loaded). Saturating arithmetic throughout: inputs come from files and users.
 pub fn estimate(
     (strands, points): (u64, u64),
     backend: Backend,
@@ -163,6 +175,7 @@ pub fn estimate(
     settings: &RenderSettings,
     lights: usize,
     threads: usize,
+    adaptive: bool,
 ) -> MemoryEstimate {
     // Segments: control points (points + 2 phantoms per strand) − 3 per strand = points − strands.
     let segments = points.saturating_sub(strands);
@@ -194,16 +207,22 @@ pub fn estimate(
         accel: segments.saturating_mul(per_segment),
         film,
         shadow_maps,
+        adaptive: if adaptive || settings.adaptive.is_some() {
+            pixels.saturating_mul(ADAPTIVE_BYTES_PER_PIXEL)
+        } else {
+            0
+        },
         threads: (threads as u64).saturating_mul(BYTES_PER_THREAD),
         base: BASE_BYTES,
     }
 }
 
-/// The estimate for the frame `spec` describes, rendered with its own settings on `threads` workers. Reads only
-/// a hair file's header.
+/// The estimate for the frame `spec` describes, rendered with its own settings on `threads` workers (`adaptive` as
+/// in [`estimate`]). Reads only a hair file's header.
 pub fn estimate_frame(
     spec: &super::FrameSpec,
     threads: usize,
+    adaptive: bool,
 ) -> Result<MemoryEstimate, HairError> {
     let counts = hair_counts(&spec.hair.source)?;
     Ok(estimate(
@@ -213,6 +232,7 @@ pub fn estimate_frame(
         &spec.settings,
         spec.lights.len(),
         threads,
+        adaptive,
     ))
 }
 
@@ -345,6 +365,7 @@ mod tests {
             &settings(64, 64),
             1,
             2,
+            false,
         );
         assert!(small.check(1 << 30, "test").is_ok(), "{small:?}");
         let big = estimate(
@@ -354,6 +375,7 @@ mod tests {
             &settings(32768, 32768),
             1,
             2,
+            false,
         );
         let e = big.check(8 << 30, "--max-memory").unwrap_err().to_string();
         assert!(
@@ -364,8 +386,51 @@ mod tests {
         maps.shadows.mode = ShadowMode::DeepOpacity;
         maps.shadows.deep_opacity.resolution = 8192;
         maps.shadows.deep_opacity.layers = 256;
-        let e = estimate((1, 16), Backend::Bvh, CurveKind::Flat, &maps, 1, 1);
+        let e = estimate((1, 16), Backend::Bvh, CurveKind::Flat, &maps, 1, 1, false);
         assert_eq!(e.shadow_maps, 8192 * 8192 * 258 * 4);
+    }
+
+    /// An adaptive frame (or one `--quality auto` will make adaptive) counts its per-pixel state: a 6144² film
+    /// that fits a limit at a fixed spp is refused adaptive once the rounds' 6.8 GiB are added, and the refusal
+    /// names them.
+    #[test]
+    fn adaptive_sampling_state_is_counted() {
+        let film = settings(6144, 6144);
+        let fixed = estimate(
+            (1, 16),
+            Backend::Embree,
+            CurveKind::Flat,
+            &film,
+            1,
+            2,
+            false,
+        );
+        assert_eq!(fixed.adaptive, 0);
+        let limit = fixed.total() + (1 << 30);
+        assert!(fixed.check(limit, "test").is_ok(), "{fixed:?}");
+        let auto = estimate((1, 16), Backend::Embree, CurveKind::Flat, &film, 1, 2, true);
+        assert_eq!(auto.adaptive, 6144 * 6144 * ADAPTIVE_BYTES_PER_PIXEL);
+        let e = auto.check(limit, "test").unwrap_err().to_string();
+        assert!(e.contains("adaptive sampling 6.8 GiB"), "{e}");
+        let mut scheduled = film.clone();
+        scheduled.adaptive = Some(crate::render::adaptive::Schedule {
+            min: 4,
+            max: 64,
+            target: 0.1,
+            rule: crate::render::adaptive::Rule::Image,
+            cost: None,
+            sampler_gain: 1.0,
+        });
+        let e = estimate(
+            (1, 16),
+            Backend::Embree,
+            CurveKind::Flat,
+            &scheduled,
+            1,
+            2,
+            false,
+        );
+        assert_eq!(e.adaptive, auto.adaptive);
     }
 
     #[test]

@@ -98,18 +98,21 @@ impl Frame {
         limit: u64,
         limit_source: &str,
     ) -> Result<Frame, FrameError> {
-        Frame::load_adjusted(spec, limit, limit_source, |_, _| {})
+        Frame::load_adjusted(spec, limit, limit_source, false, |_, _| {})
     }
 
     /// [`Frame::load_within`], with `adjust` changing the spec once the strands are loaded and before anything is
-    /// built from them (`--quality auto` chooses the curve kind from the strands' width on screen there).
+    /// built from them (`--quality auto` chooses the curve kind from the strands' width on screen there);
+    /// `adaptive`: the frame will sample adaptively though its settings do not say so yet (`--quality auto` sets
+    /// them after loading), so its memory is checked with adaptive sampling's per-pixel state.
     pub fn load_adjusted(
         mut spec: FrameSpec,
         limit: u64,
         limit_source: &str,
+        adaptive: bool,
         adjust: impl FnOnce(&Strands, &mut FrameSpec),
     ) -> Result<Frame, FrameError> {
-        super::budget::estimate_frame(&spec, rayon::current_num_threads())?
+        super::budget::estimate_frame(&spec, rayon::current_num_threads(), adaptive)?
             .check(limit, limit_source)?;
         let start = Instant::now();
         let strands = spec.hair.load()?;
