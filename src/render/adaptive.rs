@@ -573,10 +573,11 @@ impl Schedule {
     /// (straight hair under the city map, 128², two-seed renders at 1–64 spp, path 3: the background's relMSE
     /// falls by 2.8–3.4 per doubling, its gain n · relMSE(n) / relMSE(1) is 5.2 at 16 spp and 12.2 at 64, where
     /// the pixels that see hair reach 1.22 and 1.36). Its halves read (2^α − 1) ≈ 2× its variance and its s² / n
-    /// over the hair's gain ~4×, and on that scene the background is 74 % of the pixels: at 0.1 the stop's last round
-    /// read 4.6e-4 of its 9.6e-3 budget from the background's halves, about three times its noise. The hair's order cannot be measured
-    /// so (one octave below is not its rate at the halves' octave: straight hair under the sunset map missed its
-    /// target when the whole image's was used, `docs/study/auto/README.md`), so its halves stay an upper bound.
+    /// over the hair's gain ~4×, and on that scene the background is 74 % of the pixels: at 0.1 the stop's last
+    /// round read 4.6e-4 of its 9.6e-3 budget from the background's halves, 3.0e-4 divided at the cap (1.6e-4 at
+    /// the α of 1.7 its quarters measured). The hair's order cannot be measured so (one octave below is not its
+    /// rate at the halves' octave: straight hair under the sunset map missed its target when the whole image's was
+    /// used, `docs/study/auto/README.md`), so its halves stay an upper bound.
     fn split_per_pixel(means: &[[f64; 3]], pixels: &[Convergence]) -> Vec<Option<f64>> {
         let terms: Vec<Option<SplitTerms>> = pixels
             .iter()
@@ -743,11 +744,12 @@ impl Schedule {
 /// ([`Schedule::split_per_pixel`]): 4/3, the order of the mean squared error He & Wang (2015, "On the convergence rate
 /// of randomized quasi-Monte Carlo for discontinuous functions", SIAM J. Numer. Anal. 53) prove for scrambled nets on
 /// d-dimensional integrands with discontinuities, m^(−1 − 1/(2d − 1)), at d = 2: the background seen through a
-/// pinhole camera's pixel filter is such an integrand of the sample's 2-D position (texel and object edges). The order the
-/// quarters measure one octave below is not safe alone: Sobol points' octaves alternate (edges in 64 directions,
-/// the test below, read 1.83 from the quarters at 8 samples where the halves' octave converges at about 1.5, and
-/// their noise 0.46–0.88× true at 5, 8, 12, 24 and 32 samples), while at most 4/3 it reads 1.06–1.30× true at 5–64
-/// samples. Straight hair under the city map measures 1.43–1.79 per octave from 1 to 64 spp.
+/// pinhole camera's pixel filter is such an integrand of the sample's 2-D position (texel and object edges). The
+/// order the quarters measure one octave below is not safe alone: Sobol points' octaves alternate (edges in 64
+/// directions, the test `background_pixels_are_read_at_their_own_faster_convergence`, read 1.83 from the quarters
+/// at 8 samples where the halves' octave converges at about 1.5, and their noise 0.46–0.88× true at 5, 8, 12, 24
+/// and 32 samples), while at most 4/3 it reads 1.06–1.30× true at 5–64 samples. Straight hair under the city map
+/// measures 1.43–1.79 per octave from 1 to 64 spp.
 pub const BACKGROUND_MAX_ORDER: f64 = 4.0 / 3.0;
 
 /// The order α of the convergence of the pixels with `terms` (the background's, [`Schedule::split_per_pixel`]),
