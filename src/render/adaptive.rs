@@ -154,29 +154,25 @@ impl Convergence {
             return None;
         }
         let p = 1u32 << (31 - self.n.leading_zeros());
-        let half = f64::from(p / 2);
-        let [first, both] = self.halves;
-        let mut sum = 0.0;
-        for c in 0..3 {
-            let a = f64::from(first[c]) / half;
-            let b = (f64::from(both[c]) - f64::from(first[c])) / half;
-            sum += 0.25 * (a - b) * (a - b) / (means[c] * means[c] + 0.01);
-        }
-        let quarters = (p >= 4).then(|| {
-            let quarter = f64::from(p / 4);
-            let [s1, s2, s3, s4] = self.quarters.map(|s| s.map(f64::from));
+        // Two adjacent blocks of `size` samples, from the running sums at their start, middle and end: (A − B)² / 4
+        // over the denominators, mean over RGB.
+        let pair = |start: [f32; 3], middle: [f32; 3], end: [f32; 3], size: u32| {
+            let size = f64::from(size);
             let mut sum = 0.0;
             for c in 0..3 {
-                let q = [s1[c], s2[c] - s1[c], s3[c] - s2[c], s4[c] - s3[c]].map(|x| x / quarter);
-                let d = 0.25 * ((q[0] - q[1]).powi(2) + (q[2] - q[3]).powi(2)) / 2.0;
-                sum += d / (means[c] * means[c] + 0.01);
+                let a = (f64::from(middle[c]) - f64::from(start[c])) / size;
+                let b = (f64::from(end[c]) - f64::from(middle[c])) / size;
+                sum += 0.25 * (a - b) * (a - b) / (means[c] * means[c] + 0.01);
             }
             sum / 3.0
-        });
+        };
+        let [first, both] = self.halves;
+        let [s1, s2, s3, s4] = self.quarters;
         Some(SplitTerms {
             p,
-            halves: sum / 3.0,
-            quarters,
+            halves: pair([0.0; 3], first, both, p / 2),
+            quarters: (p >= 4)
+                .then(|| 0.5 * (pair([0.0; 3], s1, s2, p / 4) + pair(s2, s3, s4, p / 4))),
         })
     }
 
@@ -584,12 +580,11 @@ impl Schedule {
             .zip(means)
             .map(|(p, &m)| p.split_terms(m))
             .collect();
-        let background: Vec<Option<SplitTerms>> = terms
+        let background = terms
             .iter()
             .zip(pixels)
-            .map(|(t, p)| t.filter(|_| p.background()))
-            .collect();
-        let alpha = convergence_order(&background).min(BACKGROUND_MAX_ORDER);
+            .filter_map(|(t, p)| t.as_ref().filter(|_| p.background()));
+        let alpha = convergence_order(background).min(BACKGROUND_MAX_ORDER);
         let over = 2f64.powf(alpha) - 1.0;
         terms
             .iter()
@@ -756,9 +751,9 @@ pub const BACKGROUND_MAX_ORDER: f64 = 4.0 / 3.0;
 /// V(m) ∝ m^−α, from their quarters and halves pooled: the quarters read V(P/4) − V(P/2) and the halves
 /// V(P/2) − V(P), whose ratio is 2^α; α in [1, 2] (1, independent samples' rate, when no pixel has quarters yet or
 /// the ratio says slower).
-fn convergence_order(terms: &[Option<SplitTerms>]) -> f64 {
+fn convergence_order<'a>(terms: impl Iterator<Item = &'a SplitTerms>) -> f64 {
     let (mut halves, mut quarters) = (0.0f64, 0.0f64);
-    for t in terms.iter().flatten() {
+    for t in terms {
         if let Some(q) = t.quarters {
             if t.halves.is_finite() && q.is_finite() {
                 halves += t.halves;
