@@ -413,14 +413,13 @@ mod tests {
         let e = auto.check(limit, "test").unwrap_err().to_string();
         assert!(e.contains("adaptive sampling 6.8 GiB"), "{e}");
         let mut scheduled = film.clone();
-        scheduled.adaptive = Some(crate::render::adaptive::Schedule {
-            min: 4,
-            max: 64,
-            target: 0.1,
-            rule: crate::render::adaptive::Rule::Image,
-            cost: None,
-            sampler_gain: 1.0,
-        });
+        scheduled.adaptive = Some(crate::quality::adaptive_schedule(
+            16,
+            0.1,
+            1.0,
+            1.0,
+            &crate::quality::QualityConfig::default(),
+        ));
         let e = estimate(
             (1, 16),
             Backend::Embree,
