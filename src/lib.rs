@@ -2,7 +2,7 @@
 //!
 //! Layers, each importing only those below it (`docs/architecture.md` draws one frame's data flow):
 //!
-//! - measurement: [`study`] (error-against-time studies) and [`bench`] (benchmarks), drawing with [`plot`]
+//! - measurement: [`study`] (error-against-time studies) and [`mod@bench`] (benchmarks), drawing with [`plot`]
 //!   (plotters charts) and measuring with [`measure`] (timings, memory, image error);
 //! - configuration: [`scene`] reads and checks the TOML and resolves it into the settings each layer owns;
 //! - [`render`]: one frame set up ([`render::Frame`]), camera, sampler, film, integrator;
@@ -13,6 +13,9 @@
 //! - [`util`]: hashing, colour, sampling, statistics, atomic file writes; imports nothing of this crate.
 #![deny(unsafe_code)]
 #![warn(missing_docs)]
+// The crate's docs are its developers' reference (`cargo doc --document-private-items`): a public item's doc may
+// name the private constant or helper that decides its behaviour, and that link is meant.
+#![allow(rustdoc::private_intra_doc_links)]
 
 pub mod accel;
 pub mod bench;

@@ -1,5 +1,5 @@
 //! The histogram of directions drawn by [`Bsdf::sample`] against the counts [`Bsdf::pdf`] predicts, cell by cell:
-//! the data of the chi-square test every model runs ([`super::testing`], [`crate::util::stats::chi_square`]) and of the
+//! the data of the chi-square test every model runs (`bsdf::testing`, [`crate::util::stats::chi_square`]) and of the
 //! histogram figure of `cuticle plot-bsdf` ([`crate::plot::bsdf`]). Plain numbers, no drawing.
 
 use super::frame::{from_spherical, phi};

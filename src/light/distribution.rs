@@ -16,7 +16,7 @@
 pub struct Distribution1D {
     /// p(x) on bin i: fᵢ / ∫f (1 for the uniform fallback).
     density: Vec<f32>,
-    /// CDF at the bin edges: cdf[0] = 0, cdf[n] = 1, non-decreasing.
+    /// CDF at the bin edges: `cdf[0]` = 0, `cdf[n]` = 1, non-decreasing.
     cdf: Vec<f32>,
     /// ∫₀¹ f = Σ fᵢ / n of the weights as given (0 for an all-zero table).
     integral: f32,
@@ -125,7 +125,7 @@ impl Distribution1D {
         self.density[((x * n as f32) as usize).min(n - 1)]
     }
 
-    /// The bin i with cdf[i] ≤ u < cdf[i+1] (so a bin of positive probability) for u ∈ [0, 1).
+    /// The bin i with `cdf[i]` ≤ u < `cdf[i+1]` (so a bin of positive probability) for u ∈ [0, 1).
     #[inline]
     fn find_bin(&self, u: f32) -> usize {
         // The last edge with cdf ≤ u; cdf[0] = 0 ≤ u so the count is ≥ 1, and cdf[n] = 1 > u keeps it ≤ n.

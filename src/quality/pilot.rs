@@ -495,7 +495,7 @@ fn channels<'a>(arrays: [&'a [[f32; 3]]; 4]) -> impl Iterator<Item = [f64; 4]> +
 /// faster than σ² / n, the variance of independent samples that adaptive sampling's stop reads from the pixels'
 /// sample variances. The pair measures both sides at once: relMSE(n) from the two seeds' difference, and the
 /// pixels' sample variance s² (what the stop reads) from their samples. For any samples with the same marginal,
-/// E[s²] = n (σ² − Var x̄) / (n − 1), so G = E[s²] / (n relMSE(n)) = (n g − 1) / (n − 1), and g = ((n − 1) G + 1) / n.
+/// E(s²) = n (σ² − Var x̄) / (n − 1), so G = E(s²) / (n relMSE(n)) = (n g − 1) / (n − 1), and g = ((n − 1) G + 1) / n.
 ///
 /// Until 3 Dec 2026 the gain came from a separate pair at 1 spp, g = relMSE(1) / (n relMSE(n)): a 1-spp pixel is
 /// one heavy-tailed sample, and on the fur ball (128², path 3) it measured 1.049 ± 0.05 (1.0 after a standard

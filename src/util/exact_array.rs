@@ -20,7 +20,7 @@ where
         .map_err(|_| D::Error::invalid_length(len, &format!("an array of {N} values").as_str()))
 }
 
-/// As [`array`], for an optional key (use with `#[serde(default)]`).
+/// As [`array()`], for an optional key (use with `#[serde(default)]`).
 pub fn option_array<'de, D, T, const N: usize>(deserializer: D) -> Result<Option<[T; N]>, D::Error>
 where
     D: Deserializer<'de>,
