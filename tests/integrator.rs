@@ -884,3 +884,40 @@ fn first_vertices_shaded_in_lanes_give_the_default_image_to_f32_rounding() {
         "{differing} values differ between 1 and 2 threads"
     );
 }
+
+#[test]
+fn rays_from_bounce_two_on_are_counted_as_deep() {
+    // The cost model charges the shadow and material rays of bounce 2 and later more (`RayCost::deep`): they start
+    // deep in the hair. The paths of a frame at path length 1 and at 2 with the same seed agree up to the vertex at
+    // bounce 1 (its two rays are counted alike at either length), so the rays the longer frame adds are exactly
+    // its deep ones; a frame at path length 1 has none. Light hair (σa 0.1), so that Russian roulette lets many
+    // paths on.
+    let scene = parse(
+        &format!(
+            "{SMALL_FURBALL}
+[material]
+model = \"chiang\"
+sigma_a = [0.1, 0.1, 0.1]
+
+[environment]
+radiance = [0.3, 0.35, 0.4]
+"
+        ),
+        Path::new("."),
+    );
+    let rays = |path_length: u32| {
+        let mut s = scene.clone();
+        s.integrator.path_length = path_length;
+        render_scene_with_stats(&s, 2).1.rays
+    };
+    let (one, two, three) = (rays(1), rays(2), rays(3));
+    println!(
+        "deep rays at path 1, 2, 3: {}, {}, {}",
+        one.deep, two.deep, three.deep
+    );
+    assert_eq!(one.deep, 0);
+    let traced = |r: &cuticle::render::integrator::RayCounts| r.shadow + r.material;
+    assert_eq!(two.deep, traced(&two) - traced(&one));
+    assert_eq!(three.deep, traced(&three) - traced(&one));
+    assert!(two.deep > 0 && three.deep > two.deep, "{two:?} {three:?}");
+}

@@ -35,11 +35,32 @@ pub use crate::render::integrator::RayCost as CostWeights;
 /// the residuals by path length within a scene and curves — what the path-length decision reads — are no flatter with
 /// either refit (sunset flat paths 1 → 2: −0.021 → +0.074 here, −0.014 → +0.081 refitted, +0.010 → +0.128 with the
 /// fifth weight).
+///
+/// **`deep`, added 5 Dec 2026** (session 30): what a ray costs depends on the vertex it leaves. Callgrind instruction
+/// counts — deterministic, free of the clock's ±5 % — of a frame at path length 1 and one at 2 (`scripts/deep-ray-cost.sh
+/// SCENE`: flat, ray-traced, one thread, 64², 16 spp; the default scene and fur ball at 8) put a vertex at bounce 2 at
+/// 1.27× (default scene), 1.60× (fur ball), 1.39× (straight hair under the city map, 128², 20 spp), 1.45× (sunset),
+/// 1.41× (interior) and 1.42× (studio) the instructions of one at bounce 1, while a bounce-1 vertex's two rays cost
+/// what two first-vertex rays do (city: 8 600 instructions a ray at bounce 1, 8 700 for a first-vertex light sample;
+/// 11 900 at bounce 2): rays from the third vertex on start deep in the hair and traverse more of it. Per ray the
+/// four weights above charge every shadow and material ray alike, so they priced a longer path ~3 % under its
+/// instructions on straight hair under the city map (path 3 over path 1: +6.5 % predicted, +9.4 % measured), and the
+/// path-length decision, whose candidates there are within 1–6 % of each other, leaned to longer paths (auto's path
+/// was longer than that of the fastest fixed configuration meeting the target on 9 of 14 rows in the twenty-first
+/// study run, shorter on none). `deep` adds 0.41 × the mean shadow/material weight (the hair scenes' median excess,
+/// 1.4e-6 s) to every shadow and material ray traced at bounce 2 or later ([`RayCounts::deep`]). It is the
+/// instructions' excess; by the clock the excess is larger (path 3 over path 1 +11.8 % by CPU time where the
+/// instructions say +9.4 %, cache misses deep in the fur), so this is the smaller of the two corrections. The Cornell
+/// box's bounce-2 vertex costs 2.59× its bounce-1 one (there bounce 1 mostly lands on the walls, whose rays are cheap):
+/// the model stays coarse for scenes whose vertices change from walls to hair with depth.
+///
+/// [`RayCounts::deep`]: crate::render::integrator::RayCounts::deep
 pub const WEIGHTS: CostWeights = CostWeights {
     camera: 0.92e-6,
     shadow: 3.34e-6,
     material: 3.42e-6,
     map_lookup: 1.66e-6,
+    deep: 1.4e-6,
 };
 
 /// The inverse efficiency of a sampling configuration: the relative MSE of one estimate times its predicted cost
@@ -83,6 +104,7 @@ mod tests {
             shadow: 1.0,
             material: 1.0,
             map_lookup: 1.0,
+            deep: 0.0,
         };
         let (a1, a4) = (
             inverse_efficiency(e1, &one, &alike),

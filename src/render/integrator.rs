@@ -99,6 +99,9 @@ pub struct RayCounts {
     pub rejected: u64,
     /// Shadow-map lookups made instead of shadow rays (deep-opacity mode).
     pub map_lookups: u64,
+    /// Of the shadow and material rays, those traced at the third path vertex and beyond (bounce 2 onwards): they
+    /// start deep in the hair and cost more each ([`RayCost::deep`]).
+    pub deep: u64,
 }
 
 impl RayCounts {
@@ -109,6 +112,7 @@ impl RayCounts {
         self.material += o.material;
         self.rejected += o.rejected;
         self.map_lookups += o.map_lookups;
+        self.deep += o.deep;
     }
 
     /// The rays counted since `earlier`, an earlier reading of the same counters.
@@ -119,6 +123,7 @@ impl RayCounts {
             material: self.material - earlier.material,
             rejected: self.rejected - earlier.rejected,
             map_lookups: self.map_lookups - earlier.map_lookups,
+            deep: self.deep - earlier.deep,
         }
     }
 
@@ -142,6 +147,8 @@ pub struct RayCost {
     pub material: f64,
     /// Per deep-opacity-map lookup made instead of a shadow ray (with its light sample and BSDF evaluation).
     pub map_lookup: f64,
+    /// Added per shadow or material ray traced at bounce 2 or later ([`RayCounts::deep`]), over its kind's weight.
+    pub deep: f64,
 }
 
 impl RayCost {
@@ -151,6 +158,7 @@ impl RayCost {
             + self.shadow * rays.shadow as f64
             + self.material * rays.material as f64
             + self.map_lookup * rays.map_lookups as f64
+            + self.deep * rays.deep as f64
     }
 }
 
@@ -1007,6 +1015,9 @@ impl<'a> Integrator<'a> {
             // The step kept whole and its vertex moved out only to go on: destructuring it copied the
             // continuation (a few hundred bytes) at every vertex, the last one's included.
             let step = self.deeper_vertex(v, b, sampler, index, counts);
+            if b >= 2 {
+                counts.deep += counts.shadow + counts.material - (before.shadow + before.material);
+            }
             let added = self.add_indirect(&mut indirect, first_weights, rest * step.0);
             record.vertex(b, added, &counts.since(&before));
             if b == path_length {
