@@ -37,19 +37,19 @@ pub use crate::render::integrator::RayCost as CostWeights;
 /// fifth weight).
 ///
 /// **`deep`, added 5 Dec 2026** (session 30): what a ray costs depends on the vertex it leaves. Callgrind instruction
-/// counts — deterministic, free of the clock's ±5 % — of a frame at path length 1 and one at 2 (`scripts/deep-ray-cost.sh
-/// SCENE`: flat, ray-traced, one thread, 64², 16 spp; the default scene and fur ball at 8) put a vertex at bounce 2 at
-/// 1.27× (default scene), 1.60× (fur ball), 1.39× (straight hair under the city map, 128², 20 spp), 1.45× (sunset),
-/// 1.41× (interior) and 1.42× (studio) the instructions of one at bounce 1, while a bounce-1 vertex's two rays cost
-/// what two first-vertex rays do (city: 8 600 instructions a ray at bounce 1, 8 700 for a first-vertex light sample;
-/// 11 900 at bounce 2): rays from the third vertex on start deep in the hair and traverse more of it. Per ray the
-/// four weights above charge every shadow and material ray alike, so they priced a longer path ~3 % under its
-/// instructions on straight hair under the city map (path 3 over path 1: +6.5 % predicted, +9.4 % measured), and the
-/// path-length decision, whose candidates there are within 1–6 % of each other, leaned to longer paths (auto's path
-/// was longer than that of the fastest fixed configuration meeting the target on 9 of 14 rows in the twenty-first
-/// study run, shorter on none). `deep` adds 0.41 × the mean shadow/material weight (the hair scenes' median excess,
-/// 1.4e-6 s) to every shadow and material ray traced at bounce 2 or later ([`RayCounts::deep`]). It is the
-/// instructions' excess; by the clock the excess is larger (path 3 over path 1 +11.8 % by CPU time where the
+/// counts — deterministic, free of the clock's ±5 % — of a frame at path length 1 and one at 2
+/// (`scripts/deep-ray-cost.sh SCENE`: flat, ray-traced, one thread, 64², 16 spp; the default scene and fur ball at 8)
+/// put a vertex at bounce 2 at 1.27× (default scene), 1.60× (fur ball), 1.39× (straight hair under the city map, 128²,
+/// 20 spp), 1.45× (sunset, 128²; 1.42 at 64²), 1.41× (interior) and 1.42× (studio) the instructions of one at bounce 1,
+/// while a bounce-1 vertex's two rays cost what two first-vertex rays do (city: 8.6 k instructions a ray at bounce 1,
+/// 8.7 k for a first-vertex light sample; 11.9 k at bounce 2): rays from the third vertex on start deep in the hair and
+/// traverse more of it. Per ray the four weights above charge every shadow and material ray alike, so they priced a
+/// longer path ~3 % under its instructions on straight hair under the city map (path 3 over path 1: +6.5 % predicted,
+/// +9.4 % measured), and the path-length decision, whose candidates there are within 1–6 % of each other, leaned to
+/// longer paths (auto's path was longer than that of the fastest fixed configuration meeting the target on 9 of 14 rows
+/// in the twenty-first study run, shorter on none). `deep` adds 0.41 × the mean shadow/material weight (the hair
+/// scenes' median excess, 1.4e-6 s) to every shadow and material ray traced at bounce 2 or later ([`RayCounts::deep`]).
+/// It is the instructions' excess; by the clock the excess is larger (path 3 over path 1 +11.8 % by CPU time where the
 /// instructions say +9.4 %, cache misses deep in the fur), so this is the smaller of the two corrections. The Cornell
 /// box's bounce-2 vertex costs 2.59× its bounce-1 one (there bounce 1 mostly lands on the walls, whose rays are cheap):
 /// the model stays coarse for scenes whose vertices change from walls to hair with depth.
