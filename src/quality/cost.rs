@@ -114,6 +114,54 @@ mod tests {
     }
 
     #[test]
+    fn the_deep_weight_prices_a_longer_path_as_its_instructions() {
+        // Callgrind, one thread, flat curves, ray-traced shadows, render_tiles' instructions (session 30):
+        // straight hair under the city map at 128², 20 spp, path 1 against path 3 (2 771 M against 3 031 M), and
+        // under the sunset map at 16 spp, path 1 against path 2 (2 193 M against 2 347 M). Their rays: the longer
+        // frame adds only vertices at bounce 2 and later (the paths agree up to bounce 1), so its extra shadow and
+        // material rays are all deep. Without the deep weight the ratio came out 2.6 % (city) and 2.2 % (sunset)
+        // low, the error that leaned the path-length choice long.
+        let frame = |camera: u64, each: u64, deep: u64| RayCounts {
+            camera,
+            shadow: each,
+            material: each,
+            deep,
+            ..RayCounts::default()
+        };
+        let cases = [
+            (
+                "city, path 3 / path 1",
+                frame(327_680, 115_252, 0),
+                frame(327_680, 125_737, 20_970),
+                3031.0 / 2771.0,
+            ),
+            (
+                "sunset, path 2 / path 1",
+                frame(262_144, 92_212, 0),
+                frame(262_144, 98_248, 12_072),
+                2347.3 / 2193.0,
+            ),
+        ];
+        let flat = CostWeights {
+            deep: 0.0,
+            ..WEIGHTS
+        };
+        for (name, short, long, measured) in cases {
+            let ratio = |w: &CostWeights| w.seconds(&long) / w.seconds(&short);
+            let (with, without) = (ratio(&WEIGHTS), ratio(&flat));
+            println!("{name}: measured {measured:.4}, predicted {with:.4}, without the deep weight {without:.4}");
+            assert!(
+                (with / measured - 1.0).abs() < 0.01,
+                "{name}: {with} against {measured}"
+            );
+            assert!(
+                without / measured - 1.0 < -0.02,
+                "{name}: {without} against {measured}"
+            );
+        }
+    }
+
+    #[test]
     fn the_weights_predict_the_measured_cpu_time_of_each_candidate_on_the_default_scene() {
         // docs/study/auto/cost-calibration.csv, flat, ray-traced shadows, path 2, 4 spp at 128²: (1, 1) 0.37 s
         // CPU, (1, 4) 0.49 s, (4, 1) 0.57 s, (4, 4) 0.71 s.
