@@ -24,6 +24,7 @@ pub mod farm;
 pub mod geometry;
 pub mod hair;
 pub mod image;
+pub mod job;
 pub mod light;
 pub mod measure;
 pub mod plot;

@@ -292,3 +292,82 @@ fn the_binary_does_not_link_openimageio_at_start_up() {
         "the binary links OpenImageIO at start-up: {needed:?}"
     );
 }
+
+/// `--quality auto` prints one short line per decision, and warns when the settings the user fixed cannot meet
+/// the target; `--verbose` adds the reasons.
+#[test]
+fn auto_prints_short_decisions_and_warns_when_fixed_settings_miss_the_target() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("a.exr");
+    let base = ["render", "-q", "--res", "32x24", "--quality", "auto"];
+    let run = |extra: &[&str]| {
+        let mut args = base.to_vec();
+        args.extend_from_slice(&["-o", out.to_str().unwrap()]);
+        args.extend_from_slice(extra);
+        let o = cuticle(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        stderr(&o)
+    };
+    let fixed = run(&["--spp", "4", "--target", "0.01"]);
+    let auto_lines: Vec<&str> = fixed.lines().filter(|l| l.starts_with("auto:")).collect();
+    assert!(auto_lines.len() >= 3, "{fixed}");
+    for l in &auto_lines {
+        assert!(l.chars().count() <= 120, "line over 120 characters: {l}");
+    }
+    assert!(
+        fixed.contains("warning: --spp 4 cannot meet --target 0.01"),
+        "{fixed}"
+    );
+    let free = run(&["--target", "0.2"]);
+    assert!(!free.contains("warning"), "{free}");
+    let verbose = run(&["--target", "0.2", "--verbose"]);
+    assert!(verbose.lines().count() > free.lines().count(), "{verbose}");
+}
+
+/// `--target` without `--quality auto` does nothing, and says so.
+#[test]
+fn target_without_auto_warns() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("a.png");
+    let o = cuticle(&[
+        "render",
+        "-q",
+        "--res",
+        "16x12",
+        "--spp",
+        "1",
+        "--target",
+        "0.05",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("warning: --target is read only by --quality auto"),
+        "{}",
+        stderr(&o)
+    );
+}
+
+/// The frame benchmark takes the film's size and samples from the command line.
+#[test]
+fn bench_frame_takes_res_and_spp() {
+    let o = cuticle(&[
+        "bench",
+        "frame",
+        "--res",
+        "16x16",
+        "--spp",
+        "1",
+        "--repetitions",
+        "1",
+        "--threads",
+        "1",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let report = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        report.contains("16x16") && report.contains("1 spp"),
+        "{report}"
+    );
+}

@@ -56,7 +56,7 @@ fn four_tiles_merged_equal_the_full_frame_bit_for_bit() {
         })
         .collect();
     let merged = dir.path().join("merged.exr");
-    let mut args = vec!["merge", merged.to_str().unwrap()];
+    let mut args = vec!["merge", "-o", merged.to_str().unwrap()];
     args.extend(tiles.iter().map(|t| t.to_str().unwrap()));
     ok(cuticle(&args));
     // Every channel (beauty, AOVs, the centre-ray depth, tangent and id) equal bit for bit.
@@ -81,11 +81,19 @@ fn four_tiles_merged_equal_the_full_frame_bit_for_bit() {
     let t: Vec<&str> = tiles.iter().map(|t| t.to_str().unwrap()).collect();
     let out = dir.path().join("bad.exr");
     let out = out.to_str().unwrap();
-    assert!(err(&["merge", out, t[0], t[1], t[3]]).contains("uncovered"));
-    assert!(err(&["merge", out, t[0], t[1], t[1], t[2], t[3]]).contains("overlaps"));
+    assert!(err(&["merge", "-o", out, t[0], t[1], t[3]]).contains("uncovered"));
+    assert!(err(&["merge", "-o", out, t[0], t[1], t[1], t[2], t[3]]).contains("overlaps"));
     let other = dir.path().join("other.exr");
     render(&other, &["--tile", "2/4", "--seed", "9"]);
-    let e = err(&["merge", out, t[0], t[1], other.to_str().unwrap(), t[3]]);
+    let e = err(&[
+        "merge",
+        "-o",
+        out,
+        t[0],
+        t[1],
+        other.to_str().unwrap(),
+        t[3],
+    ]);
     assert!(e.contains("another job") && e.contains("other.exr"), "{e}");
     assert!(!Path::new(out).exists());
 }
@@ -158,6 +166,7 @@ fn frames_of_a_turntable_and_their_tiles() {
     let t = |i| dir.path().join(format!("t{i}.0002.exr"));
     ok(cuticle(&[
         "merge",
+        "-o",
         merged.to_str().unwrap(),
         t(0).to_str().unwrap(),
         t(1).to_str().unwrap(),

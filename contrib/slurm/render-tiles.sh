@@ -55,7 +55,7 @@ set -euo pipefail
 for frame in \$(seq $first $last); do
   suffix=""; [ -n "$frames" ] && suffix=".\$(printf %04d "\$frame")"
   tiles=(); for t in \$(seq 0 $((tiles - 1))); do tiles+=("$outdir/tiles/$name.tile\$(printf %03d "\$t")\$suffix.exr"); done
-  "$bin" merge "$outdir/$name\$suffix.exr" "\${tiles[@]}"
+  "$bin" merge -o "$outdir/$name\$suffix.exr" "\${tiles[@]}"
 done
 SCRIPT
 )

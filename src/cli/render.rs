@@ -1,0 +1,266 @@
+//! `cuticle render` and `cuticle merge`.
+
+use std::path::PathBuf;
+
+use anyhow::{bail, Result};
+
+use cuticle::accel::{Backend, CurveKind};
+use cuticle::job::{Job, Part, Request};
+use cuticle::quality::{Fixed, QualityMode};
+use cuticle::render::{self, LightSelection, ShadowMode, TransmittanceMode};
+use cuticle::scene::Overrides;
+
+use super::{load_scene, parse_resolution, scene_name};
+
+#[derive(clap::Args)]
+pub struct RenderArgs {
+    /// Scene file (TOML). Without it, the built-in default scene (a procedural fur ball).
+    scene: Option<PathBuf>,
+    /// Output image: `.exr` (beauty + AOVs, plus a `.png` preview beside it) or `.png` (preview only).
+    #[arg(short, long, default_value = "cuticle.exr")]
+    output: PathBuf,
+    /// Camera samples per pixel (overrides film.spp).
+    #[arg(long)]
+    spp: Option<u32>,
+    /// Resolution WxH, e.g. 1280x720 (overrides film.resolution).
+    #[arg(long, value_parser = parse_resolution)]
+    res: Option<[u32; 2]>,
+    /// Worker threads (default: all cores). The image does not depend on it.
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Strand geometry, round or flat (overrides hair.curves).
+    #[arg(long, value_parser = scene_name::<CurveKind>)]
+    curves: Option<CurveKind>,
+    /// Strand tracer: embree or bvh, the pure-Rust BVH (overrides hair.backend).
+    #[arg(long, value_parser = scene_name::<Backend>)]
+    backend: Option<Backend>,
+    /// Seed of the sample streams (overrides film.seed).
+    #[arg(long)]
+    seed: Option<u32>,
+    /// AOV layers the EXR holds beside the beauty: all, none, or a comma-separated list such as depth,albedo
+    /// (overrides film.aovs).
+    #[arg(long, value_name = "LAYERS", value_parser = parse_aovs)]
+    aovs: Option<AovList>,
+    /// Self-shadowing: raytraced, deep-opacity or none (overrides shadows.mode).
+    #[arg(long, value_parser = scene_name::<ShadowMode>)]
+    shadows: Option<ShadowMode>,
+    /// How light samples see semi-transparent strands: stochastic or exact (overrides shadows.transmittance).
+    #[arg(long, value_parser = scene_name::<TransmittanceMode>)]
+    transmittance: Option<TransmittanceMode>,
+    /// Light samples per light at the first shading point (overrides integrator.light_samples).
+    #[arg(long)]
+    light_samples: Option<u32>,
+    /// Material samples at the first shading point (overrides integrator.material_samples).
+    #[arg(long)]
+    material_samples: Option<u32>,
+    /// Indirect bounces, 0 = direct light only (overrides integrator.path_length).
+    #[arg(long)]
+    path_length: Option<u32>,
+    /// all: every light gets its own light samples; one: each light sample goes to one light chosen by power (an
+    /// environment by its irradiance) (overrides integrator.lights).
+    #[arg(long, value_parser = scene_name::<LightSelection>)]
+    lights: Option<LightSelection>,
+    /// Refuse the frame before building it when its estimated memory exceeds this size (e.g. 4G, 512M; default:
+    /// 3/4 of physical memory).
+    #[arg(long, value_name = "SIZE", value_parser = render::budget::parse_size)]
+    max_memory: Option<u64>,
+    /// Also write every deep opacity map (z0 and per-layer transmittance) as an EXR into this directory.
+    #[arg(long, value_name = "DIR")]
+    dump_shadow_maps: Option<PathBuf>,
+    /// No progress bar.
+    #[arg(short, long)]
+    quiet: bool,
+    /// With --quality auto: print the reasons and numbers behind every decision.
+    #[arg(short, long)]
+    verbose: bool,
+    /// Render only the pixels x0..x1 × y0..y1 of the frame (EXR data window; same pixels as the full render).
+    #[arg(long, value_name = "X0,Y0,X1,Y1", value_parser = render::tiles::Region::parse, conflicts_with = "tile")]
+    crop: Option<render::Region>,
+    /// Render part I (from 0) of N of the frame: a band of whole rows (see `cuticle merge`).
+    #[arg(long, value_name = "I/N", value_parser = render::tiles::parse_part)]
+    tile: Option<(u32, u32)>,
+    /// Render frames A..B (inclusive) of the camera's turntable (camera.orbit_degrees_per_frame), one
+    /// `name.####.exr` each.
+    #[arg(long, value_name = "A..B", value_parser = cuticle::farm::parse_frames)]
+    frames: Option<std::ops::RangeInclusive<i32>>,
+    /// fixed (the scene's settings) or auto: choose curves, shadows, path length and samples for --target and say
+    /// why (overrides quality.mode; options given here stay fixed).
+    #[arg(long)]
+    quality: Option<QualityMode>,
+    /// Error target of --quality auto: relative RMSE of the beauty against a converged image (overrides
+    /// quality.target).
+    #[arg(long)]
+    target: Option<f32>,
+}
+
+/// `--aovs`: `all`, `none` (the beauty alone) or comma-separated layer names (checked with the scene, by
+/// `film.aovs`' own validation).
+fn parse_aovs(s: &str) -> Result<AovList, String> {
+    match s.trim() {
+        "" => Err("expected all, none or layer names such as depth,albedo".to_owned()),
+        "none" => Ok(AovList(Vec::new())),
+        list => Ok(AovList(
+            list.split(',').map(|l| l.trim().to_owned()).collect(),
+        )),
+    }
+}
+
+/// The value of `--aovs` (one argument holding a list, so clap must not see a `Vec`).
+#[derive(Clone, Debug)]
+struct AovList(Vec<String>);
+
+/// Longest line auto prints without `--verbose`.
+const LINE: usize = 120;
+
+pub fn render_command(args: RenderArgs) -> Result<()> {
+    if args.spp == Some(0) {
+        bail!("--spp must be at least 1");
+    }
+    let overrides = Overrides {
+        spp: args.spp,
+        resolution: args.res,
+        seed: args.seed,
+        aovs: args.aovs.map(|a| a.0),
+        curves: args.curves,
+        backend: args.backend,
+        shadows: args.shadows,
+        transmittance: args.transmittance,
+        light_samples: args.light_samples,
+        material_samples: args.material_samples,
+        path_length: args.path_length,
+        lights: args.lights,
+        quality: args.quality,
+        target: args.target,
+    };
+    let scene = load_scene(args.scene.as_deref())?.apply(&overrides)?;
+    if args.target.is_some() && scene.quality.mode != QualityMode::Auto {
+        eprintln!(
+            "warning: --target is read only by --quality auto; this render uses the scene's fixed settings"
+        );
+    }
+    let part = match (args.crop, args.tile) {
+        (Some(crop), _) => Part::Crop(crop),
+        (None, Some((index, count))) => Part::Tile { index, count },
+        (None, None) => Part::Full,
+    };
+    let cancel = cuticle::farm::catch_signals()
+        .map_err(|e| anyhow::anyhow!("cannot catch sigint/sigterm: {e}"))?;
+    let job = Job::prepare(Request {
+        scene,
+        fixed: Fixed::from_overrides(&overrides),
+        threads: args.threads,
+        max_memory: args.max_memory,
+        part,
+        frames: args.frames,
+        output: Some(args.output),
+        dump_shadow_maps: args.dump_shadow_maps,
+        progress: !args.quiet,
+    })?;
+    if let Some(auto) = &job.auto {
+        for d in &auto.decisions {
+            let line = format!("auto: {} = {}", d.key, d.value);
+            eprintln!("{}", shorten(&line, LINE));
+            if args.verbose {
+                eprintln!("      {}", d.reason);
+            }
+        }
+        let p = &auto.pilot;
+        eprintln!(
+            "auto: pilots {:.2} s; predicted render {:.1} s, noise {:.4} for target {}",
+            p.pilot_seconds, p.predicted_seconds, p.predicted_noise, auto.target
+        );
+        if let Some(why) = auto.shortfall() {
+            eprintln!("warning: {why}");
+        }
+    }
+    let dropped_before = render::film::dropped_samples();
+    let mut last = None;
+    for f in job.frames() {
+        if !args.quiet {
+            if let Some(path) = job.output_path(f) {
+                eprintln!("rendering {}", path.display());
+            }
+        }
+        let rendered = job.render(f, Some(&cancel))?;
+        for p in job.write(&rendered)? {
+            eprintln!("wrote {}", p.display());
+        }
+        last = Some(rendered.stats);
+    }
+    let stats = last.unwrap_or_default();
+    eprintln!("{}", job.summary(&stats));
+    if let Some(auto) = &job.auto {
+        let p = auto.pilot.pilot_seconds;
+        eprintln!(
+            "auto: the pilots took {:.0} % of pilots + render ({p:.2} s of {:.2} s)",
+            100.0 * p / (p + stats.seconds).max(1e-9),
+            p + stats.seconds
+        );
+    }
+    if job.uses_maps() {
+        eprintln!(
+            "deep opacity maps: built in {:.3} s, {:.1} MB, {} lookups",
+            stats.shadow_build_seconds,
+            stats.shadow_map_bytes as f64 / 1e6,
+            stats.rays.map_lookups
+        );
+    }
+    let dropped = render::film::dropped_samples() - dropped_before;
+    if dropped > 0 {
+        eprintln!(
+            "warning: {dropped} camera samples were not finite and were left out of their pixels (a bug: please \
+             report)"
+        );
+    }
+    if stats.rays.rejected > 0 {
+        eprintln!(
+            "warning: {} invalid rays were rejected before tracing (a bug: please report)",
+            stats.rays.rejected
+        );
+    }
+    Ok(())
+}
+
+/// `line` cut to `max` characters, with an ellipsis where it was cut.
+fn shorten(line: &str, max: usize) -> String {
+    if line.chars().count() <= max {
+        return line.to_owned();
+    }
+    let mut s: String = line.chars().take(max - 1).collect();
+    s.push('…');
+    s
+}
+
+/// `cuticle merge`: tiles into one frame.
+#[derive(clap::Args)]
+pub struct MergeArgs {
+    /// The merged frame (`.exr`; a `.png` preview is written beside it).
+    #[arg(short, long)]
+    output: PathBuf,
+    /// The tile EXRs of `cuticle render --tile` or `--crop`, covering the frame exactly once.
+    #[arg(required = true)]
+    tiles: Vec<PathBuf>,
+}
+
+pub fn merge_command(args: &MergeArgs) -> Result<()> {
+    if !args
+        .output
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("exr"))
+    {
+        bail!(
+            "{}: the merged frame must end in .exr",
+            args.output.display()
+        );
+    }
+    let preview = args.output.with_extension("png");
+    cuticle::image::check_output(&args.output)?;
+    cuticle::image::check_output(&preview)?;
+    let merged = cuticle::farm::merge(&args.tiles)?;
+    let mut outputs = cuticle::image::Outputs::new();
+    outputs.exr_with_preview(&args.output, &preview, &merged.image, &merged.info)?;
+    for p in outputs.commit()? {
+        eprintln!("wrote {}", p.display());
+    }
+    Ok(())
+}

@@ -1,0 +1,282 @@
+//! `cuticle study`: thin wrappers over `cuticle::study` (the logic and its docs live there).
+
+use std::path::PathBuf;
+
+use anyhow::Result;
+use clap::Subcommand;
+
+use cuticle::accel::{Backend, CurveKind};
+
+use super::{parse_resolution, scene_name, threads};
+
+#[derive(Subcommand)]
+pub enum StudyCommand {
+    /// Shadow modes against a converged ray-traced reference: error vs time, map memory, crops.
+    Shadows(StudyShadowsArgs),
+    /// The same frame on Embree and on the pure-Rust BVH: time, error against a reference, image difference.
+    Backends(StudyBackendsArgs),
+    /// Light samples against material samples, per model (thesis table 3, figure 17).
+    Samples(StudyKindArgs),
+    /// Importance against uniform BSDF sampling, at equal samples and equal time.
+    Sampling(StudyKindArgs),
+    /// ISHair's uniform against energy-based lobe selection.
+    Lobes(StudyKindArgs),
+    /// The published (biased) against the exact Hery & Ramamoorthi sampler.
+    Hery(StudyKindArgs),
+    /// Marschner and ISHair against a chiang reference.
+    Models(StudyKindArgs),
+    /// Round tubes against flat ribbons per model and film width.
+    Curves(StudyKindArgs),
+    /// Adversarial cases per method: stress.csv, stress.md (NaN/Inf, fireflies, error; failures named).
+    Stress(StudyKindArgs),
+    /// Every kind above, and one Markdown report (report.md) with the charts.
+    All(StudyKindArgs),
+    /// `--quality auto` against every fixed configuration and the shipped settings, per error target.
+    Auto(StudyAutoArgs),
+}
+
+#[derive(clap::Args)]
+pub struct StudyAutoArgs {
+    /// Scene files (TOML).
+    #[arg(required = true)]
+    scenes: Vec<PathBuf>,
+    /// Output directory: auto.md, auto.csv, auto-fits-<scene>.csv, the cached references.
+    #[arg(short, long, default_value = "study")]
+    out: PathBuf,
+    /// Error targets (relative RMSE).
+    #[arg(long, value_delimiter = ',', default_value = "0.1,0.05")]
+    targets: Vec<f32>,
+    /// Film resolution WxH.
+    #[arg(long, value_parser = parse_resolution, default_value = "128x128")]
+    res: [u32; 2],
+    /// Samples per pixel of the references.
+    #[arg(long, default_value_t = 512)]
+    reference_spp: u32,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    threads: Option<usize>,
+}
+
+#[derive(clap::Args)]
+pub struct StudyKindArgs {
+    /// Scene file (TOML).
+    scene: PathBuf,
+    /// Output directory: <kind>.csv, <kind>-summary.csv, <kind>-error-time.png/.svg, <kind>-time.png/.svg,
+    /// <kind>-readouts.txt, the cached references (and report.md for all).
+    #[arg(short, long, default_value = "study")]
+    out: PathBuf,
+    /// Short sweeps on a 32x24 film (unless --res): what CI runs.
+    #[arg(long)]
+    quick: bool,
+    /// Where the reference EXRs are cached (default: the output directory).
+    #[arg(long)]
+    cache_dir: Option<PathBuf>,
+    /// Samples per pixel of the references (default 256, 64 with --quick).
+    #[arg(long)]
+    reference_spp: Option<u32>,
+    /// Seeds per point.
+    #[arg(long, default_value_t = 3)]
+    seeds: u32,
+    /// Film resolution WxH (overrides film.resolution).
+    #[arg(long, value_parser = parse_resolution)]
+    res: Option<[u32; 2]>,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    threads: Option<usize>,
+    /// No progress bars.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+/// Runs `cuticle study <name>` for a framework kind (or `all`) and prints the read-outs.
+fn study_kind(name: &str, a: StudyKindArgs) -> Result<()> {
+    use cuticle::study::framework::{run_kind, StudyConfig};
+    let defaults = StudyConfig::new(a.out, a.quick);
+    let config = StudyConfig {
+        cache_dir: a.cache_dir,
+        seeds: a.seeds,
+        reference_spp: a.reference_spp.unwrap_or(defaults.reference_spp),
+        resolution: a.res,
+        threads: threads(a.threads)?,
+        progress: !a.quiet,
+        ..defaults
+    };
+    if name == "all" {
+        let report = cuticle::study::report::run_all(&a.scene, &config)?;
+        println!("wrote {}", report.markdown.display());
+        for k in &report.kinds {
+            k.readouts
+                .iter()
+                .for_each(|l| println!("{}: {l}", k.kind.name));
+        }
+    } else if name == "stress" {
+        let report = cuticle::study::stress::run(&a.scene, &config)?;
+        println!("wrote {}", report.markdown.display());
+        report
+            .skipped
+            .iter()
+            .for_each(|s| println!("skipped {}: {}", s.case, s.reason));
+        report.failures.iter().for_each(|l| println!("{l}"));
+    } else {
+        let kind = cuticle::study::kinds::by_name(name, a.quick)
+            .expect("a subcommand per kind")
+            .map_err(|e| anyhow::anyhow!("study {name}: {e}"))?;
+        let report = run_kind(&a.scene, &kind, &config)?;
+        report.readouts.iter().for_each(|l| println!("{l}"));
+    }
+    Ok(())
+}
+
+/// The flags `study shadows` and `study backends` share.
+#[derive(clap::Args)]
+pub struct StudyWholeArgs {
+    /// Scene file (TOML).
+    scene: PathBuf,
+    /// Where the reference EXRs are cached (default: the output directory).
+    #[arg(long)]
+    cache_dir: Option<PathBuf>,
+    /// Samples per pixel of the references.
+    #[arg(long, default_value_t = 256)]
+    reference_spp: u32,
+    /// Film resolution WxH (overrides film.resolution).
+    #[arg(long, value_parser = parse_resolution)]
+    res: Option<[u32; 2]>,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Seeds per point.
+    #[arg(long, default_value_t = 3)]
+    seeds: u32,
+    /// No progress bars.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+#[derive(clap::Args)]
+pub struct StudyShadowsArgs {
+    #[command(flatten)]
+    common: StudyWholeArgs,
+    /// Output directory: the files of every study kind (shadows.csv, shadows-summary.csv, shadows-error-time.png,
+    /// shadows-crops.png, ...), the cached reference (ray traced, exact transmittance).
+    #[arg(short, long, default_value = "study-shadows")]
+    out: PathBuf,
+    /// Samples per pixel of the ray-traced variants (stochastic and exact transmittance).
+    #[arg(long, value_delimiter = ',', default_value = "1,4,16,64")]
+    rt_spp: Vec<u32>,
+    /// Layer counts of the deep-opacity series at --layer-resolution.
+    #[arg(long, value_delimiter = ',', default_value = "4,8,16,32,64")]
+    layers: Vec<u32>,
+    /// Map resolution of the layer series.
+    #[arg(long, default_value_t = 1024)]
+    layer_resolution: u32,
+    /// Map resolutions of the deep-opacity series at --resolution-layers.
+    #[arg(long, value_delimiter = ',', default_value = "256,512,1024,2048,4096")]
+    resolutions: Vec<u32>,
+    /// Layers of the resolution series.
+    #[arg(long, default_value_t = 16)]
+    resolution_layers: u32,
+    /// Samples per pixel of the deep-opacity and no-shadow variants.
+    #[arg(long, default_value_t = 16)]
+    dom_spp: u32,
+    /// Side of the crop window, pixels.
+    #[arg(long, default_value_t = 128)]
+    crop: usize,
+    /// Strand tracer of the variants: embree or bvh (overrides hair.backend; the reference keeps the scene's).
+    #[arg(long, value_parser = scene_name::<Backend>)]
+    backend: Option<Backend>,
+}
+
+#[derive(clap::Args)]
+pub struct StudyBackendsArgs {
+    #[command(flatten)]
+    common: StudyWholeArgs,
+    /// Output directory: the files of every study kind (backends.csv, backends-error-time.png, ...),
+    /// backends-differences.csv, backends-diff-*.png, the cached references (Embree).
+    #[arg(short, long, default_value = "study-backends")]
+    out: PathBuf,
+    /// Samples per pixel of the compared renders.
+    #[arg(long, value_delimiter = ',', default_value = "1,4,16")]
+    spp: Vec<u32>,
+    /// Curve types.
+    #[arg(long, value_delimiter = ',', value_parser = scene_name::<CurveKind>, default_value = "round,flat")]
+    curves: Vec<CurveKind>,
+}
+
+/// Runs the kind `build` makes (from a subcommand's own flags) on the whole film, references at
+/// `--reference-spp`, and prints its read-outs.
+fn study_whole(
+    a: StudyWholeArgs,
+    out: PathBuf,
+    crop: Option<usize>,
+    build: impl FnOnce(
+        cuticle::study::framework::Budget,
+    ) -> Result<cuticle::study::framework::Kind, String>,
+) -> Result<()> {
+    use cuticle::study::framework::{run_kind, Budget, StudyConfig};
+    let kind = build(Budget {
+        crop: None,
+        reference_spp: Some(a.reference_spp),
+    })
+    .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let defaults = StudyConfig::new(out, false);
+    let config = StudyConfig {
+        cache_dir: a.cache_dir,
+        seeds: a.seeds,
+        resolution: a.res,
+        threads: threads(a.threads)?,
+        progress: !a.quiet,
+        crop: crop.unwrap_or(defaults.crop),
+        ..defaults
+    };
+    let report = run_kind(&a.scene, &kind, &config)?;
+    report.readouts.iter().for_each(|l| println!("{l}"));
+    Ok(())
+}
+
+pub fn study_command(command: StudyCommand) -> Result<()> {
+    match command {
+        StudyCommand::Samples(a) => study_kind("samples", a)?,
+        StudyCommand::Sampling(a) => study_kind("sampling", a)?,
+        StudyCommand::Lobes(a) => study_kind("lobes", a)?,
+        StudyCommand::Hery(a) => study_kind("hery", a)?,
+        StudyCommand::Models(a) => study_kind("models", a)?,
+        StudyCommand::Curves(a) => study_kind("curves", a)?,
+        StudyCommand::All(a) => study_kind("all", a)?,
+        StudyCommand::Auto(a) => {
+            let md = cuticle::study::auto::run(&cuticle::study::auto::AutoStudyConfig {
+                scenes: a.scenes,
+                targets: a.targets,
+                resolution: a.res,
+                reference_spp: a.reference_spp,
+                out: a.out,
+                threads: threads(a.threads)?,
+            })?;
+            print!("{md}");
+        }
+        StudyCommand::Stress(a) => study_kind("stress", a)?,
+        StudyCommand::Shadows(a) => {
+            let sweep = cuticle::study::kinds::ShadowsSweep {
+                rt_spp: a.rt_spp,
+                layers: a.layers,
+                layer_resolution: a.layer_resolution,
+                resolutions: a.resolutions,
+                resolution_layers: a.resolution_layers,
+                dom_spp: a.dom_spp,
+                backend: a.backend.map(|b| b.name().to_owned()),
+            };
+            study_whole(a.common, a.out, Some(a.crop), |budget| {
+                cuticle::study::kinds::shadows_with(&sweep, budget)
+            })?;
+        }
+        StudyCommand::Backends(a) => {
+            let sweep = cuticle::study::kinds::BackendsSweep {
+                spp: a.spp,
+                curves: a.curves.iter().map(|c| c.name().to_owned()).collect(),
+            };
+            study_whole(a.common, a.out, None, |budget| {
+                cuticle::study::kinds::backends_with(&sweep, budget)
+            })?;
+        }
+    }
+    Ok(())
+}
