@@ -1,6 +1,6 @@
 #!/bin/sh
 # Lays out an Embree 4 that cuticle can build against on Debian 12 (which ships only Embree 3.13.5), to test the
-# Embree 4 code path (`cfg(embree4)`); it is not an install for users (README, "Embree 4").
+# Embree 4 code path (`cfg(embree4)`); it is not an install for users (README, "Embree 4"; docs/guide.md).
 #
 #   sh scripts/embree4.sh DIR     then   EMBREE_DIR=DIR cargo build --release
 #

@@ -2,7 +2,7 @@
 # Equal error, not only equal samples (issue 15, target 2): cuticle against Blender Cycles on the peer scene at
 # 256², 2 threads. Each renderer renders its own converged reference, then a sweep of sample counts with other seeds,
 # cuticle and Cycles taking turns at each point; every image's RMSE is measured against its own renderer's reference.
-# Writes docs/equal-error/equal-error.csv, a log-log chart RMSE vs wall time (equal-error.png/.svg, drawn by
+# Writes docs/measured/equal-error/equal-error.csv, a log-log chart RMSE vs wall time (equal-error.png/.svg, drawn by
 # `cuticle plot-csv`) and prints the time each renderer needs to reach RMSE 0.07, 0.05, 0.04, 0.03.
 #
 # Run from the project root after `cargo build --release`:
@@ -10,7 +10,7 @@
 # Environment:
 #   REF_SPP (1024)                reference samples per pixel (lower it for a quick trial, e.g. REF_SPP=128)
 #   SPPS ("4 8 16 32 64 128 256") the sweep
-#   OUT (docs/equal-error)        where the CSV and chart go
+#   OUT (docs/measured/equal-error)        where the CSV and chart go
 #   WORK (mktemp -d)              renders, logs and times
 #   BIN (./target/release/cuticle)
 #   CHART_ONLY=1                  no renders: redraw the chart and the read-out from $OUT/equal-error.csv
@@ -21,7 +21,7 @@
 #                                 cuticle has neither on); UNBIASED=0 for Blender's defaults only
 #
 # Scene: cuticle `scenes/furball-peer.toml --res 256x256`; Cycles `../shared/peers/cycles_furball.py --res 256
-# --shape thick --bounces 1 --sun` with the harness' material and lights (the README's peer scene maps each setting).
+# --shape thick --bounces 1 --sun` with the harness' material and lights (docs/measured/peers.md maps each setting).
 # Metric: RMS error over the beauty R, G, B of the whole image (every pixel, alpha and AOVs dropped: `oiiotool --ch
 # R,G,B`), both sides linear float EXRs (cuticle's beauty channels; Cycles' `--out *.exr`, 32-bit float, scene-linear,
 # not the view transform), computed by `oiiotool REF --ch R,G,B IMG --ch R,G,B --diff`.
@@ -31,7 +31,7 @@
 set -euo pipefail
 REF_SPP=${REF_SPP:-1024}
 SPPS=${SPPS:-"4 8 16 32 64 128 256"}
-OUT=${OUT:-docs/equal-error}
+OUT=${OUT:-docs/measured/equal-error}
 BIN=${BIN:-./target/release/cuticle}
 PEERS=../shared/peers
 HAIR=../shared/data/hair/furball.hair

@@ -16,7 +16,7 @@ reference's denominators. `--seeds` gives the 4-spp seeds (the pilots' own are 1
 0x5eed0001/2); `--denominators` also prints, over all pairs, each of five other denominators' estimate ÷ the
 reference-denominator products, mean ± its standard error (the pair after the last wraps to the first for the
 third seed). Needs numpy and oiiotool (Debian `openimageio-tools`); about 15 s for straight-city.
-A measurement, not a test: docs/study/auto/README.md quotes its output.
+A measurement, not a test: docs/measured/auto.md quotes its output.
 """
 import argparse
 import os

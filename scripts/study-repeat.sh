@@ -3,7 +3,7 @@
 # CPU-time ratio of auto to the fastest fixed configuration that measured meets the target: min, max, mean and the
 # mean's standard error. A single run reads that ratio with a spread of ±5–10 % on this VM class (the same
 # deterministic frames), so a row near the 1.25× line is judged on the mean of many runs, not on one
-# (docs/study/auto/README.md, "The rows near the line, run again and again").
+# (docs/measured/auto.md, "The rows near the line, run again and again").
 #
 #   scripts/study-repeat.sh SCENE TARGETS N REFDIR [WORKDIR]
 #

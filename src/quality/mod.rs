@@ -1,6 +1,6 @@
-//! `--quality auto` (issue 18): the renderer chooses its own methods for an error target, and says why.
+//! `--quality auto`: the renderer chooses its own methods for an error target, and says why.
 //!
-//! The studies (`cuticle study`, `docs/shadow-study.md`, README "Measured") measured which method wins where; this
+//! The studies (`cuticle study`, `docs/measured/`) measured which method wins where; this
 //! module turns those measurements into decisions, each printed with its reason and its predicted cost or error.
 //!
 //! # The error target
@@ -206,7 +206,7 @@ pub const RIBBON_MAX_PIXELS: f32 = 1.0;
 /// Ribbons against tubes, from the strands' screen width and the fibre model.
 pub fn decide_curves(material: &Material, widths: Option<ScreenWidths>) -> (CurveKind, Decision) {
     let key = "hair.curves";
-    let speed = "ribbons trace 1.5-1.9x faster than tubes (README, Measured: furball-512 11.1 s flat, 19.1 s round)";
+    let speed = "ribbons trace 1.5-1.9x faster than tubes (docs/measured/speed.md: furball-512 11.1 s flat, 19.1 s round)";
     let model = material.name;
     let decision = |kind: CurveKind, reason: String| {
         (
@@ -230,7 +230,7 @@ pub fn decide_curves(material: &Material, widths: Option<ScreenWidths>) -> (Curv
             CurveKind::Flat,
             format!(
                 "{model} does not read the offset across the fibre, so ribbons shade as tubes do \
-                 (image means within 0.3 % at 256², README); {width}; {speed}"
+                 (image means within 0.3 % at 256², docs/measured/speed.md); {width}; {speed}"
             ),
         )
     } else if w.p90 < RIBBON_MAX_PIXELS {
@@ -262,7 +262,7 @@ pub struct MapChoice {
 
 /// Share of the lights' power (as [`Light::power`] estimates it over the scene's bounding sphere) that lights
 /// poorly served by deep opacity maps (environments, area lights) may carry for auto still to choose maps: the
-/// maps lose 4.4 % of an environment's shadow (README, Self-shadowing), so a light carrying a fifth of the target
+/// maps lose 4.4 % of an environment's shadow (docs/measured/shadows.md), so a light carrying a fifth of the target
 /// at most costs under a twentieth of it.
 fn map_tolerance(target: f32) -> f32 {
     0.2 * target
@@ -271,11 +271,10 @@ fn map_tolerance(target: f32) -> f32 {
 /// Deep opacity maps or ray-traced shadows (or none, with no light), from the lights: the mode, the maps' settings
 /// when it is deep opacity, and the decision that says why. `hair_pixels` is the hair's bounding-sphere
 /// diameter on screen (the map's texels are made about as fine as the pixels there, no finer than needed and
-/// not so coarse that strands alias: `docs/shadow-study.md`).
+/// not so coarse that strands alias: `docs/measured/shadows.md`).
 ///
-/// The maps' resolution and layers and the strands' density as seen by the light (issue 18 asks for them to be chosen
-/// from it): the shadow study measured both on the densest groom here (the fur ball, 30 367 strands, 485 872 points)
-/// and the sparsest (straight hair, 10 000 strands) under a sun (`docs/shadow-study.md`, "Reading"), and neither knee
+/// Why the maps' resolution and layers do not follow the strands' density as seen by the light: the shadow study measured both on the densest groom here (the fur ball, 30 367 strands, 485 872 points)
+/// and the sparsest (straight hair, 10 000 strands) under a sun (`docs/measured/shadows.md`, "Reading"), and neither knee
 /// moved with the density. Layers: with growing spacing 4 cost +17 % and +14 % shadowed RMSE against 16, 8 within
 /// 4–5 %, 64 within 2–3 %, on both; so 16, for any density. Resolution: 1024² best on both at a 512² frame, 256² soft,
 /// 2048² and 4096² slightly *worse* for 2–16× the build: what sets it is the camera's pixel footprint, not the strand
@@ -319,10 +318,10 @@ pub fn decide_shadows(
         let reason = format!(
             "distant lights carry {:.1} % of the light (environment and area lights {:.1} %, within a fifth of the \
              target {target}); deep opacity maps matched 16-spp ray-traced shadows under a sun at a quarter of \
-             their cost (RMSE 0.0069 against 0.0077, 0.33 s against 2.35 s: README); {resolution}² texels \
+             their cost (RMSE 0.0069 against 0.0077, 0.33 s against 2.35 s: docs/measured/shadows.md); {resolution}² texels \
              (the hair spans {hair_pixels:.0} px on screen: a texel per pixel, as 1024² maps at a 512² frame \
              measured best for both the dense fur ball and sparse straight hair), {layers} layers (the knee on both \
-             densities: 4 layers +14-17 % shadowed error, 64 within 3 %: docs/shadow-study.md)",
+             densities: 4 layers +14-17 % shadowed error, 64 within 3 %: docs/measured/shadows.md)",
             100.0 * (1.0 - other_share),
             100.0 * other_share
         );
@@ -338,7 +337,7 @@ pub fn decide_shadows(
     } else {
         let reason = format!(
             "environment and area lights carry {:.1} % of the light, more than a fifth of the target {target}: \
-             deep opacity maps miss 4.4 % of an environment's shadow (README) and need a map per direction",
+             deep opacity maps miss 4.4 % of an environment's shadow (docs/measured/shadows.md) and need a map per direction",
             100.0 * other_share
         );
         (
@@ -420,7 +419,7 @@ pub fn plan_shadows(
     decision
 }
 
-/// How much safety auto adds to its estimates (issue 18's "less conservatism where it is not needed").
+/// How much safety auto adds to its estimates: no more than the estimates' own errors call for.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Margins {
     /// Standard errors added to a bounce's measured bias (relMSE) before it is compared with a quarter of the
@@ -437,14 +436,11 @@ pub struct Margins {
 }
 
 impl Margins {
-    /// What auto uses (the study measures it against [`Margins::POINT`], `docs/study/auto/`). Until 4 Dec 2026
-    /// (one standard error on the gain, 0.95 of the budget) the margins had to cover the gain model's error: the
-    /// bare point estimates missed the fur ball, sunset, interior and Cornell box targets by up to 8 %, so the
-    /// default scene and straight hair under the city map, where the model was right, over-delivered (0.0909 and
-    /// 0.0911 for 0.1) and took 1.27–1.30× the fastest fixed frame. With the halves in the stop the frames'
-    /// noise comes out 3–12 % under the aim (fifteenth run): one standard error on the bounces' bias stays (the
-    /// pilots' estimate of a left-out bounce is the other error, optimistic on the fur ball at 0.1), 0.98 of the
-    /// budget covers the halves' own noise.
+    /// What auto uses (`cuticle study auto` measures it against [`Margins::POINT`], `docs/measured/auto.md`): one
+    /// standard error on the bounces' bias (the pilots' estimate of a left-out bounce is the error the halves in
+    /// the adaptive stop cannot see), none on the sampler gain (the stop reads the frame's own halves, the model only
+    /// floors them), and 0.98 of the noise budget to cover the halves' own noise. Tuned on the seven study scenes;
+    /// the bare point estimates missed four of their targets by up to 8 %.
     pub const DEFAULT: Margins = Margins {
         bias_standard_errors: 1.0,
         gain_standard_errors: 0.0,

@@ -272,7 +272,7 @@ fn render_tiles(
     let adaptive = settings.adaptive;
     let seed = settings.film.seed;
     let centre_ray = settings.film.traces_centre_ray();
-    // Experimental (`integrator.lanes`, docs/wavefront.md step 2): first vertices shaded eight at a time.
+    // Experimental (`integrator.lanes`, docs/design/wavefront.md, step 2): first vertices shaded eight at a time.
     let lanes = settings.integrator.lanes && integrator.lanes_fit();
     let tiles: Vec<(u32, u32)> = (0..tiles_y)
         .flat_map(|ty| (0..tiles_x).map(move |tx| (tx, ty)))

@@ -44,7 +44,7 @@ pub enum MaterialConfig {
     Marschner(MarschnerConfig),
     /// Ou et al. 2012's ISHair: Sadeghi et al. 2010's R, TT, TRT − g and glint lobes (thesis §4.3, §5.3.2).
     Ishair(IsHairConfig),
-    /// Chiang et al. 2016's energy-conserving near/far-field model (issue 14).
+    /// Chiang et al. 2016's energy-conserving near/far-field model.
     Chiang(ChiangConfig),
 }
 

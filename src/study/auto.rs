@@ -1,4 +1,4 @@
-//! `cuticle study auto SCENE... [--targets 0.1,0.05]` (issue 18, "Proof"): does `--quality auto` meet its error
+//! `cuticle study auto SCENE... [--targets 0.1,0.05]` does `--quality auto` meet its error
 //! target, and how does its time compare with the fastest fixed configuration that meets it, and with the scene's
 //! shipped settings?
 //!
@@ -25,7 +25,7 @@
 //! 4. **At equal error**: where the shipped settings meet T with a larger error than auto's and auto at T is not
 //!    faster, auto is planned and rendered again for the shipped frame's error (T × shipped / auto, one secant step:
 //!    auto's error is about proportional to its target), and its CPU time compared with the shipped frame's (the
-//!    issue asks for auto faster than the shipped settings *at equal error*; asked for the same target, auto
+//!    point is auto faster than the shipped settings *at equal error*; asked for the same target, auto
 //!    delivers less error than a fixed frame that barely meets it).
 //!
 //! The fits are cached next to the reference (keyed by the scene and the study's settings): they only choose
@@ -897,7 +897,7 @@ fn study_scene(path: &Path, config: &AutoStudyConfig) -> Result<(Vec<Row>, f64),
             in_turns(target, &mut auto, &mut measured_fastest.renders[best]);
         }
         // Where the shipped settings meet the target with a larger error than auto's and auto is not faster,
-        // auto asked for the shipped frame's error (the issue's "faster at equal error"): the target scaled by the
+        // auto asked for the shipped frame's error ("faster at equal error"): the target scaled by the
         // ratio of the two errors, one secant step (auto's error is about proportional to its target).
         let equal_error = match shipped
             .as_ref()
