@@ -330,7 +330,11 @@ impl fmt::Display for BuildReport {
         if let Some(p) = self.process_peak_bytes {
             writeln!(f, "peak memory (VmHWM) of the process: {:.0} MiB", mb(p))?;
         }
-        // One line per measurement for scripts.
+        // The same figures again, one per line for scripts.
+        write!(
+            f,
+            "\nthe figures above, one per line for scripts (strands, curves, backend, build time, bytes per segment):"
+        )?;
         for r in &self.builds {
             write!(
                 f,

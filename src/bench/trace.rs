@@ -325,7 +325,11 @@ impl fmt::Display for TraceReport {
             }
             writeln!(f)?;
         }
-        // One line per measurement for scripts: `<measure> <curves> <backend> <value> <unit> <threads>`.
+        // The same figures again, one per line for scripts: `<measure> <curves> <backend> <value> <unit> <threads>`.
+        writeln!(
+            f,
+            "the figures above, one per line for scripts (measure, curves, backend, value, unit, threads):"
+        )?;
         for m in &self.measurements {
             let (kind, backend, threads) = (m.kind.name(), m.backend.name(), m.threads);
             writeln!(
