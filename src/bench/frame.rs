@@ -52,8 +52,8 @@ impl fmt::Display for FrameReport {
         let [w, h] = self.resolution;
         writeln!(
             f,
-            "frame benchmark: {} ({} strands, {w}x{h}, {} spp, path length {}, {}); {:?} backend; {} threads; median (min-max) of {} runs after 1 warm-up",
-            self.scene, self.strands, self.spp, self.path_length, self.material, self.backend, self.threads, self.repetitions
+            "frame benchmark: {} ({} strands, {w}x{h}, {} spp, path length {}, {}); {} backend; {} threads; median (min-max) of {} runs after 1 warm-up",
+            self.scene, self.strands, self.spp, self.path_length, self.material, self.backend.name(), self.threads, self.repetitions
         )?;
         writeln!(
             f,

@@ -236,8 +236,8 @@ impl fmt::Display for ReplayReport {
         let [i, is, os, t] = self.queries;
         writeln!(
             f,
-            "frame replay: {} ({w}x{h}, {} spp); {:?} backend; {} threads; median (min-max) after 1 warm-up",
-            self.scene, self.spp, self.backend, self.threads
+            "frame replay: {} ({w}x{h}, {} spp); {} backend; {} threads; median (min-max) after 1 warm-up",
+            self.scene, self.spp, self.backend.name(), self.threads
         )?;
         writeln!(
             f,

@@ -85,7 +85,7 @@ impl fmt::Display for ShadowReport {
             writeln!(
                 f,
                 "{:<13} render {:.3} s ({:.3}-{:.3}), map build {:.3} s, {} shadow rays, maps {:.1} MB, shadow cost {:.3} s",
-                format!("{:?}", m.mode),
+                m.mode.name(),
                 m.render.median,
                 m.render.min,
                 m.render.max,

@@ -114,6 +114,17 @@ pub enum ShadowMode {
     None,
 }
 
+impl ShadowMode {
+    /// The name the scene file and the command line use.
+    pub fn name(self) -> &'static str {
+        match self {
+            ShadowMode::Raytraced => "raytraced",
+            ShadowMode::DeepOpacity => "deep-opacity",
+            ShadowMode::None => "none",
+        }
+    }
+}
+
 /// How light samples' shadow rays account for semi-transparent strands (see [`super::integrator`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
 #[serde(rename_all = "kebab-case")]
