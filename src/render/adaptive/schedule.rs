@@ -364,15 +364,6 @@ impl Schedule {
         let budget = self.target * self.target;
         // The stop reads the larger of the model's and the halves' estimates ([`Schedule::estimates`]).
         let (mut own, model, split) = self.estimates(width, taken, pixels);
-        if std::env::var_os("CUTICLE_DEBUG_STOP").is_some() {
-            let mean_n = taken.iter().map(|&n| f64::from(n)).sum::<f64>() / taken.len() as f64;
-            eprintln!(
-                "round {round} mean spp {mean_n:.2} model {:.5} split {:.5} budget {:.5}",
-                model.sqrt(),
-                split.sqrt(),
-                budget.sqrt()
-            );
-        }
         if round >= MAX_ROUNDS || model.max(split) <= budget {
             return None;
         }
