@@ -1,7 +1,7 @@
 //! The energy-conserving near/far-field fibre model of Chiang, Bitterli, Tappan & Burley 2016, "A practical and
 //! controllable hair and fur model for production path tracing", with the longitudinal term of d'Eon, Francois,
-//! Hill, Letteri & Aubry 2011, "An energy-conserving hair reflectance model" (thesis §8.2's planned model; issue
-//! 14). The model Cycles' Principled Hair, pbrt-v4's `HairBxDF` and Mitsuba 3's `hair` implement.
+//! Hill, Letteri & Aubry 2011, "An energy-conserving hair reflectance model" (thesis §8.2's planned model).
+//! The model Cycles' Principled Hair, pbrt-v4's `HairBxDF` and Mitsuba 3's `hair` implement.
 //!
 //! # Model (fibre convention, see [`super`])
 //!
@@ -18,7 +18,7 @@
 //!   v ≥ 1e-7, and [`i0e`] is accurate to ~4e-12 relative over [0, ∞) (the power series to 32 terms below 12, the
 //!   asymptotic expansion to its smallest term above; tested against an independent quadrature to 1e-9). The
 //!   peers' 10-term series misses ~2 % of I₀(12) (the terms k ≥ 10 sum to ~385 of 18948), which is where their
-//!   M_p loses energy near βm ≈ 0.1 (issue 14).
+//!   M_p loses energy near βm ≈ 0.1.
 //! - **Variances**: v₀ = (0.726 βm + 0.812 βm² + 3.7 βm²⁰)² (the paper's fit), v₁ = v₀/4, v₂ = v₃ = 4 v₀.
 //! - **Tilt α** of the cuticle scales: θo′ = θo − 2α for R, θo + α for TT, θo + 4α for TRT, θo for p ≥ 3, so the
 //!   peaks sit at θi = −θo + 2α, −θo − α, −θo − 4α (as the paper and pbrt-v4: R shifted by 2α, TT by −α, TRT by

@@ -23,9 +23,10 @@
 //! NaN or infinite (DWAB compression leaves tiny negatives) are replaced by 0 and counted
 //! ([`Environment::clamped_texels`]). `intensity` scales the whole map.
 //!
-//! Directions are importance sampled with a [`Distribution2D`](super::distribution::Distribution2D) over the texel weights luminance(texel) · sin θ_c
-//! (θ_c at the texel's centre: the sin θ of the lat-long Jacobian, so rows near the poles, which cover little
-//! solid angle, are drawn less). The density per unit solid angle of a direction at (u, v) is
+//! Directions are importance sampled with a [`Distribution2D`](super::distribution::Distribution2D) over the texel
+//! weights luminance(texel) · sin θ_c (θ_c at the texel's centre: the sin θ of the lat-long Jacobian, so rows near
+//! the poles, which cover little solid angle, are drawn less). The density per unit solid angle of a direction at (u,
+//! v) is
 //!
 //! p_ω = p_uv(u, v) / (2π² sin θ),   since dω = sin θ dθ dφ = 2π² sin θ du dv,
 //!

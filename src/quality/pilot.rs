@@ -2,11 +2,11 @@
 //! auto cannot know from the scene file — how much light each bounce adds and how noisy a sample is.
 //!
 //! The windows are a regular grid of small [`WINDOW`]² squares spread over the film (background included, as the
-//! error target counts every pixel). Each is rendered with [`render_bounces`](crate::render::render_bounces), whose pixel is the mean of the
-//! same camera samples the frame's pixel takes (with the pilots' seeds), so a pilot pixel integrates exactly what
-//! the frame's pixel will, and which gives every shorter path length's estimate of it from one render. Pilots are
-//! deterministic (fixed seeds, independent of the frame's seed and of the thread count), so the decisions are
-//! too.
+//! error target counts every pixel). Each is rendered with [`render_bounces`](crate::render::render_bounces), whose
+//! pixel is the mean of the same camera samples the frame's pixel takes (with the pilots' seeds), so a pilot pixel
+//! integrates exactly what the frame's pixel will, and which gives every shorter path length's estimate of it from
+//! one render. Pilots are deterministic (fixed seeds, independent of the frame's seed and of the thread count), so
+//! the decisions are too.
 
 mod bounces;
 mod pair;
@@ -46,7 +46,7 @@ pub const MAX_PILOT_PIXELS: u32 = 9216;
 /// [`MAX_PILOT_PIXELS`]), smaller on a film narrower than a window.
 ///
 /// The windows must represent the film: the pilots' relMSE is a mean over their pixels standing for the mean over
-/// the film's. Nine windows of 10² on a 128² film (the layout before 2 Dec 2026) sat mostly on the background of
+/// the film's. Nine windows of 10² on a 128² film sit mostly on the background of
 /// the default scene and put the bias of its first two bounces at 0.053 and 0.024 (relative RMSE, 2 standard
 /// errors added), where the whole film, as 1 024 windows of 4², measures 0.108 and 0.038; 64 windows of 4² (as
 /// many pixels as the nine) measure 0.106 and 0.038. (The 0.0537 relative RMSE the study's fits measure for
@@ -109,11 +109,11 @@ fn comparison_windows(windows: &[Region]) -> Vec<usize> {
 const SAMPLE_CANDIDATES: [(u32, u32); 4] = [(1, 1), (1, 4), (4, 1), (4, 4)];
 
 /// A candidate whose predicted cost (relMSE × CPU s, [`predicted_both`]) is over this many times the best
-/// measured one's is not rendered. The prediction is optimistic: with 1.2 here (until 5 Dec 2026) (4, 4) was
+/// measured one's is not rendered. The prediction is optimistic: at a margin of 1.2, (4, 4) is
 /// rendered on 4 of the 14 rows of `study auto` (straight hair under the city, sunset and interior maps, 128²),
 /// measuring 1.08, 1.38, 1.17 and 1.23× its predicted relMSE and 1.17–1.51× the best's cost, winning none; at 1.05
-/// three of them are not rendered, which saves the most expensive pilot pair (straight-city at 0.1: 3 320 M →
-/// 3 278 M instructions in the pilots and the frame, callgrind, one thread) and changes no decision.
+/// three of them are not rendered, which saves the most expensive pilot pair (straight-city at 0.1: 3 278 M
+/// instructions in the pilots and the frame against 3 320 M, callgrind, one thread) and changes no decision.
 const SKIP_MARGIN: f64 = 1.05;
 
 /// The relative MSE and predicted CPU seconds of the (4, 4) candidate from the pilots of (1, 1), (1, 4) and

@@ -1,47 +1,48 @@
-//! Adaptive sampling (issue 18): camera samples in rounds, more where the image is noisier, until the estimated
+//! Adaptive sampling: camera samples in rounds, more where the image is noisier, until the estimated
 //! error is under the target, between a minimum and a maximum per pixel.
 //!
 //! # The image-level rule ([`Rule::Image`], what `--quality auto` uses)
 //!
 //! The frame's target is a relative RMSE over the image ([`crate::quality`]), so the rule stops on the *image's*
-//! estimated noise, not each pixel's. A pixel's beauty is the mean of its n samples; its per-sample relative
-//! variance is v = mean over RGB of s² / (x̄² + 0.01) (s² each channel's sample variance, x̄ its running mean
-//! standing in for the converged value), so its contribution to the image's relMSE is v / n, and the estimated
-//! image relMSE is the mean of v / n over the region's pixels. Every pixel first takes `min` samples; then, at each
-//! round boundary, if the estimate is over target², the samples go where they buy the most: minimising Σ v / n
-//! for a given Σ n gives n ∝ √v (a Lagrange multiplier), so each pixel's goal is n* = √v · Σ √v / (target² · N)
-//! (water-filled: pixels at `max`, or already past their goal, are held and the rest share what is left of the
-//! budget). With a cost model ([`Schedule::cost`], what `--quality auto` sets) the samples are weighed by what they
-//! cost: a pixel's c is the mean predicted CPU time of its samples (from the rays each traced, weighed per kind,
-//! never the clock), and minimising the cost Σ c n for the same Σ v / n gives n ∝ √(v/c), goal
-//! n* = √(v/c) · Σ √(v c) / (target² · N). A pixel of the fur's edge, noisy and cheap (many of its camera rays miss),
-//! then gets more of the samples, and one deep in the fur, where every sample traces a full path, fewer. A round takes every pixel to its goal, at most doubling its count (its v is re-estimated from more
-//! samples before it grows further). The region is done when the estimate meets the budget or no pixel may grow.
+//! estimated noise, not each pixel's. A pixel's beauty is the mean of its n samples; its per-sample relative variance
+//! is v = mean over RGB of s² / (x̄² + 0.01) (s² each channel's sample variance, x̄ its running mean standing in for
+//! the converged value), so its contribution to the image's relMSE is v / n, and the estimated image relMSE is the
+//! mean of v / n over the region's pixels. Every pixel first takes `min` samples; then, at each round boundary, if
+//! the estimate is over target², the samples go where they buy the most: minimising Σ v / n for a given Σ n gives n ∝
+//! √v (a Lagrange multiplier), so each pixel's goal is n* = √v · Σ √v / (target² · N) (water-filled: pixels at `max`,
+//! or already past their goal, are held and the rest share what is left of the budget). With a cost model
+//! ([`Schedule::cost`], what `--quality auto` sets) the samples are weighed by what they cost: a pixel's c is the
+//! mean predicted CPU time of its samples (from the rays each traced, weighed per kind, never the clock), and
+//! minimising the cost Σ c n for the same Σ v / n gives n ∝ √(v/c), goal n* = √(v/c) · Σ √(v c) / (target² · N). A
+//! pixel of the fur's edge, noisy and cheap (many of its camera rays miss), then gets more of the samples, and one
+//! deep in the fur, where every sample traces a full path, fewer. A round takes every pixel to its goal, at most
+//! doubling its count (its v is re-estimated from more samples before it grows further). The region is done when the
+//! estimate meets the budget or no pixel may grow.
 //!
 //! Allocation and stop read different variances. Who gets the samples reads each pixel's v raised to its 3×3
-//! neighbours' mean ([`smoothed_variances`](schedule::smoothed_variances): a hair-edge pixel whose first samples all missed the strand looks
-//! constant, and its neighbours' v is the best prior it has); the stop, and how many samples a round hands out in
-//! that shape, read the pixels' **own** v (mean of v / n, unbiased for the mean relMSE of the pixels' means). The
-//! smoothed v in the stop overstated the noise: on the default scene at 0.05 the rule delivered 0.036 against an
-//! aim of 0.0424 (1.36× under in relMSE), 1.5–2.1× on straight hair under the city map.
+//! neighbours' mean ([`smoothed_variances`](schedule::smoothed_variances): a hair-edge pixel whose first samples all
+//! missed the strand looks constant, and its neighbours' v is the best prior it has); the stop, and how many samples
+//! a round hands out in that shape, read the pixels' **own** v (mean of v / n, unbiased for the mean relMSE of the
+//! pixels' means). The smoothed v in the stop would overstate the noise: on the default scene at 0.05 that rule
+//! delivers 0.036 against an aim of 0.0424 (1.36× under in relMSE), 1.5–2.1× on straight hair under the city map.
 //!
 //! # The stop reads the frame's own samples twice
 //!
 //! s² / n is the variance of a mean of *independent* samples; the sampler's Owen-scrambled Sobol samples converge
 //! faster, by a gain that grows with n at a rate that differs by scene (slow on the fur ball, fast under the city
 //! map). The model's estimate divides by a gain curve extrapolated from the pilots' 4 spp
-//! ([`Schedule::gain`]), and that extrapolation was the stop's largest error: it read the fur ball, the sunset
-//! map and the Cornell box up to 8 % low in relative RMSE, so that a margin for them made the scenes where it was
-//! right over-deliver (`docs/study/auto/README.md`). So the stop also reads each pixel's **halves**
+//! ([`Schedule::gain`]), and that extrapolation is the model's largest error: it reads the fur ball, the sunset
+//! map and the Cornell box up to 8 % low in relative RMSE, so that a margin for them would make the scenes where it
+//! is right over-deliver (`docs/study/auto/README.md`). So the stop also reads each pixel's **halves**
 //! ([`Convergence::split_rel_mse`]): the means of its first P/2 and next P/2 samples (P the largest power of two
 //! ≤ n), whose squared difference over 4 is the variance of the mean of P samples *or more* for any sampler that
 //! converges no slower than independent samples — this frame's own convergence at the counts it reached, no
 //! gain model. The image's estimate is the larger of the model's and the halves' means over the pixels (the
 //! halves, one pair per pixel, are noisy per pixel and exact on average; the model floors them where a pixel's
 //! halves happen to agree), and when the halves read more, the round's samples are counted at their level.
-//! Measured on the seven shipped scenes (two-seed renders of auto's frame at both targets): the frames' noise came
-//! out 3–12 % under the stop's aim in relative RMSE, never over; with the model alone, and no margins, frames had
-//! missed the target itself by up to 8 % (fourteenth study run).
+//! Measured on the seven shipped scenes (two-seed renders of auto's frame at both targets): the frames' noise comes
+//! out 3–12 % under the stop's aim in relative RMSE, never over; with the model alone, and no margins, frames miss
+//! the target itself by up to 8 %.
 //!
 //! Pixels that see only the **background** (every sample's camera ray hit nothing: the environment through the
 //! pixel filter) are read apart ([`Schedule::split_per_pixel`]): their samples differ only by where they fall in the

@@ -6,11 +6,11 @@
 //!
 //! At the **first** shading point every light gets `light_samples` samples (`lights = "all"`, RenderMan's and the
 //! thesis' semantics; or, with `lights = "one"`, each of the `light_samples` samples goes to one light chosen in
-//! proportion to its selection weight, [`Light::selection_weight`]: power, an environment counted by the
-//! irradiance it gives) and the material gets `material_samples` samples; a material sample that reaches a light (escapes to an infinite light, or hits an
-//! area light) is weighted against that light's strategy with the power heuristic over the *counts* times the
-//! densities, w = (n_m p_m)² / ((n_m p_m)² + (n_l p_l)²) (Veach 1997, §9.2.4). Deeper vertices take one light,
-//! chosen the same way, and one material sample. The first material sample at each vertex also
+//! proportion to its selection weight, [`Light::selection_weight`]: power, an environment counted by the irradiance
+//! it gives) and the material gets `material_samples` samples; a material sample that reaches a light (escapes to an
+//! infinite light, or hits an area light) is weighted against that light's strategy with the power heuristic over the
+//! *counts* times the densities, w = (n_m p_m)² / ((n_m p_m)² + (n_l p_l)²) (Veach 1997, §9.2.4). Deeper vertices
+//! take one light, chosen the same way, and one material sample. The first material sample at each vertex also
 //! continues the path (`path_length` bounces; 0 = direct light only), with Russian roulette before each vertex after
 //! the second; the last vertex keeps MIS (its material ray only looks for a light; see `mis`).
 //!

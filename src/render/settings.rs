@@ -186,7 +186,7 @@ pub struct IntegratorConfig {
     /// (`light_sampling_threshold`, 0.01 by default there, same test); 0 = off (cuticle's default, every light
     /// sample traced).
     pub light_threshold: f32,
-    /// Experimental (issue 15, `docs/wavefront.md` step 2): shade the first vertices of eight camera samples at
+    /// Experimental (`docs/wavefront.md` step 2): shade the first vertices of eight camera samples at
     /// once, Chiang's view terms evaluated and sampled in f32×8 lanes, where the frame fits (Chiang's model,
     /// `lights = "one"`, one light and one material sample, a fixed spp; elsewhere this does nothing). The lanes
     /// draw the same samples with f32 arithmetic, so the image differs from the default one by that rounding

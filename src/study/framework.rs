@@ -1,4 +1,4 @@
-//! The one study framework (issue 17): a study **kind** is a named list of variants (a method and its settings,
+//! The one study framework: a study **kind** is a named list of variants (a method and its settings,
 //! each a set of scene-key overrides) × seeds, measured against converged references. Every kind of
 //! `cuticle study` ([`super::kinds`]) is data for [`run_kind`]; this module renders, measures and writes.
 //!
@@ -55,7 +55,8 @@
 //!
 //! # What is written (per kind, into the output directory)
 //!
-//! - `<kind>.csv`: one row per point ([`POINT_HEADER`]); `<kind>-summary.csv`: one row per variant ([`SUMMARY_HEADER`]);
+//! - `<kind>.csv`: one row per point ([`POINT_HEADER`]); `<kind>-summary.csv`: one row per variant
+//!   ([`SUMMARY_HEADER`]);
 //! - `<kind>-error-time.png/.svg`: mean RMSE against mean time, log–log, one series per method, each point labelled
 //!   with its swept setting, and under the chart the **read-outs** ([`readouts()`]);
 //! - `<kind>-time.png/.svg`: mean render time against the swept setting (the thesis' figure 17 for `samples`);

@@ -10,8 +10,8 @@
 //! `curve_intersector_precalculations.h`, `subdiv/bspline_curve.h`), written out as equations:
 //!
 //! 1. **Ray space.** With d̂ = D/|D| and s = 1/|D| (Embree's `depth_scale`), an orthonormal frame (x̂, ŷ, d̂)
-//!    (Embree's `frame(d̂)`: x̂ = normalize of the longer of (0, d̂z, −d̂y) and (−d̂z, 0, d̂x), ŷ = normalize(d̂ × x̂))
-//!    maps a point P to q = (x̂·(P−O), ŷ·(P−O), s d̂·(P−O)). The ray becomes the z axis and z *is* the ray
+//!    (Embree's `frame(d̂)`: x̂ = normalize of the longer of (0, d̂z, −d̂y) and (−d̂z, 0, d̂x), ŷ = normalize(d̂ ×
+//!    x̂)) maps a point P to q = (x̂·(P−O), ŷ·(P−O), s d̂·(P−O)). The ray becomes the z axis and z *is* the ray
 //!    parameter t. Radii are not transformed.
 //! 2. **Tessellation.** For j = 0..N−1, the piece runs from u₀ = j/N to u₁ = (j+1)/N:
 //!    p₀ = Σᵢ Bᵢ(u₀) qᵢ, p₁ = Σᵢ Bᵢ(u₁) qᵢ (x, y, z and radius w alike), tangents dₖ = Σᵢ Bᵢ′(uₖ) qᵢ.

@@ -1,5 +1,5 @@
 //! Ray–tube intersection matching Embree's `ROUND_BSPLINE` curves, so that the Rust BVH and Embree report the
-//! same hits (issue 13).
+//! same hits.
 //!
 //! **The surface.** A segment is the uniform cubic B-spline of four control points (x, y, z, r): centre line
 //! P(u) and radius r(u), u ∈ [0, 1]. Embree's round curves are not the exact envelope of the swept spheres but the
@@ -45,13 +45,13 @@
 //! Embree's SSE kernels split into 3 pieces and 3 levels, its AVX kernels (used on any AVX machine) into 7 pieces
 //! and 2 levels; [`PIECES`] and [`MAX_DEPTH`] follow the AVX kernels, which agree better with the Embree of the
 //! test machine: with the SSE setting the agreement tests measured 99.81 % (single segments) and 99.87 % (bundle),
-//! against 100 % and 99.995 % with the AVX one (1 Dec 2026).
+//! against 100 % and 99.995 % with the AVX one.
 //!
 //! **Speed.** Each level evaluates its 8 sample points and bounds its 7 pieces as structure of arrays
 //! (`SamplePoints`, autovectorised, the same arithmetic as the scalar code: the unit tests check the bits), so
 //! only the 1–2 pieces the ray really crosses go through the scalar inner-cylinder and Newton code.
-//! `benches/curves.rs` (fur-ball-like segments, 1 Dec 2026, 2-core VM): ~880 ns and ~6 000 instructions per hit,
-//! ~65 ns and ~350 instructions per near miss (before: 1 760 ns / 13 100 and 255 ns / 2 500).
+//! `benches/curves.rs` (fur-ball-like segments, 2-core VM): ~880 ns and ~6 000 instructions per hit,
+//! ~65 ns and ~350 instructions per near miss (1 760 ns / 13 100 and 255 ns / 2 500 with every piece scalar).
 //!
 //! **Normal.** Embree's convention: Ng = (P′ × R̂) × (P′ + r′R̂) with R̂ the unit vector from the axis to the hit,
 //! i.e. outward from the axis (tilted by the taper), not normalised (|Ng| ≈ |P′|²). `v` is 0.

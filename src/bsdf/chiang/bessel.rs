@@ -7,10 +7,10 @@ use wide::f64x4;
 /// Below this the power series, above it the asymptotic expansion (whose smallest term there is ~1e-11 relative).
 pub(super) const I0_SWITCH: f64 = 12.0;
 
-/// [`m_p_lanes`](super::longitudinal::m_p_lanes)' switch between the two expansions, each cut to its first 16 terms: M_p is returned as f32, and at
-/// a switch of 10 both stay within 2.2e-9 relative of I₀ (series 1.8e-9 at x = 10, asymptotic 2.2e-9 there; against
-/// mpmath's `besseli`, 40 digits), 0.04 of an f32 ulp, where the full 32-term pair at 12 spent twice the
-/// multiply-adds on digits the f32 drops (`estrin16_x4`; tested against [`i0e`]).
+/// [`m_p_lanes`](super::longitudinal::m_p_lanes)' switch between the two expansions, each cut to its first 16 terms:
+/// M_p is returned as f32, and at a switch of 10 both stay within 2.2e-9 relative of I₀ (series 1.8e-9 at x = 10,
+/// asymptotic 2.2e-9 there; against mpmath's `besseli`, 40 digits), 0.04 of an f32 ulp, where the full 32-term pair
+/// at 12 spent twice the multiply-adds on digits the f32 drops (`estrin16_x4`; tested against [`i0e`]).
 pub(super) const M_P_SWITCH: f64 = 10.0;
 
 /// I₀(x) − 1 = y Σ_j y^j/((j + 1)!)², y = x²/4, for |x| ≤ [`I0_SWITCH`]: all terms positive, no cancellation, and
@@ -80,9 +80,9 @@ pub(super) const I0_SERIES: [f64; 32] = [
     1.4442969889585408e-71,
 ];
 
-/// Π_{j≤k} (2j − 1)²/(8j) for k = 0..23 (then zeros, for [`estrin32`]): e^{−x} I₀(x) √(2πx) = Σ_k A_k x^{−k} (Abramowitz & Stegun 9.7.1). At
-/// x = [`I0_SWITCH`] the terms shrink up to k ≈ 24, the last kept ~1e-11 of the sum (the expansion's own limit
-/// there); past it they shrink faster.
+/// Π_{j≤k} (2j − 1)²/(8j) for k = 0..23 (then zeros, for [`estrin32`]): e^{−x} I₀(x) √(2πx) = Σ_k A_k x^{−k}
+/// (Abramowitz & Stegun 9.7.1). At x = [`I0_SWITCH`] the terms shrink up to k ≈ 24, the last kept ~1e-11 of the sum
+/// (the expansion's own limit there); past it they shrink faster.
 pub(super) const I0_ASYMPTOTIC: [f64; 32] = [
     1.0,
     0.125,
@@ -150,8 +150,8 @@ pub fn log_i0(x: f64) -> f64 {
     }
 }
 
-/// The first 16 terms of a [`estrin32`] table in four lanes at once: what [`m_p_lanes`](super::longitudinal::m_p_lanes) needs for an f32 result
-/// with its switch at [`M_P_SWITCH`].
+/// The first 16 terms of a [`estrin32`] table in four lanes at once: what
+/// [`m_p_lanes`](super::longitudinal::m_p_lanes) needs for an f32 result with its switch at [`M_P_SWITCH`].
 #[inline(always)]
 pub(super) fn estrin16_x4(c: &[f64; 32], x: f64x4) -> f64x4 {
     let x2 = x * x;

@@ -9,7 +9,7 @@ use crate::util::sampling::uniform_sphere;
 use rand::Rng;
 use rand_pcg::Pcg32;
 
-/// The roughnesses of the white-furnace grid (the issue's 0.1, 0.2, …, 0.9).
+/// The roughnesses of the white-furnace grid (0.1, 0.2, …, 0.9).
 const BETAS: [f32; 9] = [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9];
 /// θo of the chi-square batteries, degrees.
 const CHI2_THETA_O_DEG: [f32; 3] = [-60.0, 10.0, 70.0];
@@ -120,7 +120,7 @@ fn m_p_lanes_match_the_full_bessel_function_to_f32() {
 #[test]
 fn m_p_is_normalised_for_every_variance() {
     // ∫ M_p cos θi dθi = 1 (midpoint rule, 40000 nodes: ≥ 10 per standard deviation of the narrowest lobe,
-    // βm = 0.01 at p = 1). The peers' truncated I₀ lose up to ~2 % near v ≈ 0.1 (issue 14).
+    // βm = 0.01 at p = 1). The peers' truncated I₀ lose up to ~2 % near v ≈ 0.1.
     const N: usize = 40_000;
     let mut worst = 0.0f64;
     for beta_m in [0.01f32, 0.05, 0.1, 0.2, 0.3, 0.5, 0.7, 0.9, 1.0] {

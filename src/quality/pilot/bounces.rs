@@ -16,20 +16,20 @@ use super::pair::{mean_and_error, neighbour_means, render_seeds, Pair};
 pub(super) const FIRST_PILOT_PATH_LENGTH: u32 = 3;
 /// How many bounces each further pilot render of the search adds.
 pub(super) const PILOT_PATH_LENGTH_STEP: u32 = 2;
-/// Samples per pixel of each further pilot render of the search, as a multiple of [`PILOT_SPP`](super::PILOT_SPP). A bounce past
-/// the third is found by few of 4 samples: on the Cornell box the relative means of bounces 5, 6 and 7 carried
-/// standard errors of 12, 16 and 34 %, their ratios came out 0.81 and 0.80 where 256-spp renders measure a decay of
-/// about 0.54, and the tail after path 7 read 0.032 for a true 0.004 (`docs/study/auto/README.md`, fifteenth
-/// run). Four times the samples halve those errors; the further renders cost about 1 % of the frames that need
-/// them (tight targets, deep paths). Their pairs are not reused by the decisions after the path length, which
-/// read the pilots at [`PILOT_SPP`](super::PILOT_SPP).
+/// Samples per pixel of each further pilot render of the search, as a multiple of [`PILOT_SPP`](super::PILOT_SPP). A
+/// bounce past the third is found by few of 4 samples: on the Cornell box the relative means of bounces 5, 6 and 7
+/// carried standard errors of 12, 16 and 34 %, their ratios come out 0.81 and 0.80 where 256-spp renders measure a
+/// decay of about 0.54, and the tail after path 7 reads 0.032 for a true 0.004 at 4 samples
+/// (`docs/study/auto/README.md`). Four times the samples halve those errors; the further renders cost about 1 % of
+/// the frames that need them (tight targets, deep paths). Their pairs are not reused by the decisions after the path
+/// length, which read the pilots at [`PILOT_SPP`](super::PILOT_SPP).
 pub(super) const PILOT_EXTENSION_SPP_FACTOR: u32 = 4;
 
-/// The pilot pairs at every path length 0 ..= `settings`' from one render per seed ([`render_bounces`](crate::render::render_bounces)): a render
-/// at path length j traces the same paths up to vertex j as one at K > j, so cutting the longer one's samples
-/// gives j's estimate and its rays without tracing the shared vertices again (one path-3 render per seed instead
-/// of the four renders at path lengths 0 to 3, which traced vertex 0 four times). Returns the pairs and their
-/// predicted CPU seconds.
+/// The pilot pairs at every path length 0 ..= `settings`' from one render per seed
+/// ([`render_bounces`](crate::render::render_bounces)): a render at path length j traces the same paths up to vertex
+/// j as one at K > j, so cutting the longer one's samples gives j's estimate and its rays without tracing the shared
+/// vertices again (one path-3 render per seed instead of the four renders at path lengths 0 to 3, which traced vertex
+/// 0 four times). Returns the pairs and their predicted CPU seconds.
 pub(super) fn bounce_pairs(
     frame: &Frame,
     settings: &RenderSettings,
@@ -46,8 +46,8 @@ pub(super) fn bounce_pairs(
 }
 
 /// The relative MSE a bounce adds as bias when left out: `before` and `after` are the pilot pixels of both seeds
-/// without and with it, in `windows` order (see [`plan`](super::plan)). The mean of the per-pixel products and its standard
-/// error.
+/// without and with it, in `windows` order (see [`plan`](super::plan)). The mean of the per-pixel products and its
+/// standard error.
 ///
 /// A pixel's term is d_a d_b / (m̃² + 0.01), d_s its bounce in seed s and m̃ the mean of both seeds' `after` over
 /// the pixel's neighbours in its window (3×3 without the centre). The denominator must not read the pixel's own
@@ -123,20 +123,21 @@ pub(super) fn bounce_bias(
 /// The cost of reaching the target at path length j is its CPU seconds per sample times the samples its noise
 /// needs, ∝ seconds_j × relMSE_j / (target² − left_j²), relMSE_j over the longest path's means (the pilots' best
 /// stand-in for the converged image, which the target is measured against): over its own means, darker by the
-/// bounces it leaves out, a short path's relative noise read high (on the default scene at 0.1, path 2 7.62e-2
+/// bounces it leaves out, a short path's relative noise reads high (on the default scene at 0.1, path 2 7.62e-2
 /// against path 3 7.61e-2, where over the longest path's means path 2 is 7.29e-2; the fixed path-2 frame meets
-/// 0.1 at 14 spp where auto's path 3 took 9 spp at 1.37× its time). A bounce just over a quarter of the target
+/// 0.1 at 14 spp where path 3 takes 9 spp at 1.37× its time). A bounce just over a quarter of the target
 /// takes 1 % of target² as bias when left out and may cost a tenth more per sample to trace: on straight hair
 /// under the city map at 0.1 the pilots put bounce 2 at 0.029, the bounces after the first at 0.033 together
-/// (2 × 128-spp renders of the whole film), and path 1 met 0.1 at 20 spp where auto took path 2 and 21 spp. The
+/// (2 × 128-spp renders of the whole film), and path 1 meets 0.1 at 20 spp where path 2 needs 21 spp. The
 /// longest path is a candidate because its pilots are rendered anyway and a deep bounce can cost little: on the
 /// fur ball (128²) the study's fits put path 3 at 0.070 s per spp against path 2's 0.074 (Russian roulette ends
-/// most paths early), and path 3 has no bias left to pay for, where auto took path 2 with 0.0315 of it.
+/// most paths early), and path 3 has no bias left to pay for, where path 2 leaves 0.0315 of it.
 ///
 /// The denominators are `means`, the longest path's pixel means from each pixel's neighbours alone
-/// ([`neighbour_means`]). Until 4 Dec 2026 they were the longest pair's own means per pixel, which read the
-/// longest path's own noise low (its bright samples raised its denominators) and so favoured it: over whole 128²
-/// films at 4 spp (two seeds, flat, path 1/2/3; "true" is over a 2 × 64-spp path-3 reference) default 2.77/3.07/3.24
+/// ([`neighbour_means`]). The longest pair's own means per pixel would read the longest path's own noise low
+/// (its bright samples raise its denominators) and so favour it: over whole 128²
+/// films at 4 spp (two seeds, flat, path 1/2/3; "true" is over a 2 × 64-spp path-3 reference), over the own means,
+/// default 2.77/3.07/3.24
 /// (e-2) for a true 2.85/3.28/3.56, sunset 3.76/3.91/3.98 for 4.17/4.46/4.67, fur ball 8.31/9.27/9.67 for
 /// 8.22/9.50/10.15, straight-city path 1/3 4.35/4.77 for 4.71/5.56 (path 3 ÷ path 1 1.10 for 1.18); over the
 /// neighbours' means 2.90/3.35/3.64, 4.16/4.44/4.69, 8.30/9.63/10.29 and 4.55/5.52: within 3.5 % of true.
@@ -170,8 +171,9 @@ pub(super) fn cheapest_path_length(
     (j, left, listed.join(", "))
 }
 
-/// [`PilotPlan::darkening`](super::PilotPlan::darkening) of the pilot pair `chosen` against the longest path's pair `longest`: its relMSE over
-/// `longest`'s means per its relMSE over its own, within [½, 1] (1 for a pair without noise).
+/// [`PilotPlan::darkening`](super::PilotPlan::darkening) of the pilot pair `chosen` against the longest path's pair
+/// `longest`: its relMSE over `longest`'s means per its relMSE over its own, within [½, 1] (1 for a pair without
+/// noise).
 pub(super) fn darkening_of(chosen: &Pair, longest: &Pair) -> f64 {
     let own = chosen.rel_mse();
     if own > 0.0 {
@@ -235,10 +237,11 @@ pub(super) fn pooled_bias(bounce: &Bounce) -> f64 {
 
 /// The largest ratio of one bounce's bias to the one before's that the geometric extrapolations
 /// ([`decay_ratio`], [`bias_left`]) carry on: a bounce that grew is not extrapolated as growing, and the tail
-/// next / (1 − r) stays within 4× the next bounce. It was ½ until 3 Dec 2026: in the Cornell box (a closed box of
-/// diffuse walls) the pilots measured bounces 1, 2, 3 at 0.156, 0.089, 0.050 (ratios 0.57, 0.56); capped at ½ the
-/// tail after path 5 came out 0.0124, auto chose path 5 for 0.05 and measured 0.0527 against a path-10 reference.
-/// The hair scenes' ratios are 0.3–0.5 (the fur ball's 32-spp renders 0.35, 0.45, 0.50, 0.45), below either cap.
+/// next / (1 − r) stays within 4× the next bounce. A cap of ½ is too low: in the Cornell box (a closed box of
+/// diffuse walls) the pilots measure bounces 1, 2, 3 at 0.156, 0.089, 0.050 (ratios 0.57, 0.56); capped at ½ the
+/// tail after path 5 comes out 0.0124, auto chooses path 5 for 0.05 and measures 0.0527 against a path-10
+/// reference. The hair scenes' ratios are 0.3–0.5 (the fur ball's 32-spp renders 0.35, 0.45, 0.50, 0.45), below
+/// either cap.
 pub const MAX_BOUNCE_RATIO: f64 = 0.75;
 
 /// The ratio by which the bounces' bias is taken to fall past the last one measured: the largest ratio of one

@@ -224,9 +224,10 @@ impl Pair {
 /// pixel's 3×3 neighbourhood in its window without the pixel (the pixel's own mean where it has no neighbours, in
 /// a 1×1 window); `pair` in `windows` order.
 ///
-/// A relative error over a denominator that reads the pixel's own samples reads low where the samples are noisy:
-/// a sample that raised the error also raised the denominator. The neighbours' samples are independent of the
-/// pixel's. [`bounce_bias`](super::bounces::bounce_bias) divides by these means, and so does [`cheapest_path_length`](super::bounces::cheapest_path_length).
+/// A relative error over a denominator that reads the pixel's own samples reads low where the samples are noisy: a
+/// sample that raised the error also raised the denominator. The neighbours' samples are independent of the pixel's.
+/// [`bounce_bias`](super::bounces::bounce_bias) divides by these means, and so does
+/// [`cheapest_path_length`](super::bounces::cheapest_path_length).
 pub(super) fn neighbour_means(pair: [&[[f32; 3]]; 2], windows: &[Region]) -> Vec<[f64; 3]> {
     let mean = |i: usize, c: usize| 0.5 * (f64::from(pair[0][i][c]) + f64::from(pair[1][i][c]));
     let mut out = Vec::with_capacity(pair[0].len());
@@ -279,19 +280,19 @@ pub(super) fn channels<'a>(arrays: [&'a [[f32; 3]]; 4]) -> impl Iterator<Item = 
 ///
 /// The sample streams are Owen-scrambled Sobol points ([`crate::render::sampler`]), so a pixel's mean converges
 /// faster than σ² / n, the variance of independent samples that adaptive sampling's stop reads from the pixels'
-/// sample variances. The pair measures both sides at once: relMSE(n) from the two seeds' difference, and the
-/// pixels' sample variance s² (what the stop reads) from their samples. For any samples with the same marginal,
-/// E(s²) = n (σ² − Var x̄) / (n − 1), so G = E(s²) / (n relMSE(n)) = (n g − 1) / (n − 1), and g = ((n − 1) G + 1) / n.
+/// sample variances. The pair measures both sides at once: relMSE(n) from the two seeds' difference, and the pixels'
+/// sample variance s² (what the stop reads) from their samples. For any samples with the same marginal, E(s²) = n (σ²
+/// − Var x̄) / (n − 1), so G = E(s²) / (n relMSE(n)) = (n g − 1) / (n − 1), and g = ((n − 1) G + 1) / n.
 ///
-/// Until 3 Dec 2026 the gain came from a separate pair at 1 spp, g = relMSE(1) / (n relMSE(n)): a 1-spp pixel is
-/// one heavy-tailed sample, and on the fur ball (128², path 3) it measured 1.049 ± 0.05 (1.0 after a standard
-/// error off) where two-seed renders of the whole film measure 1.14 at 4 spp (1.19 at 16, 1.35 at 64), and the
-/// adaptive stop delivered 1.2× less relMSE than it aimed at. Two-seed renders of 128² frames (flat, path 1) measured
+/// A separate pair at 1 spp, g = relMSE(1) / (n relMSE(n)), does not measure the gain: a 1-spp pixel is one
+/// heavy-tailed sample, and on the fur ball (128², path 3) it measures 1.049 ± 0.05 (1.0 after a standard error
+/// off) where two-seed renders of the whole film measure 1.14 at 4 spp (1.19 at 16, 1.35 at 64), so the adaptive
+/// stop delivers 1.2× less relMSE than it aims at. Two-seed renders of 128² frames (flat, path 1) measure
 /// the gain at 4, 16, 64 spp as 1.05, 1.14, 1.23 on the default scene and 1.28, 1.47, 1.84 on straight hair under
 /// the city map (the strands' coverage of a pixel is what the filter dimensions stratify). The gain grows with n;
 /// adaptive sampling extrapolates the gain at `PILOT_SPP` at half the rate seen between 1 and `PILOT_SPP`
-/// ([`crate::render::adaptive::Schedule::gain`]): at the full rate it would have overshot straight hair's at 64
-/// spp (2.1 for 1.84).
+/// ([`crate::render::adaptive::Schedule::gain`]): at the full rate it overshoots straight hair's at 64 spp (2.1
+/// for 1.84).
 pub(super) fn sampler_gain(pair: &Pair, standard_errors: f64) -> (f64, f64) {
     let n = f64::from(PILOT_SPP);
     let (rp, ep) = pair.rel_mse_with_error();

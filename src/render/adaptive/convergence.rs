@@ -12,7 +12,8 @@ pub struct Convergence {
     pub(super) m2: [f64; 3],
     /// The largest sample per channel.
     pub(super) max: [f64; 3],
-    /// Predicted CPU seconds of the pixel's samples ([`Schedule::cost`](super::Schedule::cost)), and how many samples they are.
+    /// Predicted CPU seconds of the pixel's samples ([`Schedule::cost`](super::Schedule::cost)), and how many samples
+    /// they are.
     cost: f64,
     costed: u32,
     /// The sums per channel of the first P/2 and the first P samples, P the largest power of two ≤ n: the two

@@ -426,11 +426,11 @@ impl Schedule {
                 break;
             }
         }
-        // Fractional goals are rounded up or down by a fixed hash of the pixel and the round (up with probability their
-        // fraction), so the round's total is its goals' sum, not a sample more per pixel: rounding every goal up, the
-        // default scene at target 0.1 (128²) took a mean 8.95 spp and 558 k rays, rounded so 8.8 and 546 k, delivering
-        // 0.0917 and 0.0930 (against one 256-spp half of the study's reference; target 0.1). Should no pixel grow so,
-        // every goal is rounded up instead.
+        // Fractional goals are rounded up or down by a fixed hash of the pixel and the round (up with probability
+        // their fraction), so the round's total is its goals' sum, not a sample more per pixel: rounding every goal
+        // up, the default scene at target 0.1 (128²) took a mean 8.95 spp and 558 k rays, rounded so 8.8 and 546 k,
+        // delivering 0.0917 and 0.0930 (against one 256-spp half of the study's reference; target 0.1). Should no
+        // pixel grow so, every goal is rounded up instead.
         let totals = |dither: bool| {
             let mut grows = false;
             let next: Vec<u32> = taken
@@ -458,15 +458,15 @@ impl Schedule {
 }
 
 /// The largest order of convergence, V(m) ∝ m^−α, that the stop credits the background with
-/// ([`Schedule::split_per_pixel`]): 4/3, the order of the mean squared error He & Wang (2015, "On the convergence rate
-/// of randomized quasi-Monte Carlo for discontinuous functions", SIAM J. Numer. Anal. 53) prove for scrambled nets on
-/// d-dimensional integrands with discontinuities, m^(−1 − 1/(2d − 1)), at d = 2: the background seen through a
-/// pinhole camera's pixel filter is such an integrand of the sample's 2-D position (texel and object edges). The
+/// ([`Schedule::split_per_pixel`]): 4/3, the order of the mean squared error He & Wang (2015, "On the convergence
+/// rate of randomized quasi-Monte Carlo for discontinuous functions", SIAM J. Numer. Anal. 53) prove for scrambled
+/// nets on d-dimensional integrands with discontinuities, m^(−1 − 1/(2d − 1)), at d = 2: the background seen through
+/// a pinhole camera's pixel filter is such an integrand of the sample's 2-D position (texel and object edges). The
 /// order the quarters measure one octave below is not safe alone: Sobol points' octaves alternate (edges in 64
-/// directions, the test `background_pixels_are_read_at_their_own_faster_convergence`, read 1.83 from the quarters
-/// at 8 samples where the halves' octave converges at about 1.5, and their noise 0.46–0.88× true at 5, 8, 12, 24
-/// and 32 samples), while at most 4/3 it reads 1.06–1.30× true at 5–64 samples. Straight hair under the city map
-/// measures 1.43–1.79 per octave from 1 to 64 spp.
+/// directions, the test `background_pixels_are_read_at_their_own_faster_convergence`, read 1.83 from the quarters at
+/// 8 samples where the halves' octave converges at about 1.5, and their noise 0.46–0.88× true at 5, 8, 12, 24 and 32
+/// samples), while at most 4/3 it reads 1.06–1.30× true at 5–64 samples. Straight hair under the city map measures
+/// 1.43–1.79 per octave from 1 to 64 spp.
 pub const BACKGROUND_MAX_ORDER: f64 = 4.0 / 3.0;
 
 /// The order α of the convergence of the pixels with `terms` (the background's, [`Schedule::split_per_pixel`]),

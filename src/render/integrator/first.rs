@@ -53,9 +53,10 @@ impl Integrator<'_> {
     }
 
     /// Step 2, next-event estimation at the first vertex `v` (the thesis' "light samples"). With `lights = "all"`
-    /// every light gets `light_samples` samples (a delta light one), each from its own scrambling; with
-    /// `lights = "one"` each of the `light_samples` samples first picks one light ∝ its selection weight ([`Light::selection_weight`](crate::light::Light::selection_weight)). Under material-only
-    /// sampling only delta lights are light-sampled ([`Mis::samples_light`](super::mis::Mis::samples_light)).
+    /// every light gets `light_samples` samples (a delta light one), each from its own scrambling; with `lights =
+    /// "one"` each of the `light_samples` samples first picks one light ∝ its selection weight
+    /// ([`Light::selection_weight`](crate::light::Light::selection_weight)). Under material-only sampling only delta
+    /// lights are light-sampled ([`Mis::samples_light`](super::mis::Mis::samples_light)).
     fn first_vertex_light_samples(
         &self,
         v: &Vertex,
@@ -107,8 +108,9 @@ impl Integrator<'_> {
     }
 
     /// One light sample of light `j` at the first vertex `v`, where the light expects `count` samples (n_j,
-    /// [`Mis::light_count`](super::mis::Mis::light_count)): Veach's multi-sample estimate w_l L_e f cos θi / (n_j p_l) (§9.2.2), added lobe by
-    /// lobe times the shadow ray's visibility. The shadow pass sums its luminance with and without the visibility.
+    /// [`Mis::light_count`](super::mis::Mis::light_count)): Veach's multi-sample estimate w_l L_e f cos θi / (n_j
+    /// p_l) (§9.2.2), added lobe by lobe times the shadow ray's visibility. The shadow pass sums its luminance with
+    /// and without the visibility.
     fn first_vertex_light_sample(
         &self,
         v: &Vertex,
@@ -125,7 +127,8 @@ impl Integrator<'_> {
         self.first_vertex_light_finish(v, j, count, draw, &ls, fcos, pdf_m, out, counts);
     }
 
-    /// The light sample's direction: [`Light::sample_li`](crate::light::Light::sample_li) of light `j` at `v` with the draw's numbers.
+    /// The light sample's direction: [`Light::sample_li`](crate::light::Light::sample_li) of light `j` at `v` with
+    /// the draw's numbers.
     #[inline]
     pub(super) fn first_vertex_light_draw(
         &self,
@@ -172,11 +175,11 @@ impl Integrator<'_> {
         }
     }
 
-    /// Light-sample Russian roulette ([`Settings::light_threshold`](super::Settings::light_threshold), Cycles' light threshold): a light sample
-    /// whose unshadowed `contribution` (without the path's throughput) has its largest channel c under the
-    /// threshold t traces its shadow ray with probability p = c / t, deciding with the uniform number `u` (read
-    /// only then). The factor its visibility is multiplied by: 1 at or above t, 1/p if kept, `None` if dropped (no
-    /// ray; the estimate stays unbiased, E = p · 1/p).
+    /// Light-sample Russian roulette ([`Settings::light_threshold`](super::Settings::light_threshold), Cycles' light
+    /// threshold): a light sample whose unshadowed `contribution` (without the path's throughput) has its largest
+    /// channel c under the threshold t traces its shadow ray with probability p = c / t, deciding with the uniform
+    /// number `u` (read only then). The factor its visibility is multiplied by: 1 at or above t, 1/p if kept, `None`
+    /// if dropped (no ray; the estimate stays unbiased, E = p · 1/p).
     #[inline]
     pub(super) fn light_roulette(
         &self,
@@ -197,11 +200,12 @@ impl Integrator<'_> {
         }
     }
 
-    /// Step 3, the first vertex's material samples (the thesis' "material samples"): each of the n_m adds
-    /// Veach's multi-sample estimate f cos θi / p_m · w_m L_e / n_m of the light it reaches ([`Mis::material_weight`](super::mis::Mis::material_weight))
-    /// lobe by lobe. The first also gives the albedo pass (f cos θi / p_m) and, if `path_length` > 0, continues the
-    /// path: it returns the second vertex with the first's f cos θi / p_m per lobe. A sample that can neither add
-    /// light (light-only strategy, only delta lights) nor continue traces no ray.
+    /// Step 3, the first vertex's material samples (the thesis' "material samples"): each of the n_m adds Veach's
+    /// multi-sample estimate f cos θi / p_m · w_m L_e / n_m of the light it reaches
+    /// ([`Mis::material_weight`](super::mis::Mis::material_weight)) lobe by lobe. The first also gives the albedo
+    /// pass (f cos θi / p_m) and, if `path_length` > 0, continues the path: it returns the second vertex with the
+    /// first's f cos θi / p_m per lobe. A sample that can neither add light (light-only strategy, only delta lights)
+    /// nor continue traces no ray.
     fn first_vertex_material_samples(
         &self,
         v: &Vertex,

@@ -61,10 +61,10 @@ impl Integrator<'_> {
         indirect
     }
 
-    /// Step 4 at one deeper vertex `v` (number `b` ≥ 1): one light chosen ∝ its selection weight and one material sample,
-    /// weighted by [`Mis::deeper_vertex`](super::mis::Mis::deeper_vertex) (at the last vertex under light sampling alone, the light sample only).
-    /// Returns the radiance `v` sends back along ωo, and the continuation (the next vertex and f cos θi / p_m) if
-    /// the material sample found a surface.
+    /// Step 4 at one deeper vertex `v` (number `b` ≥ 1): one light chosen ∝ its selection weight and one material
+    /// sample, weighted by [`Mis::deeper_vertex`](super::mis::Mis::deeper_vertex) (at the last vertex under light
+    /// sampling alone, the light sample only). Returns the radiance `v` sends back along ωo, and the continuation
+    /// (the next vertex and f cos θi / p_m) if the material sample found a surface.
     fn deeper_vertex(
         &self,
         v: &Vertex,
@@ -101,8 +101,9 @@ impl Integrator<'_> {
         }
     }
 
-    /// Next-event estimation at deeper vertex `v` (number `b`): one light j chosen with probability P(j) ∝ its selection weight
-    /// and one sample of it, w_l L_e f cos θi / (P(j) p_l) with w_l from `mis` ([`Mis::light_weight`](super::mis::Mis::light_weight)).
+    /// Next-event estimation at deeper vertex `v` (number `b`): one light j chosen with probability P(j) ∝ its
+    /// selection weight and one sample of it, w_l L_e f cos θi / (P(j) p_l) with w_l from `mis`
+    /// ([`Mis::light_weight`](super::mis::Mis::light_weight)).
     fn deeper_light_sample(
         &self,
         v: &Vertex,

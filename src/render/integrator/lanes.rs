@@ -28,10 +28,11 @@ impl Integrator<'_> {
 
     /// [`Integrator::sample`] of eight camera samples (`rays[k]` with `samplers[k]`, sample `indices[k]`), their
     /// first vertices shaded together where they are on Chiang fibres: the light samples' f and pdf by
-    /// [`Chiang::eval_lanes`](crate::bsdf::chiang::Chiang::eval_lanes), the material samples by [`Chiang::sample_lanes`](crate::bsdf::chiang::Chiang::sample_lanes), everything else (light choice,
-    /// rays, MIS, the deeper vertices) per sample as [`Integrator::sample`] does it. Step 2 of
-    /// `docs/wavefront.md`, experimental: the lanes draw the same samples with f32 arithmetic, so images differ
-    /// from [`Integrator::sample`]'s by its rounding. Needs [`Integrator::lanes_fit`].
+    /// [`Chiang::eval_lanes`](crate::bsdf::chiang::Chiang::eval_lanes), the material samples by
+    /// [`Chiang::sample_lanes`](crate::bsdf::chiang::Chiang::sample_lanes), everything else (light choice, rays, MIS,
+    /// the deeper vertices) per sample as [`Integrator::sample`] does it. Step 2 of `docs/wavefront.md`,
+    /// experimental: the lanes draw the same samples with f32 arithmetic, so images differ from
+    /// [`Integrator::sample`]'s by its rounding. Needs [`Integrator::lanes_fit`].
     pub fn sample_lanes(
         &self,
         rays: &[Ray; LANES],

@@ -95,8 +95,9 @@ fn oblique_ray_hits_at_the_lines_closest_approach() {
     let cp = straight(-1.5 * axis, axis, r); // P(u) = (u − 0.5)·axis
     let side = axis.cross(Vec3::Z); // perpendicular to the axis, in the plane z = 0
     let closest = 0.1 * axis + 0.4 * r * Vec3::Z; // 0.4 r above the axis point at u = 0.6
-                                                  // The ray runs in the plane z = 0.4 r, so its closest approach to the axis (the common perpendicular is ẑ)
-                                                  // is `closest`; the ray-facing ribbon there spans the axis and ẑ.
+                                                  // The ray runs in the plane z = 0.4 r, so its closest approach to
+                                                  // the axis (the common perpendicular is ẑ) is `closest`; the
+                                                  // ray-facing ribbon there spans the axis and ẑ.
     let dir = side * 50f32.to_radians().sin() - axis * 50f32.to_radians().cos();
     let org = closest - 3.0 * dir;
     let hit = intersect(org, dir, 0.0, f32::INFINITY, cp).expect("oblique ray missed");
@@ -252,7 +253,7 @@ impl Agreement {
         }
     }
 
-    /// Prints the tallies and asserts what the issue asks (≥ 99.9 % of rays agree on hit/miss; of the hits,
+    /// Prints the tallies and asserts the agreement required (≥ 99.9 % of rays agree on hit/miss; of the hits,
     /// ≥ 99.9 % within 1e-3·t on the same segment), and the t, u, v (sign included) and Ng agreement measured.
     fn check(&self, name: &str) {
         let pct = |n: usize, of: usize| 100.0 * n as f64 / of.max(1) as f64;

@@ -10,9 +10,11 @@ use super::{BSpline, MAX_POINTS, MIN_RCP_INPUT, ULP};
 
 /// One level's sample points P(uᵢ) and scaled derivatives P′(uᵢ)·dscale, uᵢ = lerp(u0, u1, i/n), as structure of
 /// arrays (one lane per point) so that the compiler evaluates and bounds all pieces at once, in SIMD. Every lane
-/// repeats the scalar arithmetic of [`BSpline::eval`], [`BSpline::eval_du`], [`sqr_point_to_line_distance`](super::cylinder::sqr_point_to_line_distance) and
-/// [`intersect_cylinder`](super::cylinder::intersect_cylinder) operation for operation, so the results are bit for bit those of the scalar code.
-/// Hand-written because the profile shows it hot: the subdivision levels are ~90 % of a hit call.
+/// repeats the scalar arithmetic of [`BSpline::eval`], [`BSpline::eval_du`],
+/// [`sqr_point_to_line_distance`](super::cylinder::sqr_point_to_line_distance) and
+/// [`intersect_cylinder`](super::cylinder::intersect_cylinder) operation for operation, so the results are bit for
+/// bit those of the scalar code. Hand-written because the profile shows it hot: the subdivision levels are ~90 % of a
+/// hit call.
 pub(super) struct SamplePoints {
     pub(super) p: [Lanes; 4],
     pub(super) dp: [Lanes; 4],
@@ -67,10 +69,10 @@ impl SamplePoints {
         Vec4::new(self.dp[0][i], self.dp[1][i], self.dp[2][i], self.dp[3][i])
     }
 
-    /// Bounds of every piece (lane i: the piece from point i to i + 1, i < n): the ray interval `ray` clipped by
-    /// the piece's outer cylinder ([`intersect_cylinder`](super::cylinder::intersect_cylinder) with the outer radius) and its two cap planes
-    /// ([`half_space`](super::cylinder::half_space)), and whether it is empty. Same operations as the scalar code in
-    /// [`Search::check_bounds`](super::search::Search::check_bounds), so the same bits.
+    /// Bounds of every piece (lane i: the piece from point i to i + 1, i < n): the ray interval `ray` clipped by the
+    /// piece's outer cylinder ([`intersect_cylinder`](super::cylinder::intersect_cylinder) with the outer radius) and
+    /// its two cap planes ([`half_space`](super::cylinder::half_space)), and whether it is empty. Same operations as
+    /// the scalar code in [`Search::check_bounds`](super::search::Search::check_bounds), so the same bits.
     pub(super) fn bounds(&self, dir: Vec3, n: usize, ray: Interval) -> PieceBounds {
         let [x, y, z, w] = &self.p;
         let [dx, dy, dz, dw] = &self.dp;
@@ -171,8 +173,8 @@ impl SamplePoints {
     }
 }
 
-/// What [`SamplePoints::bounds`] finds for each piece i (lane i): the values [`Search::level`](super::search::Search::level) would compute for
-/// it one piece at a time.
+/// What [`SamplePoints::bounds`] finds for each piece i (lane i): the values
+/// [`Search::level`](super::search::Search::level) would compute for it one piece at a time.
 pub(super) struct PieceBounds {
     /// Bit i: the ray interval clipped by the piece's outer cylinder and cap planes is not empty.
     pub(super) keep: u8,

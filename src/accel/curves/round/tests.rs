@@ -8,7 +8,7 @@ use crate::accel::{CurveKind, Tracer};
 use crate::hair::{HairModel, Strands};
 use crate::ray::Ray;
 
-/// Hit distances agree when |Δt| ≤ this · t (issue 13).
+/// Hit distances agree when |Δt| ≤ this · t.
 const T_RELATIVE: f32 = 1e-3;
 
 /// A hit whose |cos| between ray and normal is below this counts as grazing the silhouette, where two
