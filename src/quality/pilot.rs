@@ -184,6 +184,7 @@ pub struct PilotPlan {
 /// [`super::Margins`], for
 /// `quality.target`, by pilot renders of `frame` under `settings` (its shadows already decided; `maps` built for
 /// them when they are deep-opacity).
+// One piece: each decision reads the pilots and the decisions before it, in this order.
 pub fn plan(
     frame: &Frame,
     settings: &RenderSettings,

@@ -73,6 +73,7 @@ impl Environment {
         Environment::build(&image, path, intensity, rotation_deg, up)
     }
 
+    // One piece: one map's checks, cleaning, distribution and rotation, in order, on the same texels.
     fn build(
         image: &Image,
         path: &Path,

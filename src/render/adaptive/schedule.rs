@@ -354,6 +354,7 @@ impl Schedule {
     /// region is done: its estimated relMSE is at most target², or no pixel may grow. `round` counts the rounds
     /// after the first (which takes every pixel to `min`). `taken` and `pixels` are the region's pixels in
     /// row-major order; the result depends on them alone.
+    // One piece: the stop and the water-filling of the round's goals read the same per-pixel vectors in one pass.
     pub fn next_round(
         &self,
         round: usize,

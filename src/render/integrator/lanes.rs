@@ -33,6 +33,7 @@ impl Integrator<'_> {
     /// the deeper vertices) per sample as [`Integrator::sample`] does it. Step 2 of `docs/wavefront.md`,
     /// experimental: the lanes draw the same samples with f32 arithmetic, so images differ from
     /// [`Integrator::sample`]'s by its rounding. Needs [`Integrator::lanes_fit`].
+    // One piece: the eight samples' lane state carries through every step, as in the scalar `sample`.
     pub fn sample_lanes(
         &self,
         rays: &[Ray; LANES],

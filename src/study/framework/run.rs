@@ -227,6 +227,7 @@ pub(super) fn check(kind: &Kind, config: &StudyConfig) -> Result<(), StudyError>
 }
 
 /// Runs `kind` on the scene file at `scene_path` (see the module docs).
+// One piece: its stages run once, in order, sharing the frame cache, the judges and the points.
 pub fn run_kind(
     scene_path: &Path,
     kind: &Kind,

@@ -107,6 +107,7 @@ impl Search {
 
     /// One subdivision level over [u0, u1]: bounds every piece, runs Newton on the pieces at the last level and
     /// returns those to refine.
+    // One piece: it follows Embree's subdivision step for step, so that both report the same hits.
     pub(super) fn level(
         &mut self,
         u0: f32,
