@@ -1,4 +1,4 @@
-//! The pure-Rust strand tracer (issue 13): [`WideBvh`] traversal (the [`Bvh`] build collapsed to 4-wide nodes)
+//! The pure-Rust strand tracer: [`WideBvh`] traversal (the [`Bvh`] build collapsed to 4-wide nodes)
 //! with the ray–curve tests of [`crate::accel::curves`], behind the [`Tracer`] trait, reproducing
 //! [`crate::accel::embree::EmbreeTracer`] query for query.
 //!
@@ -269,7 +269,7 @@ mod tests {
     /// Primary rays on the random bundle (each hit also spawns a secondary ray).
     const RAYS: usize = 10_000;
 
-    /// Primary rays on the real models (issue 13: 10⁵).
+    /// Primary rays on the real models: 10⁵.
     const FILE_RAYS: usize = 100_000;
 
     /// Fraction of rays on which the backends must agree, per query.

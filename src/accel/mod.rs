@@ -1,4 +1,4 @@
-//! Ray tracing of strands behind one small trait, so that Embree and the pure-Rust BVH (issue 13) can be
+//! Ray tracing of strands behind one small trait, so that Embree and the pure-Rust BVH can be
 //! swapped per render and timed on identical rays.
 
 pub mod bvh;
@@ -34,7 +34,7 @@ impl CurveKind {
     }
 }
 
-/// Which implementation traces the strands: the two are timed against each other on identical work (issue 13).
+/// Which implementation traces the strands: the two are timed against each other on identical work.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Backend {

@@ -1,4 +1,4 @@
-//! `cuticle bench build`: how acceleration-structure builds scale with the groom (issue 16 §5). For procedural fur
+//! `cuticle bench build`: how acceleration-structure builds scale with the groom. For procedural fur
 //! balls of each strand count (16 points each, the `scenes/groom-1m.toml` groom): generation time, then for each
 //! backend and curve type the build's wall and CPU time, bytes per segment and the peak resident memory the build
 //! adds, and — so that a cheaper build is never compared without what it costs later — the closest-hit throughput
@@ -6,9 +6,9 @@
 //!
 //! Peak memory per build is measured in one process by resetting the kernel's high-water mark (`VmHWM`) before each
 //! build (`echo 5 > /proc/self/clear_refs`, Linux ≥ 4.0) and reading it after; where that is unavailable the column
-//! shows the process peak so far (marked `*`). CPU time is the process's user + system time ([`crate::sys::clock`]), so
-//! it counts Embree's TBB workers and rayon's alike: CPU ÷ wall shows whether a build ran in parallel, and whether it
-//! was starved on a shared machine.
+//! shows the process peak so far (marked `*`). CPU time is the process's user + system time ([`crate::sys::clock`]),
+//! so it counts Embree's TBB workers and rayon's alike: CPU ÷ wall shows whether a build ran in parallel, and whether
+//! it was starved on a shared machine.
 
 use std::fmt;
 use std::time::Instant;
@@ -33,7 +33,7 @@ pub const PROBE_RAYS: usize = 1 << 16;
 /// the unit sphere read as a pelt rather than a solid shell.
 pub const GROOM_FIBER_RADIUS: f32 = 0.0015;
 
-/// Control points per strand of the benchmark grooms (issue 16: 16 points each).
+/// Control points per strand of the benchmark grooms (16 points each).
 pub const GROOM_POINTS: u32 = 16;
 
 /// What to measure.

@@ -3,7 +3,7 @@
 //! Method: the scene's hair is loaded and its BVH built once (both timed, reported separately); then the frame is
 //! rendered `repetitions` times after one untimed warm-up, on a local rayon pool of `threads` threads, and the
 //! median wall time of the pixel loop is reported with the rays traced per second (camera, shadow and material
-//! rays) and the process's peak memory. No image is written. The issue-5 reference configuration is
+//! rays) and the process's peak memory. No image is written. The reference configuration is
 //! `scenes/furball.toml` (furball-512) at 2 threads.
 
 use std::fmt;

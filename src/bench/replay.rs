@@ -1,13 +1,13 @@
-//! Frame replay (`cuticle bench replay SCENE`, issue 15 target 3): how close the renderer comes to what its tracer
+//! Frame replay (`cuticle bench replay SCENE`): how close the renderer comes to what its tracer
 //! alone can trace on the same rays.
 //!
-//! Method: the frame is loaded and rendered once untimed (warm-up). One more render runs with the tracer wrapped in
-//! a recorder that keeps every query the integrator makes (which query, origin, direction, tnear, tfar, ignored
-//! strand, key) in memory, in the order the threads issued them (about 48 bytes a ray: 190 MB for the 256² peer
-//! frame, 750 MB at 512²). The recorded rays are traced once untimed through the bare tracer with the same
-//! queries, in chunks of [`CHUNK`] consecutive rays on the same pool; then `repetitions` times a timed render and
-//! a timed replay take turns (the VM's load changes within a minute), medians reported. Renderer rays/s = recorded queries / median render time;
-//! tracer rays/s = the same count / median replay time; their ratio is target 3's figure (≥ 0.8 wanted).
+//! Method: the frame is loaded and rendered once untimed (warm-up). One more render runs with the tracer wrapped in a
+//! recorder that keeps every query the integrator makes (which query, origin, direction, tnear, tfar, ignored strand,
+//! key) in memory, in the order the threads issued them (about 48 bytes a ray: 190 MB for the 256² peer frame, 750 MB
+//! at 512²). The recorded rays are traced once untimed through the bare tracer with the same queries, in chunks of
+//! [`CHUNK`] consecutive rays on the same pool; then `repetitions` times a timed render and a timed replay take turns
+//! (the VM's load changes within a minute), medians reported. Renderer rays/s = recorded queries / median render
+//! time; tracer rays/s = the same count / median replay time; their ratio is target 3's figure (≥ 0.8 wanted).
 
 use std::fmt;
 use std::sync::atomic::{AtomicBool, Ordering};

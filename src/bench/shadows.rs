@@ -6,7 +6,7 @@
 //! The **shadow cost** of a mode is its median render time minus the median of `none` (for deep opacity maps plus
 //! the median map-build time). The RMS difference of the deep-opacity beauty from the ray-traced one (both at the
 //! scene's spp) is printed beside it; `cuticle study shadows` measures both against a converged reference. The
-//! issue-6 configuration is `scenes/furball-shadows.toml` (the fur ball under one distant light, 512², 16 spp).
+//! reference configuration is `scenes/furball-shadows.toml` (the fur ball under one distant light, 512², 16 spp).
 
 use std::fmt;
 

@@ -1,5 +1,5 @@
 //! Trace throughput benchmark (`cuticle bench trace SCENE`): Embree against the pure-Rust BVH on identical rays, per
-//! ray type, curve type and thread count — build time, memory per segment and Mrays/s (issue 13).
+//! ray type, curve type and thread count — build time, memory per segment and Mrays/s.
 //!
 //! **The rays** are made once per curve type, by the first backend measured, and then replayed unchanged through
 //! every backend, so both trace exactly the same work:
@@ -577,8 +577,8 @@ pub fn trace(strands: &Strands, config: &TraceConfig) -> Result<TraceReport, Ben
                 .map_err(|source| BenchError::ThreadPool { threads, source })?;
             // Every backend's tracer lives through the whole measurement, and each repetition times the backends
             // one after the other: a slow spell of this noisy VM then slows both alike instead of one backend's
-            // whole series, so the ratios hold (before, runs of one backend after the other's gave ratios that
-            // moved by up to 2x between runs).
+            // whole series, so the ratios hold (runs of one backend after the other's give ratios that move by
+            // up to 2x between runs).
             let mut tracers = Vec::new();
             let mut build_seconds = vec![Vec::new(); config.backends.len()];
             for _ in 0..repetitions {

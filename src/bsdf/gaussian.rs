@@ -297,7 +297,7 @@ fn upper_tail_f32(z: f64) -> f32 {
 
 /// A [`TruncatedGaussian`] whose normalisation is taken in f32, for densities that are f32 anyway: the θh
 /// distributions of Marschner's lobes, built afresh for every view direction (the interval moves with θr), where
-/// the f64 constructor's two double exponentials were the largest single cost of a sample.
+/// the f64 constructor's two double exponentials would be the largest single cost of a sample.
 ///
 /// The standardised ends and points are formed in f64 as [`TruncatedGaussian::new`] forms them (they cancel for
 /// narrow lobes; f64 subtraction and multiplication cost nothing), the error functions in f32 (`erfc_parts_f32`,

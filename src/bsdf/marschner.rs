@@ -418,7 +418,7 @@ mod tests {
 
     /// θo of the furnace grid, degrees.
     const THETA_O_DEG: [f32; 5] = [-80.0, -40.0, 0.0, 30.0, 75.0];
-    /// Widths of the furnace grid, degrees (the sweep: 0.5° to 30°).
+    /// Widths of the furnace grid, degrees (0.5° to 30°).
     const BETA_DEG: [f32; 6] = [0.5, 2.0, 5.0, 10.0, 20.0, 30.0];
     /// θo of the chi-square batteries, degrees.
     const CHI2_THETA_O_DEG: [f32; 4] = [-70.0, -20.0, 10.0, 60.0];

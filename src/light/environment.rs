@@ -23,9 +23,10 @@
 //! NaN or infinite (DWAB compression leaves tiny negatives) are replaced by 0 and counted
 //! ([`Environment::clamped_texels`]). `intensity` scales the whole map.
 //!
-//! Directions are importance sampled with a [`Distribution2D`] over the texel weights luminance(texel) · sin θ_c
-//! (θ_c at the texel's centre: the sin θ of the lat-long Jacobian, so rows near the poles, which cover little
-//! solid angle, are drawn less). The density per unit solid angle of a direction at (u, v) is
+//! Directions are importance sampled with a [`Distribution2D`](super::distribution::Distribution2D) over the texel
+//! weights luminance(texel) · sin θ_c (θ_c at the texel's centre: the sin θ of the lat-long Jacobian, so rows near
+//! the poles, which cover little solid angle, are drawn less). The density per unit solid angle of a direction at (u,
+//! v) is
 //!
 //! p_ω = p_uv(u, v) / (2π² sin θ),   since dω = sin θ dθ dφ = 2π² sin θ du dv,
 //!
@@ -34,14 +35,18 @@
 //!
 //! A constant environment (radiance L everywhere) is sampled uniformly on the sphere, pdf 1/4π.
 
-use std::f32::consts::{PI, TAU};
-use std::path::{Path, PathBuf};
+mod latlong;
+mod load;
 
-use glam::{Mat3, Quat, Vec3};
+pub use latlong::{direction_to_uv, uv_to_direction};
+pub use load::{MAX_MAP_BYTES, MAX_MAP_DECODED_BYTES};
 
-use super::distribution::Distribution2D;
-use super::{check, check_color, check_direction, clamp_u, unit, LightError, LightSample};
-use crate::image::{read_at_most, Image};
+use latlong::LatLong;
+use std::f32::consts::PI;
+
+use glam::{Mat3, Vec3};
+
+use super::{check_color, clamp_u, unit, LightError, LightSample};
 use crate::util::color::luminance;
 use crate::util::sampling::{uniform_sphere, UNIFORM_SPHERE_PDF};
 
@@ -62,33 +67,6 @@ enum Source {
     Map(LatLong),
 }
 
-/// A lat-long map, with its sampling distribution.
-#[derive(Debug, Clone)]
-struct LatLong {
-    width: usize,
-    height: usize,
-    /// Radiance (intensity applied, cleaned), row 0 at the top.
-    texels: Vec<Vec3>,
-    /// Over luminance · sin θ_c.
-    distribution: Distribution2D,
-    /// Mean radiance over the sphere (solid-angle weighted).
-    average: Vec3,
-    /// Texels replaced by 0 (negative, NaN or infinite in the file).
-    clamped: usize,
-}
-
-/// The label used in errors for [`Environment::from_image`], which has no file.
-const IN_MEMORY: &str = "<in-memory image>";
-
-/// Largest environment map file read: 1 GiB. A 16K × 8K lat-long map in half-float RGB is 768 MiB uncompressed;
-/// anything larger is not a map a frame can use (its decoded texels and sampling tables would exceed a machine's
-/// memory before the render starts).
-pub const MAX_MAP_BYTES: u64 = 1 << 30;
-
-/// Largest decoded environment map: 4 GiB of `f32` texels (a 16K × 8K RGBA map is 2 GiB), checked from the file's
-/// header before any pixel is decoded, since a small compressed file can declare any size.
-pub const MAX_MAP_DECODED_BYTES: u64 = 4 << 30;
-
 impl Environment {
     /// A sky of constant `radiance` (RGB, every channel finite and ≥ 0) in every direction.
     pub fn constant(radiance: Vec3) -> Result<Environment, LightError> {
@@ -99,162 +77,6 @@ impl Environment {
             to_map: Mat3::IDENTITY,
         })
     }
-
-    /// The lat-long map in `image` (channels R, G, B, or a single channel read as grey), scaled by `intensity`
-    /// (finite, ≥ 0), turned by `rotation_deg` degrees counter-clockwise about `up` (see the module docs).
-    pub fn from_image(
-        image: &Image,
-        intensity: f32,
-        rotation_deg: f32,
-        up: Vec3,
-    ) -> Result<Environment, LightError> {
-        Environment::build(image, Path::new(IN_MEMORY), intensity, rotation_deg, up)
-    }
-
-    /// Reads the lat-long map at `path` (any format [`crate::image::read`] reads: EXR, Radiance HDR, ...) and
-    /// builds it as [`Environment::from_image`] does. Errors name the file.
-    pub fn load(
-        path: impl AsRef<Path>,
-        intensity: f32,
-        rotation_deg: f32,
-        up: Vec3,
-    ) -> Result<Environment, LightError> {
-        let path = path.as_ref();
-        // Before OpenImageIO sees it: a FIFO would block its open forever and `/dev/zero` never ends.
-        let (_, len) = crate::util::input_file::open_regular(path).map_err(|source| {
-            LightError::EnvironmentFile {
-                path: path.to_path_buf(),
-                source,
-            }
-        })?;
-        if len > MAX_MAP_BYTES {
-            return Err(LightError::EnvironmentContent {
-                path: path.to_path_buf(),
-                message: format!(
-                    "the file is {}, more than the {} an environment map may be",
-                    crate::util::input_file::human_bytes(len),
-                    crate::util::input_file::human_bytes(MAX_MAP_BYTES)
-                ),
-            });
-        }
-        let image = read_at_most(path, MAX_MAP_DECODED_BYTES).map_err(|source| {
-            LightError::EnvironmentMap {
-                path: path.to_path_buf(),
-                source,
-            }
-        })?;
-        Environment::build(&image, path, intensity, rotation_deg, up)
-    }
-
-    fn build(
-        image: &Image,
-        path: &Path,
-        intensity: f32,
-        rotation_deg: f32,
-        up: Vec3,
-    ) -> Result<Environment, LightError> {
-        check(
-            "environment",
-            "intensity",
-            intensity,
-            ">= 0 and finite",
-            intensity >= 0.0 && intensity.is_finite(),
-        )?;
-        check(
-            "environment",
-            "rotation",
-            rotation_deg,
-            "finite (degrees)",
-            rotation_deg.is_finite(),
-        )?;
-        let up = check_direction("environment", "up", up)?;
-        let content = |message: String| LightError::EnvironmentContent {
-            path: PathBuf::from(path),
-            message,
-        };
-        let (width, height, nc) = (image.width, image.height, image.channels.len());
-        if width == 0 || height == 0 {
-            return Err(content(format!("the image is empty ({width} x {height})")));
-        }
-        if image.data.len() != width * height * nc {
-            return Err(content(format!(
-                "{width} x {height} pixels of {nc} channels need {} values, the image has {}",
-                width * height * nc,
-                image.data.len()
-            )));
-        }
-        let rgb = match (
-            image.channel_index("R"),
-            image.channel_index("G"),
-            image.channel_index("B"),
-        ) {
-            (Some(r), Some(g), Some(b)) => [r, g, b],
-            _ if nc == 1 => [0, 0, 0],
-            _ => {
-                return Err(content(format!(
-                    "needs channels R, G, B or a single channel, has {:?}",
-                    image.channels
-                )))
-            }
-        };
-        let mut clamped = 0usize;
-        let texels: Vec<Vec3> = image
-            .data
-            .chunks_exact(nc)
-            .map(|px| {
-                Vec3::from_array(rgb.map(|c| {
-                    let x = px[c];
-                    if x.is_finite() && x >= 0.0 {
-                        x
-                    } else {
-                        clamped += 1;
-                        0.0
-                    }
-                })) * intensity
-            })
-            .collect();
-        let brightest = texels.iter().fold(0.0f32, |m, t| m.max(t.max_element()));
-        if !(..=super::MAX_RADIANCE).contains(&brightest) {
-            return Err(content(format!(
-                "intensity {intensity} times the brightest texel is {brightest}, more than the {:e} a radiance may \
-                 be (environment.intensity is probably in the wrong units)",
-                super::MAX_RADIANCE
-            )));
-        }
-        let mut weights = Vec::with_capacity(width * height);
-        let mut average = glam::DVec3::ZERO;
-        for row in 0..height {
-            let theta_c = PI * (row as f32 + 0.5) / height as f32;
-            // Exact solid angle of a texel of this row: (2π / width)(cos θ₀ − cos θ₁).
-            let (t0, t1) = (
-                std::f64::consts::PI * row as f64 / height as f64,
-                std::f64::consts::PI * (row + 1) as f64 / height as f64,
-            );
-            let omega = std::f64::consts::TAU / width as f64 * (t0.cos() - t1.cos());
-            for t in &texels[row * width..(row + 1) * width] {
-                weights.push(luminance(*t) * theta_c.sin());
-                average += t.as_dvec3() * omega;
-            }
-        }
-        let average = (average / (4.0 * std::f64::consts::PI)).as_vec3();
-        // Map frame → world: +Y to `up` by the shortest arc, then the rotation about `up`.
-        let turn = Quat::from_axis_angle(up, rotation_deg.to_radians())
-            * Quat::from_rotation_arc(Vec3::Y, up);
-        let to_world = Mat3::from_quat(turn.normalize());
-        Ok(Environment {
-            source: Source::Map(LatLong {
-                width,
-                height,
-                distribution: Distribution2D::new(&weights, width, height),
-                texels,
-                average,
-                clamped,
-            }),
-            to_world,
-            to_map: to_world.transpose(),
-        })
-    }
-
     /// (width, height) of the map; `None` for a constant environment.
     pub fn size(&self) -> Option<(usize, usize)> {
         match &self.source {
@@ -374,48 +196,16 @@ impl Environment {
     }
 }
 
-impl LatLong {
-    /// The texel containing `uv` ∈ [0, 1]² (edges clamped).
-    #[inline]
-    fn texel(&self, uv: [f32; 2]) -> Vec3 {
-        let col = ((uv[0] * self.width as f32) as usize).min(self.width - 1);
-        let row = ((uv[1] * self.height as f32) as usize).min(self.height - 1);
-        self.texels[row * self.width + col]
-    }
-}
-
-/// (u, v) ∈ [0, 1]² of a unit direction in the map frame: u = 1/2 + φ/2π with φ = atan2(x, −z), v = θ/π with θ
-/// the angle from +y (computed with atan2, exact near the poles).
-#[inline]
-pub fn direction_to_uv(d: Vec3) -> [f32; 2] {
-    let theta = (d.x * d.x + d.z * d.z).sqrt().atan2(d.y);
-    let phi = d.x.atan2(-d.z);
-    [
-        (0.5 + phi / TAU).clamp(0.0, 1.0),
-        (theta / PI).clamp(0.0, 1.0),
-    ]
-}
-
-/// The unit map-frame direction at `uv` and its sin θ: θ = πv, φ = 2π(u − 1/2),
-/// d = (sin θ sin φ, cos θ, −sin θ cos φ).
-#[inline]
-pub fn uv_to_direction(uv: [f32; 2]) -> (Vec3, f32) {
-    let (sin_theta, cos_theta) = (PI * uv[1]).sin_cos();
-    let (sin_phi, cos_phi) = (TAU * (uv[0] - 0.5)).sin_cos();
-    let sin_theta = sin_theta.max(0.0);
-    (
-        Vec3::new(sin_theta * sin_phi, cos_theta, -sin_theta * cos_phi),
-        sin_theta,
-    )
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::image::Image;
     use crate::light::Light;
     use crate::util::stats::chi_square;
+    use glam::Quat;
     use rand::Rng;
     use rand_pcg::Pcg32;
+    use std::path::PathBuf;
     use std::sync::OnceLock;
 
     #[test]

@@ -1,5 +1,5 @@
 //! The single-fibre albedo of a hair material, and Chiang's absorption matched to it (`cuticle study models`
-//! compares models "at matched colour", issue 17).
+//! compares models "at matched colour").
 //!
 //! **Albedo** here is the energy one fibre scatters once, per RGB channel: ∫ f(ωo, ωi) cos θi dωi, averaged over
 //! ωo uniform on the sphere and the offset h uniform in [−1, 1] (only Chiang reads h). The inner integral is a

@@ -34,8 +34,7 @@ pub const ACCEL_BYTES_PER_SEGMENT: [(Backend, CurveKind, u64); 4] = [
 /// Peak bytes per pixel of adaptive sampling's state beyond a fixed-spp frame's: each pixel's film sums and
 /// convergence statistics kept between rounds, the statistics copied for the round's decision and that decision's
 /// per-pixel vectors ([`super::adaptive`]). Measured: peak RSS of the default scene rendered with `--quality auto`
-/// against a fixed-spp render of the same film, 168 B per pixel at 1024² and 175 at 2048² (5 Dec 2026); rounded
-/// up.
+/// against a fixed-spp render of the same film, 168 B per pixel at 1024² and 175 at 2048²; rounded up.
 pub const ADAPTIVE_BYTES_PER_PIXEL: u64 = 192;
 
 /// Bytes per point of the model as read ([`crate::hair::HairModel`]: position 12, radius 4, transparency 4,

@@ -1,4 +1,4 @@
-//! The kinds of `cuticle study` built on [`super::framework`] (issue 17): each function returns the [`Kind`] —
+//! The kinds of `cuticle study` built on [`super::framework`]: each function returns the [`Kind`] —
 //! references, variants, the pairs read out — for full or `--quick` runs. Materials are each model's paper
 //! defaults (`[material] model = "…"` alone) plus the keys a kind varies, so results do not depend on the scene's
 //! own material; everything else (hair, lights, camera, path length) is the scene's.
@@ -56,10 +56,10 @@
 //!   error that does not fall with spp is the models' difference.
 //! - [`curves`]: round tubes against flat ribbons per model, each against a round reference at the same radius
 //!   scale; times include set-up (the BVH differs).
-//! - [`backends_with`]: Embree against the pure-Rust BVH (issue 13), per curve type, the same seeds on both, so
+//! - [`backends_with`]: Embree against the pure-Rust BVH, per curve type, the same seeds on both, so
 //!   besides time (set-up included: the BVH build differs) and error the two images are compared directly
 //!   ([`Kind::differences`]: `backends-differences.csv`, `backends-diff-bvh-<curves>-vs-embree-<curves>.png`).
-//! - [`shadows_with`]: deep opacity maps against ray-traced shadows (issue 6): no shadows, ray tracing with
+//! - [`shadows_with`]: deep opacity maps against ray-traced shadows: no shadows, ray tracing with
 //!   stochastic and with exact transmittance, maps over layers and over resolution, against a ray-traced
 //!   reference with exact transmittance; the maps' build time and memory in `maps_s` and `map_mb`, the error over
 //!   the shadowed pixels in `rmse_shadowed`.

@@ -1,15 +1,14 @@
 //! Studies: measured comparisons that render a scene many ways and write what they measured into a directory
 //! (CSV tables, charts, image crops), for the documents in `docs/`. Offline tooling, not part of a render.
 //!
-//! - [`framework`]: the one study framework of issue 17 (variants × seeds against cached references, every
+//! - [`framework`]: the one study framework (variants × seeds against cached references, every
 //!   measure, CSVs, charts with equal-time and equal-error read-outs, crop mosaics, image differences between
 //!   series); [`kinds`]: `samples`, `sampling`, `lobes`, `hery`, `models`, `curves`, `backends` (Embree against
-//!   the pure-Rust BVH, issue 13) and `shadows` (deep opacity maps against ray tracing, issue 6) as data for it;
+//!   the pure-Rust BVH) and `shadows` (deep opacity maps against ray tracing) as data for it;
 //!   [`report`]: `all`, one Markdown report.
 //! - [`stress`]: `cuticle study stress SCENE` — adversarial cases per method (NaN/Inf, fireflies, error), on the
 //!   framework.
-//! - [`auto`]: `cuticle study auto SCENE...` — `--quality auto` against every fixed configuration, per error target
-//!   (issue 18).
+//! - [`auto`]: `cuticle study auto SCENE...` — `--quality auto` against every fixed configuration, per error target.
 //! - [`cache`]: a stable hash (FNV-1a) naming cached reference renders, and atomic text-file writes.
 //! - [`figures`]: the error-against-time chart (through [`crate::plot`]) and the mosaic of crops.
 //!

@@ -1,4 +1,4 @@
-//! `cuticle study stress SCENE` (issue 17, "Stability"): adversarial cases rendered with every method
+//! `cuticle study stress SCENE`: adversarial cases rendered with every method
 //! (`kajiya-kay`, `marschner`, `ishair`, `chiang`, each with its paper defaults plus the keys a case changes), each
 //! case and method against its own converged reference (the same case and method at the study's reference spp), so
 //! the error is the method's noise and instability, not the case's difference from the scene.

@@ -5,13 +5,13 @@
 //!
 //! **Loaded on first use, not at start-up.** Debian's OpenImageIO pulls in 260 shared libraries (codecs, OpenCV,
 //! FFmpeg, ...) whose relocation cost every process 0.4–0.55 s of wall time before `main` (measured: an empty C
-//! program linked against Embree starts in 0.01 s, against Embree and OpenImageIO in 0.54–0.57 s). The cuticle
-//! binary therefore does not link OpenImageIO: the shim's bytes are embedded in it and loaded with `dlopen`
-//! ([`ffi::api`]) the first time an image is read or written, and `render` starts that load on a background thread
-//! ([`preload`]) so that it overlaps the hair loading, the BVH build and the render instead of preceding them, and
-//! waits for it before the process exits ([`finish_preload`]). This module checks every length and string before it reaches C++,
-//! so the functions it exposes are safe. Errors come back as [`OiioError`] holding OpenImageIO's
-//! own message; [`crate::image`] adds the file name.
+//! program linked against Embree starts in 0.01 s, against Embree and OpenImageIO in 0.54–0.57 s). The cuticle binary
+//! therefore does not link OpenImageIO: the shim's bytes are embedded in it and loaded with `dlopen` ([`ffi::api`])
+//! the first time an image is read or written, and `render` starts that load on a background thread ([`preload`]) so
+//! that it overlaps the hair loading, the BVH build and the render instead of preceding them, and waits for it before
+//! the process exits ([`finish_preload`]). This module checks every length and string before it reaches C++, so the
+//! functions it exposes are safe. Errors come back as [`OiioError`] holding OpenImageIO's own message;
+//! [`crate::image`] adds the file name.
 
 use std::ffi::{c_char, c_int, c_void, CStr, CString};
 use std::path::Path;
@@ -199,8 +199,8 @@ pub fn preload() {
 
 /// Waits for a load [`preload`] started. A process must not exit while another thread is inside `dlopen`: exit
 /// runs the static destructors of the libraries loaded so far while the loader runs the initialisers of the next,
-/// and the process can die of a signal instead of exiting with its code (seen: a `render` refused for its memory
-/// estimate, exit status 2, ended by a signal once in a CI run).
+/// and the process can die of a signal instead of exiting with its code (a `render` refused for its memory
+/// estimate, exit status 2, can end by a signal).
 pub fn finish_preload() {
     let handle = PRELOADING.lock().ok().and_then(|mut slot| slot.take());
     if let Some(handle) = handle {

@@ -1,7 +1,7 @@
 //! Fixed-size arrays in configuration files that must have exactly their length.
 //!
 //! serde's `[T; N]` reads the first N elements of a sequence and leaves the rest unread, and the `toml` crate does
-//! not object to what is left, so `resolution = [64, 64, "junk"]` used to be accepted as `[64, 64]`. These
+//! not object to what is left, so `resolution = [64, 64, "junk"]` would be accepted as `[64, 64]`. These
 //! `deserialize_with` functions read the whole sequence (so a wrong type anywhere is the deserializer's usual error,
 //! with its line and key) and then require exactly N elements.
 

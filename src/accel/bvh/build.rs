@@ -24,7 +24,7 @@ const TRAVERSAL_COST: f32 = 1.0;
 /// primitives of a node point every way and an oriented split rarely wins. Counted on the fur ball with a limit
 /// of 4 096 (aligned / object-in-frame / strand splits chosen): nodes of 2–3 segments 77 k / 25 k / 158 k, 4–63
 /// segments 24 k / 125 k / 26 k, 64–511 9.5 k / 9.4 k / 29, 512–4 095 2 273 / 33 / 0; and the ray loops'
-/// estimated cycles were the same with 4 096 and 256 (1.163 G, 1.164 G), so 256 saves the build the rest.
+/// estimated cycles are the same with 4 096 and 256 (1.163 G, 1.164 G), so 256 saves the build the rest.
 pub(super) const ORIENTED_SPLIT_MAX: usize = 256;
 
 /// SAH cost of an aligned split per unit of the parent's surface area, against one primitive test per unit of a

@@ -1,4 +1,4 @@
-//! A bounding volume hierarchy over the B-spline segments of [`Strands`], in safe Rust (issue 13): the
+//! A bounding volume hierarchy over the B-spline segments of [`Strands`], in safe Rust: the
 //! acceleration structure of the pure-Rust backend. The ray–curve tests are not here (they are
 //! [`crate::accel::curves`]); traversal hands each candidate segment to a callback, so any primitive test plugs in.
 //!
@@ -19,12 +19,13 @@
 //!   the fur ball it does not pay (off by default; numbers at [`BuildOptions::default`]).
 //! - **Layout**: pbrt-v3's linear BVH (Pharr, Jakob & Humphreys, §4.3.4): 32-byte nodes in depth-first order, the
 //!   first child right after its parent, the second child's index in the node.
-//! - **Traversal** (this file's, kept as the build's output and the reference the tests compare [`wide`] with;
-//!   the tracer walks [`wide::WideBvh`], the same tree collapsed to 4-wide nodes): a fixed stack of [`STACK_SIZE`] entries (no allocation per ray); both children's boxes are
-//!   tested at the parent, the nearer entered first and the other stacked with its entry distance, skipped when a
-//!   closer hit has been found by the time it is popped (measured against pbrt's split-axis order: 2–4 % fewer box
-//!   tests). Boxes use the robust slab test of Ize 2013 ("Robust BVH ray traversal", JCGT 2(2)): far slab
-//!   distances scaled by 1 + 2γ₃ so that rounding never loses a box the ray touches.
+//! - **Traversal** (this file's, kept as the build's output and the reference the tests compare [`wide`] with; the
+//!   tracer walks [`wide::WideBvh`], the same tree collapsed to 4-wide nodes): a fixed stack of [`STACK_SIZE`]
+//!   entries (no allocation per ray); both children's boxes are tested at the parent, the nearer entered first and
+//!   the other stacked with its entry distance, skipped when a closer hit has been found by the time it is popped
+//!   (measured against pbrt's split-axis order: 2–4 % fewer box tests). Boxes use the robust slab test of Ize 2013
+//!   ("Robust BVH ray traversal", JCGT 2(2)): far slab distances scaled by 1 + 2γ₃ so that rounding never loses a box
+//!   the ray touches.
 
 mod build;
 #[cfg(test)]
@@ -154,8 +155,8 @@ impl RayInv {
 
 /// How tightly each segment is bounded (see the module doc for why the boxes are conservative).
 ///
-/// Measured on 20 000 random rays with each segment's box as the primitive (a throwaway measurement, 1 Dec 2026;
-/// `bench trace --backend bvh` will time it): primitive tests per closest-hit ray on furball.hair (455 505
+/// Measured on 20 000 random rays with each segment's box as the primitive (a one-off measurement;
+/// `bench trace --backend bvh` times it): primitive tests per closest-hit ray on furball.hair (455 505
 /// segments) 3.9 with `Hull`, 1.6 / 1.1 / 0.9 with 2 / 4 / 8 spans, box tests 61 / 46 / 41 / 39, at 67–68 bytes
 /// per segment and the same build time; on straight.hair 21.3 / 6.6 / 3.2 / 2.1 primitive tests. Span references
 /// double the nodes and the build time and test no fewer primitives (1.6 on furball for 2 spans). Four spans

@@ -5,9 +5,9 @@
 //! - **4-wide nodes** (Wald, Benthin & Boulos 2008, "Getting rid of packets"; Dammertz et al. 2008, "Shallow
 //!   bounding volume hierarchies"; Embree's BVH4): each binary inner node is replaced by up to four descendants,
 //!   opening the child of largest surface area first (Embree's and pbrt's "collapse" heuristic), so a ray loads
-//!   one node and tests four boxes where the binary tree loaded two nodes per level. 8-wide nodes (AVX lanes,
-//!   tried 1 Dec 2026) cost more instructions (bench trace ray loops, furball 96x96: round 2.78 G → 2.94 G, flat
-//!   1.29 G → 1.45 G) for no wall-clock gain that one run could separate from noise: four it is.
+//!   one node and tests four boxes where the binary tree loaded two nodes per level. 8-wide nodes (AVX lanes) cost
+//!   more instructions (bench trace ray loops, furball 96x96: round 2.94 G against 2.78 G, flat 1.45 G against
+//!   1.29 G) for no wall-clock gain that one run separates from noise, so the nodes are 4-wide.
 //! - **Oriented nodes** (Woop et al. 2014, "Exploiting local orientation similarity for efficient ray traversal
 //!   of hair and fur", the idea behind Embree's hair BVH): hair is thin, long and diagonal, so an axis-aligned box
 //!   around a few segments of a strand is mostly empty space. For each child of at most [`OBB_MAX`] segments the
@@ -18,40 +18,41 @@
 //!   Our trees are still built by the aligned SAH (Woop et al. also split in the oriented frame: not done), so
 //!   oriented nodes appear only where the aligned tree already groups a strand's neighbouring segments: 97 800 of
 //!   the fur ball's 118 443 nodes with four segments per leaf. With one segment per leaf
-//!   ([`super::BuildOptions::default`]) the oriented lanes bound each segment on its own, which replaced the
-//!   per-segment span capsules the leaves used to test (112 bytes per segment): 229 → 193 bytes per segment
-//!   (Embree: 143; 138 with four segments per leaf), last-level cache misses in the ray loops ÷ 2.5.
+//!   ([`super::BuildOptions::default`]) the oriented lanes bound each segment on its own, so the leaves need no
+//!   per-segment span capsules (112 bytes per segment): 193 bytes per segment against 229 with capsules (Embree:
+//!   143; 138 with four segments per leaf), and 2.5× fewer last-level cache misses in the ray loops.
 //! - **Oriented lanes as affine maps onto the unit cube** ([`Obbs4`], the form of Embree's oriented nodes), 240
-//!   bytes per node. From 2 to 3 Dec 2026 they were quantised instead (the encoding of Embree's `CurveNi` leaves,
-//!   after Ylitie, Karras & Laine 2017: 16-bit frames and bounds relative to the node's box, 172 bytes per node),
-//!   which saved cache misses (estimated cycles 1.096 G → 1.083 G against orthonormal `f32` frames with lower and
-//!   upper bounds) but cost ~110 instructions per node test, a third of the camera rays' walk (perf). The unit-cube
-//!   map needs no bounds and no widening: camera rays' `intersect` 126.0 M → 118.8 M instructions (callgrind,
+//!   bytes per node. Quantised lanes (the encoding of Embree's `CurveNi` leaves, after Ylitie, Karras & Laine 2017:
+//!   16-bit frames and bounds relative to the node's box, 172 bytes per node) save cache misses (estimated cycles
+//!   1.083 G against 1.096 G for orthonormal `f32` frames with lower and upper bounds) but cost ~110 instructions
+//!   per node test, a third of the camera rays' walk (perf). The unit-cube map needs no bounds and no widening:
+//!   camera rays' `intersect` takes 118.8 M instructions against the quantised lanes' 126.0 M (callgrind,
 //!   `bench trace scenes/furball.toml --curves flat --threads 1 --repetitions 1 --res 96x96 --backend bvh`), and
 //!   `bench trace scenes/furball.toml --curves flat --threads 1 --repetitions 3`, BVH ÷ Embree, two interleaved
-//!   runs each: camera 2.06 / 2.06 → 1.94 / 1.89, secondary 1.78 / 1.81 → 1.68 / 1.68, exact shadows 1.82 / 1.81 →
-//!   1.66 / 1.69, stochastic 1.73 / 1.74 → 1.66 / 1.67; memory 162.5 → 193 bytes per segment (Embree 143). Huge
-//!   pages for the node and leaf arrays (`madvise(MADV_HUGEPAGE)`, as Embree does: it held 51 MB of its tree on
-//!   2 MiB pages here) were tried on top: secondary and shadow rays 0–6 % faster, camera rays unchanged, build
-//!   1.85× → 2.3× Embree's (the huge-page faults themselves, also when advised before the first write): not kept.
+//!   runs each, quantised against unit-cube: camera 2.06 / 2.06 against 1.94 / 1.89, secondary 1.78 / 1.81 against
+//!   1.68 / 1.68, exact shadows 1.82 / 1.81 against 1.66 / 1.69, stochastic 1.73 / 1.74 against 1.66 / 1.67; memory
+//!   193 bytes per segment against the quantised lanes' 162.5 (Embree 143). Huge pages for the node and leaf arrays
+//!   (`madvise(MADV_HUGEPAGE)`, as Embree does: it holds 51 MB of its tree on 2 MiB pages here) make secondary and
+//!   shadow rays 0–6 % faster and camera rays no faster, but the build 2.3× Embree's instead of 1.85× (the
+//!   huge-page faults themselves, also when advised before the first write), so the arrays use ordinary pages.
 //! - **Leaves** hold each segment's control points, ids and opacity in one 80-byte entry ([`Primitive`]), so a
 //!   curve test reads one place, as Embree's curve leaves also store their control points.
 //!
 //! Measured (callgrind, inside the benchmark's ray loops, `bench trace scenes/furball.toml --threads 1
-//! --repetitions 1 --res 96x96 --backend bvh`, same rays and figures): binary tree 8.74 G instructions (round) /
-//! 2.98 G (flat); 4-wide with span-box leaves 5.30 G / 1.94 G; `ArrayVec` stack: flat 1.82 G; after faster curve
-//! tests, span capsules in the leaves: 2.90 G / 1.41 G. Then, with cache simulation (estimated cycles =
-//! instructions + 10 per L1 miss + 200 per last-level miss; Embree on the same rays: round 1.41 G, flat 0.71 G):
-//! capsule leaves 3.27 G / 1.80 G; oriented nodes 3.12 G / 1.66 G; oriented nodes without capsules 3.08 G /
-//! 1.60 G; and one segment per leaf 2.74 G / 1.35 G. Perf shows the walk waiting on the first load of a node
+//! --repetitions 1 --res 96x96 --backend bvh`, same rays and figures): a binary tree takes 8.74 G instructions
+//! (round) / 2.98 G (flat), 4-wide nodes with span-box leaves 5.30 G / 1.94 G (flat 1.82 G with an `ArrayVec`
+//! stack), span capsules in the leaves 2.90 G / 1.41 G. In estimated cycles (cache simulation: instructions + 10
+//! per L1 miss + 200 per last-level miss; Embree on the same rays: round 1.41 G, flat 0.71 G): capsule leaves
+//! 3.27 G / 1.80 G, oriented nodes 3.12 G / 1.66 G, oriented nodes without capsules 3.08 G / 1.60 G, and one
+//! segment per leaf (the layout here) 2.74 G / 1.35 G. Perf shows the walk waiting on the first load of a node
 //! and of a leaf entry: memory more than arithmetic bounds it.
-//! - **Prefetch** (3 Dec 2026): perf put over half of the walk's samples on the first load of a node or a leaf
+//! - **Prefetch**: perf puts over half of the walk's samples on the first load of a node or a leaf
 //!   entry, so every child a node's test hits has its cache lines requested at once ([`crate::sys::prefetch`]):
 //!   the nearest is entered next, the others are in cache by the time they are popped. `bench trace
-//!   scenes/furball.toml --threads 1,2 --repetitions 3`, BVH ÷ Embree at 1 / 2 threads, without → with: flat
+//!   scenes/furball.toml --threads 1,2 --repetitions 3`, BVH ÷ Embree at 1 / 2 threads, without → with prefetch: flat
 //!   camera 2.17 / 2.11 → 2.04 / 2.03, secondary 2.34 / 2.08 → 2.05 / 1.92, exact shadow 2.50 / 2.22 → 2.09 /
 //!   2.03, stochastic 2.00 / 1.86 → 1.86 / 1.72; round secondary 1.62 / 1.40 → 1.40 / 1.18, exact 1.41 / 1.35 →
-//!   1.30 / 1.23. Aligning nodes to 64 bytes on top (173.5 instead of 162.5 bytes per segment) bought nothing.
+//!   1.30 / 1.23. Aligning nodes to 64 bytes on top (173.5 instead of 162.5 bytes per segment) buys nothing.
 //! - **Slab test**: min/max of the two slab distances per axis (no branch on the direction's sign), far distances
 //!   scaled by Ize 2013's 1 + 2γ₃ as in [`super::Aabb::entry`]. Direction components too small to invert are
 //!   replaced by ±2⁻⁶⁴ (Embree's `rcp_safe` idea), so no 0 · ∞ = NaN can reach the comparisons: the inverse stays
@@ -537,8 +538,8 @@ impl WideBvh {
         found
     }
 
-    /// Every primitive in a leaf whose bounds the ray crosses: [`Bvh::for_each`]'s contract, the callback given the leaf
-    /// entry.
+    /// Every primitive in a leaf whose bounds the ray crosses: [`Bvh::for_each`]'s contract, the callback given the
+    /// leaf entry.
     pub fn for_each<F: FnMut(&Primitive, f32) -> Control>(&self, ray: &Ray, mut visit: F) -> bool {
         let mut r = WideRay::new(ray);
         self.walk::<false, _>(&mut r, |primitive, r| visit(primitive, r.tfar))

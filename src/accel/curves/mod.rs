@@ -1,4 +1,4 @@
-//! Ray–curve intersection in pure Rust, for the BVH backend (issue 13): the same swept surfaces Embree intersects,
+//! Ray–curve intersection in pure Rust, for the BVH backend: the same swept surfaces Embree intersects,
 //! so both backends hit the same strands.
 //!
 //! - [`round`]: Embree's `ROUND_BSPLINE` — a sphere of varying radius swept along a cubic B-spline segment.

@@ -12,10 +12,10 @@
 //! - **single strategies** (`strategy = "light"` / `"material"`) give their own strategy weight 1 and the other 0;
 //! - at the **last vertex** of a path under light sampling alone no material ray is traced (its weight would be 0).
 //!   Under MIS the last vertex keeps both strategies, like every other vertex. Giving the light sample the whole
-//!   weight there is unbiased and saves a ray, and it was cuticle's rule until 1 Dec 2026, but for narrow lobes
-//!   under an environment it is the poor strategy: the Chiang peer scene at 64 spp was covered in orange
-//!   single-pixel fireflies (a uniformly sampled environment direction landing in a narrow TT lobe at the second
-//!   vertex) where Mitsuba 3, which keeps MIS there, was smooth.
+//!   weight there is unbiased and saves a ray, but for narrow lobes under an environment it is the poor strategy:
+//!   it covers the Chiang peer scene at 64 spp in orange single-pixel fireflies (a uniformly sampled environment
+//!   direction landing in a narrow TT lobe at the second vertex) where Mitsuba 3, which keeps MIS there, is
+//!   smooth.
 
 use glam::Vec3;
 
@@ -43,7 +43,8 @@ pub(super) fn power_heuristic(a: f32, b: f32) -> f32 {
 pub(super) struct Mis {
     /// Which strategies estimate direct light.
     pub(super) strategy: Strategy,
-    /// Whether every light gets `light_samples` samples or each sample goes to one light chosen ∝ its selection weight.
+    /// Whether every light gets `light_samples` samples or each sample goes to one light chosen ∝ its selection
+    /// weight.
     pub(super) selection: LightSelection,
     /// n_l: light samples (per light under [`LightSelection::All`], in all under [`LightSelection::One`]).
     pub(super) light_samples: u32,
@@ -67,7 +68,8 @@ impl Mis {
         }
     }
 
-    /// A vertex after the first: one light chosen ∝ its selection weight, one material sample; `last` at the path's end.
+    /// A vertex after the first: one light chosen ∝ its selection weight, one material sample; `last` at the path's
+    /// end.
     pub(super) fn deeper_vertex(strategy: Strategy, last: bool) -> Mis {
         Mis {
             strategy,
