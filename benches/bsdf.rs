@@ -104,7 +104,7 @@ fn bsdfs(c: &mut Criterion) {
 
 /// Chiang's eval on its own (the views taken beforehand, as a shading point reuses its view): one shading point at
 /// a time (`Chiang::eval_viewed`, the renderer's path) against eight at once (`Chiang::eval_lanes`, step 1 of
-/// `docs/wavefront.md`), on the same 1024 (view, ωi) pairs with random offsets h.
+/// `docs/design/wavefront.md`), on the same 1024 (view, ωi) pairs with random offsets h.
 fn bench_chiang_lanes(c: &mut Criterion, chiang: &Chiang, x: &Inputs) {
     let mut rng = Pcg32::new(2026, 12);
     let views: Vec<ChiangView> = (0..BATCH)

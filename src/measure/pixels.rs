@@ -228,7 +228,7 @@ mod tests {
 
     /// A 16 × 12 map against a perturbed copy, against a NumPy transcription of the same definition (11 × 11
     /// Gaussian, σ 1.5, clipped and renormalised at the border):
-    /// `x[i,j] = ((3i + 5j) % 7) / 7`, `y = 0.8 x + 0.1 + 0.05 ((i j) % 3)` (`docs/study/ssim_check.py`).
+    /// `x[i,j] = ((3i + 5j) % 7) / 7`, `y = 0.8 x + 0.1 + 0.05 ((i j) % 3)` (`docs/measured/study/ssim_check.py`).
     #[test]
     fn ssim_matches_an_independent_transcription() {
         let (w, h) = (16usize, 12usize);
@@ -245,7 +245,7 @@ mod tests {
         assert!((s - NUMPY_SSIM).abs() < 1e-11, "ssim {s}");
     }
 
-    /// Printed by `python3 docs/study/ssim_check.py`.
+    /// Printed by `python3 docs/measured/study/ssim_check.py`.
     const NUMPY_SSIM: f64 = 0.958_764_231_623;
 
     #[test]

@@ -5,7 +5,7 @@
 //! Rays of different kinds cost different amounts: a camera ray that misses the hair is cheap, a shadow ray with
 //! exact transmittance traverses the whole fur, and every light or material sample at a vertex also evaluates the
 //! BSDF and the MIS densities. Counting rays alone makes a (1 light, 4 material) candidate look 1.3× as costly as
-//! (1, 1) per camera sample on the default scene, where it measures 1.4–1.8× (`docs/study/auto/README.md`), and
+//! (1, 1) per camera sample on the default scene, where it measures 1.4–1.8× (`docs/measured/auto.md`), and
 //! auto would pick it. The weights here are seconds per ray of each kind, *including* the shading work that comes
 //! with the ray, fitted by least squares to the CPU time of the pixel loop (one thread) over 4 ray-count
 //! regressors; see [`WEIGHTS`] for the measurement.
@@ -20,7 +20,7 @@ pub use crate::render::integrator::RayCost as CostWeights;
 /// ([`RayCounts::deep`](crate::render::integrator::RayCounts::deep)). The first four are a least-squares fit to the
 /// one-thread CPU time of the default scene's pixel loop at 128², 4 spp, over round and flat curves × ray-traced and
 /// map shadows × path length 0–3 × the four light/material candidates (81 renders,
-/// `docs/study/auto/cost-calibration.csv`); read them as ratios, 1 : 3.6 : 3.7 : 1.8.
+/// `docs/measured/study/auto/cost-calibration.csv`); read them as ratios, 1 : 3.6 : 3.7 : 1.8.
 /// `deep` is 0.41 × the mean shadow/material weight: the median excess, in callgrind instructions, of a bounce-2
 /// vertex's rays over a bounce-1 vertex's on the hair scenes (`scripts/deep-ray-cost.sh SCENE`).
 pub const WEIGHTS: CostWeights = CostWeights {
@@ -53,7 +53,7 @@ mod tests {
     #[test]
     fn a_four_sample_candidate_at_equal_rel_mse_times_rays_ranks_below_one_sample_when_its_rays_cost_more(
     ) {
-        // The default scene's rays at path 3, 4 spp, 128² (docs/study/auto/cost-calibration.csv): (1 light,
+        // The default scene's rays at path 3, 4 spp, 128² (docs/measured/study/auto/cost-calibration.csv): (1 light,
         // 1 material) and (1, 4). The extra rays of (1, 4) are material rays, which cost more than the camera rays
         // that make up half of (1, 1)'s. Its relMSE is set so that relMSE × rays ties (as the default scene's
         // pilots nearly did: 2.45e-2 × 7608 against 1.88e-2 × 9862), which counting rays broke towards (1, 4).
@@ -131,7 +131,7 @@ mod tests {
 
     #[test]
     fn the_weights_predict_the_measured_cpu_time_of_each_candidate_on_the_default_scene() {
-        // docs/study/auto/cost-calibration.csv, flat, ray-traced shadows, path 2, 4 spp at 128²: (1, 1) 0.37 s
+        // docs/measured/study/auto/cost-calibration.csv, flat, ray-traced shadows, path 2, 4 spp at 128²: (1, 1) 0.37 s
         // CPU, (1, 4) 0.49 s, (4, 1) 0.57 s, (4, 4) 0.71 s.
         let measured = [
             (counts(81920, 54613, 34536), 0.37),

@@ -33,7 +33,7 @@
 //! map). The model's estimate divides by a gain curve extrapolated from the pilots' 4 spp
 //! ([`Schedule::gain`]), and that extrapolation is the model's largest error: it reads the fur ball, the sunset
 //! map and the Cornell box up to 8 % low in relative RMSE, so that a margin for them would make the scenes where it
-//! is right over-deliver (`docs/study/auto/README.md`). So the stop also reads each pixel's **halves**
+//! is right over-deliver (`docs/measured/auto.md`). So the stop also reads each pixel's **halves**
 //! ([`Convergence::split_rel_mse`]): the means of its first P/2 and next P/2 samples (P the largest power of two
 //! ≤ n), whose squared difference over 4 is the variance of the mean of P samples *or more* for any sampler that
 //! converges no slower than independent samples — this frame's own convergence at the counts it reached, no

@@ -20,7 +20,7 @@ pub(super) const PILOT_PATH_LENGTH_STEP: u32 = 2;
 /// bounce past the third is found by few of 4 samples: on the Cornell box the relative means of bounces 5, 6 and 7
 /// carried standard errors of 12, 16 and 34 %, their ratios come out 0.81 and 0.80 where 256-spp renders measure a
 /// decay of about 0.54, and the tail after path 7 reads 0.032 for a true 0.004 at 4 samples
-/// (`docs/study/auto/README.md`). Four times the samples halve those errors; the further renders cost about 1 % of
+/// (`docs/measured/auto.md`). Four times the samples halve those errors; the further renders cost about 1 % of
 /// the frames that need them (tight targets, deep paths). Their pairs are not reused by the decisions after the path
 /// length, which read the pilots at [`PILOT_SPP`](super::PILOT_SPP).
 pub(super) const PILOT_EXTENSION_SPP_FACTOR: u32 = 4;

@@ -304,7 +304,7 @@ impl Schedule {
     /// round read 4.6e-4 of its 9.6e-3 budget from the background's halves, 3.0e-4 divided at the cap (1.6e-4 at
     /// the α of 1.7 its quarters measured). The hair's order cannot be measured so (one octave below is not its
     /// rate at the halves' octave: straight hair under the sunset map missed its target when the whole image's was
-    /// used, `docs/study/auto/README.md`), so its halves stay an upper bound.
+    /// used, `docs/measured/auto.md`), so its halves stay an upper bound.
     fn split_per_pixel(means: &[[f64; 3]], pixels: &[Convergence]) -> Vec<Option<f64>> {
         let terms: Vec<Option<SplitTerms>> = pixels
             .iter()

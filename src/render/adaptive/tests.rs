@@ -419,7 +419,7 @@ fn the_halves_read_the_variance_of_independent_samples() {
 /// loose by 2ρ − 1 where the variance falls ρ times faster than 1/n from 8 to 16 samples (ρ = 1.7 on this
 /// clean edge; 7× the truth on a smooth u², ρ = 4). On the hair scenes, whose pixels mix many edges and
 /// lighting noise, the gain grows 2–12 % per doubling and the halves read 3–12 % high (two-seed renders,
-/// `docs/study/auto/README.md`).
+/// `docs/measured/auto.md`).
 #[test]
 fn the_halves_see_a_stratified_samplers_faster_convergence() {
     let (n, seeds) = (16u32, 4000u32);

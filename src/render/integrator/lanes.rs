@@ -1,4 +1,4 @@
-//! The eight-lane path of the first vertex ([`Integrator::sample_lanes`], steps 1–2 of `docs/wavefront.md`):
+//! The eight-lane path of the first vertex ([`Integrator::sample_lanes`], steps 1–2 of `docs/design/wavefront.md`):
 //! a batch of camera samples shaded by Chiang's model one f32×8 vector at a time; apart from the scalar path it
 //! reproduces.
 
@@ -30,7 +30,7 @@ impl Integrator<'_> {
     /// first vertices shaded together where they are on Chiang fibres: the light samples' f and pdf by
     /// [`Chiang::eval_lanes`](crate::bsdf::chiang::Chiang::eval_lanes), the material samples by
     /// [`Chiang::sample_lanes`](crate::bsdf::chiang::Chiang::sample_lanes), everything else (light choice, rays, MIS,
-    /// the deeper vertices) per sample as [`Integrator::sample`] does it. Step 2 of `docs/wavefront.md`,
+    /// the deeper vertices) per sample as [`Integrator::sample`] does it. Step 2 of `docs/design/wavefront.md`,
     /// experimental: the lanes draw the same samples with f32 arithmetic, so images differ from
     /// [`Integrator::sample`]'s by its rounding. Needs [`Integrator::lanes_fit`].
     // One piece: the eight samples' lane state carries through every step, as in the scalar `sample`.
