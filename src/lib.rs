@@ -1,16 +1,20 @@
 //! cuticle: a physically based hair renderer.
 //!
-//! Layers, each importing only those below it (`docs/architecture.md` draws one frame's data flow):
+//! Layers, top first; each module imports only its own layer and those below (`docs/architecture.md` lists every
+//! file, draws one frame's data flow, and `tests/architecture.rs` checks both):
 //!
 //! - measurement: [`study`] (error-against-time studies) and [`mod@bench`] (benchmarks), drawing with [`plot`]
 //!   (plotters charts) and measuring with [`measure`] (timings, memory, image error);
+//! - [`job`]: one render job as `cuticle render` runs it (scene → frame → auto's plan → maps → frames → outputs);
 //! - configuration: [`scene`] reads and checks the TOML and resolves it into the settings each layer owns;
-//! - [`render`]: one frame set up ([`render::Frame`]), camera, sampler, film, integrator;
-//! - physics: [`shadow`] (deep opacity maps), [`light`], [`bsdf`] (fibre models), [`shape`] (Lambert shapes);
-//! - [`accel`]: the [`accel::Tracer`] trait and the Embree backend;
-//! - [`hair`] (files → B-spline strands), [`ray`], [`geometry`] (ray–primitive hits), [`image`] (OpenImageIO);
+//! - [`quality`]: `--quality auto`, the renderer choosing its methods for an error target;
+//! - [`farm`]: tiles, animation frames, interrupted renders and `merge`;
+//! - [`render`]: one frame set up ([`render::Frame`]), camera, sampler, film, integrator, adaptive sampling;
+//! - physics: [`shadow`] (deep opacity maps), then [`light`], [`bsdf`] (fibre models), [`shape`] (Lambert shapes);
+//! - [`accel`] (the [`accel::Tracer`] trait, Embree and the pure-Rust BVH) and [`geometry`] (ray–primitive hits);
+//! - [`hair`] (files → B-spline strands) and [`image`] (OpenImageIO);
 //! - [`sys`]: FFI only; all `unsafe` code lives there;
-//! - [`util`]: hashing, colour, sampling, statistics, atomic file writes; imports nothing of this crate.
+//! - [`ray`] (validated rays) and [`util`] (hashing, colour, sampling, statistics, atomic file writes).
 #![deny(unsafe_code)]
 #![warn(missing_docs)]
 // The crate's docs are its developers' reference (`cargo doc --document-private-items`): a public item's doc may

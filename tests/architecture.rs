@@ -4,8 +4,8 @@
 //!
 //! The layer table is the markdown table under `## Layers` in `docs/architecture.md`: one row per layer, top
 //! first, `| N | module module ... |`. A module may use modules of its own layer or any layer below. Only code is
-//! read: comment lines are skipped (doc links may point anywhere), and so are test modules (everything from a
-//! file's first `#[cfg(test)]` on, and files named `tests.rs` or `testing.rs`), which may reach up for fixtures.
+//! read: comment lines are skipped (doc links may point anywhere), and so are test code (items marked
+//! `#[cfg(test)]`, and files named `tests.rs` or `testing.rs`), which may reach up for fixtures.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -71,7 +71,10 @@ fn layers(doc: &str) -> BTreeMap<String, usize> {
             );
         }
     }
-    assert!(!layers.is_empty(), "docs/architecture.md: the layer table has no rows");
+    assert!(
+        !layers.is_empty(),
+        "docs/architecture.md: the layer table has no rows"
+    );
     layers
 }
 
@@ -81,6 +84,34 @@ fn declared_modules(lib: &str) -> Vec<String> {
         .filter_map(|l| l.trim().strip_prefix("pub mod "))
         .map(|m| m.trim_end_matches(';').to_owned())
         .collect()
+}
+
+/// The lines of `text` that are code: not comments, not inside an item marked `#[cfg(test)]` (the item's braces
+/// are followed to its end), with their 0-based line numbers.
+fn code_lines(text: &str) -> Vec<(usize, &str)> {
+    let mut out = Vec::new();
+    let mut lines = text.lines().enumerate();
+    while let Some((i, line)) = lines.next() {
+        let trimmed = line.trim_start();
+        if trimmed.starts_with("//") {
+            continue;
+        }
+        if trimmed.starts_with("#[cfg(test)]") {
+            // Skip the item: up to a `;` ending a one-line item, or until its braces balance.
+            let mut depth = 0i32;
+            let mut opened = false;
+            for (_, l) in lines.by_ref() {
+                depth += l.matches('{').count() as i32 - l.matches('}').count() as i32;
+                opened |= l.contains('{');
+                if (opened && depth <= 0) || (!opened && l.trim_end().ends_with(';')) {
+                    break;
+                }
+            }
+            continue;
+        }
+        out.push((i, line));
+    }
+    out
 }
 
 #[test]
@@ -159,11 +190,7 @@ fn no_import_runs_up_the_layers() {
             continue; // reported by every_module_has_a_layer_and_lib_rs_names_it
         };
         let text = read(&format!("src/{file}"));
-        let code = text.split("#[cfg(test)]").next().unwrap();
-        for (i, line) in code.lines().enumerate() {
-            if line.trim_start().starts_with("//") {
-                continue;
-            }
+        for (i, line) in code_lines(&text) {
             for prefix in ["crate::", "cuticle::"] {
                 for (at, _) in line.match_indices(prefix) {
                     let rest = &line[at + prefix.len()..];
