@@ -762,23 +762,15 @@ path_length = 1
 
 #[test]
 fn embrees_fur_ball_renders_alike_on_both_backends() {
-    // The fur ball of `scenes/furball.toml` (455,505 segments, from ../shared/data) at 64², 4 spp, round tubes and
+    // The fur ball of `scenes/furball.toml` (455,505 segments, from the test data) at 64², 4 spp, round tubes and
     // flat ribbons: independent seeds, image means within Monte Carlo noise (3 standard errors per channel).
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/furball.toml");
-    let text = std::fs::read_to_string(&path).unwrap();
-    let base = path.parent().unwrap();
-    let hair = base.join("../../shared/data/hair/furball.hair");
-    assert!(
-        hair.exists(),
-        "missing test data {} (the tests need ../shared/data beside the repository)",
-        hair.display()
-    );
+    let scene = common::data::load_scene("scenes/furball.toml");
     for curves in [
         cuticle::accel::CurveKind::Round,
         cuticle::accel::CurveKind::Flat,
     ] {
         let with = |backend, seed| {
-            let mut s = Scene::parse(&text, &path, base).unwrap_or_else(|e| panic!("{e}"));
+            let mut s = scene.clone();
             s.hair.curves = curves;
             s.hair.backend = backend;
             s.film.resolution = [64, 64];

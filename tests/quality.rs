@@ -10,6 +10,8 @@ use cuticle::quality::{self, Fixed, QualityConfig};
 use cuticle::render::{thread_pool, Frame, Options};
 use cuticle::scene::{Scene, ShadowMode};
 
+mod common;
+
 const EXE: &str = env!("CARGO_BIN_EXE_cuticle");
 
 fn scene(text: &str) -> Scene {
@@ -396,20 +398,24 @@ fn the_image_rule_meets_the_target_with_fewer_samples_than_the_per_pixel_rule_an
 const CALIBRATION_SPP: u32 = 16;
 
 /// Measures what calibrated [`quality::cost`]'s weights: CPU time of the pixel loop against the ray counts, one
-/// thread, over the shipped scenes × curves × shadows × path length × light/material candidates. Prints CSV.
-/// `cargo test --release --test quality calibrate_cost_model -- --ignored --nocapture`
+/// thread, over the shipped scenes × curves × shadows × path length × light/material candidates. Writes CSV to
+/// `target/tmp/cost_calibration.csv` (the test target's temporary directory) and checks nothing.
+/// `cargo test --release --test quality calibrate_cost_model -- --ignored`
 #[test]
 #[ignore = "a measurement (minutes), not a check: its output calibrated quality::cost"]
 fn calibrate_cost_model() {
+    use std::fmt::Write as _;
     let pool = thread_pool(Some(1)).unwrap();
-    println!("scene,curves,shadows,path,light,material,spp,camera,shadow,material_rays,map_lookups,cpu_seconds");
+    let mut csv = String::from(
+        "scene,curves,shadows,path,light,material,spp,camera,shadow,material_rays,map_lookups,cpu_seconds\n",
+    );
     for path in [
         "scenes/default.toml",
         "scenes/thesis/straight-sunset-marschner.toml",
         "scenes/thesis/cornell-box.toml",
         "scenes/thesis/straight-city-marschner.toml",
     ] {
-        let mut s = Scene::load(Path::new(path)).unwrap();
+        let mut s = common::data::load_scene(path);
         s.film.resolution = [128, 128];
         let s = s.revalidate().unwrap();
         for curves in [CurveKind::Flat, CurveKind::Round] {
@@ -438,19 +444,23 @@ fn calibrate_cost_model() {
                         });
                         let cpu = cuticle::sys::clock::process_cpu_seconds().unwrap() - cpu;
                         let r = stats.rays;
-                        println!(
+                        writeln!(
+                            csv,
                             "{path},{},{shadows:?},{path_length},{l},{m},{CALIBRATION_SPP},{},{},{},{},{cpu:.4}",
                             curves.name(),
                             r.camera,
                             r.shadow,
                             r.material,
                             r.map_lookups
-                        );
+                        )
+                        .unwrap();
                     }
                 }
             }
         }
     }
+    let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join("cost_calibration.csv");
+    std::fs::write(&out, csv).unwrap_or_else(|e| panic!("{}: {e}", out.display()));
 }
 
 /// The pilots' renders ([`cuticle::render::render_bounces`]): one render at path length 3, cut after each vertex,

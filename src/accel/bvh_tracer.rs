@@ -285,7 +285,7 @@ mod tests {
     /// Absolute tolerance on transmittance.
     const TRANSMITTANCE_TOLERANCE: f32 = 1e-4;
 
-    /// A model of `../shared/data/hair`, strands of opacity ½.
+    /// A hair model of the test data ([`crate::util::test_data`]), strands of opacity ½.
     fn hair_file(name: &str) -> Strands {
         let mut strands = crate::accel::testing::hair_file(name);
         strands.set_opacity(0.5);
