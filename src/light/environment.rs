@@ -682,7 +682,6 @@ mod tests {
         }
         // ∫ pdf dω = 1, and the bright texel's share of the samples is its weight's share.
         let integral = pdf_integral(&env);
-        eprintln!("synthetic map: ∫ pdf_li dω = {integral:.5}");
         assert!((integral - 1.0).abs() < PDF_TOLERANCE, "∫ pdf = {integral}");
         let weight = |col: usize, row: usize| {
             luminance(Vec3::from_slice(img.pixel(col, row))) as f64
@@ -715,7 +714,6 @@ mod tests {
             "the bright texel should dominate"
         );
         let r = chi_square(&observed, &expected, MIN_EXPECTED);
-        eprintln!("synthetic map chi-square over texels: {r:?}");
         assert!(r.p_value > ALPHA && r.outside_support == 0.0, "{r:?}");
         // Average radiance: Σ L Ω / 4π with exact texel solid angles.
         let avg: f64 = (0..8 * 16)
@@ -842,7 +840,6 @@ mod tests {
         let mean = sum / samples as f64;
         let se = ((sum2 / samples as f64 - mean * mean) / samples as f64).sqrt();
         let reference = std::f64::consts::PI * l.y as f64;
-        eprintln!("constant environment: ∫ L cos dω = {mean:.5} ± {se:.5} vs π L = {reference:.5}");
         assert!((mean - reference).abs() < 3.0 * se && (mean / reference - 1.0).abs() < 0.01);
         assert!((env.power(2.0) - 4.0 * PI * PI * 4.0 * luminance(l)).abs() < 1e-3);
     }
@@ -852,11 +849,6 @@ mod tests {
         let (path, img) = smallest_map();
         let env = Environment::from_image(img, 1.0, 0.0, Vec3::Y).unwrap();
         let integral = pdf_integral(&env);
-        eprintln!(
-            "{}: ∫ pdf_li dω = {integral:.5}, {} clamped texel values",
-            path.display(),
-            env.clamped_texels()
-        );
         assert!(
             (integral - 1.0).abs() < PDF_TOLERANCE,
             "{}: ∫ pdf = {integral}",
@@ -872,10 +864,6 @@ mod tests {
         let expected = expected_histogram(&env, MAP_CHI2_SAMPLES);
         let total: f64 = expected.iter().sum();
         let r = chi_square(&observed, &expected, MIN_EXPECTED);
-        eprintln!(
-            "{}: chi-square {r:?}; expected total {total:.1} of {MAP_CHI2_SAMPLES}; le ≠ the sampled texel for {mismatches} samples",
-            path.display()
-        );
         assert!(
             (total / MAP_CHI2_SAMPLES as f64 - 1.0).abs() < 1e-3,
             "expected counts sum to {total}"
