@@ -115,7 +115,7 @@ mod tests {
 
     #[test]
     fn the_deep_weight_prices_a_longer_path_as_its_instructions() {
-        // Callgrind, one thread, flat curves, ray-traced shadows, render_tiles' instructions (session 30):
+        // Callgrind, one thread, flat curves, ray-traced shadows, render_tiles' instructions:
         // straight hair under the city map at 128², 20 spp, path 1 against path 3 (2 771 M against 3 031 M), and
         // under the sunset map at 16 spp, path 1 against path 2 (2 193 M against 2 347 M). Their rays: the longer
         // frame adds only vertices at bounce 2 and later (the paths agree up to bounce 1), so its extra shadow and
