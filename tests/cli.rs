@@ -1,14 +1,14 @@
 //! The command line as a user drives it: renders to EXR + PNG (read back by `oiiotool`), `info`, and the errors a
 //! user sees for bad input (one readable message, exit code 2, no output file left behind).
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 
-const EXE: &str = env!("CARGO_BIN_EXE_cuticle");
+mod common;
 
-fn repo(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join(rel)
-}
+use common::data;
+
+const EXE: &str = env!("CARGO_BIN_EXE_cuticle");
 
 fn cuticle(args: &[&str]) -> Output {
     Command::new(EXE).args(args).output().expect("run cuticle")
@@ -89,20 +89,25 @@ fn renders_the_default_scene_with_flat_curves() {
 
 #[test]
 fn renders_straight_hair() {
-    render_and_check(Some(&repo("scenes/straight.toml")), &[]);
+    let dir = tempfile::tempdir().unwrap();
+    render_and_check(
+        Some(&data::scene_copy("scenes/straight.toml", dir.path())),
+        &[],
+    );
 }
 
 #[test]
 fn renders_the_fur_ball() {
-    render_and_check(Some(&repo("scenes/furball.toml")), &[]);
+    let dir = tempfile::tempdir().unwrap();
+    render_and_check(
+        Some(&data::scene_copy("scenes/furball.toml", dir.path())),
+        &[],
+    );
 }
 
 #[test]
 fn info_describes_a_real_file() {
-    let out = cuticle(&[
-        "info",
-        repo("../shared/data/hair/furball.hair").to_str().unwrap(),
-    ]);
+    let out = cuticle(&["info", data::file("hair/furball.hair").to_str().unwrap()]);
     assert!(out.status.success(), "{}", stderr(&out));
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(text.contains("strands:      30367"), "{text}");
@@ -183,7 +188,7 @@ fn scene_errors_name_the_key_and_line() {
 fn bad_hair_file_is_a_clear_error() {
     let dir = tempfile::tempdir().unwrap();
     let hair = dir.path().join("broken.hair");
-    let real = std::fs::read(repo("../shared/data/hair/straight.hair")).unwrap();
+    let real = std::fs::read(data::file("hair/straight.hair")).unwrap();
     std::fs::write(&hair, &real[..1000]).unwrap();
     let scene = dir.path().join("s.toml");
     std::fs::write(&scene, "[hair]\nfile = \"broken.hair\"\n").unwrap();

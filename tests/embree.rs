@@ -379,9 +379,9 @@ fn random_rays_match_a_brute_force_reference() {
                 ));
             }
         }
-        eprintln!(
-            "{kind:?}: {compared} rays compared, {grazing} grazing skipped, {:.2} strands crossed per ray",
-            crossings as f64 / compared as f64
+        assert!(
+            crossings > 0,
+            "{kind:?}: none of {compared} rays crossed a strand; nothing was compared"
         );
         assert!(
             (grazing as f64) < MAX_GRAZING_FRACTION * BUNDLE_RAYS as f64,
@@ -566,7 +566,6 @@ fn embree_errors_reach_rust() {
     let err = scene.attach(geometry).unwrap_err();
     assert_eq!(err.code, ErrorCode::InvalidArgument, "{err}");
     assert!(err.message.contains("different devices"), "{err}");
-    eprintln!("reported as: {err}");
     // A malformed device configuration makes `rtcNewDevice` fail (Embree's parser throws on "abc").
     let bad_config = Device::with_config("threads=abc").unwrap_err();
     assert!(bad_config.message.contains("threads=abc"), "{bad_config}");
@@ -702,7 +701,6 @@ fn bench_trace_measures_both_backends_on_the_same_rays() {
             }
         }
     }
-    eprintln!("{report}");
 }
 
 #[test]

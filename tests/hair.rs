@@ -1,28 +1,24 @@
-//! Hair readers and generators: the real files in `../shared/data/hair` load with the counts their headers declare,
+//! Hair readers and generators: the real files of the test data's `hair/` load with the counts their headers declare,
 //! every kind of bad input gives an error that names the file and the problem, `.hair` files round-trip, and
 //! procedural models are valid and deterministic.
 //!
-//! The real files are required: if `../shared/data` is missing these tests fail (CI has it), they never skip.
+//! The real files are required (the data folder, `CUTICLE_DATA`: see docs/data.md): without them these tests fail
+//! naming the file, they never skip.
+
+mod common;
 
 use std::path::{Path, PathBuf};
 
+use common::data;
 use cuticle::hair::procedural::{FurBall, Procedural, WavyPatch};
 use cuticle::hair::{self, tfx, yuksel, HairError, HairModel, Strands};
 
-const STRAIGHT: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../shared/data/hair/straight.hair"
-);
-const FURBALL: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../shared/data/hair/furball.hair"
-);
-const MOHAWK: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../shared/data/hair/Ratboy_mohawk.tfx"
-);
+/// The real files, in the data folder.
+const STRAIGHT: &str = "hair/straight.hair";
+const FURBALL: &str = "hair/furball.hair";
+const MOHAWK: &str = "hair/Ratboy_mohawk.tfx";
 
-/// Offsets into the real `.hair` files, from their headers (see shared/data/SOURCES.md).
+/// Offsets into the real `.hair` files, from their headers (see SOURCES.md in the data folder).
 const STRAIGHT_STRANDS: usize = 10_000;
 const STRAIGHT_POINTS: usize = 160_000;
 const FURBALL_STRANDS: usize = 30_367;
@@ -34,14 +30,17 @@ const MOHAWK_STRANDS: usize = 2228;
 const MOHAWK_VERTICES: usize = 32;
 const MOHAWK_POSITIONS_END: usize = 160 + 16 * MOHAWK_STRANDS * MOHAWK_VERTICES;
 
-/// The bytes of a real data file; panics (fails the test) with a clear message when the data is missing.
-fn data(path: &str) -> Vec<u8> {
-    assert!(
-        Path::new(path).exists(),
-        "missing test data {path}: the hair tests need /work/shared/data (next to the crate as ../shared/data); \
-         CI has it, so this is a setup error, not a skip"
-    );
-    std::fs::read(path).unwrap_or_else(|e| panic!("{path}: {e}"))
+/// The path of the real data file `rel`; panics (fails the test) naming it when it is missing.
+#[track_caller]
+fn path(rel: &str) -> PathBuf {
+    data::file(rel)
+}
+
+/// The bytes of the real data file `rel`; panics (fails the test) naming it when it is missing.
+#[track_caller]
+fn bytes(rel: &str) -> Vec<u8> {
+    let path = path(rel);
+    std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
 }
 
 /// Writes `bytes` to a temporary file called `name`, loads it, and returns the error message. Asserts that loading
@@ -98,10 +97,10 @@ fn assert_same_model(a: &HairModel, b: &HairModel) {
 
 #[test]
 fn straight_hair_loads_with_its_declared_counts() {
-    let bytes = data(STRAIGHT);
-    let header = yuksel::Header::parse(Path::new(STRAIGHT), &bytes).unwrap();
+    let bytes = bytes(STRAIGHT);
+    let header = yuksel::Header::parse(&path(STRAIGHT), &bytes).unwrap();
     assert_eq!(header.flags, yuksel::HAS_POINTS | yuksel::HAS_COLORS);
-    let m = hair::load(Path::new(STRAIGHT)).unwrap();
+    let m = hair::load(&path(STRAIGHT)).unwrap();
     assert_eq!(m.strand_count(), header.strand_count as usize);
     assert_eq!(m.points.len(), header.point_count as usize);
     assert_eq!(
@@ -126,13 +125,13 @@ fn straight_hair_loads_with_its_declared_counts() {
 
 #[test]
 fn furball_hair_loads_with_its_declared_counts() {
-    let bytes = data(FURBALL);
-    let header = yuksel::Header::parse(Path::new(FURBALL), &bytes).unwrap();
+    let bytes = bytes(FURBALL);
+    let header = yuksel::Header::parse(&path(FURBALL), &bytes).unwrap();
     assert_eq!(
         header.flags,
         yuksel::HAS_SEGMENTS | yuksel::HAS_POINTS | yuksel::HAS_THICKNESS
     );
-    let m = hair::load(Path::new(FURBALL)).unwrap();
+    let m = hair::load(&path(FURBALL)).unwrap();
     assert_eq!(m.strand_count(), header.strand_count as usize);
     assert_eq!(m.points.len(), header.point_count as usize);
     assert_eq!(
@@ -157,10 +156,10 @@ fn furball_hair_loads_with_its_declared_counts() {
 
 #[test]
 fn mohawk_tfx_loads_with_its_declared_counts() {
-    let bytes = data(MOHAWK);
-    let header = tfx::Header::parse(Path::new(MOHAWK), &bytes).unwrap();
+    let bytes = bytes(MOHAWK);
+    let header = tfx::Header::parse(&path(MOHAWK), &bytes).unwrap();
     assert_eq!(header.version, 4.0);
-    let m = hair::load(Path::new(MOHAWK)).unwrap();
+    let m = hair::load(&path(MOHAWK)).unwrap();
     assert_eq!(m.strand_count(), header.strand_count as usize);
     assert_eq!(
         m.points.len(),
@@ -207,16 +206,16 @@ fn hair_empty_file() {
 
 #[test]
 fn hair_bad_magic() {
-    let mut b = data(STRAIGHT);
+    let mut b = bytes(STRAIGHT);
     b[..4].copy_from_slice(b"HAIX");
     assert_contains(&load_error("magic.hair", &b), &["magic", "HAIX"]);
     // A TressFX file under a .hair name is caught by the magic too.
-    assert_contains(&load_error("renamed.hair", &data(MOHAWK)), &["magic"]);
+    assert_contains(&load_error("renamed.hair", &bytes(MOHAWK)), &["magic"]);
 }
 
 #[test]
 fn hair_truncated_header() {
-    let b = data(STRAIGHT);
+    let b = bytes(STRAIGHT);
     assert_contains(
         &load_error("header.hair", &b[..100]),
         &["truncated header", "100 bytes", "128"],
@@ -225,7 +224,7 @@ fn hair_truncated_header() {
 
 #[test]
 fn hair_truncated_arrays() {
-    let straight = data(STRAIGHT);
+    let straight = bytes(STRAIGHT);
     let points_end = 128 + 12 * STRAIGHT_POINTS;
     assert_contains(
         &load_error("points.hair", &straight[..points_end - 5]),
@@ -239,7 +238,7 @@ fn hair_truncated_arrays() {
         &load_error("colors.hair", &straight[..straight.len() - 1]),
         &["truncated in the colors array"],
     );
-    let furball = data(FURBALL);
+    let furball = bytes(FURBALL);
     assert_contains(
         &load_error("segments.hair", &furball[..FURBALL_SEGMENTS_AT + 100]),
         &["truncated in the segments array", "bytes 128..60862"],
@@ -252,7 +251,7 @@ fn hair_truncated_arrays() {
 
 #[test]
 fn hair_trailing_garbage() {
-    let mut b = data(STRAIGHT);
+    let mut b = bytes(STRAIGHT);
     b.extend_from_slice(b"garbage");
     assert_contains(
         &load_error("trailing.hair", &b),
@@ -263,14 +262,14 @@ fn hair_trailing_garbage() {
 #[test]
 fn hair_point_count_disagrees_with_segments() {
     // With a segments array: one strand one segment shorter, so the sum is one less than the header says.
-    let mut b = data(FURBALL);
+    let mut b = bytes(FURBALL);
     put_u16(&mut b, FURBALL_SEGMENTS_AT + 2 * 10, 14);
     assert_contains(
         &load_error("segments-sum.hair", &b),
         &["point count mismatch", "485872", "485871", "segments array"],
     );
     // Without one: the header's point count against strands × (default segments + 1).
-    let mut b = data(STRAIGHT);
+    let mut b = bytes(STRAIGHT);
     put_u32(&mut b, 8, 159_999);
     assert_contains(
         &load_error("default-segments.hair", &b),
@@ -285,7 +284,7 @@ fn hair_point_count_disagrees_with_segments() {
 #[test]
 fn hair_strand_with_zero_segments() {
     // Strand 3 gets 0 segments and strand 4 its 15 on top of its own, so the counts still agree.
-    let mut b = data(FURBALL);
+    let mut b = bytes(FURBALL);
     put_u16(&mut b, FURBALL_SEGMENTS_AT + 2 * 3, 0);
     put_u16(&mut b, FURBALL_SEGMENTS_AT + 2 * 4, 30);
     assert_contains(
@@ -301,7 +300,7 @@ fn hair_non_finite_points() {
         ("inf.hair", f32::INFINITY),
         ("neg-inf.hair", f32::NEG_INFINITY),
     ] {
-        let mut b = data(FURBALL);
+        let mut b = bytes(FURBALL);
         put_f32(&mut b, FURBALL_POINTS_AT + 12 * 5 + 4, v);
         assert_contains(&load_error(name, &b), &["point 5 is not finite"]);
     }
@@ -314,12 +313,12 @@ fn hair_bad_thickness() {
         ("negative.hair", -0.01, "thickness -0.01"),
         ("nan-thickness.hair", f32::NAN, "thickness NaN"),
     ] {
-        let mut b = data(FURBALL);
+        let mut b = bytes(FURBALL);
         put_f32(&mut b, FURBALL_THICKNESS_AT + 4 * 7, v);
         assert_contains(&load_error(name, &b), &["point 7", shown, "must be > 0"]);
     }
     // No thickness array: the header default is used, and checked.
-    let mut b = data(STRAIGHT);
+    let mut b = bytes(STRAIGHT);
     put_f32(&mut b, 20, 0.0);
     assert_contains(
         &load_error("default-thickness.hair", &b),
@@ -330,14 +329,14 @@ fn hair_bad_thickness() {
 #[test]
 fn hair_transparency_outside_unit_interval() {
     // Header default (straight.hair has no transparency array).
-    let mut b = data(STRAIGHT);
+    let mut b = bytes(STRAIGHT);
     put_f32(&mut b, 24, 1.5);
     assert_contains(
         &load_error("default-transparency.hair", &b),
         &["default transparency is 1.5", "[0, 1]"],
     );
     // Per-point array: write a model that has one, then corrupt an entry.
-    let mut m = hair::load(Path::new(STRAIGHT)).unwrap();
+    let mut m = hair::load(&path(STRAIGHT)).unwrap();
     m.transparency[3] = 0.5;
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("with-transparency.hair");
@@ -359,7 +358,7 @@ fn hair_transparency_outside_unit_interval() {
 #[test]
 fn tfx_empty_and_truncated_header() {
     assert_contains(&load_error("empty.tfx", b""), &["empty file"]);
-    let b = data(MOHAWK);
+    let b = bytes(MOHAWK);
     assert_contains(
         &load_error("header.tfx", &b[..100]),
         &["truncated header", "100 bytes", "160"],
@@ -371,27 +370,27 @@ fn tfx_empty_and_truncated_header() {
 fn tfx_bad_version() {
     // A Yuksel file under a .tfx name: its magic read as a version.
     assert_contains(
-        &load_error("renamed.tfx", &data(STRAIGHT)),
+        &load_error("renamed.tfx", &bytes(STRAIGHT)),
         &["not a tressfx 4 .tfx file", "expected 4.0"],
     );
-    let mut b = data(MOHAWK);
+    let mut b = bytes(MOHAWK);
     put_f32(&mut b, 0, 3.0);
     assert_contains(&load_error("v3.tfx", &b), &["version field is 3"]);
 }
 
 #[test]
 fn tfx_bad_counts() {
-    let mut b = data(MOHAWK);
+    let mut b = bytes(MOHAWK);
     put_u32(&mut b, 4, 0);
     assert_contains(&load_error("no-strands.tfx", &b), &["0 strands"]);
-    let mut b = data(MOHAWK);
+    let mut b = bytes(MOHAWK);
     put_u32(&mut b, 8, 1);
     assert_contains(
         &load_error("one-vertex.tfx", &b),
         &["1 vertices per strand", "at least 2"],
     );
     // More strands than the file holds: the positions run into the strand UVs.
-    let mut b = data(MOHAWK);
+    let mut b = bytes(MOHAWK);
     put_u32(&mut b, 4, 2229);
     assert_contains(
         &load_error("overlap.tfx", &b),
@@ -401,7 +400,7 @@ fn tfx_bad_counts() {
 
 #[test]
 fn tfx_truncated_arrays() {
-    let b = data(MOHAWK);
+    let b = bytes(MOHAWK);
     assert_contains(
         &load_error("positions.tfx", &b[..MOHAWK_POSITIONS_END - 16]),
         &[
@@ -418,7 +417,7 @@ fn tfx_truncated_arrays() {
 
 #[test]
 fn tfx_trailing_garbage() {
-    let mut b = data(MOHAWK);
+    let mut b = bytes(MOHAWK);
     b.extend_from_slice(&[0; 12]);
     assert_contains(
         &load_error("trailing.tfx", &b),
@@ -428,7 +427,7 @@ fn tfx_trailing_garbage() {
 
 #[test]
 fn tfx_non_finite_point() {
-    let mut b = data(MOHAWK);
+    let mut b = bytes(MOHAWK);
     put_f32(&mut b, 160 + 16 * 40 + 8, f32::NAN);
     assert_contains(&load_error("nan.tfx", &b), &["point 40 is not finite"]);
 }
@@ -440,8 +439,7 @@ fn tfx_non_finite_point() {
 fn real_hair_files_round_trip_through_write() {
     let dir = tempfile::tempdir().unwrap();
     for src in [STRAIGHT, FURBALL] {
-        data(src);
-        let m = hair::load(Path::new(src)).unwrap();
+        let m = hair::load(&path(src)).unwrap();
         let out: PathBuf = dir.path().join("copy.hair");
         yuksel::write(&out, &m).unwrap();
         let back = hair::load(&out).unwrap();
@@ -451,8 +449,7 @@ fn real_hair_files_round_trip_through_write() {
 
 #[test]
 fn tfx_model_exports_to_hair() {
-    data(MOHAWK);
-    let m = hair::load(Path::new(MOHAWK)).unwrap();
+    let m = hair::load(&path(MOHAWK)).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("mohawk.hair");
     yuksel::write(&out, &m).unwrap();

@@ -7,6 +7,8 @@ use std::io::ErrorKind;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+mod common;
+
 use cuticle::image::{self, Image, ImageError};
 
 /// The renderer's output channels: beauty, then AOVs as EXR `layer.channel` names.
@@ -22,16 +24,10 @@ const CHANNELS: [&str; 9] = [
     "strand.id",
 ];
 
-/// The DWAB-compressed environment map shipped with the project data.
-const CITY_EXR: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../shared/data/envmaps/city.exr"
-);
+/// The DWAB-compressed environment map of the test data (`CUTICLE_DATA`, see docs/data.md).
+const CITY_EXR: &str = "envmaps/city.exr";
 /// The same map as Radiance RGBE.
-const CITY_HDR: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../shared/data/envmaps/city.hdr"
-);
+const CITY_HDR: &str = "envmaps/city.hdr";
 /// Size of the shipped lat-long environment maps (width, height).
 const ENVMAP_SIZE: (usize, usize) = (1024, 512);
 
@@ -279,9 +275,13 @@ const DWAB_UNDERSHOOT: f32 = -0.01;
 /// (measured: 0.3%, from DWAB and RGBE quantisation).
 const MAP_MEAN_TOLERANCE: f64 = 0.01;
 
-/// Reads an environment map and checks its size, RGB channels and finite values.
-fn read_envmap(path: &str) -> Image {
-    let map = image::read(path).unwrap_or_else(|e| panic!("{e}"));
+/// The environment map `rel` of the test data, checked for its size, channels and values; panics naming the file
+/// when it is missing.
+#[track_caller]
+fn read_envmap(rel: &str) -> Image {
+    let file = common::data::file(rel);
+    let path = file.display();
+    let map = image::read(&file).unwrap_or_else(|e| panic!("{e}"));
     assert_eq!((map.width, map.height), ENVMAP_SIZE, "{path}");
     assert_eq!(map.channels, ["R", "G", "B"], "{path}");
     if let Some(bad) = map

@@ -88,10 +88,6 @@ path_length = 0
             (mean - 1.0).abs() < 3.0 * err + 1e-4,
             "{name}: furnace mean {mean:.5} ± {err:.5}, expected 1"
         );
-        println!(
-            "furnace {name}: {mean:.5} ± {err:.5} over {} pixels",
-            values.len()
-        );
     }
 }
 
@@ -150,17 +146,12 @@ fn chiang_white_furnace_gives_one_and_absorption_darkens_it() {
             let values = hair_pixels(&white, name);
             assert!(values.len() > 300, "{label}: {} hair pixels", values.len());
             let (mean, err) = mean_and_error(&values);
-            println!(
-                "chiang furnace, {label}, {name}: {mean:.5} ± {err:.5} over {} pixels",
-                values.len()
-            );
             assert!(err > 0.0, "{label}: no noise at all; nothing was sampled");
             assert!(
                 (mean - 1.0).abs() < FURNACE_ERRORS * err,
                 "{label} {name}: furnace mean {mean:.5} ± {err:.5}, expected 1"
             );
             let (dark_mean, dark_err) = mean_and_error(&hair_pixels(&dark, name));
-            println!("  sigma_a 0.5: {dark_mean:.5} ± {dark_err:.5}");
             assert!(
                 dark_mean < 1.0 - 10.0 * (err + dark_err),
                 "{label} {name}: sigma_a 0.5 gives {dark_mean:.5} ± {dark_err:.5}, not clearly below 1"
@@ -244,7 +235,6 @@ path_length = 0
         highlight_offset(&render_scene(&scene, 2))
     };
     let (round, flat) = (render("round"), render("flat"));
-    println!("highlight offset across the fibre (fraction of the half-width): round {round:.3}, flat {flat:.3}");
     assert!(round > 0.15, "round tube: highlight at {round:.3}");
     assert!(
         flat > 0.15,
@@ -268,14 +258,13 @@ fn assert_same_expectation(what: &str, a: &Image, b: &Image) {
             .collect();
         let (mean, err) = mean_and_error(&diff);
         let level = va.iter().map(|x| f64::from(*x)).sum::<f64>() / va.len() as f64;
-        println!("{what} {name}: mean difference {mean:.5} ± {err:.5} (image mean {level:.4})");
         assert!(
             err > 0.0,
             "{what}: identical images; the strategies are not being exercised"
         );
         assert!(
             mean.abs() < 3.0 * err,
-            "{what} {name}: means differ by {mean:.5}, 3σ = {:.5}",
+            "{what} {name}: means differ by {mean:.5}, 3σ = {:.5} (image mean {level:.4})",
             3.0 * err
         );
     }
@@ -467,7 +456,6 @@ lights = \"one\"
     let (all, all_stats) = run(0.0);
     let (kept, kept_stats) = run(0.05);
     let (all_rays, kept_rays) = (all_stats.rays.shadow, kept_stats.rays.shadow);
-    println!("shadow rays: every light sample {all_rays}, threshold 0.05 {kept_rays}");
     assert!(
         (kept_rays as f64) < 0.8 * all_rays as f64,
         "the threshold saved too few shadow rays: {kept_rays} of {all_rays}"
@@ -665,10 +653,6 @@ resolution = 512
             render_with(ShadowMode::None),
         );
         let kind = lighting.lines().next().unwrap();
-        println!(
-            "{kind}: image mean raytraced {rt:.4}, deep opacity {dom:.4}, no shadows {none:.4}; map error {:.1} % of the shadow",
-            100.0 * (dom - rt).abs() / (none - rt)
-        );
         assert!(none > 1.2 * rt, "{kind}: the fur should shadow itself");
         assert!(
             (dom - rt).abs() < 0.1 * (none - rt),
@@ -743,10 +727,6 @@ path_length = 1
         let identical = a.iter().zip(&b).filter(|(x, y)| x == y).count();
         // Measured 1 Dec 2026: 1236 of 1600 (round). A grazing hit that differs changes every later random decision
         // of its path, so a pixel with one such hit differs; a backend hitting other strands would leave few alike.
-        println!(
-            "{curves}: {identical} of {} pixels bit-identical at equal seeds",
-            a.len()
-        );
         assert!(
             identical * 2 > a.len(),
             "{curves}: {identical} of {}",
@@ -762,23 +742,15 @@ path_length = 1
 
 #[test]
 fn embrees_fur_ball_renders_alike_on_both_backends() {
-    // The fur ball of `scenes/furball.toml` (455,505 segments, from ../shared/data) at 64², 4 spp, round tubes and
+    // The fur ball of `scenes/furball.toml` (455,505 segments, from the test data) at 64², 4 spp, round tubes and
     // flat ribbons: independent seeds, image means within Monte Carlo noise (3 standard errors per channel).
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/furball.toml");
-    let text = std::fs::read_to_string(&path).unwrap();
-    let base = path.parent().unwrap();
-    let hair = base.join("../../shared/data/hair/furball.hair");
-    assert!(
-        hair.exists(),
-        "missing test data {} (the tests need ../shared/data beside the repository)",
-        hair.display()
-    );
+    let scene = common::data::load_scene("scenes/furball.toml");
     for curves in [
         cuticle::accel::CurveKind::Round,
         cuticle::accel::CurveKind::Flat,
     ] {
         let with = |backend, seed| {
-            let mut s = Scene::parse(&text, &path, base).unwrap_or_else(|e| panic!("{e}"));
+            let mut s = scene.clone();
             s.hair.curves = curves;
             s.hair.backend = backend;
             s.film.resolution = [64, 64];
@@ -911,10 +883,6 @@ radiance = [0.3, 0.35, 0.4]
         render_scene_with_stats(&s, 2).1.rays
     };
     let (one, two, three) = (rays(1), rays(2), rays(3));
-    println!(
-        "deep rays at path 1, 2, 3: {}, {}, {}",
-        one.deep, two.deep, three.deep
-    );
     assert_eq!(one.deep, 0);
     let traced = |r: &cuticle::render::integrator::RayCounts| r.shadow + r.material;
     assert_eq!(two.deep, traced(&two) - traced(&one));

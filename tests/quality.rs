@@ -10,6 +10,8 @@ use cuticle::quality::{self, Fixed, QualityConfig};
 use cuticle::render::{thread_pool, Frame, Options};
 use cuticle::scene::{Scene, ShadowMode};
 
+mod common;
+
 const EXE: &str = env!("CARGO_BIN_EXE_cuticle");
 
 fn scene(text: &str) -> Scene {
@@ -45,7 +47,6 @@ fn auto_chooses_ribbons_for_sub_pixel_strands_and_tubes_for_a_close_up_of_an_off
     // Chiang reads the offset h across the fibre. The whole ball in 64x48 pixels: strands far below a pixel.
     let far = fur("chiang", "resolution = [64, 48]", SUN);
     let (kind, why) = curves_for(&far);
-    println!("far: {why}");
     assert_eq!(kind, CurveKind::Flat, "{why}");
     // A 1° field of view at 640x480 on a twentieth of the ball: strands pixels wide.
     let near = fur(
@@ -54,7 +55,6 @@ fn auto_chooses_ribbons_for_sub_pixel_strands_and_tubes_for_a_close_up_of_an_off
         &format!("{SUN}[camera]\nfov = 1.0\nmargin = 0.05\n"),
     );
     let (kind, why) = curves_for(&near);
-    println!("near: {why}");
     assert_eq!(kind, CurveKind::Round, "{why}");
     // A model that does not read h gets ribbons even in the close-up.
     let near_kk = fur(
@@ -83,10 +83,8 @@ fn planned_shadows(s: &Scene) -> (ShadowMode, Vec<String>) {
 #[test]
 fn auto_chooses_deep_opacity_maps_under_a_sun_and_rays_under_an_environment() {
     let (mode, why) = planned_shadows(&fur("kajiya-kay", "resolution = [32, 24]", SUN));
-    println!("{why:#?}");
     assert_eq!(mode, ShadowMode::DeepOpacity, "{why:#?}");
     let (mode, why) = planned_shadows(&fur("kajiya-kay", "resolution = [32, 24]", SKY));
-    println!("{why:#?}");
     assert_eq!(mode, ShadowMode::Raytraced, "{why:#?}");
 }
 
@@ -110,16 +108,6 @@ fn auto_meets_its_target_and_a_tighter_target_takes_more_samples() {
     };
     let loose = plan(LOOSE);
     let tight = plan(TIGHT);
-    println!(
-        "loose: {} spp, path {}; tight: {} spp, path {}",
-        loose.settings.film.spp,
-        loose.settings.integrator.path_length,
-        tight.settings.film.spp,
-        tight.settings.integrator.path_length
-    );
-    for d in loose.decisions.iter().chain(&tight.decisions) {
-        println!("{d}");
-    }
     assert!(tight.settings.film.spp > loose.settings.film.spp);
 
     let render = |settings: &cuticle::render::RenderSettings,
@@ -147,10 +135,6 @@ fn auto_meets_its_target_and_a_tighter_target_takes_more_samples() {
         } else {
             TIGHT
         };
-        println!(
-            "target {target}: {} spp, relative RMSE {rel_rmse:.4} (predicted noise {:.4})",
-            planned.settings.film.spp, planned.pilot.predicted_noise
-        );
         assert!(
             rel_rmse <= f64::from(target),
             "relative RMSE {rel_rmse} over the target {target}"
@@ -171,15 +155,6 @@ fn auto_meets_its_target_and_a_tighter_target_takes_more_samples() {
             .push(p[n]);
         }
         let mean = |v: &[f32]| v.iter().sum::<f32>() / v.len().max(1) as f32;
-        println!(
-            "  spp: schedule {}..{}, background {} pixels mean {:.1}, hair {} pixels mean {:.1}",
-            schedule.min,
-            schedule.max,
-            background.len(),
-            mean(&background),
-            hair.len(),
-            mean(&hair)
-        );
         // Background pixels next to the hair borrow their neighbours' variance (render::adaptive), the rest keep
         // the minimum.
         let at_min = background
@@ -371,10 +346,6 @@ fn the_image_rule_meets_the_target_with_fewer_samples_than_the_per_pixel_rule_an
     };
     let (image, image_error, image_spp) = measure(image_rule);
     let (_, pixel_error, pixel_spp) = measure(per_pixel);
-    println!(
-        "target {LOOSE}: image rule {image_spp:.1} spp, relative RMSE {image_error:.4}; per-pixel rule \
-         {pixel_spp:.1} spp, {pixel_error:.4}"
-    );
     assert!(image_error <= f64::from(LOOSE), "{image_error}");
     assert!(pixel_error <= f64::from(LOOSE), "{pixel_error}");
     // Measured: 4.7 spp (0.0278) against 5.7 (0.0262); the per-pixel rule is held back by its 4x-spp maximum.
@@ -396,20 +367,24 @@ fn the_image_rule_meets_the_target_with_fewer_samples_than_the_per_pixel_rule_an
 const CALIBRATION_SPP: u32 = 16;
 
 /// Measures what calibrated [`quality::cost`]'s weights: CPU time of the pixel loop against the ray counts, one
-/// thread, over the shipped scenes × curves × shadows × path length × light/material candidates. Prints CSV.
-/// `cargo test --release --test quality calibrate_cost_model -- --ignored --nocapture`
+/// thread, over the shipped scenes × curves × shadows × path length × light/material candidates. Writes CSV to
+/// `target/tmp/cost_calibration.csv` (the test target's temporary directory) and checks nothing.
+/// `cargo test --release --test quality calibrate_cost_model -- --ignored`
 #[test]
 #[ignore = "a measurement (minutes), not a check: its output calibrated quality::cost"]
 fn calibrate_cost_model() {
+    use std::fmt::Write as _;
     let pool = thread_pool(Some(1)).unwrap();
-    println!("scene,curves,shadows,path,light,material,spp,camera,shadow,material_rays,map_lookups,cpu_seconds");
+    let mut csv = String::from(
+        "scene,curves,shadows,path,light,material,spp,camera,shadow,material_rays,map_lookups,cpu_seconds\n",
+    );
     for path in [
         "scenes/default.toml",
         "scenes/thesis/straight-sunset-marschner.toml",
         "scenes/thesis/cornell-box.toml",
         "scenes/thesis/straight-city-marschner.toml",
     ] {
-        let mut s = Scene::load(Path::new(path)).unwrap();
+        let mut s = common::data::load_scene(path);
         s.film.resolution = [128, 128];
         let s = s.revalidate().unwrap();
         for curves in [CurveKind::Flat, CurveKind::Round] {
@@ -438,19 +413,23 @@ fn calibrate_cost_model() {
                         });
                         let cpu = cuticle::sys::clock::process_cpu_seconds().unwrap() - cpu;
                         let r = stats.rays;
-                        println!(
+                        writeln!(
+                            csv,
                             "{path},{},{shadows:?},{path_length},{l},{m},{CALIBRATION_SPP},{},{},{},{},{cpu:.4}",
                             curves.name(),
                             r.camera,
                             r.shadow,
                             r.material,
                             r.map_lookups
-                        );
+                        )
+                        .unwrap();
                     }
                 }
             }
         }
     }
+    let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join("cost_calibration.csv");
+    std::fs::write(&out, csv).unwrap_or_else(|e| panic!("{}: {e}", out.display()));
 }
 
 /// The pilots' renders ([`cuticle::render::render_bounces`]): one render at path length 3, cut after each vertex,
@@ -469,7 +448,6 @@ fn one_render_cut_after_each_vertex_equals_the_renders_at_each_path_length() {
     let cut =
         pool.install(|| cuticle::render::render_bounces(&frame, &frame.settings, None, region));
     assert_eq!(cut.pixels.len(), 4);
-    let mut worst = 0.0f32;
     for j in 0..4u32 {
         let mut settings = frame.settings.clone();
         settings.integrator.path_length = j;
@@ -485,7 +463,6 @@ fn one_render_cut_after_each_vertex_equals_the_renders_at_each_path_length() {
             for ch in 0..3 {
                 let want = r.image.get(x, y, ch);
                 let d = (c[ch] - want).abs() / (want.abs() + 1e-3);
-                worst = worst.max(d);
                 assert!(
                     d < 1e-4,
                     "path {j} pixel ({x}, {y}) channel {ch}: {} against {want}",
@@ -494,13 +471,8 @@ fn one_render_cut_after_each_vertex_equals_the_renders_at_each_path_length() {
             }
         }
     }
-    println!("worst relative difference {worst:e}");
     // The bounces matter in this scene: the cuts differ.
     let mean = |j: usize| cut.pixels[j].iter().map(|p| p.x).sum::<f32>();
-    println!(
-        "sums of R at path lengths 0-3: {:?}",
-        (0..4).map(mean).collect::<Vec<_>>()
-    );
     assert!(
         mean(1) > 1.01 * mean(0) && mean(2) > mean(1),
         "{} {} {}",

@@ -1,11 +1,12 @@
 //! Every scene shipped in `scenes/` parses, its hair file exists and its lights (environment maps included) build.
-//! Scenes that read `../shared/data` need it beside the repository (CI has it): without it this test fails,
-//! naming the missing file; it never passes without checking.
+//! Scenes that read third-party data take it from the data folder (`CUTICLE_DATA`, see docs/data.md): without it
+//! this test fails, naming the missing file; it never passes without checking.
 
 use std::path::{Path, PathBuf};
 
+mod common;
+
 use cuticle::hair::HairSource;
-use cuticle::scene::Scene;
 
 fn scene_files(dir: &Path, out: &mut Vec<PathBuf>) {
     for entry in std::fs::read_dir(dir).unwrap() {
@@ -26,7 +27,8 @@ fn every_shipped_scene_parses_and_its_data_resolves() {
     files.sort();
     assert!(files.len() >= 20, "{} scenes", files.len());
     for file in &files {
-        let scene = Scene::load(file).unwrap_or_else(|e| panic!("{e}"));
+        let relative = file.strip_prefix(root).unwrap().to_str().unwrap();
+        let scene = common::data::load_scene(relative);
         if let HairSource::File(hair) = scene.hair_source() {
             assert!(
                 hair.exists(),

@@ -1,5 +1,5 @@
 //! Test fixtures shared by the tests of the BVH, the ray–curve intersectors and the BVH tracer: a seeded random
-//! source, a random bundle of wavy strands and the real models of `../shared/data/hair`. Every failure reproduces
+//! source, a random bundle of wavy strands and the real hair models of the test data. Every failure reproduces
 //! from its seed.
 
 use glam::Vec3;
@@ -67,17 +67,11 @@ pub(crate) fn random_bundle(count: usize, points: usize, seed: u64) -> Strands {
     Strands::from_model(&model)
 }
 
-/// The hair model `name` of `../shared/data/hair` as strands. Panics naming the file when the data is missing or
-/// unreadable (the tests need `../shared/data` beside the repository, and never pass silently without it).
+/// The hair model `name` of the data folder's `hair/` ([`crate::util::test_data`]) as strands. Panics naming the
+/// file when it is missing or unreadable: the tests never pass silently without it.
+#[track_caller]
 pub(crate) fn hair_file(name: &str) -> Strands {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data/hair")
-        .join(name);
-    assert!(
-        path.exists(),
-        "missing test data {} (the tests need ../shared/data beside the repository)",
-        path.display()
-    );
+    let path = crate::util::test_data::file(&format!("hair/{name}"));
     let model = crate::hair::load(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     Strands::from_model(&model)
 }

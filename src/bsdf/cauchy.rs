@@ -207,7 +207,6 @@ mod tests {
             }
         }
         // (x − c)/γ rounded in f32 (z² doubles its 6e-8) and the final division.
-        println!("f32 truncated-Cauchy pdf: worst relative error {worst:.2e}");
         assert!(worst < 1e-6, "worst relative error {worst:e}");
     }
 
@@ -276,7 +275,6 @@ mod tests {
                 let u = k as f32 / 1000.0;
                 worst = worst.max((cdf(tc.sample_f32(u)) - u as f64).abs());
             }
-            println!("c {c} γ {gamma}: worst |CDF(sample_f32(u)) − u| = {worst:.1e}");
             assert!(worst < 1e-6, "c {c} γ {gamma}: sample_f32 off by {worst:e}");
             // ∫ pdf = 1 by Simpson on 1e5 steps (pdf ≤ 1/(width γ)).
             let n = 100_000;

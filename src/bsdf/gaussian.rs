@@ -615,7 +615,6 @@ mod tests {
                 worst = worst.max((got / exact).ln().abs() / (1.0 + 0.1 * e));
             }
         }
-        println!("f32 truncated-Gaussian pdf: worst relative error {worst:.2e}; {fallbacks} uniform fallbacks");
         assert!(
             fallbacks > 0 && worst < 1e-6,
             "worst relative error {worst:e}"
@@ -639,7 +638,6 @@ mod tests {
                 worst = worst.max(level);
             }
         }
-        println!("f32 truncated-Gaussian sampler: worst CDF-level difference {worst:.2e} ({central} central)");
         assert!(central > 1000 && worst < 1e-6, "worst {worst:e}");
     }
 

@@ -555,11 +555,9 @@ mod tests {
         let mut ranges = [(f32::MAX, f32::MIN); 4];
         for beta in [0.5, 2.0, 5.0, 10.0, 20.0, 30.0] {
             let m = white_lobes(beta);
-            let mut row = String::new();
             for t in THETA_O_DEG {
                 let a = testing::albedo(&m, wo_at(t));
                 let v = [a.r.x, a.tt.x, a.trt.x, a.glint.x];
-                row += &format!(" [{:.3} {:.3} {:.3} {:.3}]", v[0], v[1], v[2], v[3]);
                 for k in 0..4 {
                     ranges[k] = (ranges[k].0.min(v[k]), ranges[k].1.max(v[k]));
                 }
@@ -574,22 +572,15 @@ mod tests {
                     );
                 }
             }
-            println!("ishair white lobe albedos [R TT TRT g], β {beta}°, θo {THETA_O_DEG:?}:{row}");
         }
-        for (k, name) in ["R", "TT", "TRT-g", "g"].iter().enumerate() {
-            println!(
-                "ishair {name} albedo range: [{:.4}, {:.4}]",
-                ranges[k].0, ranges[k].1
-            );
-        }
-        // Measured, see the printout: the widest lobes reach 11.6 (R at θo = −80°, β = 30°), TRT and the glint
+        // Measured: the widest lobes reach 11.6 (R at θo = −80°, β = 30°), TRT and the glint
         // vanish where their shifted peak leaves the sphere (θo = −80°, β = 0.5°: θi = 2α_TRT − θo = 102.5°).
         let want = [(0.0013, 11.61), (0.0032, 1.054), (0.0, 10.83), (0.0, 3.518)];
-        for k in 0..4 {
+        for (k, name) in ["R", "TT", "TRT-g", "g"].iter().enumerate() {
             let (lo, hi) = ranges[k];
             assert!(
                 close(lo, want[k].0) && close(hi, want[k].1),
-                "lobe {k}: [{lo}, {hi}]"
+                "{name} albedo range [{lo}, {hi}]"
             );
         }
     }
@@ -601,20 +592,9 @@ mod tests {
         for t in THETA_O_DEG {
             let a = testing::albedo(&m, wo_at(t));
             let total = mean(a.sum());
-            println!(
-                "ishair default θo {t}°: R {:.3} TT {:.3} TRT-g {:.3} g {:.3} diffuse {:.3} total {total:.3}",
-                mean(a.r),
-                mean(a.tt),
-                mean(a.trt),
-                mean(a.glint),
-                mean(a.diffuse)
-            );
             assert!((mean(a.diffuse) - 0.175).abs() < 1e-3);
             (lo, hi) = (lo.min(total), hi.max(total));
         }
-        println!("ishair default total albedo range: [{lo:.3}, {hi:.3}]");
-        let e = m.estimated_energies();
-        println!("ishair default estimated energies (θo = 0): {e:?}");
         // Measured: the default colours keep the whole model below 1 over θo ∈ ±80°.
         assert!(
             close(lo as f32, 0.526) && close(hi as f32, 0.726),
@@ -703,10 +683,12 @@ mod tests {
             let se_u = se(build(LobeSelection::Uniform, Sampling::ExactPdf));
             let se_e = se(build(LobeSelection::ByEnergy, Sampling::ExactPdf));
             let se_s = se(build(LobeSelection::Uniform, Sampling::Uniform));
-            println!("ishair {name}: furnace standard error at 2e5 samples: uniform selection {se_u:.5}, by energy {se_e:.5}, uniform sphere {se_s:.5}");
-            assert!(se_u < se_s && se_e < se_s, "{se_e} {se_u} {se_s}");
+            assert!(
+                se_u < se_s && se_e < se_s,
+                "{name}: standard errors by energy {se_e}, uniform selection {se_u}, uniform sphere {se_s}"
+            );
             if faint {
-                assert!(se_e < 0.9 * se_u, "{se_e} vs {se_u}");
+                assert!(se_e < 0.9 * se_u, "{name}: {se_e} vs {se_u}");
             }
         }
     }

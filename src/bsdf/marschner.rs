@@ -455,19 +455,15 @@ mod tests {
             let (mut lo, mut hi) = (f32::MAX, f32::MIN);
             for beta in BETA_DEG {
                 let m = single_lobe(alpha, beta, Sampling::ExactPdf);
-                let mut row = String::new();
                 for t in THETA_O_DEG {
                     let a = testing::albedo(&m, wo_at(t)).r.x;
-                    row += &format!(" {a:.3}");
                     (lo, hi) = (lo.min(a), hi.max(a));
                     if alpha == 0.0 && t == 0.0 && beta <= 5.0 {
                         assert!((a - 1.0).abs() < 0.05, "α 0 β {beta}° θo 0: albedo {a}");
                     }
                 }
-                println!("marschner R albedo α {alpha}° β {beta}°, θo {THETA_O_DEG:?}:{row}");
             }
-            println!("marschner R albedo range α {alpha}°: [{lo:.3}, {hi:.3}]");
-            // Measured (see the printout), θo ∈ ±80°, β ∈ [0.5°, 30°]: α = 0: [0.563, 1.034]; α = −7.5°:
+            // Measured, θo ∈ ±80°, β ∈ [0.5°, 30°]: α = 0: [0.563, 1.034]; α = −7.5°:
             // [0.0073, 1.974]. With a shift the mirror peak sits at θi = 2α − θo, where cos²θi/cos²θd ranges from
             // ≈ 0 (θo = 75°: the peak is cut at θi = −90°) to 1.97 (θo = −80°: cos²65°/cos²72.5°).
             let (want_lo, want_hi) = if alpha == 0.0 {
@@ -484,23 +480,16 @@ mod tests {
 
     #[test]
     fn white_furnace_default_model_per_lobe() {
-        // The default model (normalised colours, s = 0.5): per-lobe albedos (mean channel) over θo, measured.
+        // The default model (normalised colours, s = 0.5): per-lobe albedos (mean channel) over θo; the diffuse
+        // one is exact and the total stays below 1.
         let m = default_with(Sampling::ExactPdf);
-        let (mut lo, mut hi) = (f64::MAX, f64::MIN);
+        let mut hi = f64::MIN;
         for t in THETA_O_DEG {
             let a = testing::albedo(&m, wo_at(t));
-            let total = mean(a.sum());
-            println!(
-                "marschner default θo {t}°: R {:.3} TRT {:.3} diffuse {:.3} total {total:.3}",
-                mean(a.r),
-                mean(a.trt),
-                mean(a.diffuse)
-            );
             // Diffuse is exactly w_d k_d = 0.5 × mean(0.5, 0.35, 0.2).
             assert!((mean(a.diffuse) - 0.175).abs() < 1e-3);
-            (lo, hi) = (lo.min(total), hi.max(total));
+            hi = hi.max(mean(a.sum()));
         }
-        println!("marschner default total albedo range: [{lo:.3}, {hi:.3}]");
         assert!(hi < 1.0, "the default model must not amplify: {hi}");
     }
 
@@ -528,32 +517,24 @@ mod tests {
     #[test]
     fn published_sampler_is_biased() {
         // The published sampler's claimed pdf (eq. 13) against what it really draws: L1 distance
-        // ∫|p_sampled − p_claimed| dω over the histogram, and the chi-square p-value (which must reject).
-        // A single wide lobe with a shift, so that clamping and flipping matter.
+        // ∫|p_sampled − p_claimed| dω over the histogram, and the chi-square p-value (which must reject), at two
+        // views where the claim fails. A single wide lobe with a shift, so that clamping and flipping matter.
         let m = single_lobe(-7.5, 15.0, Sampling::ClampAndFlip);
-        let mut worst = 0.0f64;
-        for t in [-70.0, -20.0, 10.0, 60.0] {
+        for t in [-70.0, 60.0] {
             let (obs, exp) = sampled_vs_analytic(&m, wo_at(t), CHI2_SAMPLES, CHI2_BINS, 3);
             let n = CHI2_SAMPLES as f64;
             let l1: f64 = obs.iter().zip(&exp).map(|(o, e)| (o - e).abs() / n).sum();
-            let claimed_mass: f64 = exp.iter().sum::<f64>() / n;
             let chi = crate::util::stats::chi_square(&obs, &exp, 5.0);
-            println!("marschner published β 15° α −7.5° θo {t}°: ∫|p_sampled − p_claimed| = {l1:.4}, ∫p_claimed = {claimed_mass:.4}, χ² p = {:.3e}", chi.p_value);
-            worst = worst.max(l1);
-            if t == -70.0 || t == 60.0 {
-                assert!(
-                    l1 > 0.02 && chi.p_value < 1e-6,
-                    "θo {t}°: bias {l1}, p {}",
-                    chi.p_value
-                );
-            }
+            assert!(
+                l1 > 0.02 && chi.p_value < 1e-6,
+                "θo {t}°: bias {l1}, p {}",
+                chi.p_value
+            );
         }
-        println!("marschner published sampler: largest L1 bias {worst:.4}");
         // Its sampled furnace differs from the true albedo where the claim fails.
         let wo = wo_at(-70.0);
         let want = mean(testing::albedo(&m, wo).sum());
         let (got, se) = testing::sampled_furnace(&m, wo, testing::FURNACE_SAMPLES, 5);
-        println!("marschner published θo −70°: sampled furnace {got:.4} ± {se:.4} vs true albedo {want:.4}");
         assert!(
             (got - want).abs() > 10.0 * se,
             "published sampler unexpectedly unbiased: {got} vs {want}"
@@ -589,7 +570,6 @@ mod tests {
         // The published claim integrates to less than 1 where the range cuts the Gaussian.
         let m = single_lobe(-7.5, 15.0, Sampling::ClampAndFlip);
         let integral = testing::pdf_integral(&m, wo_at(-80.0));
-        println!("marschner published β 15° θo −80°: ∫ pdf_eq13 = {integral:.4}");
         assert!(integral < 0.9, "{integral}");
     }
 

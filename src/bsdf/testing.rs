@@ -130,7 +130,6 @@ pub fn assert_sampled_furnace_matches<B: Bsdf + ?Sized>(
 ) {
     let want = mean(albedo(model, wo).sum());
     let (got, se) = sampled_furnace(model, wo, FURNACE_SAMPLES, 11);
-    println!("{name}: sampled furnace {got:.5} ± {se:.5}, quadrature {want:.5}");
     assert!(
         se < 0.3 * rel_tol * want,
         "{name}: standard error {se} too large to test {rel_tol}"
@@ -155,14 +154,6 @@ pub fn chi_square_battery<B: Bsdf + ?Sized>(
         let (obs, exp) =
             sampled_vs_analytic(model, chi2_wo(t), CHI2_SAMPLES, CHI2_BINS, 1000 + k as u64);
         let r = chi_square(&obs, &exp, CHI2_MIN_EXPECTED);
-        let total: f64 = exp.iter().sum();
-        println!(
-            "{name} θo {t}°: χ² {:.1} on {} dof, p = {:.4} (α per test {alpha:.5}); expected total {:.5}",
-            r.statistic,
-            r.dof,
-            r.p_value,
-            total / CHI2_SAMPLES as f64
-        );
         if r.p_value < alpha || r.outside_support > 0.0 {
             let path = write_histograms(name, t, &obs, &exp);
             panic!("{name} θo {t}°: chi-square rejects the sampler: {r:?}; histograms in {path}");

@@ -440,10 +440,6 @@ mod tests {
     fn assert_irradiance(name: &str, estimate: (f64, f64), reference: f64) {
         let (mean, se) = estimate;
         let rel = (mean - reference).abs() / reference;
-        eprintln!(
-            "{name}: E = {mean:.6} ± {se:.6} vs {reference:.6}, relative error {rel:.2e}, {:.2} SE",
-            (mean - reference).abs() / se
-        );
         assert!(rel < IRRADIANCE_TOLERANCE, "{name}: {mean} vs {reference}");
         assert!(
             (mean - reference).abs() < 3.0 * se,
@@ -677,7 +673,6 @@ mod tests {
         let mut rng = Pcg32::new(21, 5);
         for (name, l, p, axis, cos_cap) in cases {
             let (cap, rest) = pdf_integral(&l, p, axis, cos_cap);
-            eprintln!("{name}: ∫ pdf_li dω = {cap:.5} on the cap + {rest:.2e} elsewhere");
             assert!(
                 (cap + rest - 1.0).abs() < PDF_TOLERANCE,
                 "{name}: ∫ pdf = {cap} + {rest}"

@@ -222,7 +222,6 @@ mod tests {
             }
             let e = sum * (cap * std::f64::consts::TAU / (N_THETA * N_PHI) as f64);
             let rel = (e / d.irradiance().as_dvec3() - 1.0).abs().max_element();
-            eprintln!("distant radius {radius}: ∫L dω = {e:?}, relative error {rel:.2e}");
             assert!(
                 rel < 0.01,
                 "radius {radius}: ∫L dω = {e:?} vs E = {}",

@@ -337,7 +337,6 @@ mod tests {
             .map(|&x| x as f64 / total * CHI2_SAMPLES as f64)
             .collect();
         let r = chi_square(&observed, &expected, 5.0);
-        eprintln!("distribution2d chi-square: {r:?}");
         assert!(r.p_value > ALPHA, "chi-square rejects: {r:?}");
         assert_eq!(r.outside_support, 0.0);
     }

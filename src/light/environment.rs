@@ -229,9 +229,11 @@ mod tests {
         );
     }
 
-    /// The shared maps, beside the repository. CI has them; without them the map tests fail, naming the directory
-    /// (they never pass without testing).
-    const ENVMAP_DIR: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/envmaps");
+    /// The environment maps of the test data ([`crate::util::test_data`]). Without them the map tests fail, naming
+    /// the directory (they never pass without testing).
+    fn envmap_dir() -> PathBuf {
+        crate::util::test_data::dir().join("envmaps")
+    }
     /// Samples of the map chi-square test: ≈ 120 per cell of the 64 × 128 grid.
     const MAP_CHI2_SAMPLES: usize = 1_000_000;
     /// Equal-solid-angle chi-square grid: cos θ rows × φ columns.
@@ -248,16 +250,14 @@ mod tests {
     /// Tolerance of ∫ pdf dω = 1.
     const PDF_TOLERANCE: f64 = 0.01;
 
-    /// The smallest map in [`ENVMAP_DIR`] and its image, read once for all tests. Panics, naming the directory,
+    /// The smallest map in [`envmap_dir`] and its image, read once for all tests. Panics, naming the directory,
     /// when it is missing or holds no map.
     fn smallest_map() -> &'static (PathBuf, Image) {
         static MAP: OnceLock<(PathBuf, Image)> = OnceLock::new();
         MAP.get_or_init(|| {
-            let entries = std::fs::read_dir(ENVMAP_DIR).unwrap_or_else(|e| {
-                panic!(
-                    "the environment map tests need {ENVMAP_DIR} (../shared/data beside the repository): {e}"
-                )
-            });
+            let dir = envmap_dir();
+            let entries = std::fs::read_dir(&dir)
+                .unwrap_or_else(|e| panic!("{} ({e})", crate::util::test_data::missing(&dir)));
             let smallest = entries
                 .filter_map(|e| e.ok())
                 .map(|e| e.path())
@@ -265,15 +265,12 @@ mod tests {
                 .filter_map(|p| Some((std::fs::metadata(&p).ok()?.len(), p)))
                 .min();
             let Some((_, path)) = smallest else {
-                panic!("no .exr/.hdr in {ENVMAP_DIR}: the environment map tests need one");
+                panic!(
+                    "no .exr/.hdr in {}: the environment map tests need one",
+                    dir.display()
+                );
             };
             let image = crate::image::read(&path).unwrap_or_else(|e| panic!("{e}"));
-            eprintln!(
-                "map: {} ({} x {})",
-                path.display(),
-                image.width,
-                image.height
-            );
             (path, image)
         })
     }
@@ -475,7 +472,6 @@ mod tests {
         }
         // ∫ pdf dω = 1, and the bright texel's share of the samples is its weight's share.
         let integral = pdf_integral(&env);
-        eprintln!("synthetic map: ∫ pdf_li dω = {integral:.5}");
         assert!((integral - 1.0).abs() < PDF_TOLERANCE, "∫ pdf = {integral}");
         let weight = |col: usize, row: usize| {
             luminance(Vec3::from_slice(img.pixel(col, row))) as f64
@@ -508,7 +504,6 @@ mod tests {
             "the bright texel should dominate"
         );
         let r = chi_square(&observed, &expected, MIN_EXPECTED);
-        eprintln!("synthetic map chi-square over texels: {r:?}");
         assert!(r.p_value > ALPHA && r.outside_support == 0.0, "{r:?}");
         // Average radiance: Σ L Ω / 4π with exact texel solid angles.
         let avg: f64 = (0..8 * 16)
@@ -635,7 +630,6 @@ mod tests {
         let mean = sum / samples as f64;
         let se = ((sum2 / samples as f64 - mean * mean) / samples as f64).sqrt();
         let reference = std::f64::consts::PI * l.y as f64;
-        eprintln!("constant environment: ∫ L cos dω = {mean:.5} ± {se:.5} vs π L = {reference:.5}");
         assert!((mean - reference).abs() < 3.0 * se && (mean / reference - 1.0).abs() < 0.01);
         assert!((env.power(2.0) - 4.0 * PI * PI * 4.0 * luminance(l)).abs() < 1e-3);
     }
@@ -645,11 +639,6 @@ mod tests {
         let (path, img) = smallest_map();
         let env = Environment::from_image(img, 1.0, 0.0, Vec3::Y).unwrap();
         let integral = pdf_integral(&env);
-        eprintln!(
-            "{}: ∫ pdf_li dω = {integral:.5}, {} clamped texel values",
-            path.display(),
-            env.clamped_texels()
-        );
         assert!(
             (integral - 1.0).abs() < PDF_TOLERANCE,
             "{}: ∫ pdf = {integral}",
@@ -665,10 +654,6 @@ mod tests {
         let expected = expected_histogram(&env, MAP_CHI2_SAMPLES);
         let total: f64 = expected.iter().sum();
         let r = chi_square(&observed, &expected, MIN_EXPECTED);
-        eprintln!(
-            "{}: chi-square {r:?}; expected total {total:.1} of {MAP_CHI2_SAMPLES}; le ≠ the sampled texel for {mismatches} samples",
-            path.display()
-        );
         assert!(
             (total / MAP_CHI2_SAMPLES as f64 - 1.0).abs() < 1e-3,
             "expected counts sum to {total}"
@@ -700,23 +685,21 @@ mod tests {
         let (d0, d90) = (brightest(&base), brightest(&turned));
         let expected = Quat::from_rotation_y(90f32.to_radians()) * d0;
         let angle = crate::light::cone::tests::angle_between(d90, expected);
-        let azimuth = |d: Vec3| d.x.atan2(-d.z);
-        let turn = (azimuth(d90) - azimuth(d0)).to_degrees();
-        eprintln!("{}: brightest {d0} → {d90} after +90°, azimuth change {turn:.2}°, {angle:.2e} rad from expected", path.display());
         // One texel of slack (the rotated grid does not land on texel centres).
         assert!(
             angle < 2.0 * std::f64::consts::PI / w as f64,
-            "brightest {d90}, expected {expected}"
+            "{}: brightest {d0} → {d90} after +90°, expected {expected}",
+            path.display()
         );
         assert_eq!(luminance(turned.le(expected)), luminance(base.le(d0)));
     }
 
     #[test]
     fn missing_file_names_the_path() {
-        let path = format!("{ENVMAP_DIR}/no-such-map.exr");
+        let path = envmap_dir().join("no-such-map.exr");
         let e = Environment::load(&path, 1.0, 0.0, Vec3::Y).unwrap_err();
         assert!(matches!(e, LightError::EnvironmentFile { .. }));
-        assert!(e.to_string().contains(&path), "{e}");
+        assert!(e.to_string().contains(&path.display().to_string()), "{e}");
         let (path, _) = smallest_map();
         let env = Environment::load(path, 1.0, 0.0, Vec3::Y).unwrap();
         assert!(env.average_radiance().min_element() > 0.0);

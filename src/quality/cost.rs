@@ -117,7 +117,6 @@ mod tests {
         for (name, short, long, measured) in cases {
             let ratio = |w: &CostWeights| w.seconds(&long) / w.seconds(&short);
             let (with, without) = (ratio(&WEIGHTS), ratio(&flat));
-            println!("{name}: measured {measured:.4}, predicted {with:.4}, without the deep weight {without:.4}");
             assert!(
                 (with / measured - 1.0).abs() < 0.01,
                 "{name}: {with} against {measured}"

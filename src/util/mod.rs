@@ -21,3 +21,5 @@ pub mod lanes;
 pub mod report;
 pub mod sampling;
 pub mod stats;
+#[cfg(test)]
+pub(crate) mod test_data;

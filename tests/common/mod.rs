@@ -1,4 +1,8 @@
-//! Helpers shared by the integration tests that render whole frames.
+//! Helpers shared by the integration tests: rendering whole frames, and finding the third-party data ([`data`]).
+//! Each test binary uses some of them.
+#![allow(dead_code)]
+
+pub mod data;
 
 use cuticle::image::Image;
 use cuticle::render::{thread_pool, Frame, Options, RenderStats};
@@ -21,8 +25,6 @@ pub fn render_scene_with_stats(scene: &Scene, threads: usize) -> (Image, RenderS
 
 /// How many values of two equally long pixel buffers differ in any bit (the thread-count and tile-split
 /// determinism checks: 0 expected).
-// Not every test binary that includes this module compares images.
-#[allow(dead_code)]
 pub fn bit_differences(a: &[f32], b: &[f32]) -> usize {
     assert_eq!(a.len(), b.len(), "buffers of different sizes");
     a.iter()

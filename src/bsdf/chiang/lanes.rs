@@ -460,7 +460,6 @@ mod tests {
     #[test]
     fn eight_lanes_give_the_scalar_models_values_to_f32_precision() {
         let mut rng = Pcg32::new(27, 8);
-        let mut overall = 0.0f64;
         for beta_m in [0.001f32, 0.005, 0.02, 0.1, 0.3, 0.6, 1.0] {
             for beta_n in [0.001f32, 0.05, 0.3, 0.9, 1.0] {
                 let model = Chiang::new(ChiangParams {
@@ -479,15 +478,12 @@ mod tests {
                 // has from f32 inputs (0.05 % at βm = 0.001, 2.4e-5 at 0.02). Beyond that, 1e-4.
                 let v = f64::from(crate::bsdf::chiang::longitudinal_variance(beta_m));
                 let tolerance = 1e-4 + 3.6e-7 / v.sqrt();
-                println!("βm {beta_m} βn {beta_n}: {w:.2e} (tolerance {tolerance:.1e})");
                 assert!(
                     w < tolerance,
                     "βm {beta_m} βn {beta_n}: lanes off the scalar model by {w:e} (relative)"
                 );
-                overall = overall.max(w);
             }
         }
-        println!("chiang lanes: worst relative difference from the scalar model {overall:.2e}");
     }
 
     #[test]
@@ -495,7 +491,6 @@ mod tests {
         // The lanes' views (f32 throughout, `wide`'s arcsine and exponential) evaluated by the lanes' eval against
         // the scalar model's views and eval: the same tolerance as the eval alone.
         let mut rng = Pcg32::new(27, 9);
-        let mut overall = 0.0f64;
         for beta_m in [0.001f32, 0.02, 0.3, 1.0] {
             for sigma in [0.0f32, 0.5, 4.0] {
                 let model = Chiang::new(ChiangParams {
@@ -509,7 +504,6 @@ mod tests {
                 // them in f64 (0.25 % at βm = 0.001, where the lobes are 0.04° wide; 1.1e-4 at βm = 0.3).
                 let v = f64::from(crate::bsdf::chiang::longitudinal_variance(beta_m));
                 let tolerance = 1e-4 + 1.8e-6 / v.sqrt();
-                let mut worst = 0.0f64;
                 for _ in 0..64 {
                     let h: [f32; LANES] = std::array::from_fn(|_| rng.random_range(-1.0f32..=1.0));
                     let wo: [Vec3; LANES] =
@@ -544,17 +538,11 @@ mod tests {
                                 "βm {beta_m} σ {sigma} h {}: {g} against {w} ({rel:e})",
                                 h[k]
                             );
-                            worst = worst.max(rel);
                         }
                     }
                 }
-                println!("βm {beta_m} σ {sigma}: {worst:.2e} (tolerance {tolerance:.1e})");
-                overall = overall.max(worst);
             }
         }
-        println!(
-            "chiang view lanes: worst relative difference from the scalar model {overall:.2e}"
-        );
     }
 
     #[test]
@@ -563,7 +551,7 @@ mod tests {
         // its direction (so its distribution, which the scalar model's χ² tests check). The two subtract the
         // orders' probabilities in the same order, so no lane is expected to pick another.
         let mut rng = Pcg32::new(27, 10);
-        let (mut n, mut other_p, mut worst_angle) = (0usize, 0usize, 0.0f64);
+        let (mut n, mut other_p) = (0usize, 0usize);
         for beta_m in [0.01f32, 0.1, 0.3, 1.0] {
             for beta_n in [0.01f32, 0.3, 1.0] {
                 let model = Chiang::new(ChiangParams {
@@ -609,7 +597,6 @@ mod tests {
                             .map(|c| (f64::from(wi[c]) - f64::from(want.wi[c])).powi(2))
                             .sum::<f64>()
                             .sqrt();
-                        worst_angle = worst_angle.max(angle);
                         assert!(
                             angle < 2e-5,
                             "βm {beta_m} βn {beta_n}: ωi {wi} against {} ({angle:e} rad)",
@@ -619,7 +606,7 @@ mod tests {
                 }
             }
         }
-        println!("chiang sample lanes: {n} samples, {other_p} of another order, worst angle {worst_angle:.1e} rad");
+        assert!(n > 0, "no lane was compared");
         assert_eq!(other_p, 0, "{other_p} of {n} lanes drew another order");
     }
 

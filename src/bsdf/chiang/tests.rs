@@ -42,14 +42,12 @@ fn i0e_reference(x: f64) -> f64 {
 
 #[test]
 fn bessel_i0_accurate_over_the_whole_range() {
-    let mut worst = 0.0f64;
     let mut x = 1e-3;
     while x < 2e4 {
         for y in [x, I0_SWITCH * (1.0 - 1e-12), I0_SWITCH * (1.0 + 1e-12)] {
             let (got, want) = (i0e(y), i0e_reference(y));
             let rel = (got / want - 1.0).abs();
             assert!(rel < 1e-9, "i0e({y}) = {got}, reference {want}: {rel:e}");
-            worst = worst.max(rel);
             // ln I₀ = x + ln I₀ₑ where the reference has no cancellation (x ≥ 1).
             if y >= 1.0 {
                 let want_log = y + want.ln();
@@ -59,7 +57,6 @@ fn bessel_i0_accurate_over_the_whole_range() {
         }
         x *= 1.3;
     }
-    println!("chiang: I0e worst relative error vs quadrature over [1e-3, 2e4]: {worst:.2e}");
     // Tabulated (Abramowitz & Stegun Table 9.8): I₀(1), I₀(2), e^{−10} I₀(10).
     for (x, want) in [
         (1.0, 1.266_065_877_752_008),
@@ -81,9 +78,6 @@ fn m_p_lanes_match_the_full_bessel_function_to_f32() {
     // The lanes cut both expansions to 16 terms at M_P_SWITCH (10); M_p from the 32-term i0e (within 1e-9 of
     // quadrature, test above) must agree within 3e-9 relative — a twentieth of an f32 ulp — for a's on both
     // sides of the switch, in every lane position, and not one f32 result may differ by more than an ulp.
-    let mut worst = 0.0f64;
-    let mut ulp_off = 0usize;
-    let mut n = 0usize;
     for v in [0.002f64, 0.02, 0.0846, 0.2, 0.5, 1.0] {
         let l = Longitudinal::new(v);
         for ti in -40..=40 {
@@ -100,7 +94,6 @@ fn m_p_lanes_match_the_full_bessel_function_to_f32() {
                         rel < 3e-9,
                         "v {v} sc_i {sc_i:?} sc_o {sc_o:?}: {got} vs {want} ({rel:e})"
                     );
-                    worst = worst.max(rel);
                     let (a, b) = ((got as f32).to_bits(), (want as f32).to_bits());
                     assert!(
                         a.abs_diff(b) <= 1,
@@ -108,13 +101,10 @@ fn m_p_lanes_match_the_full_bessel_function_to_f32() {
                         got as f32,
                         want as f32
                     );
-                    ulp_off += usize::from(a != b);
-                    n += 1;
                 }
             }
         }
     }
-    println!("chiang: M_p lanes worst relative error {worst:.2e}; {ulp_off} of {n} f32 values an ulp off");
 }
 
 #[test]
@@ -122,7 +112,6 @@ fn m_p_is_normalised_for_every_variance() {
     // ∫ M_p cos θi dθi = 1 (midpoint rule, 40000 nodes: ≥ 10 per standard deviation of the narrowest lobe,
     // βm = 0.01 at p = 1). The peers' truncated I₀ lose up to ~2 % near v ≈ 0.1.
     const N: usize = 40_000;
-    let mut worst = 0.0f64;
     for beta_m in [0.01f32, 0.05, 0.1, 0.2, 0.3, 0.5, 0.7, 0.9, 1.0] {
         let v0 = longitudinal_variance(beta_m) as f64;
         for v in [0.25 * v0, v0, 4.0 * v0] {
@@ -139,11 +128,9 @@ fn m_p_is_normalised_for_every_variance() {
                     (s - 1.0).abs() < 1e-5,
                     "βm {beta_m} v {v} θo {theta_o}°: ∫ M_p cos θi dθi = {s}"
                 );
-                worst = worst.max((s - 1.0).abs());
             }
         }
     }
-    println!("chiang: M_p normalisation worst |∫ − 1| = {worst:.2e}");
 }
 
 #[test]
@@ -151,7 +138,6 @@ fn white_furnace_by_quadrature() {
     // σa = 0: ∫ f cos θi dωi = Σ A_p = 1 exactly; the quadrature of `eval` must find it within 1e-3 for every
     // (βm, βn) of the grid at two pseudo-random (θo, h) each, with the paper's 2° tilt.
     let mut rng = Pcg32::new(14, 1);
-    let (mut lo, mut hi) = (f64::MAX, f64::MIN);
     for beta_m in BETAS {
         for beta_n in BETAS {
             let m = white(beta_m, beta_n);
@@ -171,18 +157,16 @@ fn white_furnace_by_quadrature() {
                     (0.999..=1.001).contains(&a),
                     "βm {beta_m} βn {beta_n} θo {theta_o}° h {h}: albedo {a}"
                 );
-                (lo, hi) = (lo.min(a), hi.max(a));
             }
         }
     }
-    println!("chiang: white furnace (quadrature of eval, σa = 0) over βm, βn ∈ 0.1..0.9: [{lo:.5}, {hi:.5}]");
 }
 
 #[test]
 fn sample_weights_are_one_without_absorption() {
     // With σa = 0 the mixture pdf is exactly f cos θi, so each weight is 1 up to rounding.
     let mut rng = Pcg32::new(3, 3);
-    let (mut lo, mut hi) = (f32::MAX, f32::MIN);
+    let mut sampled = 0usize;
     for beta_m in BETAS {
         for beta_n in BETAS {
             let m = white(beta_m, beta_n);
@@ -200,12 +184,12 @@ fn sample_weights_are_one_without_absorption() {
                         fibre.h(),
                         s.weight
                     );
-                    (lo, hi) = (lo.min(w), hi.max(w));
                 }
+                sampled += 1;
             }
         }
     }
-    println!("chiang: sample weights with σa = 0: [{lo:.6}, {hi:.6}]");
+    assert!(sampled > 0, "no direction was sampled");
 }
 
 #[test]
@@ -223,7 +207,6 @@ fn sampled_furnace_matches_quadrature_with_absorption() {
 
 #[test]
 fn sampler_chi_square() {
-    let mut ps = Vec::new();
     for (beta_m, beta_n, h, alpha_deg) in [
         (0.3, 0.3, 0.0, 2.0),
         (0.1, 0.1, 0.5, 2.0),
@@ -235,17 +218,12 @@ fn sampler_chi_square() {
             p.beta_n = beta_n;
             p.alpha = f32::to_radians(alpha_deg);
         });
-        ps.extend(testing::chi_square_battery(
+        testing::chi_square_battery(
             &format!("chiang βm {beta_m} βn {beta_n} h {h} α {alpha_deg}°"),
             &m.at(h),
             &CHI2_THETA_O_DEG,
-        ));
+        );
     }
-    let min = ps.iter().cloned().fold(f64::MAX, f64::min);
-    println!(
-        "chiang: χ² smallest p-value {min:.4} over {} tests",
-        ps.len()
-    );
 }
 
 #[test]
@@ -347,7 +325,6 @@ fn importance_and_uniform_sampling_agree() {
             ((si2 / n - mi * mi) / n).sqrt(),
             ((su2 / nu - mu * mu) / nu).sqrt(),
         );
-        println!("chiang θo {t}° h {h}: importance {mi:.5} ± {ei:.5}, uniform {mu:.5} ± {eu:.5}");
         assert!(
             eu < 0.005 * mu && ei < 0.005 * mi,
             "standard errors too large to test 2 %"
@@ -500,7 +477,6 @@ fn tilt_moves_each_lobe_as_documented() {
     let r = peak(0.0, |l| l.r.x);
     let tt = peak(PI, |l| l.tt.x);
     let trt = peak(0.0, |l| l.trt.x);
-    println!("chiang tilt 5°: R peak {r:.4}, TT {tt:.4}, TRT {trt:.4} (θo {theta_o})");
     // f = M_p A_p N_p / cos θi peaks within ~v tan θi of the lobe's centre (v₀ = 1.5e-3, v₂ = 5.9e-3 here).
     assert!((r - (-theta_o + 2.0 * alpha)).abs() < 3e-3, "R {r}");
     assert!((tt - (-theta_o - alpha)).abs() < 3e-3, "TT {tt}");

@@ -331,17 +331,14 @@ fn a_bounce_found_by_few_samples_is_not_underestimated() {
     };
     let (pixel_mean, pixel_spread) = spread(|b| b.mean);
     let (pooled_mean, pooled_spread) = spread(|b| b.pooled_mean);
-    println!(
-        "truth {truth:.4e}: pixel products {pixel_mean:.4e} ± {pixel_spread:.1e}, pooled {pooled_mean:.4e} ± \
-         {pooled_spread:.1e} (mean ± spread over six pairs)"
-    );
     assert!(
         (pooled_mean / truth - 1.0).abs() < 0.15,
         "pooled {pooled_mean:.4e} against {truth:.4e}"
     );
     assert!(
         pooled_spread < 0.5 * pixel_spread,
-        "pooled spread {pooled_spread:.1e}, pixel products' {pixel_spread:.1e}"
+        "pooled {pooled_mean:.4e} ± {pooled_spread:.1e}, pixel products {pixel_mean:.4e} ± {pixel_spread:.1e} \
+         (mean ± spread over six pairs)"
     );
     let (b0, a0) = render();
     let (b1, a1) = render();
@@ -363,9 +360,6 @@ fn a_bounce_found_by_few_samples_is_not_underestimated() {
         })
         .sum::<f64>()
         / (3 * pixels) as f64;
-    println!(
-        "truth {truth:.4e}, neighbours' denominator {mean:.4e} ± {error:.1e}, own mean {own:.4e}"
-    );
     assert!(
         own < 0.8 * truth,
         "the model shows the failure: {own:.4e} against {truth:.4e}"

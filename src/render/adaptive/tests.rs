@@ -197,12 +197,12 @@ fn the_image_rule_meets_the_image_target_with_fewer_samples_than_the_per_pixel_r
         .collect();
     let pixel_samples: u64 = pixel_stats.iter().map(|c| u64::from(c.count())).sum();
     let pixel_error = error(&pixel_stats.iter().map(|c| c.mean[0]).collect::<Vec<_>>());
-    println!(
-        "image rule: {image_samples} samples, relative RMSE {image_error:.4}; per-pixel rule: \
-         {pixel_samples} samples, {pixel_error:.4}"
-    );
     assert!(image_error <= 1.1 * target, "{image_error}");
-    assert!(image_samples * 2 < pixel_samples);
+    assert!(
+        image_samples * 2 < pixel_samples,
+        "image rule: {image_samples} samples, relative RMSE {image_error:.4}; per-pixel rule: {pixel_samples} \
+         samples, {pixel_error:.4}"
+    );
     // The background stays at the minimum; the noisy pixels take the most.
     assert!((0..170).all(|p| counts[p] == min));
     let mean_count = |c: usize| {
@@ -212,11 +212,6 @@ fn the_image_rule_meets_the_image_target_with_fewer_samples_than_the_per_pixel_r
             .collect();
         c.iter().sum::<u32>() as f64 / c.len() as f64
     };
-    println!(
-        "smooth pixels {:.1}, noisy {:.1}",
-        mean_count(1),
-        mean_count(2)
-    );
     assert!(mean_count(2) > 4.0 * mean_count(1));
 }
 
@@ -280,11 +275,10 @@ fn the_image_rule_delivers_its_aim_where_noisy_pixels_neighbour_constant_ones() 
         .sum();
     let measured = (e2 / pixels as f64).sqrt();
     let samples: u64 = counts.iter().map(|&n| u64::from(n)).sum();
-    println!("aim {target}, measured {measured:.4}, {samples} samples");
     // The old stop (smoothed v, a constant pixel counted at its noisy neighbours' mean) measured 0.0352 here.
     assert!(
         measured > 0.85 * target && measured <= 1.1 * target,
-        "{measured}"
+        "aim {target}, measured {measured:.4}, {samples} samples"
     );
 }
 
@@ -335,7 +329,6 @@ fn cheaper_pixels_get_more_samples_under_a_cost_model() {
     assert_eq!(plain, vec![12, 12]);
     assert_eq!(next(&with_costs(2e-6, 2e-6)), plain);
     let costed = next(&with_costs(1e-6, 16e-6));
-    println!("no cost model {plain:?}, costs 1 : 16 {costed:?}");
     // Goals 30 and 7.5: the costly pixel is held at its 8, the cheap one takes the round's cap.
     assert_eq!(costed, vec![16, 8]);
 }
@@ -356,7 +349,6 @@ fn fractional_goals_are_rounded_to_their_sum() {
         .expect("grows");
     assert!(next.iter().all(|&n| n == 11 || n == 12), "{next:?}");
     let mean = next.iter().map(|&n| f64::from(n)).sum::<f64>() / 1000.0;
-    println!("goal 11.3, mean taken {mean}");
     assert!((mean - 11.3).abs() < 0.05, "{mean}");
     // The same inputs, the same totals.
     assert_eq!(
@@ -576,7 +568,6 @@ fn a_rare_bright_path_missed_by_the_first_samples_stops_early() {
             _ => {}
         }
     }
-    println!("stopped at 8: {early} of 1000; at 1024: {to_max}");
     assert!((800..=900).contains(&early), "{early}");
     assert_eq!(early + to_max, 1000);
 }

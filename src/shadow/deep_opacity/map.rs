@@ -279,7 +279,6 @@ mod tests {
             &map(&lines, &config(256, 32, LayerSpacing::Uniform), 1.0, RASTER),
             &depths,
         );
-        println!("layer banding: mean |ΔT| = {e2:.4} with 2 layers, {e32:.4} with 32");
         assert!(e2 > 0.15, "2 layers should band visibly, mean |ΔT| = {e2}");
         assert!(e32 < 0.02, "32 layers should not, mean |ΔT| = {e32}");
     }
@@ -311,9 +310,7 @@ mod tests {
             sum / n as f32
         };
         let no_bias = lit_fraction(0.0);
-        let one = lit_fraction(1.0);
         let default = lit_fraction(DeepOpacityConfig::default().bias);
-        println!("acne on a 45° sheet: mean T = {no_bias:.3} without bias, {one:.3} at 1 texel, {default:.3} with the default bias");
         assert!(no_bias < 0.9, "expected acne without bias, T = {no_bias}");
         assert!(
             default > 0.99,
@@ -343,7 +340,6 @@ mod tests {
             mean_error(&lines, &map(&lines, &cfg, 0.5, RASTER), &[0.4])
         };
         let (coarse, fine) = (err(32), err(1024));
-        println!("stripes: mean |ΔT| = {coarse:.4} at 32², {fine:.4} at 1024²");
         // The fine map's residue is the bilinear footprint at the stripes' 100 edges (≈1 texel each).
         assert!(coarse > 0.3, "a 32² map should blur the stripes: {coarse}");
         assert!(fine < 0.1, "a 1024² map should resolve them: {fine}");

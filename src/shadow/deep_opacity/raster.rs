@@ -246,7 +246,6 @@ mod tests {
             keep_coverage: false,
         });
         let right = mean_t(RASTER);
-        println!("thin strands: exact mean T {want:.3}; no min width {leak:.3}; widened at full opacity {dark:.3}; min width with coverage {right:.3}");
         assert!(
             leak > 0.99,
             "thin strands should leak without min_width: T = {leak}"

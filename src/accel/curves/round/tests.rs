@@ -312,29 +312,6 @@ fn bundle_agreement(pieces: usize, max_depth: u32) -> Agreement {
     agreement
 }
 
-fn report(name: &str, a: &Agreement) {
-    println!(
-        "{name}: {} rays, agreement {:.4} %: both hit {}, both miss {}, only embree {}, only ours {}, \
-         t differs {}, segment differs {} ({} of the disagreements grazing); worst |Δt|/t {:.2e}, |Δu| \
-         {:.2e}, min cos(Ng) {:.6}",
-        a.rays,
-        100.0 * a.fraction(),
-        a.both_hit,
-        a.both_miss,
-        a.only_embree,
-        a.only_ours,
-        a.t_differs,
-        a.segment_differs,
-        a.grazing,
-        a.worst_t,
-        a.worst_u,
-        a.worst_ng_cos
-    );
-    for e in &a.examples {
-        println!("  {e}");
-    }
-}
-
 #[test]
 fn early_reject_changes_no_result() {
     // Rays through the bounding box of hair-like segments (what the BVH offers), and rays aimed within 3 radii
@@ -390,10 +367,6 @@ fn early_reject_changes_no_result() {
             ));
         }
     });
-    println!(
-        "early reject: {box_rays} box rays, {rejected} rejected by step 0; {hits} hits in all; any-hit told \
-         apart on {explained} rays starting inside or entering through an open end"
-    );
     assert!(hits > 10_000, "too few hits to test: {hits}");
     // Every difference was explained above; this only catches a shortcut that fires far too often (the test's
     // rays start inside a tube or aim at a lone segment's ends far more often than rays in hair do).
@@ -434,7 +407,6 @@ fn enters_through_an_end_or_starts_inside(
 #[test]
 fn embree_agrees_on_random_single_segments() {
     let a = single_segment_agreement(PIECES, MAX_DEPTH);
-    report("single segments", &a);
     assert!(a.both_hit > a.rays / 3, "too few hits to test: {a:?}");
     assert!(a.fraction() >= 0.999, "{a:?}");
 }
@@ -442,7 +414,6 @@ fn embree_agrees_on_random_single_segments() {
 #[test]
 fn embree_agrees_on_a_random_bundle() {
     let a = bundle_agreement(PIECES, MAX_DEPTH);
-    report("bundle", &a);
     assert!(a.both_hit > a.rays / 3, "too few hits to test: {a:?}");
     assert!(a.fraction() >= 0.999, "{a:?}");
 }
