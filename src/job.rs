@@ -15,9 +15,10 @@ use std::time::Instant;
 use crate::farm::{self, FarmError, Interrupted};
 use crate::image::{self, ExrInfo, Image, ImageError, Outputs};
 use crate::quality::{self, pilot::PilotPlan, Decision, Fixed, QualityMode};
+use crate::render::Request as RenderRequest;
 use crate::render::{
-    budget, thread_pool, Frame, FrameError, Options, Region, RenderSettings, RenderStats,
-    ShadowMode, ThreadPoolError,
+    budget, thread_pool, Frame, FrameError, Region, RenderSettings, RenderStats, ShadowMode,
+    ThreadPoolError,
 };
 use crate::scene::{Overrides, Scene, SceneError};
 use crate::shadow::ShadowMaps;
@@ -332,19 +333,14 @@ impl Job {
     ) -> Result<Rendered, JobError> {
         let mut settings = self.settings.clone();
         settings.camera.frame = frame.unwrap_or(0);
-        let options = Options {
-            progress: self.request.progress,
-        };
-        let r = self.pool.install(|| {
-            self.frame.render_region(
-                &settings,
-                self.maps.as_ref(),
-                self.maps_seconds,
-                options,
-                self.region,
-                cancel,
-            )
-        });
+        let mut request = RenderRequest::new(&settings)
+            .maps(self.maps.as_ref(), self.maps_seconds)
+            .region(self.region)
+            .progress(self.request.progress);
+        if let Some(c) = cancel {
+            request = request.cancel(c);
+        }
+        let r = self.pool.install(|| self.frame.render(request));
         let [width, height] = settings.film.resolution;
         let job = farm::job_hash(&self.description, settings.camera.frame);
         let info = farm::render_info(

@@ -92,8 +92,14 @@ fn main() -> ExitCode {
                 "cuticle: error: {}",
                 cuticle::util::report::chain(e.as_ref())
             );
-            match e.downcast_ref::<cuticle::farm::FarmError>() {
-                Some(cuticle::farm::FarmError::Interrupted(i)) => ExitCode::from(i.exit_code()),
+            // A render stopped by a signal exits as the signal's convention says (130, 143); any other error 2.
+            use cuticle::farm::FarmError;
+            let farm = match e.downcast_ref::<cuticle::job::JobError>() {
+                Some(cuticle::job::JobError::Farm(f)) => Some(f),
+                _ => e.downcast_ref::<FarmError>(),
+            };
+            match farm {
+                Some(FarmError::Interrupted(i)) => ExitCode::from(i.exit_code()),
                 _ => ExitCode::from(2),
             }
         }

@@ -7,7 +7,7 @@ use std::process::Command;
 use cuticle::accel::CurveKind;
 use cuticle::measure::metrics;
 use cuticle::quality::{self, Fixed, QualityConfig};
-use cuticle::render::{thread_pool, Frame, Options};
+use cuticle::render::{thread_pool, Frame, Request};
 use cuticle::scene::{Scene, ShadowMode};
 
 mod common;
@@ -112,11 +112,7 @@ fn auto_meets_its_target_and_a_tighter_target_takes_more_samples() {
 
     let render = |settings: &cuticle::render::RenderSettings,
                   maps: Option<&cuticle::shadow::ShadowMaps>| {
-        pool.install(|| {
-            frame
-                .render_with_maps(settings, maps, 0.0, Options::default())
-                .0
-        })
+        pool.install(|| frame.render(Request::new(settings).maps(maps, 0.0)).image)
     };
     for planned in [&loose, &tight] {
         let image = render(&planned.settings, planned.maps.as_ref());
@@ -310,11 +306,7 @@ fn the_image_rule_meets_the_target_with_fewer_samples_than_the_per_pixel_rule_an
     reference.film.seed = 991;
     reference.integrator.path_length = 4;
     let maps = planned.maps.as_ref();
-    let reference = pool.install(|| {
-        frame
-            .render_with_maps(&reference, maps, 0.0, Options::default())
-            .0
-    });
+    let reference = pool.install(|| frame.render(Request::new(&reference).maps(maps, 0.0)).image);
     // The per-pixel rule as auto used it: each pixel to √0.75 of the target, a quarter to 4× the pilots' spp.
     let spp = planned.settings.film.spp;
     let per_pixel = Schedule {
@@ -328,11 +320,7 @@ fn the_image_rule_meets_the_target_with_fewer_samples_than_the_per_pixel_rule_an
     let measure = |schedule: Schedule| {
         let mut settings = planned.settings.clone();
         settings.adaptive = Some(schedule);
-        let image = pool.install(|| {
-            frame
-                .render_with_maps(&settings, maps, 0.0, Options::default())
-                .0
-        });
+        let image = pool.install(|| frame.render(Request::new(&settings).maps(maps, 0.0)).image);
         let mask = vec![false; image.width * image.height];
         let e = metrics::errors(&image, &reference, &mask).unwrap();
         let n = image.channel_index("spp").unwrap();
@@ -353,8 +341,11 @@ fn the_image_rule_meets_the_target_with_fewer_samples_than_the_per_pixel_rule_an
 
     // Determinism: 1 thread and 7² tiles against 2 threads and 32² tiles.
     let one = thread_pool(Some(1)).unwrap();
-    let small_tiles =
-        one.install(|| cuticle::render::render_with_tile_side(&frame, &planned.settings, maps, 7));
+    let small_tiles = one.install(|| {
+        frame
+            .render(Request::new(&planned.settings).maps(maps, 0.0).tile_side(7))
+            .image
+    });
     assert_eq!(image.data.len(), small_tiles.data.len());
     assert!(image
         .data
@@ -403,13 +394,10 @@ fn calibrate_cost_model() {
                         let maps = (shadows == ShadowMode::DeepOpacity)
                             .then(|| pool.install(|| frame.shadow_maps(&settings)));
                         let cpu = cuticle::sys::clock::process_cpu_seconds().unwrap();
-                        let (_, stats) = pool.install(|| {
-                            frame.render_with_maps(
-                                &settings,
-                                maps.as_ref(),
-                                0.0,
-                                Options::default(),
-                            )
+                        let stats = pool.install(|| {
+                            frame
+                                .render(Request::new(&settings).maps(maps.as_ref(), 0.0))
+                                .stats
                         });
                         let cpu = cuticle::sys::clock::process_cpu_seconds().unwrap() - cpu;
                         let r = stats.rays;
@@ -451,9 +439,7 @@ fn one_render_cut_after_each_vertex_equals_the_renders_at_each_path_length() {
     for j in 0..4u32 {
         let mut settings = frame.settings.clone();
         settings.integrator.path_length = j;
-        let r = pool.install(|| {
-            frame.render_region(&settings, None, 0.0, Options::default(), region, None)
-        });
+        let r = pool.install(|| frame.render(Request::new(&settings).region(region)));
         assert_eq!(
             cut.rays[j as usize], r.stats.rays,
             "rays at path length {j}"

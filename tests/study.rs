@@ -456,7 +456,7 @@ fn full_kinds_have_budgets_and_the_sweeps_asked_for() {
 /// the centred 16² window of a 32² film equals the whole film's there, for a placed and an auto-framed camera.
 #[test]
 fn a_crop_shows_the_same_pixels_as_the_whole_film() {
-    use cuticle::render::{Frame, Options};
+    use cuticle::render::{Frame, Request};
     use cuticle::scene::Scene;
     use cuticle::study::framework::crop_overrides;
     for camera in [
@@ -470,7 +470,7 @@ fn a_crop_shows_the_same_pixels_as_the_whole_film() {
         let depth_of = |text: &str| {
             let scene = Scene::parse(text, Path::new("tiny.toml"), Path::new(".")).unwrap();
             let frame = Frame::load(scene.resolve().unwrap()).unwrap();
-            let (image, _) = frame.render_with(&scene.render_settings(), Options::default());
+            let image = frame.render(Request::new(&scene.render_settings())).image;
             let z = image.channel_index("depth.Z").expect("a depth.Z AOV");
             let n = image.channels.len();
             let depth: Vec<f32> = image.data.chunks_exact(n).map(|p| p[z]).collect();

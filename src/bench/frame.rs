@@ -11,7 +11,7 @@ use std::time::Instant;
 
 use crate::measure::{peak_rss_bytes, Timing};
 use crate::render::integrator::RayCounts;
-use crate::render::{thread_pool, Frame, FrameError, Options, ThreadPoolError};
+use crate::render::{thread_pool, Frame, FrameError, Request, ThreadPoolError};
 use crate::scene::Scene;
 
 /// The result of [`frame`].
@@ -103,8 +103,8 @@ pub fn frame(
 ) -> Result<FrameReport, FrameBenchError> {
     let pool = thread_pool(Some(threads))?;
     let frame = Frame::load(scene.resolve()?)?;
-    let run = || pool.install(|| frame.render(Options::default()));
-    let (_, warm) = run();
+    let run = || pool.install(|| frame.render(Request::new(&frame.settings)));
+    let warm = run().stats;
     let seconds: Vec<f64> = (0..repetitions.max(1))
         .map(|_| {
             let t = Instant::now();

@@ -19,7 +19,7 @@ use rayon::prelude::*;
 use crate::accel::{Hit, Tracer};
 use crate::measure::Timing;
 use crate::ray::{InvalidRay, Ray};
-use crate::render::{thread_pool, Frame, Options};
+use crate::render::{thread_pool, Frame, Request};
 use crate::scene::Scene;
 
 use super::frame::FrameBenchError;
@@ -187,7 +187,7 @@ pub fn record(frame: &mut Frame) -> (Arc<dyn Tracer + Send>, Vec<TracedRay>) {
         inner: Arc::clone(&inner),
         log: Arc::clone(&log),
     });
-    frame.render(Options::default());
+    frame.render(Request::new(&frame.settings));
     log.recording.store(false, Ordering::Relaxed);
     let rays = std::mem::take(
         &mut *log
@@ -273,7 +273,7 @@ pub fn replay(
     let repetitions = repetitions.max(1);
     // Warm-up render, then the recording render, then render and replay take turns, so that the VM's slow
     // spells fall on both.
-    pool.install(|| frame.render(Options::default()));
+    pool.install(|| frame.render(Request::new(&frame.settings)));
     let (tracer, rays) = pool.install(|| record(&mut frame));
     let bare: &dyn Tracer = tracer.as_ref();
     let trace_all = || -> u64 {
@@ -287,7 +287,7 @@ pub fn replay(
     let (mut render, mut replay) = (Vec::new(), Vec::new());
     for _ in 0..repetitions {
         let t = Instant::now();
-        pool.install(|| frame.render(Options::default()));
+        pool.install(|| frame.render(Request::new(&frame.settings)));
         render.push(t.elapsed().as_secs_f64());
         let t = Instant::now();
         std::hint::black_box(trace_all());

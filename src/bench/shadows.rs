@@ -17,7 +17,7 @@ use rayon::prelude::*;
 use super::frame::FrameBenchError;
 use crate::image::Image;
 use crate::measure::Timing;
-use crate::render::{thread_pool, Frame, Options, ShadowMode};
+use crate::render::{thread_pool, Frame, Request, ShadowMode};
 use crate::scene::Scene;
 use crate::shadow::deep_opacity::MapFrame;
 
@@ -147,7 +147,10 @@ pub fn shadows(
     ] {
         let mut settings = frame.settings.clone();
         settings.shadows.mode = mode;
-        let run = || pool.install(|| frame.render_with(&settings, Options::default()));
+        let run = || {
+            let r = pool.install(|| frame.render(Request::new(&settings)));
+            (r.image, r.stats)
+        };
         let (image, warm) = run();
         let (mut render_s, mut build_s) = (Vec::new(), Vec::new());
         for _ in 0..repetitions.max(1) {

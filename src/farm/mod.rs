@@ -80,7 +80,7 @@ impl Interrupted {
 }
 
 /// Routes SIGINT and SIGTERM into a flag (the signal's number; 0 while none came), which the render loop polls
-/// ([`crate::render::Frame::render_region`]). A second SIGINT or SIGTERM ends the process at once (status 130).
+/// ([`crate::render::Request::cancel`]). A second SIGINT or SIGTERM ends the process at once (status 130).
 pub fn catch_signals() -> std::io::Result<Arc<AtomicUsize>> {
     use signal_hook::consts::{SIGINT, SIGTERM};
     let flag = Arc::new(AtomicUsize::new(0));

@@ -7,7 +7,6 @@
 //! study's variants) without reloading anything.
 
 use glam::Vec3;
-use std::sync::atomic::AtomicUsize;
 use std::time::Instant;
 
 use crate::accel::bvh_tracer::BvhTracer;
@@ -16,13 +15,12 @@ use crate::accel::embree::EmbreeTracer;
 use crate::accel::{Backend, CurveKind, Tracer};
 use crate::bsdf::Material;
 use crate::hair::{HairError, HairSpec, Strands};
-use crate::image::Image;
 use crate::light::Light;
 use crate::shadow::ShadowMaps;
 use crate::shape::Shapes;
 
 use super::settings::{RenderSettings, ShadowMode};
-use super::{render_tiles, Options, Region, RegionRender, RenderStats, TILE};
+use super::{Region, RegionRender, Request};
 
 /// What a frame is made of, before anything heavy is built.
 #[derive(Debug)]
@@ -74,7 +72,7 @@ pub struct Frame {
     pub lights: Vec<Light>,
     /// Non-hair geometry.
     pub shapes: Shapes,
-    /// The settings of [`Frame::render`]; [`Frame::render_with`] takes others.
+    /// The scene's own settings (a [`Request`] may render others).
     pub settings: RenderSettings,
     /// Wall time of reading or generating the hair and converting it to strands, seconds.
     pub load_seconds: f64,
@@ -181,56 +179,35 @@ impl Frame {
         ShadowMaps::build(&self.strands, &self.lights, &settings.shadows.deep_opacity)
     }
 
-    /// Renders the frame with its own settings on the current rayon pool.
-    pub fn render(&self, options: Options) -> (Image, RenderStats) {
-        self.render_with(&self.settings, options)
-    }
-
-    /// Renders the frame with `settings` on the current rayon pool, building the shadow maps first in
-    /// deep-opacity mode (their build time is reported apart from the pixel loop's).
-    pub fn render_with(&self, settings: &RenderSettings, options: Options) -> (Image, RenderStats) {
-        let start = Instant::now();
-        let maps =
-            (settings.shadows.mode == ShadowMode::DeepOpacity).then(|| self.shadow_maps(settings));
-        let build_seconds = start.elapsed().as_secs_f64();
-        self.render_with_maps(settings, maps.as_ref(), build_seconds, options)
-    }
-
-    /// Renders with maps built beforehand (e.g. also written to disk), whose build took `maps_seconds`.
-    /// `maps` is used only in deep-opacity mode.
-    pub fn render_with_maps(
-        &self,
-        settings: &RenderSettings,
-        maps: Option<&ShadowMaps>,
-        maps_seconds: f64,
-        options: Options,
-    ) -> (Image, RenderStats) {
+    /// Renders `request` on the current rayon pool: its settings, its region (the whole film by default), its
+    /// maps or, in deep-opacity mode without them, maps built first (their build time is reported apart from the
+    /// pixel loop's, in [`super::RenderStats::shadow_build_seconds`]).
+    pub fn render(&self, request: Request<'_>) -> RegionRender {
+        let settings = request.settings;
         let [width, height] = settings.film.resolution;
-        let full = Region::full(width, height);
-        let r = self.render_region(settings, maps, maps_seconds, options, full, None);
-        (r.image, r.stats)
-    }
-
-    /// [`Frame::render_with_maps`] of `region` alone (inside `settings.film.resolution`; its pixels equal the full
-    /// frame's there, bit for bit, except under adaptive sampling's image-level rule, where a region decides its
-    /// sample counts from its own pixels and meets the target by itself: [`super::adaptive`]), stopping early once `cancel` holds a non-zero value: tiles not yet started
-    /// are left at zero and [`RegionRender::is_complete`] is false.
-    pub fn render_region(
-        &self,
-        settings: &RenderSettings,
-        maps: Option<&ShadowMaps>,
-        maps_seconds: f64,
-        options: Options,
-        region: Region,
-        cancel: Option<&AtomicUsize>,
-    ) -> RegionRender {
-        let [width, height] = settings.film.resolution;
+        let region = request.region.unwrap_or(Region::full(width, height));
         assert!(
             region.check_inside(width, height).is_ok() && region.width() > 0 && region.height() > 0,
             "region {region:?} is not inside the {width}x{height} frame"
         );
-        let maps = maps.filter(|_| settings.shadows.mode == ShadowMode::DeepOpacity);
-        let mut r = render_tiles(self, settings, maps, options, region, cancel, TILE);
+        let deep_opacity = settings.shadows.mode == ShadowMode::DeepOpacity;
+        let start = Instant::now();
+        let built = (deep_opacity && request.maps.is_none()).then(|| self.shadow_maps(settings));
+        let (maps, maps_seconds) = match (request.maps, &built) {
+            (Some((m, seconds)), _) => (Some(m), seconds),
+            (None, Some(m)) => (Some(m), start.elapsed().as_secs_f64()),
+            (None, None) => (None, 0.0),
+        };
+        let maps = maps.filter(|_| deep_opacity);
+        let mut r = super::driver::render_tiles(
+            self,
+            settings,
+            maps,
+            request.progress,
+            region,
+            request.cancel,
+            request.tile_side,
+        );
         if let Some(m) = maps {
             r.stats.shadow_build_seconds = maps_seconds;
             r.stats.shadow_map_bytes = m.bytes();

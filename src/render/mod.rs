@@ -13,27 +13,25 @@
 pub mod adaptive;
 pub mod budget;
 pub mod camera;
+mod driver;
 pub mod film;
 pub mod filter;
 pub mod frame;
 pub mod integrator;
 pub mod sampler;
 pub mod settings;
+mod strategy;
 pub mod tiles;
 
-use std::sync::atomic::{AtomicUsize, Ordering};
-use std::time::Instant;
+use std::sync::atomic::AtomicUsize;
 
 use glam::Vec3;
-use rayon::prelude::*;
 
-use crate::bsdf::chiang::LANES;
 use crate::image::Image;
 use crate::ray::Ray;
 use crate::shadow::ShadowMaps;
 
 use camera::Camera;
-use film::{PixelSums, Tile};
 use filter::GaussianFilter;
 use integrator::{Integrator, RayCounts};
 use sampler::{dim, CameraSample, PixelSampler};
@@ -62,14 +60,68 @@ pub struct RenderStats {
     pub shadow_map_bytes: usize,
 }
 
-/// How a render reports on itself.
-#[derive(Debug, Clone, Copy, Default)]
-pub struct Options {
-    /// Show a progress bar on stderr.
-    pub progress: bool,
+/// What to render of a [`Frame`] ([`Frame::render`]): the settings, and optionally deep opacity maps built
+/// beforehand, a region of the film, a cancel flag, a progress bar, the work tiles' size. Built from
+/// [`Request::new`] and the setters; everything not set has the whole-film default.
+#[derive(Clone, Copy)]
+pub struct Request<'a> {
+    pub(crate) settings: &'a RenderSettings,
+    pub(crate) maps: Option<(&'a ShadowMaps, f64)>,
+    pub(crate) region: Option<Region>,
+    pub(crate) cancel: Option<&'a AtomicUsize>,
+    pub(crate) progress: bool,
+    pub(crate) tile_side: u32,
 }
 
-/// What [`Frame::render_region`] made: the region's pixels and how many of its tiles were rendered.
+impl<'a> Request<'a> {
+    /// The whole film at `settings`, maps built when the settings use them, no progress bar.
+    pub fn new(settings: &'a RenderSettings) -> Self {
+        Request {
+            settings,
+            maps: None,
+            region: None,
+            cancel: None,
+            progress: false,
+            tile_side: TILE,
+        }
+    }
+
+    /// Deep opacity maps built beforehand (e.g. also written to disk, or shared by several renders), whose build
+    /// took `build_seconds`; `None` leaves them to the render. Used only in deep-opacity mode.
+    pub fn maps(mut self, maps: Option<&'a ShadowMaps>, build_seconds: f64) -> Self {
+        self.maps = maps.map(|m| (m, build_seconds));
+        self
+    }
+
+    /// Only `region` of the film (inside `settings.film.resolution`): its pixels equal the full frame's there, bit
+    /// for bit, except under adaptive sampling's image-level rule, where a region decides its sample counts from
+    /// its own pixels and meets the target by itself ([`adaptive`]).
+    pub fn region(mut self, region: Region) -> Self {
+        self.region = Some(region);
+        self
+    }
+
+    /// Stop early once `cancel` holds a non-zero value: tiles not yet started are left at zero and
+    /// [`RegionRender::is_complete`] is false.
+    pub fn cancel(mut self, cancel: &'a AtomicUsize) -> Self {
+        self.cancel = Some(cancel);
+        self
+    }
+
+    /// Show a progress bar on stderr.
+    pub fn progress(mut self, show: bool) -> Self {
+        self.progress = show;
+        self
+    }
+
+    /// Work tiles of `side`² pixels instead of 32²: the image does not depend on it (tests check that).
+    pub fn tile_side(mut self, side: u32) -> Self {
+        self.tile_side = side.max(1);
+        self
+    }
+}
+
+/// What [`Frame::render`] made: the region's pixels and how many of its tiles were rendered.
 #[derive(Debug, Clone)]
 pub struct RegionRender {
     /// The region's pixels (its size, not the frame's); tiles never started are zero.
@@ -89,32 +141,8 @@ impl RegionRender {
     }
 }
 
-/// [`Frame::render_with_maps`] of the whole film with work tiles of `tile_side`² pixels instead of 32²: for
-/// tests that the image does not depend on how the work is split.
-#[doc(hidden)]
-pub fn render_with_tile_side(
-    frame: &Frame,
-    settings: &RenderSettings,
-    maps: Option<&ShadowMaps>,
-    tile_side: u32,
-) -> Image {
-    let [width, height] = settings.film.resolution;
-    let maps = maps.filter(|_| settings.shadows.mode == ShadowMode::DeepOpacity);
-    let full = Region::full(width, height);
-    render_tiles(
-        frame,
-        settings,
-        maps,
-        Options::default(),
-        full,
-        None,
-        tile_side.max(1),
-    )
-    .image
-}
-
 /// Sample `i`'s camera ray through pixel (x, y): the pixel's centre offset by the reconstruction filter's draw from
-/// `sampler`. The frame ([`render_tiles`]) and the pilots' cut renders ([`render_bounces`]) trace the same rays.
+/// `sampler`. The frame ([`driver`]) and the pilots' cut renders ([`render_bounces`]) trace the same rays.
 fn camera_ray(
     camera: &Camera,
     filter: &GaussianFilter,
@@ -228,208 +256,5 @@ pub fn render_bounces(
         pixels,
         variances,
         rays,
-    }
-}
-
-/// The pixel loop: renders `region` of `frame` with `settings` (and `maps` in deep-opacity mode) on the current
-/// rayon pool, in work tiles of `tile_side`² pixels ([`TILE`] but in tests). Once `cancel` holds a non-zero value
-/// no new tile starts (tiles already running finish).
-fn render_tiles(
-    frame: &Frame,
-    settings: &RenderSettings,
-    maps: Option<&ShadowMaps>,
-    options: Options,
-    region: Region,
-    cancel: Option<&AtomicUsize>,
-    tile_side: u32,
-) -> RegionRender {
-    let [width, height] = settings.film.resolution;
-    let strands = &frame.strands;
-    let tracer = frame.tracer.as_ref();
-    let bounds = frame.hair_bounds();
-    let camera = Camera::from_config(&settings.camera, bounds, width, height);
-    let filter = GaussianFilter::shared(settings.film.filter_width);
-    let integrator = Integrator::new(frame, settings, maps);
-
-    let tiles_x = region.width().div_ceil(tile_side);
-    let tiles_y = region.height().div_ceil(tile_side);
-    let progress = if options.progress {
-        indicatif::ProgressBar::new(u64::from(tiles_x * tiles_y))
-    } else {
-        indicatif::ProgressBar::hidden()
-    };
-    progress.set_style(
-        indicatif::ProgressStyle::with_template(
-            "{prefix} [{bar:40}] {pos}/{len} tiles, {elapsed} (eta {eta})",
-        )
-        .expect("valid template")
-        .progress_chars("=> "),
-    );
-    progress.set_prefix("rendering");
-
-    let start = Instant::now();
-    let spp = settings.film.spp;
-    let adaptive = settings.adaptive;
-    let seed = settings.film.seed;
-    let centre_ray = settings.film.traces_centre_ray();
-    // Experimental (`integrator.lanes`, docs/design/wavefront.md, step 2): first vertices shaded eight at a time.
-    let lanes = settings.integrator.lanes && integrator.lanes_fit();
-    let tiles: Vec<(u32, u32)> = (0..tiles_y)
-        .flat_map(|ty| (0..tiles_x).map(move |tx| (tx, ty)))
-        .collect();
-    let sample_pixel = |x: u32, y: u32, i: u32, counts: &mut RayCounts| {
-        let pixel = PixelSampler::new(x, y, seed);
-        let sampler = CameraSample::new(&pixel, i);
-        let ray = camera_ray(&camera, &filter, &sampler, x, y, i);
-        integrator.sample(&ray, &sampler, i, counts)
-    };
-    let write_centre = |x: u32, y: u32, pixel: &mut [f32], counts: &mut RayCounts| {
-        if !centre_ray {
-            return;
-        }
-        let centre = camera.ray(x as f32 + 0.5, y as f32 + 0.5);
-        counts.camera += 1;
-        let hit = tracer.intersect(&centre).unwrap_or(None);
-        let (depth, tangent, id) = match hit {
-            Some(h) => (
-                h.t * centre.dir.dot(camera.forward),
-                strands.eval(h.segment, h.u).tangent.normalize_or_zero(),
-                h.strand as f32,
-            ),
-            None => (f32::INFINITY, Vec3::ZERO, -1.0),
-        };
-        film::write_centre(depth, tangent, id, pixel);
-    };
-    let layout = film::Layout::new(&settings.film);
-    let new_tile = |tx: u32, ty: u32| {
-        let (x0, y0) = (region.x0 + tx * tile_side, region.y0 + ty * tile_side);
-        Tile::new(
-            x0,
-            y0,
-            (x0 + tile_side).min(region.x1),
-            (y0 + tile_side).min(region.y1),
-            &layout,
-        )
-    };
-    let cancelled = || cancel.is_some_and(|c| c.load(Ordering::Relaxed) != 0);
-    let rendered: Vec<(Tile, RayCounts)> = match adaptive {
-        Some(schedule) if schedule.rule == adaptive::Rule::Image => adaptive::render_rounds(
-            &tiles,
-            region,
-            schedule,
-            &progress,
-            &new_tile,
-            &sample_pixel,
-            &write_centre,
-            &cancelled,
-        ),
-        _ => tiles
-            .par_iter()
-            .filter_map(|&(tx, ty)| {
-                if cancelled() {
-                    return None;
-                }
-                let mut tile = new_tile(tx, ty);
-                let mut counts = RayCounts::default();
-                for y in tile.y0..tile.y1 {
-                    for x in tile.x0..tile.x1 {
-                        let mut sums = PixelSums::default();
-                        let taken = match adaptive {
-                            None => {
-                                let mut i = 0;
-                                if lanes {
-                                    let pixel = PixelSampler::new(x, y, seed);
-                                    while i + LANES as u32 <= spp {
-                                        let indices: [u32; LANES] =
-                                            std::array::from_fn(|k| i + k as u32);
-                                        let samplers =
-                                            indices.map(|j| CameraSample::new(&pixel, j));
-                                        let rays: [Ray; LANES] = std::array::from_fn(|k| {
-                                            camera_ray(
-                                                &camera,
-                                                &filter,
-                                                &samplers[k],
-                                                x,
-                                                y,
-                                                indices[k],
-                                            )
-                                        });
-                                        for s in integrator.sample_lanes(
-                                            &rays,
-                                            &samplers,
-                                            &indices,
-                                            &mut counts,
-                                        ) {
-                                            sums.add(&s);
-                                        }
-                                        i += LANES as u32;
-                                    }
-                                }
-                                for i in i..spp {
-                                    sums.add(&sample_pixel(x, y, i, &mut counts));
-                                }
-                                spp
-                            }
-                            // Rounds of samples, in index order, until the pixel's own estimate of its error is
-                            // under the target (render::adaptive): the count depends on this pixel's samples alone.
-                            Some(schedule) => {
-                                let mut convergence = adaptive::Convergence::default();
-                                let mut i = 0;
-                                while let Some(total) = schedule.next_total(i, &convergence) {
-                                    while i < total {
-                                        let s = sample_pixel(x, y, i, &mut counts);
-                                        if s.beauty.is_finite() {
-                                            convergence.add(s.beauty);
-                                        }
-                                        sums.add(&s);
-                                        i += 1;
-                                    }
-                                }
-                                i
-                            }
-                        };
-                        tile.set_pixel(x, y, |pixel| {
-                            sums.write(taken, pixel);
-                            write_centre(x, y, pixel, &mut counts);
-                        });
-                    }
-                }
-                progress.inc(1);
-                Some((tile, counts))
-            })
-            .collect(),
-    };
-    progress.finish_and_clear();
-
-    let mut rays = RayCounts::default();
-    for (_, counts) in &rendered {
-        rays.add(counts);
-    }
-    let tiles_done = rendered.len();
-    // Tiles were rendered in frame coordinates; the image holds the region alone.
-    let tiles: Vec<Tile> = rendered
-        .into_iter()
-        .map(|(mut t, _)| {
-            (t.x0, t.x1, t.y0, t.y1) = (
-                t.x0 - region.x0,
-                t.x1 - region.x0,
-                t.y0 - region.y0,
-                t.y1 - region.y0,
-            );
-            t
-        })
-        .collect();
-    let image = film::assemble(region.width(), region.height(), &tiles, &layout);
-    let stats = RenderStats {
-        seconds: start.elapsed().as_secs_f64(),
-        rays,
-        shadow_build_seconds: 0.0,
-        shadow_map_bytes: 0,
-    };
-    RegionRender {
-        image,
-        stats,
-        tiles_done,
-        tiles_total: tiles_x as usize * tiles_y as usize,
     }
 }

@@ -46,7 +46,7 @@ use crate::accel::CurveKind;
 use crate::image::Image;
 use crate::measure::metrics;
 use crate::quality::{self, Fixed, QualityConfig};
-use crate::render::{thread_pool, Frame, Options, RenderSettings};
+use crate::render::{thread_pool, Frame, RenderSettings, Request};
 use crate::scene::{ShadowMode, TransmittanceMode};
 
 use super::{cache, cached_reference, create_dir, load_scene, StudyError};
@@ -304,7 +304,8 @@ fn equal_error_target(target: f64, shipped: &Measured, auto: &Measured) -> Optio
 
 /// Renders `settings` on `frame`, building maps if it uses them: the image and the seconds (maps + pixels).
 fn render(frame: &Frame, settings: &RenderSettings) -> (Image, f64) {
-    let (image, stats) = frame.render_with(settings, Options::default());
+    let r = frame.render(Request::new(settings));
+    let (image, stats) = (r.image, r.stats);
     (image, stats.seconds + stats.shadow_build_seconds)
 }
 
@@ -482,7 +483,8 @@ fn fit_all(
         for (k, &spp) in FIT_SPP.iter().enumerate() {
             progress.inc(1);
             s.film.spp = spp;
-            let (image, stats) = frame.render_with(&s, Options::default());
+            let r = frame.render(Request::new(&s));
+            let (image, stats) = (r.image, r.stats);
             e2[k] = reference.rel_rmse(&image)?.powi(2);
             last = (stats.seconds, stats.shadow_build_seconds);
         }
@@ -833,12 +835,9 @@ fn study_scene(path: &Path, config: &AutoStudyConfig) -> Result<(Vec<Row>, f64),
                 ..scene.quality.clone()
             };
             let planned = quality::plan_frame_with(frame, &base, &q, Fixed::default(), margins);
-            let (image, _) = frame.render_with_maps(
-                &planned.settings,
-                planned.maps.as_ref(),
-                planned.maps_seconds,
-                Options::default(),
-            );
+            let request =
+                Request::new(&planned.settings).maps(planned.maps.as_ref(), planned.maps_seconds);
+            let image = frame.render(request).image;
             ((curves, planned, image), start.elapsed().as_secs_f64())
         };
         let auto_with =

@@ -5,22 +5,22 @@
 pub mod data;
 
 use cuticle::image::Image;
-use cuticle::render::{thread_pool, Frame, Options, RenderStats};
+use cuticle::quality::Fixed;
+use cuticle::render::RenderStats;
 use cuticle::scene::Scene;
 
-/// Renders `scene` (hair, lights and all) on a pool of `threads` threads, through the same frame set-up as the
-/// `render` command, asserting no ray was refused.
+/// Renders `scene` (hair, lights and all) on a pool of `threads` threads, through the render job the `render`
+/// command runs ([`cuticle::job`]), asserting no ray was refused.
 pub fn render_scene(scene: &Scene, threads: usize) -> Image {
     render_scene_with_stats(scene, threads).0
 }
 
 /// [`render_scene`] with the render's statistics (ray counts and times).
 pub fn render_scene_with_stats(scene: &Scene, threads: usize) -> (Image, RenderStats) {
-    let frame = Frame::load(scene.resolve().unwrap()).unwrap();
-    let pool = thread_pool(Some(threads)).unwrap();
-    let (image, stats) = pool.install(|| frame.render(Options::default()));
-    assert_eq!(stats.rays.rejected, 0);
-    (image, stats)
+    let (_, rendered) =
+        cuticle::job::render_scene(scene.clone(), Fixed::default(), Some(threads)).unwrap();
+    assert_eq!(rendered.stats.rays.rejected, 0);
+    (rendered.image, rendered.stats)
 }
 
 /// How many values of two equally long pixel buffers differ in any bit (the thread-count and tile-split

@@ -23,7 +23,7 @@ use super::{
 use crate::image::{self, Image};
 use crate::measure::{metrics, peak_rss_bytes, pixels, reset_peak_rss};
 use crate::plot;
-use crate::render::{thread_pool, Frame, Options};
+use crate::render::{thread_pool, Frame, Request};
 use crate::scene::Scene;
 
 /// Sets the dotted key `path` of `table` to `value`, creating tables on the way.
@@ -360,14 +360,14 @@ pub fn run_kind(
         let (reference, cached, seconds) =
             super::super::cached_reference(&path, p.scene.film.resolution, || {
                 let frame = frame.expect("a frame is set up whenever the reference is not cached");
-                let options = Options {
-                    progress: config.progress,
-                };
                 let mut seconds = 0.0;
                 let mut images = Vec::new();
                 for part in parts.iter().chain(parts.is_empty().then_some(p)) {
-                    let (image, stats) =
-                        pool.install(|| frame.render_with(&part.scene.render_settings(), options));
+                    let settings = part.scene.render_settings();
+                    let r = pool.install(|| {
+                        frame.render(Request::new(&settings).progress(config.progress))
+                    });
+                    let (image, stats) = (r.image, r.stats);
                     seconds += stats.seconds + stats.shadow_build_seconds;
                     images.push(image);
                 }
@@ -461,8 +461,9 @@ pub fn run_kind(
         }
         let (frame, setup_s) = frames.get(p)?;
         reset_peak_rss();
-        let (image, stats) =
-            pool.install(|| frame.render_with(&p.scene.render_settings(), Options::default()));
+        let settings = p.scene.render_settings();
+        let r = pool.install(|| frame.render(Request::new(&settings)));
+        let (image, stats) = (r.image, r.stats);
         let peak_bytes = peak_rss_bytes();
         let m = judges[v.reference].judge(&image)?;
         if let (Some((cx, cy, cs)), 0) = (crop_window, *seed) {
