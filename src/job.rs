@@ -177,38 +177,7 @@ impl Job {
     pub fn prepare(request: Request) -> Result<Job, JobError> {
         let scene = &request.scene;
         let description = format!("{scene:?}");
-        let exr_output = match &request.output {
-            Some(output) => {
-                let exr = match image_extension(output).as_deref() {
-                    Some("exr") => true,
-                    Some("png") => false,
-                    _ => {
-                        return Err(JobError::Invalid(format!(
-                            "{}: output must end in .exr or .png",
-                            output.display()
-                        )))
-                    }
-                };
-                // Every output path is checked before anything is loaded or rendered.
-                for f in frame_numbers(&request.frames) {
-                    let path = farm::frame_path(output, f);
-                    image::check_output(&path)?;
-                    if exr {
-                        image::check_output(&path.with_extension("png"))?;
-                    }
-                }
-                exr
-            }
-            None => false,
-        };
-        if let Some(dir) = &request.dump_shadow_maps {
-            std::fs::create_dir_all(dir).map_err(|source| JobError::Io {
-                path: dir.clone(),
-                message: "cannot create the shadow-map directory",
-                source,
-            })?;
-            image::check_output(&dir.join("map.exr"))?;
-        }
+        let exr_output = check_outputs(&request)?;
         let threads = request
             .threads
             .map(budget::check_threads)
@@ -442,6 +411,44 @@ impl Job {
     pub fn uses_maps(&self) -> bool {
         self.settings.shadows.mode == ShadowMode::DeepOpacity
     }
+}
+
+/// Checks, before anything is loaded or rendered, that every output of `request` can be written (each animation
+/// frame's image and preview, the shadow-map directory); whether the images are EXRs (`false` for PNG or none).
+fn check_outputs(request: &Request) -> Result<bool, JobError> {
+    let exr_output = match &request.output {
+        Some(output) => {
+            let exr = match image_extension(output).as_deref() {
+                Some("exr") => true,
+                Some("png") => false,
+                _ => {
+                    return Err(JobError::Invalid(format!(
+                        "{}: output must end in .exr or .png",
+                        output.display()
+                    )))
+                }
+            };
+            // Every output path is checked before anything is loaded or rendered.
+            for f in frame_numbers(&request.frames) {
+                let path = farm::frame_path(output, f);
+                image::check_output(&path)?;
+                if exr {
+                    image::check_output(&path.with_extension("png"))?;
+                }
+            }
+            exr
+        }
+        None => false,
+    };
+    if let Some(dir) = &request.dump_shadow_maps {
+        std::fs::create_dir_all(dir).map_err(|source| JobError::Io {
+            path: dir.clone(),
+            message: "cannot create the shadow-map directory",
+            source,
+        })?;
+        image::check_output(&dir.join("map.exr"))?;
+    }
+    Ok(exr_output)
 }
 
 fn frame_numbers(frames: &Option<RangeInclusive<i32>>) -> Vec<Option<i32>> {

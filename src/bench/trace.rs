@@ -205,6 +205,7 @@ impl TraceReport {
 
 impl fmt::Display for TraceReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        // One piece: the report's sections in the order they print, sharing the measurements' formatting.
         let (major, minor, patch) = self.embree_version;
         let c = &self.camera;
         writeln!(

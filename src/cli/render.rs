@@ -5,9 +5,9 @@ use std::path::PathBuf;
 use anyhow::{bail, Result};
 
 use cuticle::accel::{Backend, CurveKind};
-use cuticle::job::{Job, Part, Request};
+use cuticle::job::{AutoPlan, Job, Part, Request};
 use cuticle::quality::{Fixed, QualityMode};
-use cuticle::render::{self, LightSelection, ShadowMode, TransmittanceMode};
+use cuticle::render::{self, LightSelection, RenderStats, ShadowMode, TransmittanceMode};
 use cuticle::scene::Overrides;
 
 use super::{load_scene, parse_resolution, scene_name};
@@ -157,21 +157,7 @@ pub fn render_command(args: RenderArgs) -> Result<()> {
         progress: !args.quiet,
     })?;
     if let Some(auto) = &job.auto {
-        for d in &auto.decisions {
-            let line = format!("auto: {} = {}", d.key, d.value);
-            eprintln!("{}", shorten(&line, LINE));
-            if args.verbose {
-                eprintln!("      {}", d.reason);
-            }
-        }
-        let p = &auto.pilot;
-        eprintln!(
-            "auto: pilots {:.2} s; predicted render {:.1} s, noise {:.4} for target {}",
-            p.pilot_seconds, p.predicted_seconds, p.predicted_noise, auto.target
-        );
-        if let Some(why) = auto.shortfall() {
-            eprintln!("warning: {why}");
-        }
+        print_plan(auto, args.verbose);
     }
     let dropped_before = render::film::dropped_samples();
     let mut last = None;
@@ -187,8 +173,33 @@ pub fn render_command(args: RenderArgs) -> Result<()> {
         }
         last = Some(rendered.stats);
     }
-    let stats = last.unwrap_or_default();
-    eprintln!("{}", job.summary(&stats));
+    print_summary(&job, &last.unwrap_or_default(), dropped_before);
+    Ok(())
+}
+
+/// Auto's decisions, one line each (with `verbose`, the reasons under them), its prediction, and a warning when
+/// the settings the user fixed cannot meet the target.
+fn print_plan(auto: &AutoPlan, verbose: bool) {
+    for d in &auto.decisions {
+        let line = format!("auto: {} = {}", d.key, d.value);
+        eprintln!("{}", shorten(&line, LINE));
+        if verbose {
+            eprintln!("      {}", d.reason);
+        }
+    }
+    let p = &auto.pilot;
+    eprintln!(
+        "auto: pilots {:.2} s; predicted render {:.1} s, noise {:.4} for target {}",
+        p.pilot_seconds, p.predicted_seconds, p.predicted_noise, auto.target
+    );
+    if let Some(why) = auto.shortfall() {
+        eprintln!("warning: {why}");
+    }
+}
+
+/// The summary line of the last frame, auto's and the maps' shares, and warnings of samples or rays refused.
+fn print_summary(job: &Job, stats: &RenderStats, dropped_before: u64) {
+    eprintln!("{}", job.summary(stats));
     if let Some(auto) = &job.auto {
         let p = auto.pilot.pilot_seconds;
         eprintln!(
@@ -218,7 +229,6 @@ pub fn render_command(args: RenderArgs) -> Result<()> {
             stats.rays.rejected
         );
     }
-    Ok(())
 }
 
 /// `line` cut to `max` characters, with an ellipsis where it was cut.

@@ -186,6 +186,7 @@ pub struct Merged {
 /// settings, frame or version: [`KEY_JOB`]), of another frame size or channel list, tiles that overlap, and gaps;
 /// every pixel of the result comes from exactly one tile.
 pub fn merge(tiles: &[PathBuf]) -> Result<Merged, FarmError> {
+    // One piece: each tile is checked against the first and the coverage so far as it is read.
     let fail = |path: &Path, m: String| FarmError::Merge(format!("{}: {m}", path.display()));
     let Some(first) = tiles.first() else {
         return Err(FarmError::Merge("merge: no tiles given".to_owned()));

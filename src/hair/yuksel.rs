@@ -307,6 +307,7 @@ impl Header {
 /// Parses the bytes of a `.hair` file; `path` names it in errors. Nothing proportional to the header's counts is
 /// allocated before the byte count is checked against them, so any byte string (a fuzzer's) is safe to pass.
 pub fn parse(path: &Path, bytes: &[u8]) -> Result<HairModel, HairError> {
+    // One piece: the header's counts are checked against the byte length before each array is read, in file order.
     let header = Header::parse(path, bytes)?;
     let layout = header.layout();
     let file_len = bytes.len() as u64;

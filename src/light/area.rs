@@ -594,6 +594,7 @@ mod tests {
 
     #[test]
     fn pdf_li_integrates_to_one_and_matches_samples() {
+        // One piece: the same three shapes go through the integral and the sample histogram.
         let quad = Shape::Quad {
             corner: Vec3::new(-0.3, 1.0, -0.2),
             edge_u: Vec3::new(1.0, 0.1, 0.0),

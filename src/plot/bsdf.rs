@@ -280,6 +280,7 @@ impl Chart for HistogramChart {
 
 /// The histogram figure's data: both histograms, the residuals and the χ² summary.
 fn histogram_chart(model: &dyn Bsdf, options: &PlotOptions) -> HistogramChart {
+    // One piece: the sampled and expected counts, residuals and χ² share one binning.
     let (rows, cols) = (options.bins.0.max(1), options.bins.1.max(1));
     let wo = from_spherical(options.theta_o_deg.to_radians(), 0.0);
     let (sampled, expected) =

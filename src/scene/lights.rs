@@ -369,6 +369,7 @@ impl LightConfig {
 
 /// Range checks of lights, environment and shapes (no files read). Messages name the key.
 pub(super) fn validate(scene: &Scene) -> Result<(), String> {
+    // One piece: a flat list of range checks, one per key, in the order the reference documents them.
     for (i, light) in scene.lights.iter().enumerate() {
         light.check_keys(i)?;
         light.build().map_err(|e| named(i, e))?;

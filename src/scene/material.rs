@@ -437,6 +437,7 @@ impl MaterialConfig {
 
     /// Builds the model, or a message naming the offending `material.key`.
     pub fn build(&self) -> Result<Material, String> {
+        // One piece: one arm per model, each mapping the paper's parameters as the user writes them.
         // The models name their own parameters; prefix with the table so the user finds the key.
         let named = |e: crate::bsdf::BsdfError| format!("material: {e}");
         let white = |c: Option<[f32; 3]>| c.map_or(Vec3::ONE, Vec3::from);

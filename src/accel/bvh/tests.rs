@@ -115,6 +115,7 @@ fn depth(nodes: &[Node], index: usize) -> usize {
 
 /// Checks every structural invariant, panicking with the node or segment that breaks it.
 fn check_invariants(bvh: &Bvh, strands: &Strands, what: &str) {
+    // One piece: one walk over the nodes checks every invariant, each with the node that breaks it.
     let nodes = bvh.nodes();
     let bounding = bvh.options().bounding;
     assert_eq!(

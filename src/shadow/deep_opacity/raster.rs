@@ -32,6 +32,7 @@ pub(super) fn rasterise(
     strand_range: std::ops::Range<usize>,
     mut fragment: impl FnMut(usize, f32, f32),
 ) {
+    // One piece: the strand pieces are cut, projected and point-sampled in one pass over the segments.
     let res = frame.resolution as i64;
     let mut points = [(0.0f32, 0.0f32, 0.0f32, 0.0f32); MAX_PIECES + 1];
     for s in strand_range {
