@@ -197,7 +197,10 @@ mod tests {
         let r: Vec<usize> = (0..3).map(|i| height(red, i, 0)).collect();
         let b: Vec<usize> = (0..3).map(|i| height(blue, i, 1)).collect();
         assert!(r[0] > 20 && r[1] > r[0] && r[2] == 0, "red {r:?}");
-        assert!(b[0] > b[2] && b[2] > b[1] && b[1] > 0, "0.5 > 0.2 > 0.002: blue {b:?}");
+        assert!(
+            b[0] > b[2] && b[2] > b[1] && b[1] > 0,
+            "0.5 > 0.2 > 0.002: blue {b:?}"
+        );
         // A decade is the same height wherever it is: 0.01 → 0.1 as 0.001 (the axis' start) → 0.01 (±2 rows).
         assert!((r[1] - r[0]).abs_diff(r[0]) <= 2, "red {r:?}");
         for name in ["control", "thin-strands", "1-spp", "RMSE", "case"] {

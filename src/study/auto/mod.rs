@@ -1,4 +1,4 @@
-//! `cuticle study auto SCENE... [--targets 0.1,0.05]` does `--quality auto` meet its error
+//! `cuticle study auto [SCENE...] [--targets 0.1,0.05]` (no scene: the built-in default scene): does `--quality auto` meet its error
 //! target, and how does its time compare with the fastest fixed configuration that meets it, and with the scene's
 //! shipped settings?
 //!
@@ -28,8 +28,9 @@
 //!    point is auto faster than the shipped settings *at equal error*; asked for the same target, auto
 //!    delivers less error than a fixed frame that barely meets it).
 //!
-//! The fits are cached next to the reference (keyed by the scene and the study's settings): they only choose
-//! which fixed configurations are rendered, and those are measured again by every run.
+//! The references and fits are cached in `cache/` in the output directory (or `--cache-dir`), keyed by the scene
+//! and the study's settings. The fits only choose which fixed configurations are rendered, and those are measured
+//! again by every run.
 //!
 //! "Met" means the measured relative RMSE (√relMSE, [`crate::measure::metrics`], less the reference's noise) is at
 //! most T. Times are wall
@@ -48,7 +49,8 @@ use std::path::PathBuf;
 
 use crate::render::thread_pool;
 
-use super::{cache, create_dir, StudyError};
+use super::framework::CACHE_DIR;
+use super::{cache, create_dir, SceneFile, StudyError};
 use measure::Measured;
 use scene::{study_scene, Row};
 use search::Search;
@@ -73,8 +75,8 @@ pub const MAX_SPP: u32 = 4096;
 /// What `study auto` runs.
 #[derive(Debug, Clone)]
 pub struct AutoStudyConfig {
-    /// Scene files.
-    pub scenes: Vec<PathBuf>,
+    /// The scenes (files, or the default scene).
+    pub scenes: Vec<SceneFile>,
     /// Error targets (relative RMSE).
     pub targets: Vec<f32>,
     /// Film resolution.
@@ -83,12 +85,35 @@ pub struct AutoStudyConfig {
     pub reference_spp: u32,
     /// Output directory.
     pub out: PathBuf,
+    /// Where the references and fits are cached (default: [`CACHE_DIR`] in `out`).
+    pub cache_dir: Option<PathBuf>,
     /// Worker threads.
     pub threads: usize,
 }
 
-/// Runs the study; returns the Markdown summary it wrote to `out/auto.md`.
-pub fn run(config: &AutoStudyConfig) -> Result<String, StudyError> {
+impl AutoStudyConfig {
+    /// Where the references and fits are cached: `cache_dir`, or [`CACHE_DIR`] in the output directory.
+    pub fn cache(&self) -> PathBuf {
+        self.cache_dir
+            .clone()
+            .unwrap_or_else(|| self.out.join(CACHE_DIR))
+    }
+}
+
+/// What [`run`] wrote.
+#[derive(Debug, Clone)]
+pub struct AutoReport {
+    /// The Markdown summary (`auto.md`'s text).
+    pub markdown: String,
+    /// Every file written, once each, in the order first written: per scene `auto-fits-<scene>.csv`, then
+    /// `auto.csv` and `auto.md` (rewritten after each scene). Not the cached references and fits.
+    pub files: Vec<PathBuf>,
+    /// Where the references and fits are cached.
+    pub cache_dir: PathBuf,
+}
+
+/// Runs the study and writes `auto.md`, `auto.csv` and the fits' tables into `out`.
+pub fn run(config: &AutoStudyConfig) -> Result<AutoReport, StudyError> {
     if config.scenes.is_empty() || config.targets.is_empty() {
         return Err(StudyError::Config(
             "study auto needs at least one scene and one target".into(),
@@ -102,6 +127,14 @@ pub fn run(config: &AutoStudyConfig) -> Result<String, StudyError> {
         }
     }
     create_dir(&config.out)?;
+    let cache_dir = config.cache();
+    create_dir(&cache_dir)?;
+    let mut files: Vec<PathBuf> = Vec::new();
+    let mut wrote = |path: PathBuf| {
+        if !files.contains(&path) {
+            files.push(path);
+        }
+    };
     let pool = thread_pool(Some(config.threads))?;
     let mut csv =
         String::from("scene,target,method,settings,spp,seconds,rel_rmse,met,cpu_seconds\n");
@@ -113,13 +146,12 @@ pub fn run(config: &AutoStudyConfig) -> Result<String, StudyError> {
         "\nEvery error above is measured against a reference of two independent halves, less the reference's own \
          noise in quadrature (`Yardstick`); that noise, relative RMSE, per scene:\n\n",
     );
-    for path in &config.scenes {
-        let (rows, reference_noise) = pool.install(|| study_scene(path, config))?;
-        let _ = writeln!(
-            notes,
-            "- {}: {reference_noise:.4}",
-            path.file_stem().unwrap_or_default().to_string_lossy()
-        );
+    for scene in &config.scenes {
+        let name = scene.name();
+        let (rows, reference_noise, fits_table) =
+            pool.install(|| study_scene(scene, config, &cache_dir))?;
+        wrote(fits_table);
+        let _ = writeln!(notes, "- {name}: {reference_noise:.4}");
         for row in rows {
             let Row {
                 target,
@@ -130,7 +162,6 @@ pub fn run(config: &AutoStudyConfig) -> Result<String, StudyError> {
                 shipped,
                 equal_error,
             } = row;
-            let name = path.file_stem().unwrap_or_default().to_string_lossy();
             let best = measured_fastest.best().cloned().map(|mut m| {
                 m.what = "fastest fixed measured".into();
                 m
@@ -230,8 +261,18 @@ pub fn run(config: &AutoStudyConfig) -> Result<String, StudyError> {
             );
         }
         // Written after every scene, so a long run's finished scenes are kept.
-        cache::write_text(&config.out.join("auto.csv"), &csv)?;
-        cache::write_text(&config.out.join("auto.md"), &format!("{md}{notes}"))?;
+        for (file, text) in [
+            ("auto.csv", csv.clone()),
+            ("auto.md", format!("{md}{notes}")),
+        ] {
+            let path = config.out.join(file);
+            cache::write_text(&path, &text)?;
+            wrote(path);
+        }
     }
-    Ok(format!("{md}{notes}"))
+    Ok(AutoReport {
+        markdown: format!("{md}{notes}"),
+        files,
+        cache_dir,
+    })
 }

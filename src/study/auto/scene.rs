@@ -1,7 +1,7 @@
 //! One scene of `study auto`: its reference, the fits, and per target the fixed configurations, the shipped settings
 //! and auto, measured ([`study_scene`]).
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use crate::accel::CurveKind;
@@ -9,7 +9,7 @@ use crate::quality::{self, Fixed, QualityConfig};
 use crate::render::{Frame, Options};
 use crate::scene::{ShadowMode, TransmittanceMode};
 
-use super::super::{cache, cached_reference, load_scene, StudyError};
+use super::super::{cache, cached_reference, SceneFile, StudyError};
 use super::fits::{fit_all, fits_csv, parse_fits};
 use super::measure::{
     equal_error_target, fastest_of, mean_spp, render, time_once, Config, Measured, Yardstick,
@@ -35,11 +35,15 @@ pub(super) struct Row {
     pub(super) equal_error: Option<Measured>,
 }
 
+/// Measures `file` at every target of `config`, references and fits cached in `cache_dir`: the rows, the
+/// reference's own noise (relative RMSE) and the fits' table written (`auto-fits-<scene>.csv`).
 pub(super) fn study_scene(
-    path: &Path,
+    file: &SceneFile,
     config: &AutoStudyConfig,
-) -> Result<(Vec<Row>, f64), StudyError> {
-    let (text, scene) = load_scene(path, Some(config.resolution))?;
+    cache_dir: &Path,
+) -> Result<(Vec<Row>, f64, PathBuf), StudyError> {
+    let scene = file.scene(Some(config.resolution))?;
+    let text = &file.text;
     let spec_for = |curves: CurveKind| -> Result<Frame, StudyError> {
         let mut spec = scene.resolve()?;
         spec.curves = curves;
@@ -48,7 +52,7 @@ pub(super) fn study_scene(
     let frames = [spec_for(CurveKind::Round)?, spec_for(CurveKind::Flat)?];
     let frame_of = |c: CurveKind| &frames[usize::from(c == CurveKind::Flat)];
     let base = scene.render_settings();
-    let stem = path.file_stem().unwrap_or_default().to_string_lossy();
+    let stem = file.name();
     // Reference, every configuration × 2 fits, then per target four renders.
     let steps = 1 + 2 * FIXED_CONFIGS as u64 + 4 * config.targets.len() as u64;
     let progress = indicatif::ProgressBar::new(steps);
@@ -73,8 +77,8 @@ pub(super) fn study_scene(
         reference.film.seed = seed;
         let key = cache::scene_key(
             "auto-reference-2",
-            &text,
-            &scene,
+            text,
+            file,
             &[],
             &format!(
                 "{:?} {} {} half {half}",
@@ -82,7 +86,7 @@ pub(super) fn study_scene(
             ),
         );
         let (image, _, _) = cached_reference(
-            &config.out.join(format!("reference-{key:016x}.exr")),
+            &cache_dir.join(format!("reference-{key:016x}.exr")),
             config.resolution,
             || render(frame_of(scene.hair.curves), &reference),
         )?;
@@ -95,15 +99,15 @@ pub(super) fn study_scene(
     // are rendered and measured per target, so a rerun measures those again under its own load).
     let fit_key = cache::scene_key(
         "auto-fits-2",
-        &text,
-        &scene,
+        text,
+        file,
         &[],
         &format!(
             "{:?} {} {} {:?}",
             config.resolution, config.reference_spp, REFERENCE_PATH_LENGTH, FIT_SPP
         ),
     );
-    let fit_cache = config.out.join(format!("fits-{fit_key:016x}.csv"));
+    let fit_cache = cache_dir.join(format!("fits-{fit_key:016x}.csv"));
     let cached = std::fs::read_to_string(&fit_cache)
         .ok()
         .and_then(|t| parse_fits(&t));
@@ -118,10 +122,8 @@ pub(super) fn study_scene(
             f
         }
     };
-    cache::write_text(
-        &config.out.join(format!("auto-fits-{stem}.csv")),
-        &fits_csv(&fits, false),
-    )?;
+    let fits_table = config.out.join(format!("auto-fits-{stem}.csv"));
+    cache::write_text(&fits_table, &fits_csv(&fits, false))?;
 
     let shipped_config = Config {
         curves: scene.hair.curves,
@@ -291,5 +293,5 @@ pub(super) fn study_scene(
         });
     }
     progress.finish_and_clear();
-    Ok((rows, reference.noise()))
+    Ok((rows, reference.noise(), fits_table))
 }
