@@ -22,14 +22,16 @@ if [ -z "$work" ]; then
   work=$(mktemp -d)
   trap 'rm -rf "$work"' EXIT
 fi
+# A study folder keeps its references and fits in cache/; a bare folder of them works too.
+[ -d "$refs/cache" ] && refs="$refs/cache"
 compgen -G "$refs/reference-*.exr" > /dev/null || { echo "no reference-*.exr in $refs" >&2; exit 1; }
 cargo build --release --quiet
 bin=target/release/cuticle
 
 for i in $(seq 1 "$runs"); do
   dir="$work/run-$i"
-  mkdir -p "$dir"
-  cp "$refs"/reference-*.exr "$refs"/fits-*.csv "$dir"/
+  mkdir -p "$dir/cache"
+  cp "$refs"/reference-*.exr "$refs"/fits-*.csv "$dir/cache/"
   "$bin" study auto "$scene" --res 128x128 --reference-spp 512 --targets "$targets" -o "$dir" > "$dir/study.log" 2>&1
   echo "run $i of $runs done" >&2
 done

@@ -1,13 +1,14 @@
 //! `cuticle study` end to end on a tiny procedural scene (32×32 or 32×24, a few spp, maps of 16–32 texels): the
 //! files each kind writes, the reference cache, the measures' sanity, `shadows` and `backends` with their own
-//! flags, and the errors a user sees for bad input.
+//! flags, and the errors a user sees for bad input; and on the built-in default scene at `--quick`'s 32×24: no
+//! scene argument, references in `OUT/cache/`, the files listed at the end, the stress cases as bar charts.
 
 use std::path::Path;
 use std::process::Command;
 
 use cuticle::study::framework::{run_kind, Budget, StudyConfig, DIFFERENCE_HEADER, POINT_HEADER};
 use cuticle::study::kinds::{backends_with, shadows_with, BackendsSweep, ShadowsSweep};
-use cuticle::study::StudyError;
+use cuticle::study::{SceneFile, StudyError};
 
 /// A small fur ball under one distant light, direct light only (no environment: one map per variant).
 const TINY: &str = r#"
@@ -32,6 +33,44 @@ irradiance = 3.0
 [integrator]
 path_length = 0
 "#;
+
+/// Runs `cuticle ARGS` (no `-q`, no `-o`): its exit status, stdout and stderr.
+fn run(args: &[&str]) -> (Option<i32>, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_cuticle"))
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// The paths of the `wrote PATH` lines of `stdout`, in order, and its last line.
+fn written(stdout: &str) -> (Vec<std::path::PathBuf>, &str) {
+    let files = stdout
+        .lines()
+        .filter_map(|l| l.strip_prefix("wrote "))
+        .map(std::path::PathBuf::from)
+        .collect();
+    (files, stdout.lines().last().unwrap_or_default())
+}
+
+/// The names of the files directly in `dir`, sorted.
+fn names_in(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
+}
+
+/// The scene file at `path`, read now.
+fn file(path: &Path) -> SceneFile {
+    SceneFile::read(path).unwrap()
+}
 
 /// Runs `cuticle ARGS -q -o DIR/out`: its exit status and stderr.
 fn cli(args: &[&str], dir: &Path) -> (Option<i32>, String) {
@@ -89,7 +128,7 @@ fn study_writes_its_files_and_reuses_the_cached_reference() {
     let config = tiny_config(&out);
     let kind = shadows_with(&tiny_shadows(), whole(8)).unwrap();
 
-    let first = run_kind(&scene, &kind, &config).unwrap();
+    let first = run_kind(&file(&scene), &kind, &config).unwrap();
     let reference = &first.references[0];
     assert!(!reference.cached && reference.path.is_file());
     // none, RT stochastic ×2, RT exact ×2, DOM 2L32, 4L32, 4L16, 4L32 again (rendered once, see below).
@@ -152,7 +191,7 @@ fn study_writes_its_files_and_reuses_the_cached_reference() {
     assert_eq!((at(6).rmse, at(6).render_s), (at(8).rmse, at(8).render_s));
 
     // Second run: the reference comes from the cache, and (deterministic renders) every error is the same.
-    let second = run_kind(&scene, &kind, &config).unwrap();
+    let second = run_kind(&file(&scene), &kind, &config).unwrap();
     assert!(second.references[0].cached);
     assert_eq!(second.references[0].path, reference.path);
     for (a, b) in first.points.iter().zip(&second.points) {
@@ -180,11 +219,11 @@ fn study_writes_its_files_and_reuses_the_cached_reference() {
         format!("# a comment\n{TINY}\n[shadows.deep_opacity]\nbias = 2.0\n"),
     )
     .unwrap();
-    let third = run_kind(&scene, &rt_only, &config).unwrap();
+    let third = run_kind(&file(&scene), &rt_only, &config).unwrap();
     assert!(third.references[0].cached);
     assert_eq!(third.references[0].path, reference.path);
     let fewer = shadows_with(&tiny_shadows(), whole(4)).unwrap();
-    let fourth = run_kind(&scene, &fewer, &config).unwrap();
+    let fourth = run_kind(&file(&scene), &fewer, &config).unwrap();
     assert!(!fourth.references[0].cached);
     assert_ne!(fourth.references[0].path, reference.path);
 }
@@ -193,8 +232,7 @@ fn study_writes_its_files_and_reuses_the_cached_reference() {
 fn missing_scene_is_an_error_naming_the_file() {
     let dir = tempfile::tempdir().unwrap();
     let missing = dir.path().join("no-such-scene.toml");
-    let kind = shadows_with(&tiny_shadows(), whole(8)).unwrap();
-    let err = run_kind(&missing, &kind, &tiny_config(dir.path())).unwrap_err();
+    let err = SceneFile::read(&missing).unwrap_err();
     assert!(matches!(err, StudyError::SceneFile { .. }), "{err:?}");
     assert!(err.to_string().contains("no-such-scene.toml"), "{err}");
 
@@ -239,7 +277,7 @@ fn backend_study_renders_both_backends_alike() {
         curves: vec!["round".into(), "flat".into()],
     };
     let kind = backends_with(&sweep, whole(8)).unwrap();
-    let report = run_kind(&scene, &kind, &tiny_config(&out)).unwrap();
+    let report = run_kind(&file(&scene), &kind, &tiny_config(&out)).unwrap();
     // 2 curve types × 2 backends × 2 spp × 2 seeds.
     assert_eq!(report.points.len(), 16);
     let csv = std::fs::read_to_string(out.join("backends-differences.csv")).unwrap();
@@ -290,7 +328,7 @@ fn study_all_quick_writes_every_chart_and_sane_values() {
         reference_spp: 16,
         ..StudyConfig::new(dir.path().join("out"), true)
     };
-    let all = report::run_all(&scene, &config).unwrap();
+    let all = report::run_all(&file(&scene), &config).unwrap();
     assert_eq!(all.kinds.len(), kinds::ALL.len());
     let md = std::fs::read_to_string(&all.markdown).unwrap();
     assert!(md.contains("## Headline read-outs"), "{md}");
@@ -299,6 +337,24 @@ fn study_all_quick_writes_every_chart_and_sane_values() {
         "{md}"
     );
     assert!(all.stress.markdown.is_file());
+    // Every file is listed once, in the order written, report.md last; the references are in out/cache only.
+    let expected: Vec<&std::path::PathBuf> = all
+        .kinds
+        .iter()
+        .chain([&all.stress.report])
+        .flat_map(|k| &k.files)
+        .chain([&all.markdown])
+        .collect();
+    assert_eq!(all.files.iter().collect::<Vec<_>>(), expected);
+    assert!(all.files.iter().all(|f| f.is_file()));
+    let unique: std::collections::BTreeSet<_> = all.files.iter().collect();
+    assert_eq!(unique.len(), all.files.len());
+    assert!(names_in(&dir.path().join("out"))
+        .iter()
+        .all(|n| !n.starts_with("reference-")));
+    assert!(names_in(&dir.path().join("out/cache"))
+        .iter()
+        .any(|n| n.starts_with("reference-")));
     for k in &all.kinds {
         let name = &k.kind.name;
         for suffix in [
@@ -394,7 +450,8 @@ fn study_all_quick_writes_every_chart_and_sane_values() {
         chiang(4.0)
     );
     // The cached references are reused by a second run of one kind, with their recorded noise.
-    let again = cuticle::study::framework::run_kind(&scene, &kinds::lobes(true), &config).unwrap();
+    let again =
+        cuticle::study::framework::run_kind(&file(&scene), &kinds::lobes(true), &config).unwrap();
     assert!(again
         .references
         .iter()
@@ -561,7 +618,7 @@ fn stress_quick_has_no_nan_and_few_fireflies_on_the_tiny_scene() {
     let scene = dir.path().join("tiny.toml");
     std::fs::write(&scene, TINY).unwrap();
     let config = StudyConfig::new(dir.path().join("out"), true);
-    let s = stress::run(&scene, &config).unwrap();
+    let s = stress::run(&file(&scene), &config).unwrap();
     assert!(s.skipped.is_empty(), "{:?}", s.skipped);
     let names: Vec<&str> = s.cases.iter().map(|c| c.name.as_str()).collect();
     assert_eq!(
@@ -650,4 +707,212 @@ fn stress_skips_what_a_hair_file_scene_cannot_express() {
     let grazing = cases.iter().find(|c| c.name == "grazing").unwrap();
     let camera = grazing.overrides[0].1.as_table().unwrap();
     assert!(!camera.contains_key("position"));
+}
+
+/// `study samples --quick` with no scene renders the built-in default scene, caches its references in `OUT/cache/`
+/// (not beside the results), and ends by listing every file it wrote, each once and in order, then the cache
+/// folder; `--cache-dir` puts the references elsewhere and a second run reuses them.
+#[test]
+fn study_without_a_scene_uses_the_default_scene_caches_in_a_folder_and_lists_its_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let out_arg = out.to_str().unwrap();
+    let (code, stdout, stderr) = run(&["study", "samples", "--quick", "-q", "-o", out_arg]);
+    assert_eq!(code, Some(0), "{stderr}");
+    let (files, last) = written(&stdout);
+    let expected: Vec<_> = [
+        "samples.csv",
+        "samples-summary.csv",
+        "samples-error-time.png",
+        "samples-error-time.svg",
+        "samples-time.png",
+        "samples-time.svg",
+        "samples-crops.png",
+        "samples-readouts.txt",
+    ]
+    .iter()
+    .map(|f| out.join(f))
+    .collect();
+    assert_eq!(files, expected, "{stdout}");
+    for f in &files {
+        assert!(std::fs::metadata(f).unwrap().len() > 0, "{}", f.display());
+    }
+    let cache = out.join("cache");
+    assert_eq!(last, format!("references cached in {}", cache.display()));
+    let mut listed: Vec<String> = files
+        .iter()
+        .map(|f| f.file_name().unwrap().to_string_lossy().into_owned())
+        .chain(["cache".to_owned()])
+        .collect();
+    listed.sort();
+    assert_eq!(
+        names_in(&out),
+        listed,
+        "only the listed files and the cache"
+    );
+    let cached = names_in(&cache);
+    assert!(
+        cached.len() >= 2 && cached.iter().all(|n| n.starts_with("reference-")),
+        "{cached:?}"
+    );
+
+    // Elsewhere with --cache-dir (nothing in OUT/cache); that cache is reused by the next run.
+    let other = dir.path().join("refs");
+    let out2 = dir.path().join("out2");
+    let args = [
+        "study",
+        "samples",
+        "--quick",
+        "-q",
+        "-o",
+        out2.to_str().unwrap(),
+        "--cache-dir",
+        other.to_str().unwrap(),
+    ];
+    let (code, _, stderr) = run(&args);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(!out2.join("cache").exists());
+    assert_eq!(names_in(&other), cached, "the same keys as in OUT/cache");
+    let modified = |d: &Path| -> Vec<std::time::SystemTime> {
+        names_in(d)
+            .iter()
+            .map(|n| std::fs::metadata(d.join(n)).unwrap().modified().unwrap())
+            .collect()
+    };
+    let before = modified(&other);
+    let (code, _, stderr) = run(&args);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert_eq!(
+        modified(&other),
+        before,
+        "the references are reused, not rendered again"
+    );
+}
+
+/// The default scene's references are keyed apart from a file holding the same text (a file's hair and maps
+/// resolve in its directory), and the default scene takes the studies' overrides like a file: `lobes` replaces
+/// its material, film and integrator keys.
+#[test]
+fn the_default_scene_has_its_own_cache_keys_and_takes_overrides() {
+    use cuticle::study::kinds;
+    let dir = tempfile::tempdir().unwrap();
+    let config = StudyConfig {
+        seeds: 1,
+        ..StudyConfig::new(dir.path().join("out"), true)
+    };
+    let default = SceneFile::load(None).unwrap();
+    assert_eq!(default.text, cuticle::scene::DEFAULT_SCENE);
+    assert_eq!(default.name(), "default");
+    let kind = kinds::lobes(true);
+    let first = run_kind(&default, &kind, &config).unwrap();
+    assert!(first.references.iter().all(|r| !r.cached));
+    let again = run_kind(&default, &kind, &config).unwrap();
+    assert!(again.references.iter().all(|r| r.cached));
+    let path = dir.path().join("default.toml");
+    std::fs::write(&path, cuticle::scene::DEFAULT_SCENE).unwrap();
+    let as_file = run_kind(&file(&path), &kind, &config).unwrap();
+    for (d, f) in first.references.iter().zip(&as_file.references) {
+        assert!(
+            !f.cached && d.path != f.path,
+            "{} {}",
+            d.path.display(),
+            f.path.display()
+        );
+        assert_eq!(
+            d.path.parent(),
+            Some(dir.path().join("out/cache").as_path())
+        );
+    }
+    // Deterministic renders of the same pixels: the same errors either way.
+    for (a, b) in first.points.iter().zip(&as_file.points) {
+        assert_eq!(a.rmse, b.rmse);
+    }
+}
+
+/// `study stress --quick` with no scene: the ten fur-ball cases, drawn as bar charts per case (`stress-rmse`,
+/// `stress-time`: PNG and SVG, the case names in the SVG) rather than curves through case numbers, and the files
+/// listed at the end, `stress.md` last.
+#[test]
+fn stress_on_the_default_scene_draws_bars_per_case_and_lists_its_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let (code, stdout, stderr) = run(&[
+        "study",
+        "stress",
+        "--quick",
+        "--res",
+        "16x12",
+        "--seeds",
+        "1",
+        "-q",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, Some(0), "{stderr}");
+    let (files, last) = written(&stdout);
+    let names: Vec<String> = files
+        .iter()
+        .map(|f| f.file_name().unwrap().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(
+        names,
+        [
+            "stress.csv",
+            "stress-summary.csv",
+            "stress-rmse.png",
+            "stress-rmse.svg",
+            "stress-time.png",
+            "stress-time.svg",
+            "stress-crops.png",
+            "stress-readouts.txt",
+            "stress.md"
+        ],
+        "{stdout}"
+    );
+    assert!(files.iter().all(|f| f.is_file()));
+    assert_eq!(
+        last,
+        format!("references cached in {}", out.join("cache").display())
+    );
+    assert!(!out.join("stress-error-time.png").exists());
+    let svg = std::fs::read_to_string(out.join("stress-rmse.svg")).unwrap();
+    for case in [
+        "control",
+        "grazing",
+        "thin-strands",
+        "light-inside",
+        "scale-1e3",
+    ] {
+        assert!(svg.contains(case), "{case} not in stress-rmse.svg");
+    }
+    // The read-outs (failures, or the line saying there are none) come before the list of files.
+    let first = stdout.lines().next().unwrap_or_default();
+    assert!(
+        first.starts_with("no failures") || first.contains(" fails "),
+        "{stdout}"
+    );
+}
+
+/// `--reference-spp` (the config's override) wins over a full kind's own budget, which wins over the study's
+/// default; the film is still the kind's centred crop of the study's.
+#[test]
+fn an_explicit_reference_spp_overrides_the_kinds_budget() {
+    use cuticle::study::kinds;
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("tiny.toml");
+    std::fs::write(&scene, TINY).unwrap();
+    let base = StudyConfig {
+        seeds: 1,
+        resolution: Some([16, 16]),
+        ..StudyConfig::new(dir.path().join("out"), false)
+    };
+    let kind = kinds::lobes(false);
+    let budget = kind.budget.reference_spp;
+    assert_eq!(budget, Some(8 * kinds::REFERENCE_FACTOR));
+    let config = StudyConfig {
+        reference_spp_override: Some(4),
+        ..base
+    };
+    let report = run_kind(&file(&scene), &kind, &config).unwrap();
+    assert_eq!((report.reference_spp, report.resolution), (4, [16, 16]));
 }

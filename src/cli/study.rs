@@ -1,11 +1,12 @@
 //! `cuticle study`: thin wrappers over `cuticle::study` (the logic and its docs live there).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::Result;
 use clap::Subcommand;
 
 use cuticle::accel::{Backend, CurveKind};
+use cuticle::study::SceneFile;
 
 use super::{parse_resolution, scene_name, threads};
 
@@ -27,7 +28,8 @@ pub enum StudyCommand {
     Models(StudyKindArgs),
     /// Round tubes against flat ribbons per model and film width.
     Curves(StudyKindArgs),
-    /// Adversarial cases per method: stress.csv, stress.md (NaN/Inf, fireflies, error; failures named).
+    /// Adversarial cases per method: stress.csv, stress.md, bar charts per case (NaN/Inf, fireflies, error;
+    /// failures named).
     Stress(StudyKindArgs),
     /// Every kind above, and one Markdown report (report.md) with the charts.
     All(StudyKindArgs),
@@ -37,12 +39,14 @@ pub enum StudyCommand {
 
 #[derive(clap::Args)]
 pub struct StudyAutoArgs {
-    /// Scene files (TOML).
-    #[arg(required = true)]
+    /// Scene files (TOML). Without any, the built-in default scene (a procedural fur ball).
     scenes: Vec<PathBuf>,
-    /// Output directory: auto.md, auto.csv, auto-fits-<scene>.csv, the cached references.
+    /// Output directory: auto.md, auto.csv, auto-fits-<scene>.csv (<scene>: the file's stem, or `default`).
     #[arg(short, long, default_value = "study")]
     out: PathBuf,
+    /// Where the references' EXRs and the fits are cached (default: OUT/cache).
+    #[arg(long)]
+    cache_dir: Option<PathBuf>,
     /// Error targets (relative RMSE).
     #[arg(long, value_delimiter = ',', default_value = "0.1,0.05")]
     targets: Vec<f32>,
@@ -59,25 +63,28 @@ pub struct StudyAutoArgs {
 
 #[derive(clap::Args)]
 pub struct StudyKindArgs {
-    /// Scene file (TOML).
-    scene: PathBuf,
+    /// Scene file (TOML). Without it, the built-in default scene (a procedural fur ball).
+    scene: Option<PathBuf>,
     /// Output directory: <kind>.csv, <kind>-summary.csv, <kind>-error-time.png/.svg, <kind>-time.png/.svg,
-    /// <kind>-readouts.txt, the cached references (and report.md for all).
+    /// <kind>-crops.png, <kind>-readouts.txt (stress: bar charts stress-rmse and stress-time in place of the two
+    /// charts, and stress.md; all: every kind's files and report.md); the references cached in OUT/cache.
     #[arg(short, long, default_value = "study")]
     out: PathBuf,
     /// Short sweeps on a 32x24 film (unless --res): what CI runs.
     #[arg(long)]
     quick: bool,
-    /// Where the reference EXRs are cached (default: the output directory).
+    /// Where the reference EXRs are cached (default: OUT/cache).
     #[arg(long)]
     cache_dir: Option<PathBuf>,
-    /// Samples per pixel of the references (default 256, 64 with --quick).
+    /// Samples per pixel of every reference (default: 64 with --quick; else each kind's own: 16 for samples, 32
+    /// for curves, 64 for the others).
     #[arg(long)]
     reference_spp: Option<u32>,
     /// Seeds per point.
     #[arg(long, default_value_t = 3)]
     seeds: u32,
-    /// Film resolution WxH (overrides film.resolution).
+    /// Film resolution WxH (default: the scene's film.resolution, 32x24 with --quick); full runs render each
+    /// kind's centred window of it (96x96 for the spp sweeps, 12x12 for samples, 48x48 for stress).
     #[arg(long, value_parser = parse_resolution)]
     res: Option<[u32; 2]>,
     /// Worker threads (default: all cores).
@@ -88,57 +95,73 @@ pub struct StudyKindArgs {
     quiet: bool,
 }
 
+/// Prints `wrote PATH` for every file in `files`, then where `cached` (the references) are cached.
+fn print_written(files: &[PathBuf], cached: &str, cache: &Path) {
+    for f in files {
+        println!("wrote {}", f.display());
+    }
+    println!("{cached} cached in {}", cache.display());
+}
+
 /// Runs `cuticle study <name>` for a framework kind (or `all`) and prints the read-outs.
 fn study_kind(name: &str, a: StudyKindArgs) -> Result<()> {
     use cuticle::study::framework::{run_kind, StudyConfig};
-    let defaults = StudyConfig::new(a.out, a.quick);
+    let scene = SceneFile::load(a.scene.as_deref())?;
     let config = StudyConfig {
         cache_dir: a.cache_dir,
         seeds: a.seeds,
-        reference_spp: a.reference_spp.unwrap_or(defaults.reference_spp),
+        reference_spp_override: a.reference_spp,
         resolution: a.res,
         threads: threads(a.threads)?,
         progress: !a.quiet,
-        ..defaults
+        ..StudyConfig::new(a.out, a.quick)
     };
-    if name == "all" {
-        let report = cuticle::study::report::run_all(&a.scene, &config)?;
-        println!("wrote {}", report.markdown.display());
-        for k in &report.kinds {
+    let files = if name == "all" {
+        let report = cuticle::study::report::run_all(&scene, &config)?;
+        for k in report.kinds.iter().chain([&report.stress.report]) {
             k.readouts
                 .iter()
                 .for_each(|l| println!("{}: {l}", k.kind.name));
         }
+        print_skipped(&report.stress);
+        report.files
     } else if name == "stress" {
-        let report = cuticle::study::stress::run(&a.scene, &config)?;
-        println!("wrote {}", report.markdown.display());
-        report
-            .skipped
-            .iter()
-            .for_each(|s| println!("skipped {}: {}", s.case, s.reason));
-        report.failures.iter().for_each(|l| println!("{l}"));
+        let report = cuticle::study::stress::run(&scene, &config)?;
+        report.report.readouts.iter().for_each(|l| println!("{l}"));
+        print_skipped(&report);
+        report.report.files
     } else {
         let kind = cuticle::study::kinds::by_name(name, a.quick)
             .expect("a subcommand per kind")
             .map_err(|e| anyhow::anyhow!("study {name}: {e}"))?;
-        let report = run_kind(&a.scene, &kind, &config)?;
+        let report = run_kind(&scene, &kind, &config)?;
         report.readouts.iter().for_each(|l| println!("{l}"));
-    }
+        report.files
+    };
+    print_written(&files, "references", &config.cache());
     Ok(())
+}
+
+/// Prints the stress cases the scene cannot express, and why.
+fn print_skipped(report: &cuticle::study::stress::StressReport) {
+    report
+        .skipped
+        .iter()
+        .for_each(|s| println!("stress: skipped {}: {}", s.case, s.reason));
 }
 
 /// The flags `study shadows` and `study backends` share.
 #[derive(clap::Args)]
 pub struct StudyWholeArgs {
-    /// Scene file (TOML).
-    scene: PathBuf,
-    /// Where the reference EXRs are cached (default: the output directory).
+    /// Scene file (TOML). Without it, the built-in default scene (a procedural fur ball).
+    scene: Option<PathBuf>,
+    /// Where the reference EXRs are cached (default: OUT/cache).
     #[arg(long)]
     cache_dir: Option<PathBuf>,
     /// Samples per pixel of the references.
     #[arg(long, default_value_t = 256)]
     reference_spp: u32,
-    /// Film resolution WxH (overrides film.resolution).
+    /// Film resolution WxH (default: the scene's film.resolution).
     #[arg(long, value_parser = parse_resolution)]
     res: Option<[u32; 2]>,
     /// Worker threads (default: all cores).
@@ -156,8 +179,9 @@ pub struct StudyWholeArgs {
 pub struct StudyShadowsArgs {
     #[command(flatten)]
     common: StudyWholeArgs,
-    /// Output directory: the files of every study kind (shadows.csv, shadows-summary.csv, shadows-error-time.png,
-    /// shadows-crops.png, ...), the cached reference (ray traced, exact transmittance).
+    /// Output directory: shadows.csv, shadows-summary.csv, shadows-error-time.png/.svg, shadows-time.png/.svg,
+    /// shadows-crops.png, shadows-readouts.txt; the reference (ray traced, exact transmittance) cached in
+    /// OUT/cache.
     #[arg(short, long, default_value = "study-shadows")]
     out: PathBuf,
     /// Samples per pixel of the ray-traced variants (stochastic and exact transmittance).
@@ -178,7 +202,7 @@ pub struct StudyShadowsArgs {
     /// Samples per pixel of the deep-opacity and no-shadow variants.
     #[arg(long, default_value_t = 16)]
     dom_spp: u32,
-    /// Side of the crop window, pixels.
+    /// Side of the crop window of shadows-crops.png (centred on the hair), pixels.
     #[arg(long, default_value_t = 128)]
     crop: usize,
     /// Strand tracer of the variants: embree or bvh (overrides hair.backend; the reference keeps the scene's).
@@ -190,8 +214,9 @@ pub struct StudyShadowsArgs {
 pub struct StudyBackendsArgs {
     #[command(flatten)]
     common: StudyWholeArgs,
-    /// Output directory: the files of every study kind (backends.csv, backends-error-time.png, ...),
-    /// backends-differences.csv, backends-diff-*.png, the cached references (Embree).
+    /// Output directory: backends.csv, backends-summary.csv, backends-error-time.png/.svg, backends-time.png/.svg,
+    /// backends-crops.png, backends-differences.csv, backends-diff-*.png, backends-readouts.txt; the references
+    /// (Embree) cached in OUT/cache.
     #[arg(short, long, default_value = "study-backends")]
     out: PathBuf,
     /// Samples per pixel of the compared renders.
@@ -228,8 +253,9 @@ fn study_whole(
         crop: crop.unwrap_or(defaults.crop),
         ..defaults
     };
-    let report = run_kind(&a.scene, &kind, &config)?;
+    let report = run_kind(&SceneFile::load(a.scene.as_deref())?, &kind, &config)?;
     report.readouts.iter().for_each(|l| println!("{l}"));
+    print_written(&report.files, "references", &config.cache());
     Ok(())
 }
 
@@ -243,15 +269,25 @@ pub fn study_command(command: StudyCommand) -> Result<()> {
         StudyCommand::Curves(a) => study_kind("curves", a)?,
         StudyCommand::All(a) => study_kind("all", a)?,
         StudyCommand::Auto(a) => {
-            let md = cuticle::study::auto::run(&cuticle::study::auto::AutoStudyConfig {
-                scenes: a.scenes,
+            let scenes = if a.scenes.is_empty() {
+                vec![SceneFile::default_scene()]
+            } else {
+                a.scenes
+                    .iter()
+                    .map(|p| SceneFile::read(p))
+                    .collect::<Result<_, _>>()?
+            };
+            let report = cuticle::study::auto::run(&cuticle::study::auto::AutoStudyConfig {
+                scenes,
                 targets: a.targets,
                 resolution: a.res,
                 reference_spp: a.reference_spp,
                 out: a.out,
+                cache_dir: a.cache_dir,
                 threads: threads(a.threads)?,
             })?;
-            print!("{md}");
+            print!("{}", report.markdown);
+            print_written(&report.files, "references and fits", &report.cache_dir);
         }
         StudyCommand::Stress(a) => study_kind("stress", a)?,
         StudyCommand::Shadows(a) => {

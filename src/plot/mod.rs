@@ -1,4 +1,5 @@
 //! Charts of the measurement layer, drawn with [`plotters`]: line charts with linear or log10 axes ([`LineChart`]),
+//! bar charts over named categories ([`BarChart`]),
 //! polar charts ([`PolarChart`]), heat maps and colour bars ([`HeatMap`], [`ColorBar`]), for `cuticle plot-bsdf`
 //! ([`bsdf`]) and the studies ([`crate::study::figures`]).
 //!
@@ -16,9 +17,10 @@
 //! [`annotate`]; `axis.rs` the axes ([`Axis`]); `line.rs` the line charts with their series, legend and clipping
 //! ([`LineChart`], [`Series`]); `polar.rs` the polar charts ([`PolarChart`]); `heatmap.rs` the heat maps, colour
 //! maps and colour bars ([`HeatMap`], [`Colormap`], [`ColorBar`]); `table.rs` line charts from a CSV table
-//! ([`CsvChart`], for `cuticle plot-csv`).
+//! ([`CsvChart`], for `cuticle plot-csv`); `bar.rs` the bar charts ([`BarChart`]).
 
 mod axis;
+mod bar;
 pub mod bsdf;
 mod heatmap;
 mod line;
@@ -34,6 +36,7 @@ use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 pub use axis::{Axis, Scale};
+pub use bar::{wrap_name, BarChart, Bars};
 pub use heatmap::{ColorBar, Colormap, HeatMap};
 pub use line::{LineChart, Series};
 pub use notes::WithNotes;

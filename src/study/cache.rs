@@ -11,8 +11,7 @@
 
 use std::path::Path;
 
-use super::StudyError;
-use crate::scene::Scene;
+use super::{SceneFile, StudyError};
 use crate::util::atomic_file;
 
 /// 64-bit FNV-1a.
@@ -46,17 +45,19 @@ impl Fnv1a {
     }
 }
 
-/// The cache key of a render of `scene`, whose file held `text`: `format` (a recipe version), the scene's directory,
-/// the text as parsed and re-serialised (sorted keys, no comments) without the tables named in `drop_tables` (those
-/// the study overrides), and `extra` (the settings the study sets: resolution, spp, seed, mode…).
+/// The cache key of a render of `text`, a scene (or a variant of it) from `scene`: `format` (a recipe version), where
+/// the scene lives ([`SceneFile::key_dir`]: a file's canonical directory, or the default scene's name, so the two
+/// never share a key), the text as parsed and re-serialised (sorted keys, no comments) without the tables named in
+/// `drop_tables` (those the study overrides), and `extra` (the settings the study sets: resolution, spp, seed,
+/// mode…).
 pub fn scene_key(
     format: &str,
     text: &str,
-    scene: &Scene,
+    scene: &SceneFile,
     drop_tables: &[&str],
     extra: &str,
 ) -> u64 {
-    let dir = std::fs::canonicalize(&scene.base_dir).unwrap_or_else(|_| scene.base_dir.clone());
+    let dir = scene.key_dir();
     let canonical = toml::from_str::<toml::Table>(text)
         .ok()
         .and_then(|mut table| {
@@ -67,10 +68,7 @@ pub fn scene_key(
         })
         .unwrap_or_else(|| text.to_owned());
     let mut h = Fnv1a::default();
-    h.field(format)
-        .field(&dir.to_string_lossy())
-        .field(&canonical)
-        .field(extra);
+    h.field(format).field(&dir).field(&canonical).field(extra);
     h.finish()
 }
 
@@ -99,5 +97,33 @@ mod tests {
         let ab_c = Fnv1a::default().field("ab").field("c").finish();
         let a_bc = Fnv1a::default().field("a").field("bc").finish();
         assert_ne!(ab_c, a_bc);
+    }
+
+    /// A file's key is the recipe over its canonical directory (so keys of files written before the default scene
+    /// was accepted still match); the default scene's names no directory, and differs from the same text in a file.
+    #[test]
+    fn scene_keys_are_stable_for_files_and_distinct_for_the_default_scene() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("default.toml");
+        std::fs::write(&path, crate::scene::DEFAULT_SCENE).unwrap();
+        let file = SceneFile::read(&path).unwrap();
+        let default = SceneFile::default_scene();
+        let text = "[film]\nspp = 4\n";
+        let canonical = std::fs::canonicalize(dir.path()).unwrap();
+        let by_recipe = Fnv1a::default()
+            .field("v1")
+            .field(&canonical.to_string_lossy())
+            .field(text)
+            .field("extra")
+            .finish();
+        assert_eq!(scene_key("v1", text, &file, &[], "extra"), by_recipe);
+        assert_ne!(
+            scene_key("v1", text, &default, &[], "extra"),
+            scene_key("v1", text, &file, &[], "extra")
+        );
+        assert_eq!(
+            scene_key("v1", text, &default, &[], "extra"),
+            scene_key("v1", text, &SceneFile::load(None).unwrap(), &[], "extra")
+        );
     }
 }

@@ -2,6 +2,7 @@
 //!
 //! - [`error_time_line_chart`]: error against time on log–log axes, one polyline per series with a `+` marker and a
 //!   small label (spp, layers, resolution) at each measured point, drawn by [`crate::plot`] (PNG and SVG);
+//! - [`hair_window`]: where the crops are taken, centred on the hair (the coverage's centroid);
 //! - [`mosaic`]: rows of equally sized image crops, each labelled above, upscaled by an integer factor (nearest
 //!   neighbour, so pixels stay visible) and multiplied by one common exposure. An image, not a chart: the pixels
 //!   are copied as image operations, and only the labels are set by [`crate::plot::annotate`].
@@ -97,6 +98,38 @@ pub struct Panel {
     pub label: String,
     /// The pixels.
     pub rgb: Vec<Vec3>,
+}
+
+/// The `size × size` window of `image` (`size` clamped to the image) centred on the hair: on the centroid of the
+/// coverage (`A`, clamped to [0, 1]; non-finite values count as none), moved inside the image where the centroid is
+/// nearer an edge than half the window. Without coverage (no `A` channel, or nothing covered) the image's centre.
+/// Returns (x0, y0, side).
+pub fn hair_window(image: &Image, size: usize) -> (usize, usize, usize) {
+    let (w, h) = (image.width, image.height);
+    let size = size.min(w).min(h).max(1);
+    let mut centre = (w as f64 * 0.5, h as f64 * 0.5);
+    if let Some(a) = image.channel_index("A") {
+        let n = image.channels.len();
+        let (mut sum, mut sx, mut sy) = (0.0f64, 0.0f64, 0.0f64);
+        for (k, p) in image.data.chunks_exact(n).enumerate() {
+            let c = if p[a].is_finite() {
+                f64::from(p[a].clamp(0.0, 1.0))
+            } else {
+                0.0
+            };
+            sum += c;
+            sx += c * ((k % w) as f64 + 0.5);
+            sy += c * ((k / w) as f64 + 0.5);
+        }
+        if sum > 0.0 {
+            centre = (sx / sum, sy / sum);
+        }
+    }
+    let place = |c: f64, extent: usize| {
+        let start = (c - size as f64 * 0.5).round().max(0.0) as usize;
+        start.min(extent.saturating_sub(size))
+    };
+    (place(centre.0, w), place(centre.1, h), size)
 }
 
 /// The beauty (`R, G, B`) of the `size × size` window of `image` at (`x0`, `y0`), which must lie inside it.
@@ -239,6 +272,43 @@ pub fn mosaic(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A `w × h` image whose coverage `A` is 1 inside the rectangle `[x0, x1) × [y0, y1)` and 0 elsewhere.
+    fn covered(w: usize, h: usize, (x0, x1): (usize, usize), (y0, y1): (usize, usize)) -> Image {
+        let mut image = Image::new(w, h, ["R", "G", "B", "A"].map(String::from).to_vec());
+        for y in y0..y1 {
+            for x in x0..x1 {
+                image.pixel_mut(x, y)[3] = 1.0;
+            }
+        }
+        image
+    }
+
+    #[test]
+    fn the_crop_window_is_centred_on_the_hair_and_stays_inside() {
+        // Coverage in the bottom-right corner of a 100 × 80 image: the window sits there, not at (0, 0).
+        assert_eq!(
+            hair_window(&covered(100, 80, (80, 100), (60, 80)), 16),
+            (82, 62, 16)
+        );
+        // In the middle of the top edge: centred across, clamped to the top.
+        assert_eq!(
+            hair_window(&covered(100, 80, (40, 60), (0, 4)), 16),
+            (42, 0, 16)
+        );
+        // No coverage, or no A channel: the image's centre.
+        assert_eq!(
+            hair_window(&covered(100, 80, (0, 0), (0, 0)), 16),
+            (42, 32, 16)
+        );
+        let rgb = Image::new(100, 80, ["R", "G", "B"].map(String::from).to_vec());
+        assert_eq!(hair_window(&rgb, 16), (42, 32, 16));
+        // A window larger than the image is clamped to it.
+        assert_eq!(
+            hair_window(&covered(32, 24, (0, 8), (0, 8)), 64),
+            (0, 0, 24)
+        );
+    }
 
     #[test]
     fn mosaic_places_panels_and_scales_them() {

@@ -4,14 +4,16 @@
 //!
 //! # What is rendered
 //!
-//! A variant is the scene file with some keys replaced ([`Overrides`]: dotted TOML paths, e.g.
+//! A variant is the scene ([`super::SceneFile`]: a scene file, or the built-in default scene) with some keys replaced ([`Overrides`]: dotted TOML paths, e.g.
 //! `integrator.light_samples = 16` or a whole `material` table), re-parsed and validated like a scene file, so a
 //! variant can change anything a scene can say. Each variant is rendered with [`StudyConfig::seeds`] seeds (the
 //! scene's `film.seed` + 0, 1, 2, …). Each variant names one of its kind's references: the scene with that
-//! reference's overrides at the kind's reference spp ([`Budget::reference_spp`], else
-//! [`StudyConfig::reference_spp`]). A reference is cached as `reference-<hash>.exr` (with `reference-<hash>.txt`
-//! holding the seconds it took and its noise, below) in the cache directory, the hash ([`super::cache`]) covering
-//! the overridden scene text as parsed and re-serialised, its directory and a format version: the hair and map
+//! reference's overrides at the kind's reference spp ([`StudyConfig::reference_spp_override`], else
+//! [`Budget::reference_spp`], else [`StudyConfig::reference_spp`]). A reference is cached as `reference-<hash>.exr`
+//! (with `reference-<hash>.txt` holding the seconds it took and its noise, below) in the cache directory
+//! ([`StudyConfig::cache`]: `cache/` in the output directory unless the study names another), the hash
+//! ([`super::cache`]) covering the overridden scene text as parsed and re-serialised, the scene file's directory
+//! (or the default scene's name) and a format version: the hair and map
 //! files and the renderer's code are not covered (delete the files after changing them). Settings that cannot
 //! change a reference's pixels are left out of the key: `[shadows.deep_opacity]` when the reference's shadows are
 //! not deep opacity maps (so a scene's map settings keep its ray-traced reference).
@@ -60,6 +62,12 @@
 //! - `<kind>-error-time.png/.svg`: mean RMSE against mean time, log–log, one series per method, each point labelled
 //!   with its swept setting, and under the chart the **read-outs** ([`readouts()`]);
 //! - `<kind>-time.png/.svg`: mean render time against the swept setting (the thesis' figure 17 for `samples`);
+//! - for a kind whose variants are unrelated cases rather than a sweep ([`Kind::categories`], e.g. `stress`), bar
+//!   charts instead of both: `<kind>-rmse.png/.svg` (mean RMSE per case, a bar per series, the read-outs under it)
+//!   and `<kind>-time.png/.svg` (mean render time per case);
+//! - `<kind>-crops.png` (when every reference has the same size): the crop window ([`StudyConfig::crop`] pixels
+//!   square, centred on the hair of the first reference: [`super::figures::hair_window`]) of each reference and of
+//!   each variant at seed 0, and the whole first reference with the window outlined;
 //! - `<kind>-readouts.txt`: the read-outs as text;
 //! - for kinds with [`Kind::differences`] (pairs of series rendered with the same seeds, e.g. Embree and the BVH):
 //!   `<kind>-differences.csv` ([`DIFFERENCE_HEADER`]: per common setting and seed the RMSE between the two
@@ -68,6 +76,8 @@
 //!   reference's 99th percentile is white (structure in it would mean the two trace differently; isolated pixels
 //!   are paths sent elsewhere by one graze).
 //!
+//! [`KindReport::files`] lists them in the order they were written; the cached references are not among them.
+//!
 //! # Read-outs
 //!
 //! For each pair (A, B) a kind compares: **equal error** — the time at which A's curve reaches the error of B's
@@ -75,7 +85,10 @@
 //! written "A reaches B's RMSE e (at t s) in N× less time" — and **equal time** — A's error at B's last time, by
 //! the same interpolation, as a ratio to B's — and **equal setting** — A's error and time as ratios to B's at the
 //! largest swept value both measured (equal samples, for most kinds). Outside A's measured range nothing is
-//! extrapolated: the line says so.
+//! extrapolated: the line says so ("A does not reach B's RMSE e in its measured range (best e')", the two printed
+//! with as many digits as show them apart). A ratio within 1 % of 1 is written "the same" ("in the same time");
+//! otherwise "N× less time" (N > 1) or "N× more time". Series names ending in s are plurals ("light samples
+//! reach material samples' RMSE …").
 
 mod charts;
 mod differences;
@@ -100,6 +113,8 @@ pub const REFERENCE_SEED_OFFSET: u32 = 0x0001_0001;
 const REFERENCE_FORMAT: &str = "cuticle study reference v2 (two halves)";
 /// Side of the crop window of `<kind>-crops.png` by default, pixels (clamped to the image).
 pub const CROP: usize = 64;
+/// The folder of the output directory that holds the cached references unless the study names another.
+pub const CACHE_DIR: &str = "cache";
 /// Tables of the scene that decide the frame's set-up (hair, BVH, lights); the rest is applied per render.
 const SETUP_TABLES: [&str; 4] = ["hair", "light", "environment", "shape"];
 
@@ -157,6 +172,23 @@ pub struct Kind {
     /// Pairs of series (A, B) rendered with the same seeds whose images are compared with each other directly
     /// (`<kind>-differences.csv`, `<kind>-diff-<a>-vs-<b>.png`; see the module docs).
     pub differences: Vec<(String, String)>,
+    /// The names of the values of [`Variant::x`] when they are unrelated cases, not a swept setting (x = 1 is the
+    /// first name): charts draw a bar per case and series instead of curves, and labels name the case. Empty for a
+    /// sweep.
+    pub categories: Vec<String>,
+}
+
+impl Kind {
+    /// How a value of [`Variant::x`] is written in labels: its category's name, or the number.
+    pub fn x_name(&self, x: f64) -> String {
+        let index = x - 1.0;
+        if index >= 0.0 && index.fract() == 0.0 {
+            if let Some(name) = self.categories.get(index as usize) {
+                return name.clone();
+            }
+        }
+        charts::x_label(x)
+    }
 }
 
 /// A kind's ray budget (see the module docs, "Budgets").
@@ -174,21 +206,25 @@ pub struct Budget {
 pub struct StudyConfig {
     /// Output directory (created if needed).
     pub out_dir: PathBuf,
-    /// Where references are cached (default: `out_dir`).
+    /// Where references are cached (default: [`CACHE_DIR`] in `out_dir`; see [`StudyConfig::cache`]).
     pub cache_dir: Option<PathBuf>,
     /// Small sweeps and a tiny image (what CI runs).
     pub quick: bool,
     /// Seeds per variant.
     pub seeds: u32,
-    /// Samples per pixel of the references.
+    /// Samples per pixel of the references of kinds without a budget of their own ([`Budget::reference_spp`]:
+    /// every kind of a full run has one; `--quick` runs have none).
     pub reference_spp: u32,
+    /// Samples per pixel of every reference, over the kinds' budgets and `reference_spp` (an explicit
+    /// `--reference-spp`).
+    pub reference_spp_override: Option<u32>,
     /// Film resolution override (default: the scene's, or [`QUICK_RESOLUTION`] with `quick`).
     pub resolution: Option<[u32; 2]>,
     /// Worker threads.
     pub threads: usize,
     /// Progress bars on stderr.
     pub progress: bool,
-    /// Side of the window of `<kind>-crops.png`, pixels (the one with the most shadowed reference pixels).
+    /// Side of the window of `<kind>-crops.png`, pixels (centred on the hair: [`super::figures::hair_window`]).
     pub crop: usize,
 }
 
@@ -196,7 +232,8 @@ pub struct StudyConfig {
 pub const QUICK_RESOLUTION: [u32; 2] = [32, 24];
 
 impl StudyConfig {
-    /// The defaults of `cuticle study <kind>`: 3 seeds, references at 256 spp (64 with `quick`), 2 threads.
+    /// The defaults of `cuticle study <kind>`: 3 seeds, references at 256 spp (64 with `quick`) where a kind has no
+    /// budget of its own, 2 threads (the command line asks for one per core).
     pub fn new(out_dir: impl Into<PathBuf>, quick: bool) -> Self {
         StudyConfig {
             out_dir: out_dir.into(),
@@ -204,11 +241,19 @@ impl StudyConfig {
             quick,
             seeds: 3,
             reference_spp: if quick { 64 } else { 256 },
+            reference_spp_override: None,
             resolution: None,
             threads: 2,
             progress: false,
             crop: CROP,
         }
+    }
+
+    /// Where references are cached: `cache_dir`, or [`CACHE_DIR`] in the output directory.
+    pub fn cache(&self) -> PathBuf {
+        self.cache_dir
+            .clone()
+            .unwrap_or_else(|| self.out_dir.join(CACHE_DIR))
     }
 }
 
@@ -338,7 +383,8 @@ pub struct KindReport {
     pub references: Vec<ReferenceRun>,
     /// The read-out lines.
     pub readouts: Vec<String>,
-    /// Files written: the CSVs, charts (PNG then SVG) and read-outs.
+    /// Files written, in order: the CSVs, charts (PNG then SVG), crops, differences and read-outs (not the cached
+    /// references).
     pub files: Vec<PathBuf>,
     /// Film resolution rendered (the crop's, when the kind crops).
     pub resolution: [u32; 2],

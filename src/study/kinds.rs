@@ -209,6 +209,7 @@ pub fn samples(quick: bool) -> Kind {
             }
         },
         differences: Vec::new(),
+        categories: Vec::new(),
     }
 }
 
@@ -277,6 +278,7 @@ pub fn sampling(quick: bool) -> Kind {
         equal_setting: true,
         budget: sweep_budget(quick),
         differences: Vec::new(),
+        categories: Vec::new(),
     }
 }
 
@@ -308,6 +310,7 @@ pub fn lobes(quick: bool) -> Kind {
         equal_setting: true,
         budget: sweep_budget(quick),
         differences: Vec::new(),
+        categories: Vec::new(),
     }
 }
 
@@ -340,6 +343,7 @@ pub fn hery(quick: bool) -> Kind {
         equal_setting: true,
         budget: sweep_budget(quick),
         differences: Vec::new(),
+        categories: Vec::new(),
     }
 }
 
@@ -408,6 +412,7 @@ pub fn models(quick: bool) -> Result<Kind, String> {
         equal_setting: true,
         budget: sweep_budget(quick),
         differences: Vec::new(),
+        categories: Vec::new(),
     })
 }
 
@@ -474,6 +479,7 @@ pub fn curves(quick: bool) -> Kind {
             }
         },
         differences: Vec::new(),
+        categories: Vec::new(),
     }
 }
 
@@ -548,6 +554,7 @@ pub fn backends_with(sweep: &BackendsSweep, budget: Budget) -> Result<Kind, Stri
         equal_setting: true,
         budget,
         differences: pairs,
+        categories: Vec::new(),
     })
 }
 
@@ -713,6 +720,7 @@ pub fn shadows_with(sweep: &ShadowsSweep, budget: Budget) -> Result<Kind, String
         equal_setting: false,
         budget,
         differences: Vec::new(),
+        categories: Vec::new(),
     })
 }
 

@@ -6,13 +6,16 @@
 //!   series); [`kinds`]: `samples`, `sampling`, `lobes`, `hery`, `models`, `curves`, `backends` (Embree against
 //!   the pure-Rust BVH) and `shadows` (deep opacity maps against ray tracing) as data for it;
 //!   [`report`]: `all`, one Markdown report.
-//! - [`stress`]: `cuticle study stress SCENE` — adversarial cases per method (NaN/Inf, fireflies, error), on the
+//! - [`stress`]: `cuticle study stress [SCENE]` — adversarial cases per method (NaN/Inf, fireflies, error), on the
 //!   framework.
-//! - [`auto`]: `cuticle study auto SCENE...` — `--quality auto` against every fixed configuration, per error target.
+//! - [`auto`]: `cuticle study auto [SCENE...]` — `--quality auto` against every fixed configuration, per error target.
 //! - [`cache`]: a stable hash (FNV-1a) naming cached reference renders, and atomic text-file writes.
-//! - [`figures`]: the error-against-time chart (through [`crate::plot`]) and the mosaic of crops.
+//! - [`figures`]: the error-against-time chart (through [`crate::plot`]), the crop window on the hair and the
+//!   mosaic of crops.
 //!
-//! Image error measures (RMSE, relMSE, shadowed pixels, the crop window) are [`crate::measure::metrics`], shared
+//! Every study reads its scene as a [`SceneFile`]: a scene file, or without one the built-in default scene, as
+//! `cuticle render` does. Cached references go to `cache/` in the output directory unless the study is told
+//! another directory. Image error measures (RMSE, relMSE, shadowed pixels) are [`crate::measure::metrics`], shared
 //! with the benchmarks.
 
 pub mod auto;
@@ -28,22 +31,103 @@ use std::path::{Path, PathBuf};
 use crate::image::{self, Image};
 use crate::scene::Scene;
 
-/// Reads and validates the scene file at `path`, with the film resolution replaced by `resolution` if given.
-/// Returns the file's text (for cache keys) and the scene.
-pub fn load_scene(
-    path: &Path,
-    resolution: Option<[u32; 2]>,
-) -> Result<(String, Scene), StudyError> {
-    let text = std::fs::read_to_string(path).map_err(|source| StudyError::SceneFile {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    let base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-    let mut scene = Scene::parse(&text, path, &base_dir)?;
-    if let Some(res) = resolution {
-        scene.film.resolution = res;
+/// The name the built-in default scene goes by in messages, reports and file names' places.
+pub const DEFAULT_SCENE_SOURCE: &str = "<default scene>";
+
+/// The scene a study renders, as text: variants are this text with dotted keys replaced
+/// ([`framework::Overrides`]), so the studies keep the text rather than a parsed [`Scene`]. Either a scene file or,
+/// without one, the built-in default scene ([`crate::scene::DEFAULT_SCENE`]), as for `cuticle render`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SceneFile {
+    /// The TOML text.
+    pub text: String,
+    /// What errors call it: the file's path, or [`DEFAULT_SCENE_SOURCE`].
+    pub source: PathBuf,
+    /// The directory its relative paths (hair files, maps) resolve against: the file's directory, or `.` for the
+    /// default scene (which names no file).
+    pub base_dir: PathBuf,
+    /// The file read, `None` for the default scene.
+    pub path: Option<PathBuf>,
+}
+
+impl SceneFile {
+    /// The scene file at `path`, or the built-in default scene without one.
+    pub fn load(path: Option<&Path>) -> Result<SceneFile, StudyError> {
+        match path {
+            Some(p) => SceneFile::read(p),
+            None => Ok(SceneFile::default_scene()),
+        }
     }
-    Ok((text, scene.revalidate()?))
+
+    /// Reads the scene file at `path` (not yet parsed: see [`SceneFile::scene`]).
+    pub fn read(path: &Path) -> Result<SceneFile, StudyError> {
+        let text = std::fs::read_to_string(path).map_err(|source| StudyError::SceneFile {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Ok(SceneFile {
+            text,
+            source: path.to_path_buf(),
+            base_dir: path.parent().map(Path::to_path_buf).unwrap_or_default(),
+            path: Some(path.to_path_buf()),
+        })
+    }
+
+    /// The built-in default scene (a procedural fur ball).
+    pub fn default_scene() -> SceneFile {
+        SceneFile {
+            text: crate::scene::DEFAULT_SCENE.to_owned(),
+            source: PathBuf::from(DEFAULT_SCENE_SOURCE),
+            base_dir: PathBuf::from("."),
+            path: None,
+        }
+    }
+
+    /// A short name for tables and file names: the file's stem, or `default`.
+    pub fn name(&self) -> String {
+        self.path.as_deref().and_then(Path::file_stem).map_or_else(
+            || "default".to_owned(),
+            |s| s.to_string_lossy().into_owned(),
+        )
+    }
+
+    /// Parses and validates the text, with the film resolution replaced by `resolution` if given.
+    pub fn scene(&self, resolution: Option<[u32; 2]>) -> Result<Scene, StudyError> {
+        let mut scene = Scene::parse(&self.text, &self.source, &self.base_dir)?;
+        if let Some(res) = resolution {
+            scene.film.resolution = res;
+        }
+        Ok(scene.revalidate()?)
+    }
+
+    /// The text as a TOML table (to apply overrides to); errors name the file.
+    pub fn table(&self) -> Result<toml::Table, StudyError> {
+        toml::from_str(&self.text)
+            .map_err(|e| StudyError::Config(format!("{}: {e}", self.source.display())))
+    }
+
+    /// What the cache keys ([`cache::scene_key`]) take for where the scene lives: the canonical directory of a
+    /// file (its hair and maps resolve there), or [`DEFAULT_SCENE_SOURCE`] for the default scene, which needs no
+    /// directory, so its references are shared by every working directory and never taken for a file's.
+    pub fn key_dir(&self) -> String {
+        match self.path {
+            Some(_) => std::fs::canonicalize(&self.base_dir)
+                .unwrap_or_else(|_| self.base_dir.clone())
+                .to_string_lossy()
+                .into_owned(),
+            None => DEFAULT_SCENE_SOURCE.to_owned(),
+        }
+    }
+}
+
+impl std::fmt::Display for SceneFile {
+    /// The file's path, or "the built-in default scene" (for report titles).
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match &self.path {
+            Some(p) => write!(f, "{}", p.display()),
+            None => write!(f, "the built-in default scene"),
+        }
+    }
 }
 
 /// Creates `dir` and its parents.

@@ -1,4 +1,4 @@
-//! `cuticle study all SCENE`: every kind of [`super::kinds::ALL`] on one scene, and one Markdown report
+//! `cuticle study all [SCENE]`: every kind of [`super::kinds::ALL`] on one scene, and one Markdown report
 //! (`report.md`) embedding their charts, with a table of the headline read-outs at the top; then `stress`
 //! ([`super::stress`]), whose failure lines join the headline table and whose `stress.md` the report links.
 
@@ -9,7 +9,7 @@ use super::cache::write_text;
 use super::framework::{run_kind, KindReport, StudyConfig};
 use super::kinds;
 use super::stress::{self, StressReport};
-use super::StudyError;
+use super::{SceneFile, StudyError};
 
 /// What `all` ran and wrote.
 #[derive(Debug, Clone)]
@@ -20,31 +20,41 @@ pub struct AllReport {
     pub stress: StressReport,
     /// The Markdown report.
     pub markdown: PathBuf,
+    /// Every file written, in order: each kind's ([`KindReport::files`]), the stress study's, then `report.md` (not
+    /// the cached references).
+    pub files: Vec<PathBuf>,
 }
 
-/// Runs every kind on `scene_path` and writes `report.md` into the output directory.
-pub fn run_all(scene_path: &Path, config: &StudyConfig) -> Result<AllReport, StudyError> {
+/// Runs every kind on `scene` (a scene file or the default scene) and writes `report.md` into the output directory.
+pub fn run_all(scene: &SceneFile, config: &StudyConfig) -> Result<AllReport, StudyError> {
     let mut reports = Vec::new();
     for name in kinds::ALL {
         let kind = kinds::by_name(name, config.quick)
             .expect("every name of ALL is a kind")
             .map_err(|e| StudyError::Config(format!("study {name}: {e}")))?;
-        reports.push(run_kind(scene_path, &kind, config)?);
+        reports.push(run_kind(scene, &kind, config)?);
     }
-    let stress = stress::run(scene_path, config)?;
+    let stress = stress::run(scene, config)?;
     let mut all = reports.clone();
     all.push(stress.report.clone());
-    let mut md = markdown_report(scene_path, config, &all);
+    let mut md = markdown_report(scene, config, &all);
     let _ = writeln!(
         md,
         "\nPer case and method, with the skipped cases: [stress.md](stress.md)."
     );
     let markdown = config.out_dir.join("report.md");
     write_text(&markdown, &md)?;
+    let files = reports
+        .iter()
+        .chain([&stress.report])
+        .flat_map(|r| r.files.iter().cloned())
+        .chain([markdown.clone()])
+        .collect();
     Ok(AllReport {
         kinds: reports,
         stress,
         markdown,
+        files,
     })
 }
 
@@ -56,9 +66,9 @@ fn file_name(path: &Path) -> String {
 }
 
 /// The Markdown text of the report.
-pub fn markdown_report(scene_path: &Path, config: &StudyConfig, reports: &[KindReport]) -> String {
+pub fn markdown_report(scene: &SceneFile, config: &StudyConfig, reports: &[KindReport]) -> String {
     let mut md = String::new();
-    let _ = writeln!(md, "# cuticle study all: {}\n", scene_path.display());
+    let _ = writeln!(md, "# cuticle study all: {scene}\n");
     let _ = writeln!(
         md,
         "{} seeds per point, references at {} spp unless a study says otherwise{}. Written by `cuticle study all{}`; every number below is in \

@@ -1,4 +1,4 @@
-//! `cuticle study stress SCENE`: adversarial cases rendered with every method
+//! `cuticle study stress [SCENE]`: adversarial cases rendered with every method
 //! (`kajiya-kay`, `marschner`, `ishair`, `chiang`, each with its paper defaults plus the keys a case changes), each
 //! case and method against its own converged reference (the same case and method at the study's reference spp), so
 //! the error is the method's noise and instability, not the case's difference from the scene.
@@ -19,11 +19,11 @@
 //! | `scale-1e-3`, `scale-1e3` | the fur ball's `sphere_radius`, `length`, `fiber_radius`, every positioned light and any camera position scaled by 10⁻³ / 10³ (the image should not change: its reference's mean is compared with the control's); procedural `fur-ball` only, no `[[shape]]` |
 //!
 //! Written beside the framework's files (`stress.csv`: one row per case, method and seed, `settings` naming the case;
-//! `stress-summary.csv`, charts and crops): `stress.md`, a table per case and method of NaN/Inf pixels, fireflies,
+//! `stress-summary.csv`; bar charts per case and method, `stress-rmse` and `stress-time`; crops): `stress.md`, a table per case and method of NaN/Inf pixels, fireflies,
 //! RMSE, relMSE and the mean's difference, then every **failure**: a method with any NaN/Inf pixel or with more
 //! than [`FIREFLY_FAIL_FRACTION`] of its pixels fireflies (mean over seeds), or a scale case whose reference mean is
 //! more than [`SCALE_FAIL`] from the control's, named with its numbers. The failure lines are also the kind's
-//! read-outs (`stress-readouts.txt`, the `all` report's headline table).
+//! read-outs (`stress-readouts.txt`, the `all` report's headline table), or one line saying there are none.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -32,7 +32,7 @@ use super::cache::write_text;
 use super::framework::{
     run_kind, Budget, Kind, KindReport, Overrides, Reference, StudyConfig, Variant,
 };
-use super::StudyError;
+use super::{SceneFile, StudyError};
 use crate::image;
 use crate::measure::pixels;
 
@@ -85,7 +85,7 @@ pub struct StressReport {
     pub cases: Vec<Case>,
     /// The cases skipped.
     pub skipped: Vec<Skipped>,
-    /// The failure lines (also the report's read-outs).
+    /// The failure lines (also the report's read-outs; without any, the read-out says so).
     pub failures: Vec<String>,
     /// `stress.md`.
     pub markdown: PathBuf,
@@ -348,7 +348,7 @@ pub fn kind(cases: &[Case], quick: bool) -> Kind {
     Kind {
         name: "stress".into(),
         title: "adversarial cases per method: NaN/Inf, fireflies and error against each case's reference".into(),
-        x_label: "case (see stress.md)".into(),
+        x_label: "case".into(),
         time_includes_setup: false,
         references,
         variants,
@@ -364,6 +364,7 @@ pub fn kind(cases: &[Case], quick: bool) -> Kind {
             }
         },
         differences: Vec::new(),
+        categories: cases.iter().map(|c| c.name.clone()).collect(),
     }
 }
 
@@ -374,17 +375,13 @@ fn mean_luminance(path: &Path) -> Result<f64, StudyError> {
     Ok(finite.iter().sum::<f64>() / finite.len().max(1) as f64)
 }
 
-/// Runs the stress cases on the scene file at `scene_path` and writes `stress.md` (see the module docs).
-pub fn run(scene_path: &Path, config: &StudyConfig) -> Result<StressReport, StudyError> {
-    let text = std::fs::read_to_string(scene_path).map_err(|source| StudyError::SceneFile {
-        path: scene_path.to_path_buf(),
-        source,
-    })?;
-    let base: toml::Table = toml::from_str(&text)
-        .map_err(|e| StudyError::Config(format!("{}: {e}", scene_path.display())))?;
+/// Runs the stress cases on `scene` (a scene file or the default scene) and writes `stress.md` (see the module
+/// docs).
+pub fn run(scene: &SceneFile, config: &StudyConfig) -> Result<StressReport, StudyError> {
+    let base = scene.table()?;
     let (cases, skipped) = cases(&base, config.quick);
     let kind = kind(&cases, config.quick);
-    let mut report = run_kind(scene_path, &kind, config)?;
+    let mut report = run_kind(scene, &kind, config)?;
     let [w, h] = report.resolution;
     let pixels = f64::from(w) * f64::from(h);
 
@@ -429,12 +426,27 @@ pub fn run(scene_path: &Path, config: &StudyConfig) -> Result<StressReport, Stud
             scale_rows.push((case.name.clone(), *model, scaled, control, diff));
         }
     }
+    report.readouts = if failures.is_empty() {
+        vec![format!(
+            "no failures: no NaN/Inf pixel and fireflies on at most {:.0} % of the pixels in every case and method{}",
+            100.0 * FIREFLY_FAIL_FRACTION,
+            if scale_rows.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    ", the scaled scenes' reference means within {:.0} % of the control's",
+                    100.0 * SCALE_FAIL
+                )
+            }
+        )]
+    } else {
+        failures.clone()
+    };
     let readouts_path = config.out_dir.join("stress-readouts.txt");
-    write_text(&readouts_path, &(failures.join("\n") + "\n"))?;
-    report.readouts = failures.clone();
+    write_text(&readouts_path, &(report.readouts.join("\n") + "\n"))?;
 
     let mut md = String::new();
-    let _ = writeln!(md, "# cuticle study stress: {}\n", scene_path.display());
+    let _ = writeln!(md, "# cuticle study stress: {scene}\n");
     let _ = writeln!(
         md,
         "{w}×{h}, {} seeds per point, references at {} spp (each case and method against its own reference). \

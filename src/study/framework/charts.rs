@@ -7,7 +7,7 @@ use super::readouts::chart_time;
 use super::run::Judge;
 use super::{Kind, StudyConfig, Summary};
 use crate::image::Image;
-use crate::plot::{self, hex, Axis, LineChart, Series, WithNotes};
+use crate::plot::{self, hex, Axis, BarChart, Bars, LineChart, Series, WithNotes};
 
 /// Rows of crops: per series, its reference's crop then each variant at seed 0 in sweep order; one exposure for
 /// every panel (the first reference crop's 99th percentile maps to 0.9). Top left: the whole first reference with
@@ -50,7 +50,7 @@ pub(super) fn crops_mosaic(
                 label: format!(
                     "{} {}",
                     kind.variants[i].series,
-                    x_label(kind.variants[i].x)
+                    kind.x_name(kind.variants[i].x)
                 )
                 .to_uppercase(),
                 rgb: crops[i].clone().unwrap_or_default(),
@@ -181,4 +181,71 @@ pub(super) fn time_figure(
         &format!("{} time", kind.name),
         (960, 640),
     )?)
+}
+
+/// A bar chart of `value` per category and series, for a kind whose variants are unrelated cases
+/// ([`Kind::categories`]): a group per case, a bar per series, on a log axis covering every bar, `notes` under it.
+pub(super) fn category_figure(
+    kind: &Kind,
+    summaries: &[Summary],
+    (what, value): (&str, fn(&Kind, &Summary) -> f64),
+    notes: &[String],
+    caption: &str,
+) -> Result<plot::Figure, StudyError> {
+    let series: Vec<Bars> = series_names(kind)
+        .iter()
+        .enumerate()
+        .map(|(i, name)| {
+            let mut values = vec![f64::NAN; kind.categories.len()];
+            for s in summaries {
+                let v = &kind.variants[s.variant];
+                let c = v.x - 1.0;
+                if &v.series == name && c >= 0.0 && (c as usize) < values.len() {
+                    values[c as usize] = value(kind, s);
+                }
+            }
+            Bars {
+                label: name.clone(),
+                color: color(i),
+                values,
+            }
+        })
+        .collect();
+    let (lo, hi) = series
+        .iter()
+        .flat_map(|s| s.values.iter().copied())
+        .filter(|v| v.is_finite() && *v > 0.0)
+        .fold((f64::INFINITY, 0.0f64), |(lo, hi), v| {
+            (lo.min(v), hi.max(v))
+        });
+    let chart = WithNotes {
+        chart: BarChart {
+            title: format!("{}: {what} per {}, {caption}", kind.name, kind.x_label),
+            category_label: kind.x_label.clone(),
+            categories: kind.categories.clone(),
+            y: Axis::log_covering(
+                &if what == "render time" {
+                    "render time (s, mean over seeds)".to_owned()
+                } else {
+                    format!("{what} (mean over seeds)")
+                },
+                // Below the smallest value, so its bar has a height even when it is a power of ten.
+                0.9 * lo,
+                hi,
+            ),
+            series,
+        },
+        notes: notes.to_vec(),
+    };
+    let height = 640 + chart.extra_height();
+    Ok(plot::render(
+        &chart,
+        &format!("{} {what}", kind.name),
+        (960, height),
+    )?)
+}
+
+/// The mean RMSE of a summary (the value of `<kind>-rmse`).
+pub(super) fn rmse_of(_: &Kind, s: &Summary) -> f64 {
+    s.rmse.mean
 }

@@ -8,6 +8,7 @@ use std::path::{Path, PathBuf};
 use super::super::figures;
 use super::super::StudyError;
 use super::charts::x_label;
+use super::readouts::setting_words;
 use super::run::Judge;
 use super::tables::{finish_csv, sci};
 use super::{Difference, Kind, Point};
@@ -88,13 +89,12 @@ pub(super) fn difference_readouts(kind: &Kind, differences: &[Difference]) -> Ve
             let at: Vec<&Difference> = of_pair().filter(|d| d.x == x).collect();
             let mean = |f: fn(&Difference) -> f64| at.iter().map(|d| f(d)).sum::<f64>() / at.len() as f64;
             let (d, ea, eb) = (mean(|d| d.rmse), mean(|d| d.rmse_a), mean(|d| d.rmse_b));
+            let percent = 100.0 * d / ea.min(eb);
             Some(format!(
-                "{a} against {b}, same seeds: their images differ by RMSE {d:.2e} at {} ({}; mean of {} seeds), \
-                 {:.2e}× the smaller of their RMSEs against the reference ({ea:.2e}, {eb:.2e})",
-                x_label(x),
-                kind.x_label,
+                "{a} against {b}, same seeds: their images differ by RMSE {d:.2e} at {} (mean of {} seeds), \
+                 {percent:.2} % of the smaller of their RMSEs against the reference ({ea:.2e}, {eb:.2e})",
+                setting_words(&kind.x_label, &x_label(x)),
                 at.len(),
-                d / ea.min(eb)
             ))
         })
         .collect()

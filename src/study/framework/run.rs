@@ -4,20 +4,19 @@
 
 use crate::render::settings::ALL_AOVS;
 use std::collections::HashMap;
-use std::path::Path;
 use std::time::Instant;
 
 use super::super::cache::{scene_key, write_text};
 use super::super::figures;
-use super::super::StudyError;
-use super::charts::{crops_mosaic, error_time_figure, time_figure};
+use super::super::{SceneFile, StudyError};
+use super::charts::{category_figure, crops_mosaic, error_time_figure, rmse_of, time_figure};
 use super::differences::{
     difference_images, difference_readouts, differences, differences_csv, rgb_pixels,
 };
-use super::readouts::{readouts, reference_checks, summarise};
+use super::readouts::{chart_time, readouts, reference_checks, summarise};
 use super::tables::{points_csv, summary_csv};
 use super::{
-    Kind, KindReport, Overrides, Point, ReferenceRun, StudyConfig, QUICK_RESOLUTION,
+    Kind, KindReport, Overrides, Point, ReferenceRun, StudyConfig, Summary, QUICK_RESOLUTION,
     REFERENCE_FORMAT, REFERENCE_SEED_OFFSET, SETUP_TABLES,
 };
 use crate::image::{self, Image};
@@ -54,20 +53,20 @@ pub(super) struct Prepared {
     scene: Scene,
 }
 
-/// The scene file's table with `overrides` applied, as text and as a validated scene.
+/// The scene's table `base` with `overrides` applied, as text and as a validated scene (named and resolved as
+/// `file`).
 pub(super) fn prepare(
     base: &toml::Table,
     overrides: &Overrides,
-    source: &Path,
-    base_dir: &Path,
+    file: &SceneFile,
 ) -> Result<Prepared, StudyError> {
     let mut table = base.clone();
     for (k, v) in overrides {
         set_key(&mut table, k, v.clone())?;
     }
     let text = toml::to_string(&table)
-        .map_err(|e| StudyError::Config(format!("{}: {e}", source.display())))?;
-    let scene = Scene::parse(&text, source, base_dir)?;
+        .map_err(|e| StudyError::Config(format!("{}: {e}", file.source.display())))?;
+    let scene = Scene::parse(&text, &file.source, &file.base_dir)?;
     Ok(Prepared { text, scene })
 }
 
@@ -226,31 +225,25 @@ pub(super) fn check(kind: &Kind, config: &StudyConfig) -> Result<(), StudyError>
     Ok(())
 }
 
-/// Runs `kind` on the scene file at `scene_path` (see the module docs).
+/// Runs `kind` on `scene` (a scene file or the default scene; see the module docs).
 // One piece: its stages run once, in order, sharing the frame cache, the judges and the points.
 pub fn run_kind(
-    scene_path: &Path,
+    scene_file: &SceneFile,
     kind: &Kind,
     config: &StudyConfig,
 ) -> Result<KindReport, StudyError> {
     check(kind, config)?;
     let config = &StudyConfig {
-        reference_spp: kind.budget.reference_spp.unwrap_or(config.reference_spp),
+        reference_spp: config
+            .reference_spp_override
+            .or(kind.budget.reference_spp)
+            .unwrap_or(config.reference_spp),
         ..config.clone()
     };
     check(kind, config)?;
-    let text = std::fs::read_to_string(scene_path).map_err(|source| StudyError::SceneFile {
-        path: scene_path.to_path_buf(),
-        source,
-    })?;
-    let base_dir = scene_path
-        .parent()
-        .map(Path::to_path_buf)
-        .unwrap_or_default();
     // Parsed once as a scene first, so a bad scene file is reported as such before any override.
-    let scene = Scene::parse(&text, scene_path, &base_dir)?;
-    let base: toml::Table = toml::from_str(&text)
-        .map_err(|e| StudyError::Config(format!("{}: {e}", scene_path.display())))?;
+    let scene = scene_file.scene(None)?;
+    let base = scene_file.table()?;
     let full = config
         .resolution
         .or(config.quick.then_some(QUICK_RESOLUTION))
@@ -278,7 +271,7 @@ pub fn run_kind(
     };
     // A scene with `overrides`, then (when the kind crops) its centred crop: the camera of its own settings.
     let make = |overrides: &Overrides| -> Result<Prepared, StudyError> {
-        let p = prepare(&base, overrides, scene_path, &base_dir)?;
+        let p = prepare(&base, overrides, scene_file)?;
         if resolution == p.scene.film.resolution {
             return Ok(p);
         }
@@ -288,7 +281,7 @@ pub fn run_kind(
             p.scene.film.resolution,
             resolution,
         ));
-        prepare(&base, &o, scene_path, &base_dir)
+        prepare(&base, &o, scene_file)
     };
     // Every variant and reference is parsed and checked before anything is rendered.
     let with = |extra: &Overrides, film: Overrides| -> Overrides {
@@ -328,7 +321,7 @@ pub fn run_kind(
     }
 
     super::super::create_dir(&config.out_dir)?;
-    let cache_dir = config.cache_dir.as_deref().unwrap_or(&config.out_dir);
+    let cache_dir = &config.cache();
     super::super::create_dir(cache_dir)?;
     let pool = thread_pool(Some(config.threads))?;
     let mut frames = FrameCache {
@@ -348,7 +341,7 @@ pub fn run_kind(
     let mut reference_runs = Vec::with_capacity(references.len());
     for (r, (p, parts)) in kind.references.iter().zip(&references) {
         reference_bar.set_message(r.label.clone());
-        let key = scene_key(REFERENCE_FORMAT, &key_text(&p.text), &p.scene, &[], "");
+        let key = scene_key(REFERENCE_FORMAT, &key_text(&p.text), scene_file, &[], "");
         let path = cache_dir.join(format!("reference-{key:016x}.exr"));
         let record = path.with_extension("txt");
         let frame = if path.is_file() {
@@ -416,13 +409,13 @@ pub fn run_kind(
     }
     reference_bar.finish_and_clear();
 
-    // Crops for `<kind>-crops.png` (seed 0 of every variant): the window holding the most shadowed pixels of the
-    // first reference, when every reference has its size.
+    // Crops for `<kind>-crops.png` (seed 0 of every variant): the window centred on the hair of the first
+    // reference, when every reference has its size.
     let [w0, h0] = [judges[0].reference.width, judges[0].reference.height];
     let crop_window = judges
         .iter()
         .all(|j| (j.reference.width, j.reference.height) == (w0, h0))
-        .then(|| metrics::densest_window(&judges[0].mask, w0, h0, config.crop));
+        .then(|| figures::hair_window(&judges[0].reference, config.crop));
     let mut crops: Vec<Option<Vec<glam::Vec3>>> = vec![None; kind.variants.len()];
 
     // The sweep.
@@ -513,16 +506,34 @@ pub fn run_kind(
         "{}×{}, {} seeds, reference {} spp",
         resolution[0], resolution[1], config.seeds, config.reference_spp
     );
-    files.extend(plot::write_figure(
-        &error_time_figure(kind, &summaries, &readouts, &caption)?,
-        dir,
-        &format!("{}-error-time", kind.name),
-    )?);
-    files.extend(plot::write_figure(
-        &time_figure(kind, &summaries, &caption)?,
-        dir,
-        &format!("{}-time", kind.name),
-    )?);
+    if kind.categories.is_empty() {
+        files.extend(plot::write_figure(
+            &error_time_figure(kind, &summaries, &readouts, &caption)?,
+            dir,
+            &format!("{}-error-time", kind.name),
+        )?);
+        files.extend(plot::write_figure(
+            &time_figure(kind, &summaries, &caption)?,
+            dir,
+            &format!("{}-time", kind.name),
+        )?);
+    } else {
+        // Unrelated cases: bars per case, not curves through them.
+        for (stem, measure, notes) in [
+            (
+                "rmse",
+                ("RMSE", rmse_of as fn(&Kind, &Summary) -> f64),
+                &readouts[..],
+            ),
+            ("time", ("render time", chart_time), &[]),
+        ] {
+            files.extend(plot::write_figure(
+                &category_figure(kind, &summaries, measure, notes, &caption)?,
+                dir,
+                &format!("{}-{stem}", kind.name),
+            )?);
+        }
+    }
     if let Some(window) = crop_window {
         let path = dir.join(format!("{}-crops.png", kind.name));
         image::write(&path, &crops_mosaic(kind, &judges, window, &crops, config)?)?;
