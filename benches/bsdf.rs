@@ -1,5 +1,5 @@
-//! Cost of one `eval`, `sample` and `pdf` call of each hair BSDF (issue 4 targets: eval < 100 ns, sample < 200 ns;
-//! Chiang et al. 2016, issue 14, has none).
+//! Cost of one `eval`, `sample` and `pdf` call of each hair BSDF (targets: eval < 100 ns, sample < 200 ns;
+//! Chiang et al. 2016 has none).
 //!
 //! `cargo bench --bench bsdf`. Each measurement runs a batch of 1024 calls on precomputed random directions (uniform
 //! on the sphere, local hair frame) and random numbers, so criterion's time per iteration / 1024 is the time per call;

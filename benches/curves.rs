@@ -1,4 +1,4 @@
-//! Cost of one ray–segment test of the pure-Rust curve intersectors (`accel::curves::{round, flat}`), issue 13.
+//! Cost of one ray–segment test of the pure-Rust curve intersectors (`accel::curves::{round, flat}`).
 //!
 //! `cargo bench --bench curves`. Segments like the fur ball's: thin (radius 1e-3 of the segment's length), gently
 //! curved (the heading turns by ~0.1 rad per control point). Two ray sets per curve kind, generated from a fixed

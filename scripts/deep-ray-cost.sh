@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # What a shadow or material ray costs by the path vertex it leaves, the measurement behind the cost model's `deep`
-# weight (`src/quality/cost.rs`, issue 18): callgrind instruction counts (steady where seconds on these VMs move by
+# weight (`src/quality/cost.rs`): callgrind instruction counts (steady where seconds on these VMs move by
 # ±5 %) of one frame at path length 1 and one at path length 2, flat curves, ray-traced shadows, one thread. Prints
 # the instructions of a first-vertex light sample (its shadow ray, light sample and BSDF evaluation), of a vertex at
 # bounce 1 (one light and one material sample and their two rays: `Integrator::deeper_vertex` at path 1 over its

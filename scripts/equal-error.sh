@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Equal error, not only equal samples (issue 15, target 2): cuticle against Blender Cycles on the peer scene at
+# Equal error, not only equal samples: cuticle against Blender Cycles on the peer scene at
 # 256², 2 threads. Each renderer renders its own converged reference, then a sweep of sample counts with other seeds,
 # cuticle and Cycles taking turns at each point; every image's RMSE is measured against its own renderer's reference.
 # Writes docs/measured/equal-error/equal-error.csv, a log-log chart RMSE vs wall time (equal-error.png/.svg, drawn by

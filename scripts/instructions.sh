@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Instruction counts of a frame's pixel loop, the steady measure behind issue 15's "close to the tracer's limit"
+# Instruction counts of a frame's pixel loop, the steady measure behind "close to the tracer's limit"
 # (seconds on these VMs move by ±5 % between runs; instruction counts of these deterministic renders do not):
 # callgrind over `cuticle::render::render_tiles` only, one thread, twice — once whole, once with Embree's queries
 # (`rtcIntersect1`, `rtcOccluded1`) toggled off inside it — and prints the total, Embree's part, cuticle's own
@@ -35,5 +35,5 @@ import sys
 total, own = (int(x) for x in sys.argv[1:])
 embree = total - own
 print(f"pixel loop {total / 1e6:.2f} M instructions: Embree {embree / 1e6:.2f} M, cuticle and libm {own / 1e6:.2f} M")
-print(f"Embree's share {embree / total:.3f} (issue 15's target 3 asks 0.8 of the clock; own at most {embree / 4e6:.1f} M)")
+print(f"Embree's share {embree / total:.3f} (the target is 0.8 of the clock; own at most {embree / 4e6:.1f} M)")
 EOF

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Where `--quality auto`'s pilots misread a scene's bounces (issue 18): each bounce's bias (relative RMSE) as
+"""Where `--quality auto`'s pilots misread a scene's bounces: each bounce's bias (relative RMSE) as
 the pilots estimate it and as whole-film renders measure it, split into the pilots' three departures from the
 truth — which pixels they read (the pilot windows, a sixteenth of the film), how they weigh them (each pixel's
 product d_a d_b over the mean of its 3×3 neighbours in its window, not over the converged pixel) and which

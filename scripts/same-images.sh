@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# No-behaviour-change check for refactors (issue 12): renders a fixed set of scenes at small size with the
+# No-behaviour-change check for refactors: renders a fixed set of scenes at small size with the
 # current release build and compares every EXR bit for bit (`idiff -a`, all channels, zero tolerance) against
 # a set recorded before the change.
 #

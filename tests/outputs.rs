@@ -1,7 +1,10 @@
-//! Section 1 of issue 16: a run's outputs are never lost or half written. Paths are checked before the render;
+//! A run's outputs are never lost or half written. Paths are checked before the render;
 //! SIGINT leaves no temporary file, keeps the previous frame and writes the finished tiles as a partial EXR marked
 //! incomplete; a full disk is reported with the operating system's words and replaces nothing.
 
+mod common;
+
+use common::listing;
 use std::io::{BufRead, BufReader};
 use std::path::Path;
 use std::process::{Command, Output, Stdio};
@@ -29,15 +32,6 @@ fn render_small(out: &Path, res: &str) -> Output {
 
 fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn listing(dir: &Path) -> Vec<String> {
-    let mut names: Vec<String> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    names.sort();
-    names
 }
 
 #[test]

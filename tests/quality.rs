@@ -1,4 +1,4 @@
-//! `--quality auto` (issue 18): the decisions auto must make on scenes built to require them, and an auto render
+//! `--quality auto`: the decisions auto must make on scenes built to require them, and an auto render
 //! that meets its error target against a converged reference.
 
 use std::path::Path;

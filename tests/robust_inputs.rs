@@ -1,4 +1,4 @@
-//! Hostile inputs (issue 16, sections 1 and 2): nothing a user feeds cuticle may exhaust the machine, hang it, print
+//! Hostile inputs: nothing a user feeds cuticle may exhaust the machine, hang it, print
 //! an error twice, blame the wrong key, or end with exit 0 and a wrong or non-finite image. Each case is tiny.
 
 mod common;

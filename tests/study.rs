@@ -3,6 +3,8 @@
 //! flags, and the errors a user sees for bad input; and on the built-in default scene at `--quick`'s 32×24: no
 //! scene argument, references in `OUT/cache/`, the files listed at the end, the stress cases as bar charts.
 
+mod common;
+
 use std::path::Path;
 use std::process::Command;
 
@@ -55,16 +57,6 @@ fn written(stdout: &str) -> (Vec<std::path::PathBuf>, &str) {
         .map(std::path::PathBuf::from)
         .collect();
     (files, stdout.lines().last().unwrap_or_default())
-}
-
-/// The names of the files directly in `dir`, sorted.
-fn names_in(dir: &Path) -> Vec<String> {
-    let mut names: Vec<String> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    names.sort();
-    names
 }
 
 /// The scene file at `path`, read now.
@@ -349,10 +341,10 @@ fn study_all_quick_writes_every_chart_and_sane_values() {
     assert!(all.files.iter().all(|f| f.is_file()));
     let unique: std::collections::BTreeSet<_> = all.files.iter().collect();
     assert_eq!(unique.len(), all.files.len());
-    assert!(names_in(&dir.path().join("out"))
+    assert!(common::listing(&dir.path().join("out"))
         .iter()
         .all(|n| !n.starts_with("reference-")));
-    assert!(names_in(&dir.path().join("out/cache"))
+    assert!(common::listing(&dir.path().join("out/cache"))
         .iter()
         .any(|n| n.starts_with("reference-")));
     for k in &all.kinds {
@@ -746,11 +738,11 @@ fn study_without_a_scene_uses_the_default_scene_caches_in_a_folder_and_lists_its
         .collect();
     listed.sort();
     assert_eq!(
-        names_in(&out),
+        common::listing(&out),
         listed,
         "only the listed files and the cache"
     );
-    let cached = names_in(&cache);
+    let cached = common::listing(&cache);
     assert!(
         cached.len() >= 2 && cached.iter().all(|n| n.starts_with("reference-")),
         "{cached:?}"
@@ -772,9 +764,13 @@ fn study_without_a_scene_uses_the_default_scene_caches_in_a_folder_and_lists_its
     let (code, _, stderr) = run(&args);
     assert_eq!(code, Some(0), "{stderr}");
     assert!(!out2.join("cache").exists());
-    assert_eq!(names_in(&other), cached, "the same keys as in OUT/cache");
+    assert_eq!(
+        common::listing(&other),
+        cached,
+        "the same keys as in OUT/cache"
+    );
     let modified = |d: &Path| -> Vec<std::time::SystemTime> {
-        names_in(d)
+        common::listing(d)
             .iter()
             .map(|n| std::fs::metadata(d.join(n)).unwrap().modified().unwrap())
             .collect()

@@ -1,4 +1,4 @@
-//! Section 6 of issue 16: parts of a frame (`render --crop`, `--tile I/N`) equal the full render there, `merge`
+//! Parts of a frame (`render --crop`, `--tile I/N`) equal the full render there, `merge`
 //! assembles them bit for bit and refuses what does not make one frame; `--frames` renders a turntable.
 
 use std::path::{Path, PathBuf};

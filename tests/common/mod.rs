@@ -32,3 +32,13 @@ pub fn bit_differences(a: &[f32], b: &[f32]) -> usize {
         .filter(|(x, y)| x.to_bits() != y.to_bits())
         .count()
 }
+
+/// The names of the files directly in `dir`, sorted.
+pub fn listing(dir: &std::path::Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
+}
