@@ -162,6 +162,7 @@ fn lights(base: &toml::Table) -> Vec<toml::Value> {
 
 /// The cases `base` (a scene file's table) can express, in order, and the ones it cannot.
 pub fn cases(base: &toml::Table, quick: bool) -> (Vec<Case>, Vec<Skipped>) {
+    // One piece: a flat list of the cases, each a name, what it tests and its overrides, in the report's order.
     let spp = if quick { 4 } else { SPP };
     let mut cases = Vec::new();
     let mut skipped = Vec::new();
@@ -378,6 +379,7 @@ fn mean_luminance(path: &Path) -> Result<f64, StudyError> {
 /// Runs the stress cases on `scene` (a scene file or the default scene) and writes `stress.md` (see the module
 /// docs).
 pub fn run(scene: &SceneFile, config: &StudyConfig) -> Result<StressReport, StudyError> {
+    // One piece: render the cases, judge each method's summaries, then write the report from the same summaries.
     let base = scene.table()?;
     let (cases, skipped) = cases(&base, config.quick);
     let kind = kind(&cases, config.quick);

@@ -113,6 +113,7 @@ pub struct AutoReport {
 
 /// Runs the study and writes `auto.md`, `auto.csv` and the fits' tables into `out`.
 pub fn run(config: &AutoStudyConfig) -> Result<AutoReport, StudyError> {
+    // One piece: the scenes are measured in turn and their rows written to one table and one report as they come.
     if config.scenes.is_empty() || config.targets.is_empty() {
         return Err(StudyError::Config(
             "study auto needs at least one scene and one target".into(),

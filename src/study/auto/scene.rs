@@ -42,6 +42,7 @@ pub(super) fn study_scene(
     config: &AutoStudyConfig,
     cache_dir: &Path,
 ) -> Result<(Vec<Row>, f64, PathBuf), StudyError> {
+    // One piece: per target, every measurement shares the scene's frames, reference and fits, set up once here.
     let scene = file.scene(Some(config.resolution))?;
     let text = &file.text;
     let spec_for = |curves: CurveKind| -> Result<Frame, StudyError> {
