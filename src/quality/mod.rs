@@ -461,7 +461,7 @@ impl Default for Margins {
 }
 
 /// The adaptive schedule for a frame whose pilots asked for `spp` samples per pixel on average, to a noise of
-/// `noise` (relative RMSE): the image-level rule ([`crate::render::adaptive::Rule::Image`]) from a quarter of `spp`
+/// `noise` (relative RMSE): the image-level rule ([`crate::render::adaptive`]) from a quarter of `spp`
 /// (at least `quality.min_spp` and 2, the fewest that give a variance) to 8× it (at most `quality.max_spp`), to
 /// `noise_share` × `noise` ([`Margins::noise_share`]) of true noise: the rule's stop reads the independent-samples
 /// variance s² / n, which overstates a stratified sampler's error by its gain, so the schedule carries the gain
@@ -481,7 +481,6 @@ pub fn adaptive_schedule(
         min,
         max,
         target: noise_share * noise,
-        rule: crate::render::adaptive::Rule::Image,
         cost: Some(cost::WEIGHTS),
         sampler_gain: sampler_gain.max(1.0),
     }

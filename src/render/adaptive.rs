@@ -1,7 +1,7 @@
 //! Adaptive sampling: camera samples in rounds, more where the image is noisier, until the estimated
 //! error is under the target, between a minimum and a maximum per pixel.
 //!
-//! # The image-level rule ([`Rule::Image`], what `--quality auto` uses)
+//! # The image-level rule (what `--quality auto` uses, and the renderer runs)
 //!
 //! The frame's target is a relative RMSE over the image ([`crate::quality`]), so the rule stops on the *image's*
 //! estimated noise, not each pixel's. A pixel's beauty is the mean of its n samples; its per-sample relative variance
@@ -51,7 +51,7 @@
 //! quarters against their halves measure (one octave below, pooled over the background) but at most 4/3
 //! ([`BACKGROUND_MAX_ORDER`]), and the model takes the same for them.
 //!
-//! Against the per-pixel rule ([`Rule::Pixel`]) this spends nothing on pixels whose error is already small
+//! Against the per-pixel rule ([`Schedule::next_total`]) this spends nothing on pixels whose error is already small
 //! relative to the image's, and lets a bright noisy pixel exceed the others: the image's error, not the worst
 //! pixel's, meets the target. What it cannot see (like any rule reading the samples) is a rare bright path that
 //! none of a pixel's first samples found: that pixel's v is 0 and it keeps `min`.
@@ -66,11 +66,13 @@
 //! too), but its pixels are not bit-identical to the same pixels of a full-frame render, as they are at a fixed
 //! spp.
 //!
-//! # The per-pixel rule ([`Rule::Pixel`], kept for comparison)
+//! # The per-pixel rule ([`Schedule::next_total`], the baseline the tests compare against)
 //!
 //! Each pixel alone: e² = mean over RGB of (s²/n) / (x̄² + 0.01) with the variance at its 95 % **upper confidence
 //! bound** (n − 1) s² / χ²₀.₀₅(n − 1) (Wilson–Hilferty), in doubling rounds min, 2·min, … up to max until e is
-//! under the target. It needs no barrier, but sends nearly every hair pixel to the maximum.
+//! under the target. It needs no barrier, but sends nearly every hair pixel to the maximum. The renderer does not
+//! run it: the tests that compare the rules run it on synthetic pixels, and on a frame through a sampling strategy
+//! of their own ([`crate::render::Request::sampling`]).
 
 mod convergence;
 mod schedule;
@@ -79,7 +81,7 @@ mod tests;
 
 pub use convergence::Convergence;
 pub(crate) use schedule::neighbourhood;
-pub use schedule::{Rule, Schedule, BACKGROUND_MAX_ORDER};
+pub use schedule::{Schedule, BACKGROUND_MAX_ORDER};
 
 use rayon::prelude::*;
 
@@ -138,7 +140,7 @@ impl Work {
     }
 }
 
-/// The pixel loop of [`Rule::Image`] over `tiles` (work tiles of `region`, made by `new_tile`): a first round to
+/// The pixel loop of the image-level rule over `tiles` (work tiles of `region`, made by `new_tile`): a first round to
 /// `schedule.min` everywhere, then rounds decided by [`Schedule::next_round`] from the whole region's pixels in
 /// row-major order, each after every tile of the round before is done (rayon's join is the barrier). `sample`
 /// draws a pixel's i-th camera sample, `centre` writes its centre-ray channels. Once `cancelled` holds no new

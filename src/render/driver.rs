@@ -10,80 +10,28 @@ use std::time::Instant;
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::adaptive::{self, Rule};
+use super::adaptive;
 use super::camera::Camera;
 use super::film::{self, PixelSums, Tile};
 use super::filter::GaussianFilter;
-use super::integrator::{Integrator, PathSample, RayCounts};
-use super::sampler::{CameraSample, PixelSampler};
-use super::strategy::{Fixed, PerPixel, PixelStrategy};
-use super::{camera_ray, Frame, Region, RegionRender, RenderSettings, RenderStats};
-use crate::bsdf::chiang::LANES;
-use crate::ray::Ray;
+use super::integrator::{Integrator, RayCounts};
+use super::strategy::{Fixed, PixelSampling, PixelSource};
+use super::{Frame, Region, RegionRender, RenderSettings, RenderStats};
 use crate::shadow::ShadowMaps;
 
-/// One pixel's camera samples, as a strategy draws them: sample `i` through the pixel, rays counted in `counts`.
-pub(super) struct PixelSource<'s> {
-    x: u32,
-    y: u32,
-    pixel: PixelSampler,
-    context: &'s Context<'s>,
-    counts: &'s mut RayCounts,
-}
-
 /// What every pixel of a render shares: the camera, the pixel filter, the integrator, the seed.
-struct Context<'f> {
-    camera: Camera,
-    filter: Arc<GaussianFilter>,
-    integrator: Integrator<'f>,
-    seed: u32,
-}
-
-impl<'f> Context<'f> {
-    /// Pixel (x, y)'s samples, rays counted in `counts`.
-    fn source<'s>(&'s self, x: u32, y: u32, counts: &'s mut RayCounts) -> PixelSource<'s> {
-        PixelSource {
-            x,
-            y,
-            pixel: PixelSampler::new(x, y, self.seed),
-            context: self,
-            counts,
-        }
-    }
-}
-
-impl PixelSource<'_> {
-    /// The pixel's camera sample `i`.
-    pub(super) fn sample(&mut self, i: u32) -> PathSample {
-        let sampler = CameraSample::new(&self.pixel, i);
-        let c = self.context;
-        let ray = camera_ray(&c.camera, &c.filter, &sampler, self.x, self.y, i);
-        c.integrator.sample(&ray, &sampler, i, self.counts)
-    }
-
-    /// The pixel's camera samples `first .. first + LANES`, their first vertices shaded together.
-    pub(super) fn sample_lanes(&mut self, first: u32) -> [PathSample; LANES] {
-        let indices: [u32; LANES] = std::array::from_fn(|k| first + k as u32);
-        let samplers = indices.map(|j| CameraSample::new(&self.pixel, j));
-        let c = self.context;
-        let rays: [Ray; LANES] = std::array::from_fn(|k| {
-            camera_ray(
-                &c.camera,
-                &c.filter,
-                &samplers[k],
-                self.x,
-                self.y,
-                indices[k],
-            )
-        });
-        c.integrator
-            .sample_lanes(&rays, &samplers, &indices, self.counts)
-    }
+pub(super) struct Context<'f> {
+    pub(super) camera: Camera,
+    pub(super) filter: Arc<GaussianFilter>,
+    pub(super) integrator: Integrator<'f>,
+    pub(super) seed: u32,
 }
 
 /// Renders `region` of `frame` with `settings` (and `maps` in deep-opacity mode) on the current rayon pool, in
-/// work tiles of `tile_side`² pixels. Once `cancel` holds a non-zero value no new tile starts (tiles already
-/// running finish).
+/// work tiles of `tile_side`² pixels, each pixel sampled by `sampling` if given (else by the film's spp, or by the
+/// image-level adaptive rule when the settings say so). Once `cancel` holds a non-zero value no new tile starts
+/// (tiles already running finish).
+#[allow(clippy::too_many_arguments)]
 pub(super) fn render_tiles(
     frame: &Frame,
     settings: &RenderSettings,
@@ -92,6 +40,7 @@ pub(super) fn render_tiles(
     region: Region,
     cancel: Option<&AtomicUsize>,
     tile_side: u32,
+    sampling: Option<&dyn PixelSampling>,
 ) -> RegionRender {
     let [width, height] = settings.film.resolution;
     let context = Context {
@@ -125,7 +74,7 @@ pub(super) fn render_tiles(
         )
     };
     let cancelled = || cancel.is_some_and(|c| c.load(Ordering::Relaxed) != 0);
-    let pixel_by_pixel = |strategy: &dyn PixelStrategy| -> Vec<(Tile, RayCounts)> {
+    let pixel_by_pixel = |strategy: &dyn PixelSampling| -> Vec<(Tile, RayCounts)> {
         tiles
             .par_iter()
             .filter_map(|&(tx, ty)| {
@@ -137,8 +86,8 @@ pub(super) fn render_tiles(
                 for y in tile.y0..tile.y1 {
                     for x in tile.x0..tile.x1 {
                         let mut sums = PixelSums::default();
-                        let taken =
-                            strategy.take(&mut context.source(x, y, &mut counts), &mut sums);
+                        let mut source = PixelSource::new(x, y, &context, &mut counts);
+                        let taken = strategy.take(&mut source, &mut sums);
                         tile.set_pixel(x, y, |pixel| {
                             sums.write(taken, pixel);
                             centre(x, y, pixel, &mut counts);
@@ -150,17 +99,17 @@ pub(super) fn render_tiles(
             })
             .collect()
     };
-    let rendered = match settings.adaptive {
-        Some(schedule) if schedule.rule == Rule::Image => {
+    let rendered = match (sampling, settings.adaptive) {
+        (Some(strategy), _) => pixel_by_pixel(strategy),
+        (None, Some(schedule)) => {
             let sample = |x: u32, y: u32, i: u32, counts: &mut RayCounts| {
-                context.source(x, y, counts).sample(i)
+                PixelSource::new(x, y, &context, counts).sample(i)
             };
             adaptive::render_rounds(
                 &tiles, region, schedule, &bar, &new_tile, &sample, &centre, &cancelled,
             )
         }
-        Some(schedule) => pixel_by_pixel(&PerPixel { schedule }),
-        None => pixel_by_pixel(&Fixed {
+        (None, None) => pixel_by_pixel(&Fixed {
             spp: settings.film.spp,
             lanes: settings.integrator.lanes && context.integrator.lanes_fit(),
         }),

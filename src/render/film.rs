@@ -209,9 +209,10 @@ pub fn dropped_samples() -> u64 {
     DROPPED.load(Ordering::Relaxed)
 }
 
-/// The film accumulators of one pixel (sums over its camera samples).
+/// The film accumulators of one pixel (sums over its camera samples); a [`super::PixelSampling`] strategy adds
+/// each sample it takes.
 #[derive(Default)]
-pub(super) struct PixelSums {
+pub struct PixelSums {
     /// Samples left out because a value was not finite.
     dropped: u32,
     beauty: Vec3,
@@ -226,7 +227,7 @@ pub(super) struct PixelSums {
 
 impl PixelSums {
     /// Adds one camera sample.
-    pub(super) fn add(&mut self, s: &PathSample) {
+    pub fn add(&mut self, s: &PathSample) {
         let l = &s.lobes;
         let finite = [s.beauty, s.direct, s.indirect, s.albedo]
             .iter()

@@ -207,6 +207,7 @@ impl Frame {
             region,
             request.cancel,
             request.tile_side,
+            request.sampling,
         );
         if let Some(m) = maps {
             r.stats.shadow_build_seconds = maps_seconds;

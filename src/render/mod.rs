@@ -6,7 +6,7 @@
 //! **Determinism**: every pixel depends only on its own sample streams ([`sampler::PixelSampler`], keyed by
 //! pixel and seed, and the per-ray keys derived from them) and sums its samples in a fixed order; tiles only decide
 //! which thread does the work. The same scene and seed give bit-identical pixels with any thread count. With
-//! adaptive sampling's image-level rule ([`adaptive::Rule::Image`]) how many samples a pixel takes is decided
+//! adaptive sampling's image-level rule ([`adaptive`]) how many samples a pixel takes is decided
 //! between rounds from all the region's pixels, in row-major order: still the same for any thread count and work
 //! tile size, but a `--crop`/`--tile` region decides from its own pixels (see [`adaptive`]).
 
@@ -20,7 +20,7 @@ pub mod frame;
 pub mod integrator;
 pub mod sampler;
 pub mod settings;
-mod strategy;
+pub mod strategy;
 pub mod tiles;
 
 use std::sync::atomic::AtomicUsize;
@@ -42,6 +42,7 @@ pub use settings::{
     FilmConfig, IntegratorConfig, LightSelection, RenderSettings, ShadowConfig, ShadowMode,
     Strategy, TransmittanceMode,
 };
+pub use strategy::{PixelSampling, PixelSource};
 pub use tiles::Region;
 
 /// Side of the square tiles rendered as one unit of parallel work.
@@ -71,6 +72,7 @@ pub struct Request<'a> {
     pub(crate) cancel: Option<&'a AtomicUsize>,
     pub(crate) progress: bool,
     pub(crate) tile_side: u32,
+    pub(crate) sampling: Option<&'a dyn PixelSampling>,
 }
 
 impl<'a> Request<'a> {
@@ -83,6 +85,7 @@ impl<'a> Request<'a> {
             cancel: None,
             progress: false,
             tile_side: TILE,
+            sampling: None,
         }
     }
 
@@ -111,6 +114,13 @@ impl<'a> Request<'a> {
     /// Show a progress bar on stderr.
     pub fn progress(mut self, show: bool) -> Self {
         self.progress = show;
+        self
+    }
+
+    /// Each pixel's samples taken by `sampling` instead of the film's spp or the settings' adaptive rule: a
+    /// strategy of the caller's own (the tests run the per-pixel adaptive rule this way).
+    pub fn sampling(mut self, sampling: &'a dyn PixelSampling) -> Self {
+        self.sampling = Some(sampling);
         self
     }
 

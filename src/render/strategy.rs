@@ -1,17 +1,71 @@
 //! Sampling strategies: how many camera samples one pixel takes, and in what batches. The tile driver
-//! ([`super::driver`]) calls one for every pixel of a tile; the image-level adaptive rule, which decides between
-//! rounds from the whole region, runs its own rounds over the same tiles ([`super::adaptive::render_rounds`]).
+//! ([`super::driver`]) calls one for every pixel of a tile: a fixed count (the film's spp) unless a
+//! [`super::Request`] brings its own ([`super::Request::sampling`]). The image-level adaptive rule, which decides
+//! between rounds from the whole region, runs its own rounds over the same tiles
+//! ([`super::adaptive::render_rounds`]).
 
-use super::adaptive::{Convergence, Schedule};
-use super::driver::PixelSource;
+use super::camera_ray;
+use super::driver::Context;
 use super::film::PixelSums;
+use super::integrator::{PathSample, RayCounts};
+use super::sampler::{CameraSample, PixelSampler};
 use crate::bsdf::chiang::LANES;
+use crate::ray::Ray;
 
-/// A pixel-by-pixel strategy: takes the samples of one pixel from `source`, indices 0, 1, 2, … in order, adds
-/// each to `sums` and returns how many it took. Every decision depends on the pixel's own samples, so the image
-/// does not depend on the thread count or the tile split.
-pub(super) trait PixelStrategy: Sync {
+/// A pixel-by-pixel sampling strategy: takes the samples of one pixel from `source`, indices 0, 1, 2, … in order,
+/// adds each to `sums` and returns how many it took. A strategy whose decisions depend on the pixel's own samples
+/// alone keeps the image independent of the thread count and the tile split.
+pub trait PixelSampling: Sync {
+    /// Takes the pixel's samples; returns how many.
     fn take(&self, source: &mut PixelSource<'_>, sums: &mut PixelSums) -> u32;
+}
+
+/// One pixel's camera samples, as a strategy draws them; their rays are counted in the render's statistics.
+pub struct PixelSource<'s> {
+    x: u32,
+    y: u32,
+    pixel: PixelSampler,
+    context: &'s Context<'s>,
+    counts: &'s mut RayCounts,
+}
+
+impl<'s> PixelSource<'s> {
+    pub(super) fn new(x: u32, y: u32, context: &'s Context<'s>, counts: &'s mut RayCounts) -> Self {
+        PixelSource {
+            x,
+            y,
+            pixel: PixelSampler::new(x, y, context.seed),
+            context,
+            counts,
+        }
+    }
+
+    /// The pixel's camera sample `i`.
+    pub fn sample(&mut self, i: u32) -> PathSample {
+        let sampler = CameraSample::new(&self.pixel, i);
+        let c = self.context;
+        let ray = camera_ray(&c.camera, &c.filter, &sampler, self.x, self.y, i);
+        c.integrator.sample(&ray, &sampler, i, self.counts)
+    }
+
+    /// The pixel's camera samples `first .. first + LANES`, their first vertices shaded together.
+    pub(super) fn sample_lanes(&mut self, first: u32) -> [PathSample; LANES] {
+        let indices: [u32; LANES] = std::array::from_fn(|k| first + k as u32);
+        let samplers = indices.map(|j| CameraSample::new(&self.pixel, j));
+        let c = self.context;
+        let rays: [Ray; LANES] = std::array::from_fn(|k| {
+            camera_ray(
+                &c.camera,
+                &c.filter,
+                &samplers[k],
+                self.x,
+                self.y,
+                indices[k],
+            )
+        });
+        c.integrator
+            .sample_lanes(&rays, &samplers, &indices, self.counts)
+    }
 }
 
 /// A fixed count per pixel (the film's spp); with `lanes`, the first vertices of eight samples at a time
@@ -21,7 +75,7 @@ pub(super) struct Fixed {
     pub lanes: bool,
 }
 
-impl PixelStrategy for Fixed {
+impl PixelSampling for Fixed {
     fn take(&self, source: &mut PixelSource<'_>, sums: &mut PixelSums) -> u32 {
         let mut i = 0;
         if self.lanes {
@@ -36,31 +90,5 @@ impl PixelStrategy for Fixed {
             sums.add(&source.sample(i));
         }
         self.spp
-    }
-}
-
-/// The per-pixel adaptive rule ([`super::adaptive::Rule::Pixel`]): rounds of samples, in index order, until the
-/// pixel's own estimate of its error is under the target. It is the baseline the image-level rule is measured
-/// against (unit tests on synthetic pixels and frame tests alike), so it is a strategy here rather than a copy in
-/// each test.
-pub(super) struct PerPixel {
-    pub schedule: Schedule,
-}
-
-impl PixelStrategy for PerPixel {
-    fn take(&self, source: &mut PixelSource<'_>, sums: &mut PixelSums) -> u32 {
-        let mut convergence = Convergence::default();
-        let mut i = 0;
-        while let Some(total) = self.schedule.next_total(i, &convergence) {
-            while i < total {
-                let s = source.sample(i);
-                if s.beauty.is_finite() {
-                    convergence.add(s.beauty);
-                }
-                sums.add(&s);
-                i += 1;
-            }
-        }
-        i
     }
 }

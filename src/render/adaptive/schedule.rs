@@ -1,4 +1,4 @@
-//! The rules that decide how many samples each pixel takes ([`Rule`], [`Schedule`]): the per-pixel bound, the
+//! The rules that decide how many samples each pixel takes ([`Schedule`]): the per-pixel bound, the
 //! image-level estimate and allocation of each round, and the neighbourhood smoothing and background order they
 //! read; decisions only, apart from the pixel loop that carries them out.
 
@@ -6,34 +6,23 @@ use super::super::integrator::RayCost;
 use super::convergence::{Convergence, SplitTerms};
 use crate::util::hash::{mix64, GOLDEN_GAMMA};
 
-/// Which estimate adaptive sampling stops on (see the module docs).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum Rule {
-    /// The region's estimated relative RMSE (noise) is at most the target; samples go where they reduce it most.
-    #[default]
-    Image,
-    /// Each pixel's own relative error, at its 95 % upper confidence bound, is at most the target.
-    Pixel,
-}
-
 /// An adaptive sampling schedule: at least `min` and at most `max` samples per pixel, in rounds, until the
-/// estimate of `rule` is at most `target`.
+/// image's estimated noise is at most `target` (the image-level rule); [`Schedule::next_total`] reads the same
+/// schedule as the per-pixel rule, each pixel's own bound, which tests compare the image-level rule against.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Schedule {
     /// Samples before the first test (≥ 2).
     pub min: u32,
     /// Samples never exceeded.
     pub max: u32,
-    /// Relative error to reach: the region's noise relative RMSE ([`Rule::Image`]) or each pixel's
-    /// ([`Rule::Pixel`]).
+    /// Relative error to reach: the region's noise relative RMSE (the image-level rule) or each pixel's (the
+    /// per-pixel rule, [`Schedule::next_total`]).
     pub target: f64,
-    /// What the target is tested on.
-    pub rule: Rule,
-    /// [`Rule::Image`] with a cost model: each pixel's samples are weighed by their predicted cost (from the rays
+    /// The image-level rule with a cost model: each pixel's samples are weighed by their predicted cost (from the rays
     /// they traced, never the clock), and the samples go where they buy the most error per second instead of per
     /// sample (module docs). `None`: every sample costs the same.
     pub cost: Option<RayCost>,
-    /// [`Rule::Image`]: how much less relMSE the sampler's stratified samples have at 4 spp than independent ones
+    /// The image-level rule: how much less relMSE the sampler's stratified samples have at 4 spp than independent ones
     /// (g₄ ≥ 1, measured by auto's pilots; 1: none assumed). The stop reads each pixel's independent-samples
     /// variance s² / n, so it divides it by the gain at the pixel's n ([`Schedule::gain`]).
     pub sampler_gain: f64,
@@ -143,7 +132,7 @@ impl Iterator for Neighbourhood {
 pub(super) const MAX_ROUNDS: usize = 24;
 
 impl Schedule {
-    /// [`Rule::Pixel`]: how many samples the pixel should have taken in total after its next round, given the
+    /// The per-pixel rule: how many samples the pixel should have taken in total after its next round, given the
     /// `taken` it has and the statistics of those of them that were finite (`pixel`); `None` when it is done
     /// (converged, or at `max`). Rounds count samples taken, so a dropped non-finite sample cannot stall the
     /// schedule.
@@ -179,7 +168,7 @@ impl Schedule {
         }
     }
 
-    /// [`Rule::Image`]: the estimated relMSE (noise) of a region whose pixels took `taken` samples with
+    /// The image-level rule: the estimated relMSE (noise) of a region whose pixels took `taken` samples with
     /// statistics `pixels` (both in row-major order): the larger of the model's and the halves' estimates (module
     /// docs). The model's is the mean of v / (n g(n)) with each pixel's **own** v, an unbiased estimate of the mean
     /// relMSE of the pixels' means for independent samples (g = 1), and with the sampler's gain g
@@ -350,7 +339,7 @@ impl Schedule {
         sum / taken.len().max(1) as f64
     }
 
-    /// [`Rule::Image`]: every pixel's total after the next round (at least what it `taken`), or `None` when the
+    /// The image-level rule: every pixel's total after the next round (at least what it `taken`), or `None` when the
     /// region is done: its estimated relMSE is at most target², or no pixel may grow. `round` counts the rounds
     /// after the first (which takes every pixel to `min`). `taken` and `pixels` are the region's pixels in
     /// row-major order; the result depends on them alone.

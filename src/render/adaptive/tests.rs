@@ -30,7 +30,6 @@ fn the_sampler_gain_grows_from_one_at_one_sample() {
         min: 4,
         max: 64,
         target: 0.05,
-        rule: Rule::Image,
         cost: None,
         sampler_gain: g,
     };
@@ -91,7 +90,6 @@ fn constant_pixels_stop_at_the_minimum_and_noisy_ones_take_more() {
         min: 8,
         max: 1024,
         target: 0.02,
-        rule: Rule::Pixel,
         cost: None,
         sampler_gain: 1.0,
     };
@@ -174,7 +172,6 @@ fn the_image_rule_meets_the_image_target_with_fewer_samples_than_the_per_pixel_r
             min,
             max,
             target,
-            rule: Rule::Image,
             cost: None,
             sampler_gain: 1.0,
         },
@@ -187,7 +184,6 @@ fn the_image_rule_meets_the_image_target_with_fewer_samples_than_the_per_pixel_r
         min,
         max,
         target,
-        rule: Rule::Pixel,
         cost: None,
         sampler_gain: 1.0,
     };
@@ -232,7 +228,6 @@ fn the_image_rule_delivers_its_aim_where_noisy_pixels_neighbour_constant_ones() 
             min: 8,
             max: 4096,
             target,
-            rule: Rule::Image,
             cost: None,
             sampler_gain: 1.0,
         };
@@ -297,7 +292,6 @@ fn image_rule(target: f64) -> Schedule {
         min: 8,
         max: 1 << 16,
         target,
-        rule: Rule::Image,
         cost: None,
         sampler_gain: 1.0,
     }
@@ -548,7 +542,6 @@ fn a_rare_bright_path_missed_by_the_first_samples_stops_early() {
         min: 8,
         max: 1024,
         target: 0.02,
-        rule: Rule::Pixel,
         cost: None,
         sampler_gain: 1.0,
     };
@@ -581,7 +574,6 @@ fn stopped_pixels_meet_the_target_on_average() {
         min: 8,
         max: 4096,
         target,
-        rule: Rule::Pixel,
         cost: None,
         sampler_gain: 1.0,
     };
