@@ -1,7 +1,7 @@
 //! Chiang's view, eval and sample for eight shading points at once (steps 1–2 of `docs/design/wavefront.md`):
 //! a batch of paths is shaded one f32×8 vector (AVX2) at a time, where the scalar [`Chiang::eval_viewed`]
 //! evaluates one path's four lobes as one f64×4 vector. The integrator's `integrator.lanes` path calls them
-//! (`Integrator::sample_lanes`); `cargo bench --bench bsdf -- chiang-lanes` measures the eval against the scalar one.
+//! (`Integrator::sample_lanes`); `cargo bench -p cuticle-bench --bench bsdf -- chiang-lanes` measures the eval against the scalar one.
 //!
 //! The same model, written for f32 lanes:
 //! - M_p (d'Eon et al. 2011) as exp(ln c − (1 − cos(θi + θo′))/v − a) I₀(a) for a = cos θi cos θo′/v ≤ 10 and

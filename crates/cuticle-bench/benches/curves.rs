@@ -1,6 +1,6 @@
 //! Cost of one ray–segment test of the pure-Rust curve intersectors (`accel::curves::{round, flat}`).
 //!
-//! `cargo bench --bench curves`. Segments like the fur ball's: thin (radius 1e-3 of the segment's length), gently
+//! `cargo bench -p cuticle-bench --bench curves`. Segments like the fur ball's: thin (radius 1e-3 of the segment's length), gently
 //! curved (the heading turns by ~0.1 rad per control point). Two ray sets per curve kind, generated from a fixed
 //! seed: **hit** (aimed within 0.9 radii of a point of the curve, kept if the intersector hits) and **miss** (through
 //! a random point of the segment's bounding box, radius included — what the BVH offers a leaf — kept if it misses).

@@ -1,7 +1,7 @@
 //! Cost of one `eval`, `sample` and `pdf` call of each hair BSDF (targets: eval < 100 ns, sample < 200 ns;
 //! Chiang et al. 2016 has none).
 //!
-//! `cargo bench --bench bsdf`. Each measurement runs a batch of 1024 calls on precomputed random directions (uniform
+//! `cargo bench -p cuticle-bench --bench bsdf`. Each measurement runs a batch of 1024 calls on precomputed random directions (uniform
 //! on the sphere, local hair frame) and random numbers, so criterion's time per iteration / 1024 is the time per call;
 //! the reported throughput (elements/s) is calls per second. Single thread, `bench` profile (opt-level 3).
 //! A checksum of the results is returned to `black_box` so no call can be optimised away.
