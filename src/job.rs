@@ -1,8 +1,9 @@
 //! One render job, as `cuticle render` runs it: [`Job::prepare`] turns a scene (command-line overrides applied)
 //! into a built frame — memory checked, hair loaded, `--quality auto`'s plan made, deep opacity maps built — and
 //! [`Job::render`] renders one animation frame of it (the whole film, a crop or a tile), stopping cleanly on a
-//! cancel flag; [`Job::write`] writes its outputs all-or-nothing. The CLI, `study auto` and the tests run this
-//! sequence, so it is written once.
+//! cancel flag; [`Job::write`] writes its outputs all-or-nothing. The CLI and the tests ([`render_scene`]) run
+//! this sequence, so it is written once; `study auto` calls the same planning steps
+//! ([`quality::plan_curves`], [`quality::plan_frame_with`]) on frames it keeps loaded across its timed runs.
 //!
 //! The job sits above [`crate::quality`] (auto plans a built [`Frame`]) and [`crate::farm`] (tiles, frames and
 //! interrupted renders), and below the measurement layer.
