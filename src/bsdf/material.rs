@@ -9,7 +9,7 @@
 //! ([`super::chiang::Chiang::at`]: an arcsine and a square root, on the stack). Nothing is allocated per hit or per
 //! sample, and the integrator computes h only when [`Material::uses_offset`] says the model reads it.
 
-use super::chiang::{Chiang, ChiangFibre};
+use super::chiang::{Chiang, ChiangFibre, ChiangView};
 use super::{Bsdf, BsdfSample, LobeValues};
 use glam::Vec3;
 
@@ -36,6 +36,20 @@ impl Material {
     #[inline]
     pub fn uses_offset(&self) -> bool {
         matches!(self.scattering, Scattering::Chiang(_))
+    }
+
+    /// The scattering of a hit of offset `h` across the fibre seen from `wo` (local frame), prepared once for every
+    /// light sample, material sample and pdf of the shading point ([`PreparedBsdf`]). With `view` false (a hit
+    /// that is not shaded further, e.g. a path's last vertex under light sampling alone) nothing is precomputed.
+    #[inline]
+    pub fn prepare(&self, h: f32, wo: Vec3, view: bool) -> PreparedBsdf<'_> {
+        match &self.scattering {
+            Scattering::Chiang(c) if view => PreparedBsdf::Chiang {
+                model: c,
+                view: c.at(h).viewed(wo),
+            },
+            _ => PreparedBsdf::Direct { bsdf: self.at(h), wo },
+        }
     }
 
     /// The [`Bsdf`] at a hit of offset `h` = sin γo ∈ [−1, 1] across the fibre (ignored by the fixed models).
@@ -135,5 +149,53 @@ mod tests {
         };
         assert!(!kk.uses_offset());
         assert_eq!(kk.at(-0.6).eval(wo, wi), kk.at(0.6).eval(wo, wi));
+    }
+}
+
+/// A hit's fibre scattering prepared for its ωo ([`Material::prepare`], as pbrt-v4's materials build a BxDF at
+/// each hit): what the integrator evaluates and samples, without knowing the model.
+// The Chiang variant carries its view terms (~150 bytes): a vertex lives on the stack for one path step, and boxing
+// it would allocate per vertex.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Copy)]
+pub enum PreparedBsdf<'a> {
+    /// A model evaluated from (ωo, ωi) at each call.
+    Direct {
+        /// The model at the hit.
+        bsdf: HitBsdf<'a>,
+        /// ωo, local frame.
+        wo: Vec3,
+    },
+    /// Chiang et al. with the terms of this ωo and h computed once.
+    Chiang {
+        /// The model.
+        model: &'a Chiang,
+        /// The terms of the hit's ωo and h.
+        view: ChiangView,
+    },
+}
+
+impl PreparedBsdf<'_> {
+    /// f per lobe (before cos θi) and the sampling pdf, for light arriving from `wi` (local frame).
+    #[inline]
+    pub fn eval(&self, wi: Vec3) -> (LobeValues, f32) {
+        match self {
+            PreparedBsdf::Direct { bsdf, wo } => (bsdf.eval_lobes(*wo, wi), bsdf.pdf(*wo, wi)),
+            PreparedBsdf::Chiang { model, view } => model.eval_viewed(view, wi),
+        }
+    }
+
+    /// A sampled ωi (local frame) with its pdf, and f per lobe there.
+    #[inline]
+    pub fn sample(&self, u: [f32; 3]) -> Option<(BsdfSample, LobeValues)> {
+        match self {
+            PreparedBsdf::Direct { bsdf, wo } => {
+                let s = bsdf.sample(*wo, u)?;
+                // The sample's pdf is the mixture pdf already; only the per-lobe split is evaluated.
+                let lobes = bsdf.eval_lobes(*wo, s.wi);
+                Some((s, lobes))
+            }
+            PreparedBsdf::Chiang { model, view } => model.sample_viewed(view, u),
+        }
     }
 }

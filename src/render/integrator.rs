@@ -36,9 +36,9 @@
 use glam::{Vec3, Vec3A};
 
 use crate::accel::{CurveKind, Tracer};
-use crate::bsdf::chiang::{h_from_normal, h_from_ribbon, Chiang, ChiangView};
+use crate::bsdf::chiang::{h_from_normal, h_from_ribbon, Chiang};
 use crate::bsdf::frame::{sin_cos_theta, strand_noise, HairFrame};
-use crate::bsdf::{Bsdf, HitBsdf, Lobe, LobeValues, Material};
+use crate::bsdf::{HitBsdf, Lobe, LobeValues, Material, PreparedBsdf};
 use crate::hair::strands::tube_exit;
 use crate::hair::Strands;
 use crate::light::{Distribution1D, Light};
@@ -198,13 +198,13 @@ impl BounceRecorder for () {
     fn vertex(&mut self, _: u32, _: Vec3, _: &RayCounts) {}
 }
 
-/// A shading point's scattering: a hair fibre (hair frame, strand tint on the diffuse lobe) or a two-sided Lambert
-/// surface.
-// The hair variant carries the Chiang view (~150 bytes): a vertex lives on the stack for one path step, and
-// boxing it would allocate per vertex.
+/// A shading point's scattering: a hair fibre (hair frame, strand tint on the diffuse lobe, the material prepared
+/// for ωo) or a two-sided Lambert surface.
+// The hair variant carries the prepared fibre (up to ~150 bytes): a vertex lives on the stack for one path step,
+// and boxing it would allocate per vertex.
 #[allow(clippy::large_enum_variant)]
-#[derive(Debug, Clone, Copy)]
-enum Surface {
+#[derive(Clone, Copy)]
+enum Surface<'a> {
     Hair {
         frame: HairFrame,
         /// Multiplies the diffuse lobe (the strand colour, or 1).
@@ -217,9 +217,9 @@ enum Surface {
         /// Offset h = sin γo of the hit across the fibre, for models that read it ([`Material::uses_offset`];
         /// 0 otherwise).
         h: f32,
-        /// Chiang et al.'s terms of this ωo and h, computed once for every light sample, material sample and pdf
-        /// of the vertex (`None` for the other models).
-        chiang: Option<ChiangView>,
+        /// The material at this hit, prepared for ωo once for every light sample, material sample and pdf of the
+        /// vertex ([`Material::prepare`]).
+        bsdf: PreparedBsdf<'a>,
     },
     Lambert {
         /// The normal on the side the light leaves towards (facing ωo).
@@ -229,11 +229,11 @@ enum Surface {
 }
 
 /// A point being shaded.
-#[derive(Debug, Clone, Copy)]
-struct Vertex {
+#[derive(Clone, Copy)]
+struct Vertex<'a> {
     p: Vec3,
     wo: Vec3,
-    surface: Surface,
+    surface: Surface<'a>,
 }
 
 /// The random numbers of one sample of one strategy: sample `index` of the pixel's `sampler`, scrambled by `salt`
@@ -301,7 +301,8 @@ pub struct Integrator<'a> {
     /// Every strand is opaque (opacity 1): rays leaving a fibre start past its local tube ([`tube_exit`]) instead
     /// of ignoring the whole strand, so that the tracer can trace them without a filter.
     skip_by_tube: bool,
-    /// The material's Chiang et al. model, whose per-vertex terms a vertex keeps ([`ChiangView`]).
+    /// The material's Chiang et al. model, for the eight-lane first vertex ([`Integrator::sample_lanes`]), the one
+    /// path that still names a model; every other vertex shades through [`PreparedBsdf`].
     chiang: Option<&'a Chiang>,
     /// Whether a ray can meet anything besides hair: a shape or an area light. Without them (the fur ball under an
     /// environment and a sun) every ray skips the scan for them (0.5 % of the peer frame's instructions).
@@ -361,7 +362,7 @@ impl<'a> Integrator<'a> {
 
     /// The shading point of a strand hit.
     #[inline(always)]
-    fn hair_vertex(&self, ray: &Ray, hit: &crate::accel::Hit, view: bool) -> Vertex {
+    fn hair_vertex(&self, ray: &Ray, hit: &crate::accel::Hit, view: bool) -> Vertex<'a> {
         let wo = -ray.dir.normalize();
         let point = self.strands.eval(hit.segment, hit.u);
         // A degenerate strand (repeated points) has no tangent: shade it as a fibre perpendicular to the view.
@@ -392,16 +393,13 @@ impl<'a> Integrator<'a> {
         } else {
             Vec3::ONE
         };
-        let chiang = self
-            .chiang
-            .filter(|_| view)
-            .map(|model| model.at(h).viewed(frame.to_local(wo)));
+        let bsdf = self.material.prepare(h, frame.to_local(wo), view);
         Vertex {
             p: ray.at(hit.t),
             wo,
             surface: Surface::Hair {
                 frame,
-                chiang,
+                bsdf,
                 tint,
                 strand: hit.strand,
                 axis: point.position,
@@ -411,34 +409,16 @@ impl<'a> Integrator<'a> {
         }
     }
 
-    /// f · cos θi per lobe of the hair material, in the local frame, the diffuse lobe tinted.
-    #[inline]
-    fn hair_fcos(&self, bsdf: &HitBsdf, tint: Vec3, wo_l: Vec3, wi_l: Vec3) -> LobeValues {
-        fcos(bsdf.eval_lobes(wo_l, wi_l), tint, wi_l)
-    }
-
     /// f · cos θi per lobe, and the material's sampling pdf, for light leaving `v` along ωo arriving from `wi`.
     #[inline]
     fn eval(&self, v: &Vertex, wi: Vec3) -> (LobeValues, f32) {
         match v.surface {
             Surface::Hair {
-                frame,
-                tint,
-                h,
-                chiang,
-                ..
+                frame, tint, bsdf, ..
             } => {
-                if let (Some(model), Some(view)) = (self.chiang, chiang.as_ref()) {
-                    let wi_l = frame.to_local(wi);
-                    let (lobes, pdf) = model.eval_viewed(view, wi_l);
-                    return (fcos(lobes, tint, wi_l), pdf);
-                }
-                let (wo_l, wi_l) = (frame.to_local(v.wo), frame.to_local(wi));
-                let bsdf = self.material.at(h);
-                (
-                    self.hair_fcos(&bsdf, tint, wo_l, wi_l),
-                    bsdf.pdf(wo_l, wi_l),
-                )
+                let wi_l = frame.to_local(wi);
+                let (lobes, pdf) = bsdf.eval(wi_l);
+                (fcos(lobes, tint, wi_l), pdf)
             }
             Surface::Lambert { normal, albedo } => {
                 let cos = normal.dot(wi);
@@ -459,22 +439,10 @@ impl<'a> Integrator<'a> {
     fn sample_material(&self, v: &Vertex, u: [f32; 3]) -> Option<(Vec3, LobeValues, f32)> {
         match v.surface {
             Surface::Hair {
-                frame,
-                tint,
-                h,
-                chiang,
-                ..
+                frame, tint, bsdf, ..
             } => {
-                if let (Some(model), Some(view)) = (self.chiang, chiang.as_ref()) {
-                    let (s, lobes) = model.sample_viewed(view, u)?;
-                    let lobes = fcos(lobes, tint, s.wi);
-                    return Some((frame.to_world(s.wi).normalize(), lobes, s.pdf));
-                }
-                let wo_l = frame.to_local(v.wo);
-                let bsdf = self.material.at(h);
-                let s = bsdf.sample(wo_l, u)?;
-                // The sample's pdf is the mixture pdf already; only the per-lobe split (and the tint) is new.
-                let lobes = self.hair_fcos(&bsdf, tint, wo_l, s.wi);
+                let (s, lobes) = bsdf.sample(u)?;
+                let lobes = fcos(lobes, tint, s.wi);
                 Some((frame.to_world(s.wi).normalize(), lobes, s.pdf))
             }
             Surface::Lambert { normal, .. } => {
@@ -577,7 +545,7 @@ impl<'a> Integrator<'a> {
     fn finish_path<R: BounceRecorder>(
         &self,
         out: &mut PathSample,
-        next: &Option<(Vertex, LobeValues)>,
+        next: &Option<(Vertex<'a>, LobeValues)>,
         (sampler, index): (&CameraSample, u32),
         counts: &mut RayCounts,
         record: &mut R,

@@ -14,7 +14,7 @@ use super::super::settings::LightSelection;
 use super::trace::Found;
 use super::{add_lobes, BounceRecorder, Draw, Integrator, PathSample, RayCounts, Vertex};
 
-impl Integrator<'_> {
+impl<'a> Integrator<'a> {
     /// [`Integrator::sample`]'s steps 2–5 for a camera ray that found the surface `v` (`out` as it starts; the
     /// ray counts were `before` at the camera ray).
     #[inline]
@@ -213,7 +213,7 @@ impl Integrator<'_> {
         index: u32,
         out: &mut PathSample,
         counts: &mut RayCounts,
-    ) -> Option<(Vertex, LobeValues)> {
+    ) -> Option<(Vertex<'a>, LobeValues)> {
         let n_m = self.first.material_samples;
         let d = dim::vertex(0, dim::MATERIAL);
         let mut next = None;
@@ -245,7 +245,7 @@ impl Integrator<'_> {
         (wi, fcos, pdf): (Vec3, LobeValues, f32),
         out: &mut PathSample,
         counts: &mut RayCounts,
-        next: &mut Option<(Vertex, LobeValues)>,
+        next: &mut Option<(Vertex<'a>, LobeValues)>,
     ) {
         let d = dim::vertex(0, dim::MATERIAL);
         let weights = fcos.scaled(1.0 / pdf);

@@ -11,7 +11,7 @@ use super::mis::Mis;
 use super::trace::Found;
 use super::{add_lobes, BounceRecorder, Draw, Integrator, RayCounts, Vertex};
 
-impl Integrator<'_> {
+impl<'a> Integrator<'a> {
     /// Step 4, the path beyond the first vertex, from the second vertex `v`: the light each deeper vertex sends
     /// back ([`Integrator::deeper_vertex`]) times the throughput between it and the first vertex, split by the
     /// first vertex's lobes (`first_weights`, its f cos θi / p_m) and clamped ([`Integrator::add_indirect`]). The
@@ -72,7 +72,7 @@ impl Integrator<'_> {
         sampler: &CameraSample,
         index: u32,
         counts: &mut RayCounts,
-    ) -> (Vec3, Option<(Vertex, Vec3)>) {
+    ) -> (Vec3, Option<(Vertex<'a>, Vec3)>) {
         let mis = Mis::deeper_vertex(self.settings.strategy, b == self.settings.path_length);
         let draw = Draw {
             sampler,

@@ -15,7 +15,7 @@ use super::super::settings::LightSelection;
 use super::trace::Found;
 use super::{fcos, Draw, Integrator, PathSample, RayCounts, Surface, Vertex};
 
-impl Integrator<'_> {
+impl<'a> Integrator<'a> {
     /// Whether [`Integrator::sample_lanes`] can shade this frame's first vertices in lanes: Chiang's model, one
     /// light chosen per sample (`lights = "one"`) with one light and one material sample.
     pub fn lanes_fit(&self) -> bool {

@@ -11,15 +11,15 @@ use super::{Integrator, RayCounts, ShadowMode, Surface, TransmittanceMode, Verte
 
 /// What a ray found first.
 #[allow(clippy::large_enum_variant)] // a stack value for one path step, like `Surface`
-pub(super) enum Found {
-    Surface(Vertex),
+pub(super) enum Found<'a> {
+    Surface(Vertex<'a>),
     /// An area light's radiance towards the ray origin, with the light's index.
     Emitter(Vec3, usize),
     /// Nothing: the ray left the scene.
     Escaped,
 }
 
-impl Found {
+impl Found<'_> {
     /// What the ray reached, without the shading point (a few bytes to pass around instead of a vertex).
     #[inline]
     pub(super) fn reached(&self) -> Reached {
@@ -58,7 +58,7 @@ enum NonHair {
     Emitter(Vec3, usize),
 }
 
-impl Integrator<'_> {
+impl<'a> Integrator<'a> {
     /// The nearest of hair, shapes and area lights along `ray`. `stochastic` = Some((key, ignore_strand)) for
     /// light-carrying rays (strands present with probability = opacity), `None` for camera rays (all opaque).
     #[inline(always)]
@@ -67,7 +67,7 @@ impl Integrator<'_> {
         ray: &Ray,
         stochastic: Option<(u64, Option<u32>)>,
         counts: &mut RayCounts,
-    ) -> Found {
+    ) -> Found<'a> {
         self.find_with(ray, stochastic, counts, true)
     }
 
@@ -80,7 +80,7 @@ impl Integrator<'_> {
         stochastic: Option<(u64, Option<u32>)>,
         counts: &mut RayCounts,
         view: bool,
-    ) -> Found {
+    ) -> Found<'a> {
         let hair = match stochastic {
             None => self.tracer.intersect(ray),
             Some((key, ignore)) => self.tracer.intersect_stochastic(ray, ignore, key),
@@ -102,13 +102,13 @@ impl Integrator<'_> {
     }
 
     /// The nearest area light or shape along `ray` before `tfar` (hair is the caller's business), if any.
-    fn find_non_hair(&self, ray: &Ray, tfar: f32) -> Option<Found> {
+    fn find_non_hair(&self, ray: &Ray, tfar: f32) -> Option<Found<'a>> {
         let other = self.nearest_non_hair(ray, tfar).1?;
         Some(self.non_hair_found(ray, other))
     }
 
     /// What `ray` found in a [`NonHair`]: an emitter, or the shading point on a shape.
-    fn non_hair_found(&self, ray: &Ray, other: NonHair) -> Found {
+    fn non_hair_found(&self, ray: &Ray, other: NonHair) -> Found<'a> {
         match other {
             NonHair::Emitter(radiance, i) => Found::Emitter(radiance, i),
             NonHair::Shape(s) => {
@@ -227,7 +227,7 @@ impl Integrator<'_> {
         pdf: f32,
         key: u64,
         counts: &mut RayCounts,
-    ) -> (Vec3, Found) {
+    ) -> (Vec3, Found<'a>) {
         let (origin, tnear, ignore) = self.spawn(v, wi);
         let ray = Ray::segment(origin, wi, tnear, f32::INFINITY);
         counts.material += 1;
