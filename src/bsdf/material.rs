@@ -48,7 +48,10 @@ impl Material {
                 model: c,
                 view: c.at(h).viewed(wo),
             },
-            _ => PreparedBsdf::Direct { bsdf: self.at(h), wo },
+            _ => PreparedBsdf::Direct {
+                bsdf: self.at(h),
+                wo,
+            },
         }
     }
 
@@ -114,44 +117,6 @@ impl std::fmt::Debug for Material {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::bsdf::chiang::ChiangParams;
-    use crate::bsdf::kajiya_kay::{KajiyaKay, KajiyaKayParams};
-
-    #[test]
-    fn chiang_material_depends_on_h_and_fixed_does_not() {
-        let (wo, wi) = (
-            Vec3::new(0.3, 0.8, 0.2).normalize(),
-            Vec3::new(-0.2, 0.1, 0.9).normalize(),
-        );
-        let chiang = Material {
-            scattering: Scattering::Chiang(Chiang::new(ChiangParams::default()).unwrap()),
-            tint_diffuse_by_strand: false,
-            name: "chiang",
-        };
-        assert!(chiang.uses_offset());
-        let (a, b) = (chiang.at(-0.6).eval(wo, wi), chiang.at(0.6).eval(wo, wi));
-        assert!(
-            (a - b).abs().max_element() > 1e-3 * a.max_element(),
-            "{a} {b}"
-        );
-        // The per-hit value is exactly the model at that h.
-        let model = Chiang::new(ChiangParams::default()).unwrap();
-        assert_eq!(chiang.at(0.6).eval(wo, wi), model.at(0.6).eval(wo, wi));
-        let kk = Material {
-            scattering: Scattering::Fixed(Box::new(
-                KajiyaKay::from_params(KajiyaKayParams::default()).unwrap(),
-            )),
-            tint_diffuse_by_strand: true,
-            name: "kajiya-kay",
-        };
-        assert!(!kk.uses_offset());
-        assert_eq!(kk.at(-0.6).eval(wo, wi), kk.at(0.6).eval(wo, wi));
-    }
-}
-
 /// A hit's fibre scattering prepared for its ωo ([`Material::prepare`], as pbrt-v4's materials build a BxDF at
 /// each hit): what the integrator evaluates and samples, without knowing the model.
 // The Chiang variant carries its view terms (~150 bytes): a vertex lives on the stack for one path step, and boxing
@@ -196,6 +161,82 @@ impl PreparedBsdf<'_> {
                 Some((s, lobes))
             }
             PreparedBsdf::Chiang { model, view } => model.sample_viewed(view, u),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bsdf::chiang::ChiangParams;
+    use crate::bsdf::kajiya_kay::{KajiyaKay, KajiyaKayParams};
+
+    #[test]
+    fn chiang_material_depends_on_h_and_fixed_does_not() {
+        let (wo, wi) = (
+            Vec3::new(0.3, 0.8, 0.2).normalize(),
+            Vec3::new(-0.2, 0.1, 0.9).normalize(),
+        );
+        let chiang = Material {
+            scattering: Scattering::Chiang(Chiang::new(ChiangParams::default()).unwrap()),
+            tint_diffuse_by_strand: false,
+            name: "chiang",
+        };
+        assert!(chiang.uses_offset());
+        let (a, b) = (chiang.at(-0.6).eval(wo, wi), chiang.at(0.6).eval(wo, wi));
+        assert!(
+            (a - b).abs().max_element() > 1e-3 * a.max_element(),
+            "{a} {b}"
+        );
+        // The per-hit value is exactly the model at that h.
+        let model = Chiang::new(ChiangParams::default()).unwrap();
+        assert_eq!(chiang.at(0.6).eval(wo, wi), model.at(0.6).eval(wo, wi));
+        let kk = Material {
+            scattering: Scattering::Fixed(Box::new(
+                KajiyaKay::from_params(KajiyaKayParams::default()).unwrap(),
+            )),
+            tint_diffuse_by_strand: true,
+            name: "kajiya-kay",
+        };
+        assert!(!kk.uses_offset());
+        assert_eq!(kk.at(-0.6).eval(wo, wi), kk.at(0.6).eval(wo, wi));
+    }
+
+    /// The prepared fibre gives what the model's [`Bsdf`] gives at the same hit: every model, viewed or not, the
+    /// same lobes, pdf and samples over a spread of directions and random numbers (the view only saves work).
+    #[test]
+    fn a_prepared_fibre_evaluates_and_samples_as_its_model() {
+        use crate::scene::MaterialConfig;
+        use crate::util::sampling::uniform_sphere;
+        for name in ["kajiya-kay", "marschner", "ishair", "chiang"] {
+            let material = MaterialConfig::named(name).unwrap().build().unwrap();
+            for (k, h) in [-0.7f32, 0.0, 0.4].into_iter().enumerate() {
+                let wo = uniform_sphere(0.13 + 0.2 * k as f32, 0.71);
+                let bsdf = material.at(h);
+                for view in [false, true] {
+                    let prepared = material.prepare(h, wo, view);
+                    for i in 0..64 {
+                        let u = [(i as f32 + 0.5) / 64.0, (i * 37 % 64) as f32 / 64.0, 0.37];
+                        let wi = uniform_sphere(u[0], u[1]);
+                        let (lobes, pdf) = prepared.eval(wi);
+                        assert_eq!(lobes.sum(), bsdf.eval_lobes(wo, wi).sum(), "{name} h {h}");
+                        assert_eq!(pdf, bsdf.pdf(wo, wi), "{name} h {h}");
+                        let (p, q) = (prepared.sample(u), bsdf.sample(wo, u));
+                        assert_eq!(
+                            p.map(|(s, _)| (s.wi, s.pdf)),
+                            q.map(|s| (s.wi, s.pdf)),
+                            "{name}"
+                        );
+                        if let Some((s, lobes)) = p {
+                            assert_eq!(
+                                lobes.sum(),
+                                bsdf.eval_lobes(wo, s.wi).sum(),
+                                "{name} h {h}"
+                            );
+                        }
+                    }
+                }
+            }
         }
     }
 }
