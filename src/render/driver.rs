@@ -57,8 +57,10 @@ pub(super) fn render_tiles(
     let tiles: Vec<(u32, u32)> = (0..tiles_y)
         .flat_map(|ty| (0..tiles_x).map(move |tx| (tx, ty)))
         .collect();
+    // Whether the film keeps a centre-ray layer: decided once, not per pixel.
+    let centre_ray = settings.film.traces_centre_ray();
     let centre = |x: u32, y: u32, pixel: &mut [f32], counts: &mut RayCounts| {
-        if settings.film.traces_centre_ray() {
+        if centre_ray {
             write_centre(frame, &context.camera, x, y, pixel, counts);
         }
     };
