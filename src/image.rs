@@ -255,7 +255,8 @@ pub fn write(path: impl AsRef<Path>, image: &Image) -> Result<(), ImageError> {
     outputs.commit().map(drop)
 }
 
-fn extension(path: &Path) -> Option<String> {
+/// The lower-case extension of `path`, if it has one.
+pub(crate) fn extension(path: &Path) -> Option<String> {
     path.extension()
         .and_then(OsStr::to_str)
         .map(str::to_ascii_lowercase)

@@ -9,7 +9,7 @@
 //! interrupted renders), and below the measurement layer.
 
 use std::ops::RangeInclusive;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
@@ -237,7 +237,7 @@ impl Job {
         let [width, height] = settings.film.resolution;
         settings
             .camera
-            .camera(frame.strands.bounds(), width, height)
+            .camera(frame.hair_bounds(), width, height)
             .map_err(|m| JobError::Invalid(format!("{}: {m}", scene.source.display())))?;
         let region = match request.part {
             Part::Crop(crop) => {
@@ -419,7 +419,7 @@ impl Job {
 fn check_outputs(request: &Request) -> Result<bool, JobError> {
     let exr_output = match &request.output {
         Some(output) => {
-            let exr = match image_extension(output).as_deref() {
+            let exr = match image::extension(output).as_deref() {
                 Some("exr") => true,
                 Some("png") => false,
                 _ => {
@@ -457,12 +457,6 @@ fn frame_numbers(frames: &Option<RangeInclusive<i32>>) -> Vec<Option<i32>> {
         Some(r) => r.clone().map(Some).collect(),
         None => vec![None],
     }
-}
-
-fn image_extension(path: &Path) -> Option<String> {
-    path.extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase)
 }
 
 /// Renders a whole scene once with its own settings (auto's plan under `quality.mode = "auto"`), on `threads`
