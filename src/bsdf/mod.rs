@@ -38,6 +38,7 @@ pub mod gaussian;
 pub mod histogram;
 pub mod ishair;
 pub mod kajiya_kay;
+pub mod lanes;
 pub mod lobe_curves;
 pub mod marschner;
 pub mod material;

@@ -8,6 +8,7 @@
 //! - [`hash`]: SplitMix64's finaliser and the SplitMix64 generator (strand presence, the sampler's scrambling
 //!   seeds, per-strand noise, procedural hair).
 //! - [`color`]: Rec. 709 luminance.
+//! - [`real`]: the number type shading code is written over once, for one value (`f32`) or eight lanes (`f32x8`).
 //! - [`sampling`]: uniform sampling of the sphere.
 //! - [`stats`]: Pearson's χ² test with pbrt-v4's pooling, and Šidák's correction (BSDF and light tests,
 //!   `plot-bsdf`).
@@ -18,6 +19,7 @@ pub mod exact_array;
 pub mod hash;
 pub mod input_file;
 pub mod lanes;
+pub mod real;
 pub mod report;
 pub mod sampling;
 pub mod stats;
