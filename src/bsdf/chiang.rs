@@ -55,8 +55,8 @@
 //!   the R peak at φ = φi − φo = −2γo < 0 (tested against a mirror reflection on the cylinder). Round curves: from
 //!   the hit's outward normal and the ray (the first formula). Flat ribbons: p − c = (2v − 1) r b with v ∈ [0, 1]
 //!   Embree's coordinate across the ribbon and b the unit vector of increasing v, so h = (2v − 1) b · (ω̂o⊥ × u);
-//!   pbrt-v4 takes h = 2v − 1 and leaves the sign to the ribbon's orientation. [`h_from_normal`] and
-//!   [`h_from_ribbon`] compute both (tested against a ray–cylinder intersection). Not reciprocal because of h:
+//!   pbrt-v4 takes h = 2v − 1 and leaves the sign to the ribbon's orientation. [`super::frame::h_from_normal`] and
+//!   [`super::frame::h_from_ribbon`] compute both (tested against a ray–cylinder intersection). Not reciprocal because of h:
 //!   swapping ωo and ωi keeps the view's h.
 //!
 //! # Sampling
@@ -93,28 +93,24 @@
 
 mod azimuthal;
 mod bessel;
-mod lanes;
 mod longitudinal;
 #[cfg(test)]
 mod tests;
 
 pub use azimuthal::{a_p, phi_p, sample_trimmed_logistic, trimmed_logistic};
 pub use bessel::{i0, i0e, log_i0};
-pub use lanes::{directions, EvalLanes, ViewLanes, LANES};
 pub use longitudinal::m_p;
 
-use azimuthal::Azimuthal;
-use bessel::{I0_ASYMPTOTIC, I0_SERIES, M_P_SWITCH};
-use longitudinal::{m_p_lanes, sin_cos_theta_f64, Longitudinal};
+use azimuthal::{luminance, wrap, Azimuthal};
+use longitudinal::{m_p_of, sample_sin_theta, Longitudinal};
 
-use super::frame::{atan2, phi as azimuth, wrap_phi, COS_THETA_MIN};
-use super::{check, check_color, Bsdf, BsdfError, BsdfSample, Lobe, LobeValues, Sampling};
-use crate::util::color::luminance;
-use crate::util::lanes::exp_f32x4;
-use crate::util::sampling::{uniform_sphere, UNIFORM_SPHERE_PDF};
-use glam::{Vec3, Vec3A};
+use super::frame::COS_THETA_MIN;
+use super::lanes::{At, EvalOf, Fibre, LobesOf, SampleOf};
+use super::{check, check_color, BsdfError, Sampling};
+use crate::util::real::Real;
+use crate::util::sampling::UNIFORM_SPHERE_PDF;
+use glam::Vec3;
 use std::f32::consts::{FRAC_PI_8, PI, TAU};
-use wide::{f32x4, f64x4};
 
 /// The highest scattering order with its own lobe; [`P_MAX`] itself stands for every p ≥ 3.
 pub const P_MAX: usize = 3;
@@ -239,17 +235,18 @@ pub fn logistic_scale(beta_n: f32) -> f32 {
 // ---------------------------------------------------------------------------------------------------------------
 // The model.
 
-/// Chiang et al. 2016's fibre model with its constants; [`Chiang::at`] gives the [`Bsdf`] at an offset h.
+/// Chiang et al. 2016's fibre model with its constants: a [`Fibre`] (one implementation for one shading point and
+/// for eight); [`Chiang::at`] gives the scalar [`super::Bsdf`] at an offset h.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Chiang {
     params: ChiangParams,
     /// M_p of p = 0, 1, 2 (variances v₀, v₀/4, 4v₀); the residual p = 3 shares p = 2's (4v₀), so it is stored
-    /// once ([`Chiang::longitudinal`]; this keeps [`super::Scattering`] within clippy's variant-size bound).
+    /// once ([`Chiang::longitudinal`]).
     longitudinal: [Longitudinal; P_MAX],
     /// N_p's trimmed logistic.
     azimuthal: Azimuthal,
     /// (sin 2^k α, cos 2^k α) for k = 0, 1, 2.
-    tilt: [(f64, f64); 3],
+    tilt: [(f32, f32); 3],
 }
 
 impl Chiang {
@@ -281,7 +278,10 @@ impl Chiang {
         }
         let v0 = longitudinal_variance(p.beta_m) as f64;
         let longitudinal = [v0, 0.25 * v0, 4.0 * v0].map(Longitudinal::new);
-        let tilt = [1.0f64, 2.0, 4.0].map(|k| (k * p.alpha as f64).sin_cos());
+        let tilt = [1.0f64, 2.0, 4.0].map(|k| {
+            let (s, c) = (k * p.alpha as f64).sin_cos();
+            (s as f32, c as f32)
+        });
         Ok(Chiang {
             params,
             longitudinal,
@@ -291,7 +291,7 @@ impl Chiang {
     }
 
     /// M_p's terms for order `p` (0 ..= [`P_MAX`]; the residual shares p = 2's variance).
-    #[inline]
+    #[inline(always)]
     fn longitudinal(&self, p: usize) -> &Longitudinal {
         &self.longitudinal[p.min(P_MAX - 1)]
     }
@@ -302,7 +302,7 @@ impl Chiang {
     }
 
     /// The variances v of M_p for p = 0, 1, 2 and the residual.
-    pub fn variances(&self) -> [f64; P_MAX + 1] {
+    pub fn variances(&self) -> [f32; P_MAX + 1] {
         [0, 1, 2, 3].map(|p| self.longitudinal(p).v)
     }
 
@@ -311,303 +311,225 @@ impl Chiang {
         self.azimuthal.s
     }
 
-    /// The model at offset `h` = sin γo across the fibre (module docs: sign and where it comes from). Values a
-    /// rounding outside [−1, 1] are clamped.
-    pub fn at(&self, h: f32) -> ChiangFibre<'_> {
+    /// The model at offset `h` = sin γo across the fibre (module docs: sign and where it comes from), as a scalar
+    /// [`super::Bsdf`]. Values a rounding outside [−1, 1] are clamped.
+    pub fn at(&self, h: f32) -> At<'_, Chiang> {
         debug_assert!(h.is_finite() && h.abs() <= 1.0 + 1e-3, "h = {h}");
-        let h = h.clamp(-1.0, 1.0);
-        ChiangFibre {
-            model: self,
-            h,
-            gamma_o: h.asin(),
-            cos_gamma_o: (1.0 - h * h).max(0.0).sqrt(),
-        }
+        At { model: self, h }
+    }
+
+    /// Whether directions are sampled uniformly ([`Sampling::Uniform`]).
+    #[inline(always)]
+    fn uniform(&self) -> bool {
+        self.params.sampling == Sampling::Uniform
     }
 }
 
-/// h = sin γo for a hit on a **round** fibre: u · (n × ω̂o⊥), with `tangent` u, `normal` n the outward surface
-/// normal at the hit and ω̂o⊥ the unit projection of `wo` (towards the viewer) on the normal plane. Any frame
-/// (world or local): a triple product. Neither n nor u need be unit or exactly orthogonal (they are projected);
-/// 0 if `wo` runs along u or n along u. Clamped to [−1, 1].
-pub fn h_from_normal(tangent: Vec3, normal: Vec3, wo: Vec3) -> f32 {
-    let u = tangent.normalize_or_zero();
-    let n = normal.reject_from_normalized(u).normalize_or_zero();
-    let w = wo.reject_from_normalized(u).normalize_or_zero();
-    u.dot(n.cross(w)).clamp(-1.0, 1.0)
-}
-
-/// h = sin γo for a hit on a **flat ribbon** standing for a fibre: (2v − 1) b · (ω̂o⊥ × u), with `v` ∈ [0, 1]
-/// the hit's coordinate across the ribbon, `across` the direction b in which v grows, u the `tangent`. For a
-/// ribbon facing the viewer b · (ω̂o⊥ × u) = ±1, so |h| = |2v − 1| and the sign says which side of the fibre the
-/// hit stands for (the same h a round fibre of the ribbon's width gives at the same offset; tested).
-pub fn h_from_ribbon(v: f32, across: Vec3, tangent: Vec3, wo: Vec3) -> f32 {
-    let u = tangent.normalize_or_zero();
-    let w = wo.reject_from_normalized(u).normalize_or_zero();
-    let b = across.normalize_or_zero();
-    ((2.0 * v - 1.0) * b.dot(w.cross(u))).clamp(-1.0, 1.0)
-}
-
-/// [`Chiang`] at one offset h across the fibre: the [`Bsdf`].
+/// What Chiang's eval and sample share for one hit (its h and ωo), per lane: computed once per shading point
+/// ([`Fibre::view`]) and reused by its light samples, its material sample and their pdfs.
 #[derive(Debug, Clone, Copy)]
-pub struct ChiangFibre<'a> {
-    model: &'a Chiang,
-    h: f32,
-    gamma_o: f32,
-    cos_gamma_o: f32,
-}
-
-/// What depends on ωo (and h) only.
-#[derive(Debug, Clone, Copy)]
-struct View {
-    /// A_p (four lanes each: f per lobe is one product).
-    ap: [Vec3A; P_MAX + 1],
+pub struct ChiangView<R> {
+    /// ωo's components in the normal plane (y, z): φ is measured from it.
+    wo_y: R,
+    wo_z: R,
+    /// A_p per p and colour channel.
+    ap: [[R; 3]; P_MAX + 1],
     /// P(p) = lum(A_p)/Σ lum(A_p).
-    ap_pdf: [f32; P_MAX + 1],
+    ap_pdf: [R; P_MAX + 1],
     /// Φ(p) for p = 0, 1, 2.
-    phis: [f32; P_MAX],
-    /// (sin θo′, |cos θo′|) per p, unit pairs in f64.
-    tilted: [(f64, f64); P_MAX + 1],
+    phis: [R; P_MAX],
+    /// (sin θo′, |cos θo′|) per p.
+    tilted_sin: [R; P_MAX + 1],
+    tilted_cos: [R; P_MAX + 1],
 }
 
-/// Everything [`ChiangFibre`]'s eval, pdf and sample share for one ωo (and h): computed once per shading point
-/// ([`ChiangFibre::viewed`]) and reused by its light samples, its material sample and their pdfs through
-/// [`Chiang::eval_viewed`] and [`Chiang::sample_viewed`], which give bit for bit what the [`Bsdf`] methods give.
-/// A plain value (no borrow), so that a shading point can keep it.
-#[derive(Debug, Clone, Copy)]
-pub struct ChiangView {
-    wo: Vec3,
-    h: f32,
-    gamma_o: f32,
-    cos_gamma_o: f32,
-    view: View,
+/// (sin θ, cos θ ≥ 0) of a local direction (x along the fibre), scaled to unit length.
+#[inline(always)]
+fn sin_cos_theta<R: Real>([x, y, z]: [R; 3]) -> (R, R) {
+    let rho = y.mul_add(y, z * z).sqrt();
+    let inv_len = R::splat(1.0) / x.mul_add(x, rho * rho).sqrt();
+    (x * inv_len, rho * inv_len)
 }
 
-impl Chiang {
-    /// The fibre of a [`ChiangView`] (no `asin`: γo was kept).
-    #[inline]
-    fn fibre_of(&self, v: &ChiangView) -> ChiangFibre<'_> {
-        ChiangFibre {
-            model: self,
-            h: v.h,
-            gamma_o: v.gamma_o,
-            cos_gamma_o: v.cos_gamma_o,
-        }
-    }
-
-    /// (f per lobe, pdf) at the view's ωo and `wi` (local frame): [`Bsdf::eval_lobes`] and [`Bsdf::pdf`] of the
-    /// fibre the view was taken at, in one evaluation.
-    #[inline]
-    pub fn eval_viewed(&self, v: &ChiangView, wi: Vec3) -> (LobeValues, f32) {
-        let (sc_i, phi) = ChiangFibre::angles(v.wo, wi);
-        self.fibre_of(v).eval_at(&v.view, sc_i, phi)
-    }
-
-    /// [`Bsdf::sample`] of the fibre the view was taken at, with f per lobe at the sampled direction (what
-    /// [`Bsdf::eval_lobes`] would give there).
-    #[inline]
-    pub fn sample_viewed(&self, v: &ChiangView, u: [f32; 3]) -> Option<(BsdfSample, LobeValues)> {
-        self.fibre_of(v).sample_with(&v.view, v.wo, u)
-    }
+/// Per lane, `values[p]` for the order `p_of` (0 ..= [`P_MAX`], as a number).
+#[inline(always)]
+fn pick<R: Real>(p_of: R, values: [R; P_MAX + 1]) -> R {
+    (1..=P_MAX).fold(values[0], |acc, p| {
+        R::select(p_of.eq(R::splat(p as f32)), values[p], acc)
+    })
 }
 
-impl<'a> ChiangFibre<'a> {
-    /// The model this fibre belongs to.
-    pub fn model(&self) -> &'a Chiang {
-        self.model
-    }
-}
+impl Fibre for Chiang {
+    type View<R: Real> = ChiangView<R>;
 
-impl ChiangFibre<'_> {
-    /// The offset h = sin γo.
-    pub fn h(&self) -> f32 {
-        self.h
+    fn uses_offset(&self) -> bool {
+        true
     }
 
-    /// What eval, pdf and sample share for `wo` (local frame), to be reused ([`ChiangView`]).
-    pub fn viewed(&self, wo: Vec3) -> ChiangView {
-        ChiangView {
-            wo,
-            h: self.h,
-            gamma_o: self.gamma_o,
-            cos_gamma_o: self.cos_gamma_o,
-            view: self.view(wo),
-        }
-    }
-
-    fn view(&self, wo: Vec3) -> View {
-        let m = self.model;
-        let eta = m.params.eta;
-        let (sin_o64, cos_o64) = sin_cos_theta_f64(wo);
-        let (sin_o, cos_o) = (sin_o64 as f32, cos_o64 as f32);
+    #[inline(always)]
+    fn view<R: Real>(&self, h: R, wo: [R; 3]) -> ChiangView<R> {
+        let one = R::splat(1.0);
+        let zero = R::splat(0.0);
+        let eta = self.params.eta;
+        let h = h.clamp_to(-1.0, 1.0);
+        let gamma_o = h.asin();
+        let cos_gamma_o = (one - h * h).max(zero).sqrt();
+        let (sin_o, cos_o) = sin_cos_theta(wo);
         // Refraction into the fibre: θt (sin θt = sin θo/η) and, in the normal plane, γt with Bravais' index η′.
-        let sin_t = sin_o / eta;
-        let cos_t = (1.0 - sin_t * sin_t).max(0.0).sqrt();
-        let eta_p = (eta * eta - sin_o * sin_o).max(0.0).sqrt() / cos_o.max(COS_THETA_MIN);
-        let sin_gt = (self.h / eta_p).clamp(-1.0, 1.0);
+        let sin_t = sin_o / R::splat(eta);
+        let cos_t = (one - sin_t * sin_t).max(zero).sqrt();
+        let eta_p = (R::splat(eta * eta) - sin_o * sin_o).max(zero).sqrt()
+            / cos_o.max(R::splat(COS_THETA_MIN));
+        let sin_gt = (h / eta_p).clamp_to(-1.0, 1.0);
         let gamma_t = sin_gt.asin();
-        let cos_gt = (1.0 - sin_gt * sin_gt).max(0.0).sqrt();
+        let cos_gt = (one - sin_gt * sin_gt).max(zero).sqrt();
         // One chord of length 2 cos γt / cos θt radii; cos θt ≥ √(1 − 1/η²) > 0.
-        let t = exp_f32x4(f32x4::from(
-            (-m.params.sigma_a * (2.0 * cos_gt / cos_t))
-                .extend(0.0)
-                .to_array(),
-        ))
-        .to_array();
-        let t = Vec3::new(t[0], t[1], t[2]);
-        let ap = a_p(cos_o, self.cos_gamma_o, eta, t);
-        let lum = ap.map(luminance);
-        let total: f32 = lum.iter().sum();
+        let chord = R::splat(2.0) * cos_gt / cos_t;
+        let sigma = self.params.sigma_a;
+        let t: [R; 3] = std::array::from_fn(|c| (-R::splat(sigma[c]) * chord).exp());
+        let ap = a_p(cos_o, cos_gamma_o, eta, t);
+        let lum = ap.map(|a| luminance(&a));
         // A₀ = F ≥ ((η − 1)/(η + 1))² > 0, so the total is positive.
+        let total = lum[0] + lum[1] + lum[2] + lum[3];
         let ap_pdf = lum.map(|l| l / total);
-        let phis = [0, 1, 2].map(|p| phi_p(p, self.gamma_o, gamma_t));
+        let phis = std::array::from_fn(|p| phi_p(p, gamma_o, gamma_t));
         // Tilts: θo − 2α (R), θo + α (TT), θo + 4α (TRT), θo (residual).
-        let rot = |(s, c): (f64, f64), sign: f64| {
-            let sin = sin_o64 * c + sign * cos_o64 * s;
-            let cos = cos_o64 * c - sign * sin_o64 * s;
-            (sin, cos.abs())
+        let rot = |(s, c): (f32, f32), sign: f32| {
+            let (s, c) = (R::splat(sign * s), R::splat(c));
+            (
+                sin_o.mul_add(c, cos_o * s),
+                cos_o.mul_sub(c, sin_o * s).abs(),
+            )
         };
         let tilted = [
-            rot(m.tilt[1], -1.0),
-            rot(m.tilt[0], 1.0),
-            rot(m.tilt[2], 1.0),
-            (sin_o64, cos_o64),
+            rot(self.tilt[1], -1.0),
+            rot(self.tilt[0], 1.0),
+            rot(self.tilt[2], 1.0),
+            (sin_o, cos_o),
         ];
-        View {
-            ap: ap.map(Vec3A::from),
+        ChiangView {
+            wo_y: wo[1],
+            wo_z: wo[2],
+            ap,
             ap_pdf,
             phis,
-            tilted,
+            tilted_sin: tilted.map(|t| t.0),
+            tilted_cos: tilted.map(|t| t.1),
         }
     }
 
-    /// M_p N_p per p for an incident direction (sin θi, cos θi) (a unit pair) at azimuth `phi` = φi − φo.
-    #[inline]
-    fn mn(&self, view: &View, sc_i: (f64, f64), phi: f32) -> [f32; P_MAX + 1] {
-        let m = self.model;
-        // The lanes written out, not built by `map` over the lobes: the arrays' maps were ~50 of an eval's
-        // instructions (callgrind, peer frame). The residual p = 3 shares p = 2's variance.
-        let [l0, l1, l2] = &m.longitudinal;
-        let mp = m_p_lanes(
-            f64x4::new([l0.inv_v, l1.inv_v, l2.inv_v, l2.inv_v]),
-            f64x4::new([l0.log_norm, l1.log_norm, l2.log_norm, l2.log_norm]),
-            sc_i,
-            view.tilted,
-        )
-        .to_array();
-        // The residual's N_p is uniform; its lane of the logistic is computed and dropped (a 4-wide vector).
-        let [d0, d1, d2] = view.phis.map(|x| wrap_phi(phi - x));
-        let np = m.azimuthal.eval_lanes([d0, d1, d2, d2]);
-        [
-            mp[0] as f32 * np[0],
-            mp[1] as f32 * np[1],
-            mp[2] as f32 * np[2],
-            mp[3] as f32 * (0.5 / PI),
-        ]
-    }
-
-    /// The lobes (f per p, R/TT/TRT + residual) and the mixture pdf.
-    #[inline]
-    fn eval_at(&self, view: &View, sc_i: (f64, f64), phi: f32) -> (LobeValues, f32) {
-        let mn = self.mn(view, sc_i, phi);
-        let inv_cos = 1.0 / (sc_i.1 as f32).max(COS_THETA_MIN);
-        let f = |p: usize| view.ap[p] * (mn[p] * inv_cos);
-        let lobes = LobeValues {
-            r: f(0),
-            tt: f(1),
-            trt: f(2) + f(3),
-            ..Default::default()
-        };
-        let pdf = if m_uniform(self.model) {
-            UNIFORM_SPHERE_PDF
-        } else {
-            (0..=P_MAX).map(|p| view.ap_pdf[p] * mn[p]).sum()
-        };
-        (lobes, pdf)
-    }
-
-    /// ((sin θi, cos θi), φi − φo) of a pair.
-    #[inline]
-    fn angles(wo: Vec3, wi: Vec3) -> ((f64, f64), f32) {
-        let sc_i = sin_cos_theta_f64(wi);
-        // sin and cos of φi − φo, each scaled by ρo ρi.
-        let phi = atan2(wo.y * wi.z - wo.z * wi.y, wo.y * wi.y + wo.z * wi.z);
-        (sc_i, phi)
-    }
-}
-
-/// Whether `m` samples uniformly ([`Sampling::Uniform`]).
-#[inline]
-fn m_uniform(m: &Chiang) -> bool {
-    m.params.sampling == Sampling::Uniform
-}
-
-impl Bsdf for ChiangFibre<'_> {
-    fn eval_lobes(&self, wo: Vec3, wi: Vec3) -> LobeValues {
-        let (sc_i, phi) = Self::angles(wo, wi);
-        self.eval_at(&self.view(wo), sc_i, phi).0
-    }
-
-    fn sample(&self, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
-        self.sample_with(&self.view(wo), wo, u).map(|(s, _)| s)
-    }
-
-    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        let (sc_i, phi) = Self::angles(wo, wi);
-        self.eval_at(&self.view(wo), sc_i, phi).1
-    }
-}
-
-impl ChiangFibre<'_> {
-    /// [`Bsdf::sample`] with the view of `wo` given, and f per lobe at the sampled direction.
-    #[inline]
-    fn sample_with(&self, view: &View, wo: Vec3, u: [f32; 3]) -> Option<(BsdfSample, LobeValues)> {
-        let m = self.model;
-        if m_uniform(m) {
-            let wi = uniform_sphere(u[0], u[1]);
-            let (sc_i, phi) = Self::angles(wo, wi);
-            let (lobes, pdf) = self.eval_at(view, sc_i, phi);
-            return super::make_sample(wi, lobes.sum(), pdf, sc_i.1 as f32, None)
-                .map(|s| (s, lobes));
-        }
-        // p by P(p); the remainder of u[0], rescaled, turns the von Mises–Fisher azimuth. Rounding can leave
-        // u[0] past the sum: then the last p with P(p) > 0.
-        let mut r = u[0];
-        let mut chosen = None;
-        for (p, &q) in view.ap_pdf.iter().enumerate() {
-            if r < q {
-                chosen = Some((p, (r / q).min(1.0)));
-                break;
+    #[inline(always)]
+    fn eval_view<R: Real>(&self, view: &ChiangView<R>, wi: [R; 3]) -> EvalOf<R> {
+        let (sin_i, cos_i) = sin_cos_theta(wi);
+        let [_, y, z] = wi;
+        // φ = φi − φo.
+        let phi = view
+            .wo_y
+            .mul_sub(z, view.wo_z * y)
+            .atan2(view.wo_y.mul_add(y, view.wo_z * z));
+        let a = &self.azimuthal;
+        let mn: [R; P_MAX + 1] = std::array::from_fn(|p| {
+            let m = m_p_of(
+                self.longitudinal(p),
+                sin_i,
+                cos_i,
+                view.tilted_sin[p],
+                view.tilted_cos[p],
+            );
+            if p < P_MAX {
+                m * a.eval(wrap(phi - view.phis[p]))
+            } else {
+                m * R::splat(0.5 / PI)
             }
+        });
+        let inv_cos = R::splat(1.0) / cos_i.max(R::splat(COS_THETA_MIN));
+        let f = |p: usize| -> [R; 3] { std::array::from_fn(|c| view.ap[p][c] * mn[p] * inv_cos) };
+        let (f2, f3) = (f(2), f(3));
+        let pdf = if self.uniform() {
+            R::splat(UNIFORM_SPHERE_PDF)
+        } else {
+            (0..=P_MAX).fold(R::splat(0.0), |s, p| view.ap_pdf[p].mul_add(mn[p], s))
+        };
+        EvalOf {
+            lobes: LobesOf {
+                r: f(0),
+                tt: f(1),
+                trt: std::array::from_fn(|c| f2[c] + f3[c]),
+                ..LobesOf::zero()
+            },
+            pdf,
+        }
+    }
+
+    /// p by P(p) (the remainder of u₀, rescaled, turns the longitudinal lobe's azimuth), sin θi by d'Eon et al.'s
+    /// inverse CDF, φi by the trimmed logistic about Φ(p) (uniform for the residual), then f and the pdf at the
+    /// sampled ωi, as eval sees it: at βm, βn ~ 1e-3 (lobes 0.02° wide) the rounding of ωi and of its azimuth move
+    /// f by more than values at the drawn angles could be trusted to match. Lanes whose A_p all vanish take the
+    /// last p with P(p) > 0, remainder ½.
+    #[inline(always)]
+    fn sample_view<R: Real>(&self, view: &ChiangView<R>, u: [R; 3]) -> SampleOf<R> {
+        let one = R::splat(1.0);
+        let zero = R::splat(0.0);
+        if self.uniform() {
+            let sin_i = (one - R::splat(2.0) * u[0]).clamp_to(-1.0, 1.0);
+            let cos_i = (one - sin_i * sin_i).max(zero).sqrt();
+            let (s, c) = (R::splat(TAU) * u[1]).sin_cos();
+            let wi = [sin_i, cos_i * c, cos_i * s];
+            return SampleOf {
+                wi,
+                eval: self.eval_view(view, wi),
+                lobe: R::splat(-1.0),
+            };
+        }
+        // p by P(p): r < q_p picks p, else r −= q_p; rounding can leave r past the sum.
+        let mut r = u[0];
+        let mut chosen = zero.lt(zero); // no lane yet
+        let mut p_of = R::splat(-1.0);
+        let mut remainder = R::splat(0.5);
+        for p in 0..=P_MAX {
+            let q = view.ap_pdf[p];
+            let take = r.lt(q) & !chosen;
+            p_of = R::select(take, R::splat(p as f32), p_of);
+            remainder = R::select(take, (r / q).min(one), remainder);
+            chosen = chosen | take;
             r -= q;
         }
-        let (p, r) = chosen.unwrap_or_else(|| {
-            let p = (0..=P_MAX)
-                .rev()
-                .find(|&p| view.ap_pdf[p] > 0.0)
-                .unwrap_or(0);
-            (p, 0.5)
-        });
-        let sin_i = m.longitudinal(p).sample_sin_theta(u[1], r, view.tilted[p]);
-        let cos_i = (1.0 - sin_i * sin_i).max(0.0).sqrt();
-        let (sin_i, cos_i) = (sin_i as f32, cos_i as f32);
-        let dphi = if p < P_MAX {
-            view.phis[p] + m.azimuthal.sample(u[2])
-        } else {
-            TAU * u[2]
+        let mut last = zero;
+        for p in 0..=P_MAX {
+            last = R::select(view.ap_pdf[p].gt(zero), R::splat(p as f32), last);
+        }
+        let p_of = R::select(chosen, p_of, last);
+        let tilted = (pick(p_of, view.tilted_sin), pick(p_of, view.tilted_cos));
+        let per_p = |f: &dyn Fn(&Longitudinal) -> f32| {
+            pick(
+                p_of,
+                std::array::from_fn(|p| R::splat(f(self.longitudinal(p)))),
+            )
         };
-        let phi_i = azimuth(wo) + dphi;
+        let sin_i = sample_sin_theta(
+            per_p(&|l| l.v),
+            per_p(&|l| l.one_minus_e),
+            u[1],
+            remainder,
+            tilted,
+        );
+        let cos_i = (one - sin_i * sin_i).max(zero).sqrt();
+        // φi − φo: Φ(p) plus the trimmed logistic's draw, uniform for the residual.
+        let phis = pick(p_of, [view.phis[0], view.phis[1], view.phis[2], zero]);
+        let residual = p_of.eq(R::splat(P_MAX as f32));
+        let dphi = R::select(
+            residual,
+            R::splat(TAU) * u[2],
+            phis + self.azimuthal.sample(u[2]),
+        );
+        let phi_i = view.wo_z.atan2(view.wo_y) + dphi;
         let (s, c) = phi_i.sin_cos();
-        let wi = Vec3::new(sin_i, cos_i * c, cos_i * s);
-        // f and pdf at the returned (f32) direction, as `eval` and `pdf` see it, not at the drawn angles: at
-        // βm, βn ~ 1e-3 (lobes 0.02° wide) the rounding of wi and the arctangent of its azimuth (< 6e-7 rad) move
-        // f by more than the drawn angles' values could be trusted to match. The view terms are reused.
-        let (sc_i, phi) = Self::angles(wo, wi);
-        let (lobes, pdf) = self.eval_at(view, sc_i, phi);
-        let lobe = match p {
-            0 => Lobe::R,
-            1 => Lobe::Tt,
-            _ => Lobe::Trt,
-        };
-        super::make_sample(wi, lobes.sum(), pdf, sc_i.1 as f32, Some(lobe)).map(|s| (s, lobes))
+        let wi = [sin_i, cos_i * c, cos_i * s];
+        SampleOf {
+            wi,
+            eval: self.eval_view(view, wi),
+            // R, TT, TRT (the residual is reported as TRT, the lobe it is added to).
+            lobe: p_of.min(R::splat(2.0)),
+        }
     }
 }

@@ -358,6 +358,29 @@ impl Angles {
     }
 }
 
+/// h = sin γo, the offset of a hit across a **round** fibre as seen from ωo (the convention of
+/// [`super::chiang`]'s module docs): u · (n × ω̂o⊥), with `tangent` u, `normal` n the outward surface normal at the
+/// hit and ω̂o⊥ the unit projection of `wo` (towards the viewer) on the normal plane. Any frame (world or local): a
+/// triple product. Neither n nor u need be unit or exactly orthogonal (they are projected); 0 if `wo` runs along u
+/// or n along u. Clamped to [−1, 1].
+pub fn h_from_normal(tangent: Vec3, normal: Vec3, wo: Vec3) -> f32 {
+    let u = tangent.normalize_or_zero();
+    let n = normal.reject_from_normalized(u).normalize_or_zero();
+    let w = wo.reject_from_normalized(u).normalize_or_zero();
+    u.dot(n.cross(w)).clamp(-1.0, 1.0)
+}
+
+/// h = sin γo for a hit on a **flat ribbon** standing for a fibre: (2v − 1) b · (ω̂o⊥ × u), with `v` ∈ [0, 1]
+/// the hit's coordinate across the ribbon, `across` the direction b in which v grows, u the `tangent`. For a
+/// ribbon facing the viewer b · (ω̂o⊥ × u) = ±1, so |h| = |2v − 1| and the sign says which side of the fibre the
+/// hit stands for (the same h a round fibre of the ribbon's width gives at the same offset; tested).
+pub fn h_from_ribbon(v: f32, across: Vec3, tangent: Vec3, wo: Vec3) -> f32 {
+    let u = tangent.normalize_or_zero();
+    let w = wo.reject_from_normalized(u).normalize_or_zero();
+    let b = across.normalize_or_zero();
+    ((2.0 * v - 1.0) * b.dot(w.cross(u))).clamp(-1.0, 1.0)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

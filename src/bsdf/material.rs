@@ -9,9 +9,11 @@
 //! ([`super::chiang::Chiang::at`]: an arcsine and a square root, on the stack). Nothing is allocated per hit or per
 //! sample, and the integrator computes h only when [`Material::uses_offset`] says the model reads it.
 
-use super::chiang::{Chiang, ChiangFibre, ChiangView};
+use super::chiang::{Chiang, ChiangView};
+use super::lanes::{At, EvalOf, Fibre, SampleOf};
 use super::{Bsdf, BsdfSample, LobeValues};
 use glam::Vec3;
+use wide::f32x8;
 
 /// The scattering model of a [`Material`].
 pub enum Scattering {
@@ -46,7 +48,7 @@ impl Material {
         match &self.scattering {
             Scattering::Chiang(c) if view => PreparedBsdf::Chiang {
                 model: c,
-                view: c.at(h).viewed(wo),
+                view: c.view(h, wo.to_array()),
             },
             _ => PreparedBsdf::Direct {
                 bsdf: self.at(h),
@@ -71,7 +73,7 @@ pub enum HitBsdf<'a> {
     /// A model that is the same at every hit.
     Fixed(&'a (dyn Bsdf + Send + Sync)),
     /// Chiang et al. at the hit's h.
-    Chiang(ChiangFibre<'a>),
+    Chiang(At<'a, Chiang>),
 }
 
 impl Bsdf for HitBsdf<'_> {
@@ -136,7 +138,7 @@ pub enum PreparedBsdf<'a> {
         /// The model.
         model: &'a Chiang,
         /// The terms of the hit's ωo and h.
-        view: ChiangView,
+        view: ChiangView<f32>,
     },
 }
 
@@ -146,7 +148,7 @@ impl PreparedBsdf<'_> {
     pub fn eval(&self, wi: Vec3) -> (LobeValues, f32) {
         match self {
             PreparedBsdf::Direct { bsdf, wo } => (bsdf.eval_lobes(*wo, wi), bsdf.pdf(*wo, wi)),
-            PreparedBsdf::Chiang { model, view } => model.eval_viewed(view, wi),
+            PreparedBsdf::Chiang { model, view } => model.eval_view(view, wi.to_array()).lane(0),
         }
     }
 
@@ -160,7 +162,62 @@ impl PreparedBsdf<'_> {
                 let lobes = bsdf.eval_lobes(*wo, s.wi);
                 Some((s, lobes))
             }
-            PreparedBsdf::Chiang { model, view } => model.sample_viewed(view, u),
+            PreparedBsdf::Chiang { model, view } => {
+                let s = model.sample_view(view, u);
+                Some((s.to_sample(0)?, s.eval.lobes.lane(0)))
+            }
+        }
+    }
+}
+
+impl Material {
+    /// Whether the model has a form in lanes ([`Material::prepare_lanes`]).
+    pub fn has_lanes(&self) -> bool {
+        matches!(self.scattering, Scattering::Chiang(_))
+    }
+
+    /// Eight hits prepared together, lane k at offset `h` lane k seen from `wo` lane k (local frames): the same
+    /// model as [`Material::prepare`] in f32×8 lanes ([`super::lanes`]). None for a model without a lane form
+    /// ([`Material::has_lanes`]).
+    #[inline]
+    pub fn prepare_lanes(&self, h: f32x8, wo: [f32x8; 3]) -> Option<PreparedLanes<'_>> {
+        match &self.scattering {
+            Scattering::Chiang(c) => Some(PreparedLanes::Chiang {
+                model: c,
+                view: c.view(h, wo),
+            }),
+            Scattering::Fixed(_) => None,
+        }
+    }
+}
+
+/// Eight hits' fibre scattering prepared together ([`Material::prepare_lanes`]): what a batch of paths evaluates
+/// and samples in lanes, without knowing the model.
+#[derive(Clone, Copy)]
+pub enum PreparedLanes<'a> {
+    /// Chiang et al. with the terms of each lane's ωo and h.
+    Chiang {
+        /// The model.
+        model: &'a Chiang,
+        /// The terms per lane.
+        view: ChiangView<f32x8>,
+    },
+}
+
+impl PreparedLanes<'_> {
+    /// f per lobe and the pdf towards `wi` per lane (local frames).
+    #[inline]
+    pub fn eval(&self, wi: [f32x8; 3]) -> EvalOf<f32x8> {
+        match self {
+            PreparedLanes::Chiang { model, view } => model.eval_view(view, wi),
+        }
+    }
+
+    /// A sampled ωi per lane with the random numbers `u`, with f and the pdf there.
+    #[inline]
+    pub fn sample(&self, u: [f32x8; 3]) -> SampleOf<f32x8> {
+        match self {
+            PreparedLanes::Chiang { model, view } => model.sample_view(view, u),
         }
     }
 }

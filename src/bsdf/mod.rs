@@ -47,7 +47,7 @@ mod testing;
 
 use glam::{Vec3, Vec3A};
 
-pub use material::{HitBsdf, Material, PreparedBsdf, Scattering};
+pub use material::{HitBsdf, Material, PreparedBsdf, PreparedLanes, Scattering};
 
 /// A fibre scattering model in the local hair frame (see the module docs for axes and conventions).
 ///

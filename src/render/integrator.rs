@@ -36,9 +36,9 @@
 use glam::{Vec3, Vec3A};
 
 use crate::accel::{CurveKind, Tracer};
-use crate::bsdf::chiang::{h_from_normal, h_from_ribbon, Chiang};
+use crate::bsdf::frame::{h_from_normal, h_from_ribbon};
 use crate::bsdf::frame::{sin_cos_theta, strand_noise, HairFrame};
-use crate::bsdf::{HitBsdf, Lobe, LobeValues, Material, PreparedBsdf};
+use crate::bsdf::{Lobe, LobeValues, Material, PreparedBsdf};
 use crate::hair::strands::tube_exit;
 use crate::hair::Strands;
 use crate::light::{Distribution1D, Light};
@@ -301,9 +301,6 @@ pub struct Integrator<'a> {
     /// Every strand is opaque (opacity 1): rays leaving a fibre start past its local tube ([`tube_exit`]) instead
     /// of ignoring the whole strand, so that the tracer can trace them without a filter.
     skip_by_tube: bool,
-    /// The material's Chiang et al. model, for the eight-lane first vertex ([`Integrator::sample_lanes`]), the one
-    /// path that still names a model; every other vertex shades through [`PreparedBsdf`].
-    chiang: Option<&'a Chiang>,
     /// Whether a ray can meet anything besides hair: a shape or an area light. Without them (the fur ball under an
     /// environment and a sun) every ray skips the scan for them (0.5 % of the peer frame's instructions).
     non_hair: bool,
@@ -353,10 +350,6 @@ impl<'a> Integrator<'a> {
             material_finds_light: settings.strategy != Strategy::Light
                 && lights.iter().any(|l| !l.is_delta()),
             skip_by_tube: frame.strands.all_opaque(),
-            chiang: match frame.material.at(0.0) {
-                HitBsdf::Chiang(fibre) => Some(fibre.model()),
-                HitBsdf::Fixed(_) => None,
-            },
         }
     }
 

@@ -9,7 +9,7 @@ use super::driver::Context;
 use super::film::PixelSums;
 use super::integrator::{PathSample, RayCounts};
 use super::sampler::{CameraSample, PixelSampler};
-use crate::bsdf::chiang::LANES;
+use crate::bsdf::lanes::LANES;
 use crate::ray::Ray;
 
 /// A pixel-by-pixel sampling strategy: takes the samples of one pixel from `source`, indices 0, 1, 2, … in order,

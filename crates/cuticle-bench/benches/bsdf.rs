@@ -7,9 +7,10 @@
 //! A checksum of the results is returned to `black_box` so no call can be optimised away.
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion, Throughput};
-use cuticle::bsdf::chiang::{directions, Chiang, ChiangParams, ChiangView, ViewLanes, LANES};
+use cuticle::bsdf::chiang::{Chiang, ChiangParams, ChiangView};
 use cuticle::bsdf::ishair::{IsHair, IsHairParams, LobeSelection};
 use cuticle::bsdf::kajiya_kay::{KajiyaKay, KajiyaKayParams};
+use cuticle::bsdf::lanes::{directions, Fibre, LANES};
 use cuticle::bsdf::marschner::{Marschner, MarschnerParams};
 use cuticle::bsdf::{Bsdf, Sampling};
 use cuticle::util::sampling::uniform_sphere;
@@ -102,22 +103,26 @@ fn bsdfs(c: &mut Criterion) {
     bench_chiang_lanes(c, &chiang, &x);
 }
 
-/// Chiang's eval on its own (the views taken beforehand, as a shading point reuses its view): one shading point at
-/// a time (`Chiang::eval_viewed`, the renderer's path) against eight at once (`Chiang::eval_lanes`, step 1 of
-/// `docs/design/wavefront.md`), on the same 1024 (view, ωi) pairs with random offsets h.
+/// Chiang's eval and sample on their own (the hits prepared beforehand, as a shading point reuses its view): one
+/// shading point at a time (`f32`, the scalar path) against eight at once (`f32x8`, the lanes), the same generic
+/// code on the same 1024 (view, ωi, u) triples with random offsets h.
 fn bench_chiang_lanes(c: &mut Criterion, chiang: &Chiang, x: &Inputs) {
     let mut rng = Pcg32::new(2026, 12);
-    let views: Vec<ChiangView> = (0..BATCH)
-        .map(|k| chiang.at(rng.random_range(-1.0f32..=1.0)).viewed(x.wo[k]))
+    let h: Vec<f32> = (0..BATCH)
+        .map(|_| rng.random_range(-1.0f32..=1.0))
         .collect();
-    let lanes: Vec<(ViewLanes, [f32x8; 3])> = views
-        .chunks_exact(LANES)
-        .zip(x.wi.chunks_exact(LANES))
-        .map(|(v, w)| {
-            (
-                ViewLanes::new(v.try_into().unwrap()),
-                directions(w.try_into().unwrap()),
-            )
+    let views: Vec<ChiangView<f32>> = (0..BATCH)
+        .map(|k| chiang.view(h[k], x.wo[k].to_array()))
+        .collect();
+    type Batch = (ChiangView<f32x8>, [f32x8; 3], [f32x8; 3]);
+    let lanes: Vec<Batch> = (0..BATCH / LANES)
+        .map(|b| {
+            let r = b * LANES..(b + 1) * LANES;
+            let hs = f32x8::new(h[r.clone()].try_into().unwrap());
+            let view = chiang.view(hs, directions(x.wo[r.clone()].try_into().unwrap()));
+            let u: [f32x8; 3] =
+                std::array::from_fn(|c| f32x8::new(std::array::from_fn(|k| x.u[r.start + k][c])));
+            (view, directions(x.wi[r].try_into().unwrap()), u)
         })
         .collect();
     let mut g = c.benchmark_group("chiang-lanes");
@@ -125,9 +130,9 @@ fn bench_chiang_lanes(c: &mut Criterion, chiang: &Chiang, x: &Inputs) {
     g.bench_function("eval one at a time", |b| {
         b.iter(|| {
             let mut acc = 0.0f32;
-            for (v, &wi) in views.iter().zip(&x.wi) {
-                let (f, pdf) = chiang.eval_viewed(black_box(v), black_box(wi));
-                acc += f.sum().x + pdf;
+            for (v, wi) in views.iter().zip(&x.wi) {
+                let e = chiang.eval_view(black_box(v), black_box(wi.to_array()));
+                acc += e.lobes.r[0] + e.lobes.tt[0] + e.lobes.trt[0] + e.pdf;
             }
             acc
         })
@@ -135,9 +140,29 @@ fn bench_chiang_lanes(c: &mut Criterion, chiang: &Chiang, x: &Inputs) {
     g.bench_function("eval eight at once", |b| {
         b.iter(|| {
             let mut acc = 0.0f32;
-            for (v, wi) in &lanes {
-                let e = chiang.eval_lanes(black_box(v), black_box(wi));
-                acc += (e.r[0] + e.tt[0] + e.trt[0] + e.pdf).reduce_add();
+            for (v, wi, _) in &lanes {
+                let e = chiang.eval_view(black_box(v), black_box(*wi));
+                acc += (e.lobes.r[0] + e.lobes.tt[0] + e.lobes.trt[0] + e.pdf).reduce_add();
+            }
+            acc
+        })
+    });
+    g.bench_function("sample one at a time", |b| {
+        b.iter(|| {
+            let mut acc = 0.0f32;
+            for (v, u) in views.iter().zip(&x.u) {
+                let s = chiang.sample_view(black_box(v), black_box(*u));
+                acc += s.wi[0] + s.eval.pdf;
+            }
+            acc
+        })
+    });
+    g.bench_function("sample eight at once", |b| {
+        b.iter(|| {
+            let mut acc = 0.0f32;
+            for (v, _, u) in &lanes {
+                let s = chiang.sample_view(black_box(v), black_box(*u));
+                acc += (s.wi[0] + s.eval.pdf).reduce_add();
             }
             acc
         })

@@ -2,15 +2,15 @@
 //! evaluators it runs on: M_p's normalisation needs it to ~1e-12 over [0, ∞), a numerical piece of its own apart
 //! from the model.
 
-use wide::f64x4;
+use crate::util::real::Real;
 
 /// Below this the power series, above it the asymptotic expansion (whose smallest term there is ~1e-11 relative).
 pub(super) const I0_SWITCH: f64 = 12.0;
 
-/// [`m_p_lanes`](super::longitudinal::m_p_lanes)' switch between the two expansions, each cut to its first 16 terms:
+/// M_p's ([`m_p_of`](super::longitudinal::m_p_of)) switch between the two expansions, each cut to its first 16 terms:
 /// M_p is returned as f32, and at a switch of 10 both stay within 2.2e-9 relative of I₀ (series 1.8e-9 at x = 10,
 /// asymptotic 2.2e-9 there; against mpmath's `besseli`, 40 digits), 0.04 of an f32 ulp, where the full 32-term pair
-/// at 12 spent twice the multiply-adds on digits the f32 drops (`estrin16_x4`; tested against [`i0e`]).
+/// at 12 spent twice the multiply-adds on digits the f32 drops (`estrin16`; tested against [`i0e`]).
 pub(super) const M_P_SWITCH: f64 = 10.0;
 
 /// I₀(x) − 1 = y Σ_j y^j/((j + 1)!)², y = x²/4, for |x| ≤ [`I0_SWITCH`]: all terms positive, no cancellation, and
@@ -150,16 +150,16 @@ pub fn log_i0(x: f64) -> f64 {
     }
 }
 
-/// The first 16 terms of a [`estrin32`] table in four lanes at once: what
-/// [`m_p_lanes`](super::longitudinal::m_p_lanes) needs for an f32 result with its switch at [`M_P_SWITCH`].
+/// The first 16 terms of a [`estrin32`] table in f32 (one value or eight lanes): what M_p
+/// ([`m_p_of`](super::longitudinal::m_p_of)) needs for an f32 result with its switch at [`M_P_SWITCH`].
 #[inline(always)]
-pub(super) fn estrin16_x4(c: &[f64; 32], x: f64x4) -> f64x4 {
+pub(super) fn estrin16<R: Real>(c: &[f64; 32], x: R) -> R {
     let x2 = x * x;
     let x4 = x2 * x2;
     let x8 = x4 * x4;
-    let a: [f64x4; 8] =
-        std::array::from_fn(|i| f64x4::splat(c[2 * i + 1]).mul_add(x, f64x4::splat(c[2 * i])));
-    let b: [f64x4; 4] = std::array::from_fn(|i| a[2 * i + 1].mul_add(x2, a[2 * i]));
+    let k = |i: usize| R::splat(c[i] as f32);
+    let a: [R; 8] = std::array::from_fn(|i| k(2 * i + 1).mul_add(x, k(2 * i)));
+    let b: [R; 4] = std::array::from_fn(|i| a[2 * i + 1].mul_add(x2, a[2 * i]));
     let d0 = b[1].mul_add(x4, b[0]);
     let d1 = b[3].mul_add(x4, b[2]);
     d1.mul_add(x8, d0)

@@ -1,13 +1,16 @@
 //! The model's unit tests (Bessel accuracy, normalisation, white furnace, χ² of the sampler, reciprocity, the
 //! offset h's sign, validation), apart because they outweigh the model itself.
 
-use super::super::frame::{from_spherical, sin_cos_theta};
+use super::super::frame::{from_spherical, h_from_normal, h_from_ribbon, sin_cos_theta, wrap_phi};
+use super::super::lanes::{directions, InLanes, LANES};
 use super::super::testing::{self, mean};
+use super::super::{Bsdf, LobeValues};
 use super::bessel::I0_SWITCH;
 use super::*;
 use crate::util::sampling::uniform_sphere;
 use rand::Rng;
 use rand_pcg::Pcg32;
+use wide::f32x8;
 
 /// The roughnesses of the white-furnace grid (0.1, 0.2, …, 0.9).
 const BETAS: [f32; 9] = [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9];
@@ -18,6 +21,14 @@ fn model(f: impl FnOnce(&mut ChiangParams)) -> Chiang {
     let mut p = ChiangParams::default();
     f(&mut p);
     Chiang::new(p).unwrap()
+}
+
+/// The model at `h` in both its forms: one shading point (`f32`) and a lane of eight (`f32x8`, [`InLanes`]).
+fn forms(m: &Chiang, h: f32) -> [(&'static str, Box<dyn Bsdf + '_>); 2] {
+    [
+        ("f32", Box::new(m.at(h))),
+        ("f32x8", Box::new(InLanes { model: m, h })),
+    ]
 }
 
 fn white(beta_m: f32, beta_n: f32) -> Chiang {
@@ -73,37 +84,64 @@ fn bessel_i0_accurate_over_the_whole_range() {
     }
 }
 
+/// M_p at the angles of the f32 pairs (sin, cos), in f64 with the full 32-term Bessel function: the angles' sum's
+/// 1 − cos as 2 sin²(½(θi + θo)), free of the cancellation an f64 cos θi cos θo − sin θi sin θo − 1 of rounded pairs
+/// would carry.
+fn m_p_reference(v: f64, (si, ci): (f32, f32), (so, co): (f32, f32)) -> f64 {
+    let (ti, to) = ((si as f64).atan2(ci as f64), (so as f64).atan2(co as f64));
+    let a = ti.cos() * to.cos() / v;
+    let one_minus_cos = 2.0 * (0.5 * (ti + to)).sin().powi(2);
+    let log_norm = -v.ln() - (-(-2.0 / v).exp_m1()).ln();
+    (log_norm - one_minus_cos / v).exp() * i0e(a)
+}
+
 #[test]
-fn m_p_lanes_match_the_full_bessel_function_to_f32() {
-    // The lanes cut both expansions to 16 terms at M_P_SWITCH (10); M_p from the 32-term i0e (within 1e-9 of
-    // quadrature, test above) must agree within 3e-9 relative — a twentieth of an f32 ulp — for a's on both
-    // sides of the switch, in every lane position, and not one f32 result may differ by more than an ulp.
+fn m_p_in_f32_and_in_lanes_matches_the_full_bessel_function() {
+    // Both expansions cut to 16 terms at M_P_SWITCH (10) and the exponent formed without cancellation (the
+    // longitudinal module's docs): M_p of f32 unit pairs, one at a time and eight at once, must agree with the f64
+    // reference at the same angles to a few f32 roundings of the exponent E = ln M_p (8 ε (1 + |E|)), for a's on both
+    // sides of the switch and lobes from βm ≈ 0.05 to the widest.
+    let eps = f32::EPSILON as f64;
     for v in [0.002f64, 0.02, 0.0846, 0.2, 0.5, 1.0] {
         let l = Longitudinal::new(v);
+        let pair = |t: f64| ((t.sin() as f32), (t.cos() as f32));
+        let mut worst = 0.0f64;
         for ti in -40..=40 {
-            for to in -40..=40 {
-                let sc_i = ((ti as f64 * 0.039).sin(), (ti as f64 * 0.039).cos());
-                let sc_o = ((to as f64 * 0.0391).sin(), (to as f64 * 0.0391).cos().abs());
-                let got = l.eval(sc_i, sc_o);
-                let cc = sc_i.1 * sc_o.1;
-                let want =
-                    (l.log_norm + (cc - sc_i.0 * sc_o.0 - 1.0) * l.inv_v).exp() * i0e(cc * l.inv_v);
-                if want > 1e-300 {
-                    let rel = (got / want - 1.0).abs();
-                    assert!(
-                        rel < 3e-9,
-                        "v {v} sc_i {sc_i:?} sc_o {sc_o:?}: {got} vs {want} ({rel:e})"
-                    );
-                    let (a, b) = ((got as f32).to_bits(), (want as f32).to_bits());
-                    assert!(
-                        a.abs_diff(b) <= 1,
-                        "v {v}: f32 {} vs {}",
-                        got as f32,
-                        want as f32
-                    );
+            let sc_i = pair(ti as f64 * 0.039);
+            let outs: Vec<(f32, f32)> = (-40..=40)
+                .map(|to| {
+                    let (s, c) = pair(to as f64 * 0.0391);
+                    (s, c.abs())
+                })
+                .collect();
+            for chunk in outs.chunks_exact(LANES) {
+                let lanes = m_p_of(
+                    &l,
+                    f32x8::splat(sc_i.0),
+                    f32x8::splat(sc_i.1),
+                    f32x8::new(std::array::from_fn(|k| chunk[k].0)),
+                    f32x8::new(std::array::from_fn(|k| chunk[k].1)),
+                );
+                for (k, &sc_o) in chunk.iter().enumerate() {
+                    let want = m_p_reference(v, sc_i, sc_o);
+                    if want < 1e-30 {
+                        continue;
+                    }
+                    let one = m_p_of(&l, sc_i.0, sc_i.1, sc_o.0, sc_o.1) as f64;
+                    let lane = lanes.as_array_ref()[k] as f64;
+                    let tolerance = 8.0 * eps * (1.0 + want.ln().abs());
+                    for (form, got) in [("f32", one), ("f32x8", lane)] {
+                        let rel = (got / want - 1.0).abs();
+                        worst = worst.max(rel / tolerance);
+                        assert!(
+                            rel < tolerance,
+                            "{form} v {v} sc_i {sc_i:?} sc_o {sc_o:?}: {got} vs {want} ({rel:e})"
+                        );
+                    }
                 }
             }
         }
+        assert!(worst > 0.0, "v {v}: nothing compared");
     }
 }
 
@@ -122,7 +160,7 @@ fn m_p_is_normalised_for_every_variance() {
                 for k in 0..N {
                     let t = -std::f64::consts::FRAC_PI_2 + (k as f64 + 0.5) * h;
                     let (si, ci) = (t as f32).sin_cos();
-                    s += m_p(v, si, ci, so, co) * t.cos() * h;
+                    s += m_p(v, si, ci, so, co) as f64 * t.cos() * h;
                 }
                 assert!(
                     (s - 1.0).abs() < 1e-5,
@@ -152,11 +190,13 @@ fn white_furnace_by_quadrature() {
                 views.extend([(85.0, 0.99), (-85.0, -0.99), (0.0, 1.0)]);
             }
             for (theta_o, h) in views {
-                let a = mean(testing::albedo(&m.at(h), testing::wo_at(theta_o)).sum());
-                assert!(
-                    (0.999..=1.001).contains(&a),
-                    "βm {beta_m} βn {beta_n} θo {theta_o}° h {h}: albedo {a}"
-                );
+                for (form, b) in forms(&m, h) {
+                    let a = mean(testing::albedo(b.as_ref(), testing::wo_at(theta_o)).sum());
+                    assert!(
+                        (0.999..=1.001).contains(&a),
+                        "{form} βm {beta_m} βn {beta_n} θo {theta_o}° h {h}: albedo {a}"
+                    );
+                }
             }
         }
     }
@@ -171,21 +211,23 @@ fn sample_weights_are_one_without_absorption() {
         for beta_n in BETAS {
             let m = white(beta_m, beta_n);
             for _ in 0..500 {
-                let fibre = m.at(2.0 * rng.random::<f32>() - 1.0);
+                let h = 2.0 * rng.random::<f32>() - 1.0;
                 let wo = uniform_sphere(rng.random(), rng.random());
-                let Some(s) = fibre.sample(wo, rng.random()) else {
-                    continue;
-                };
-                for c in 0..3 {
-                    let w = s.weight[c];
-                    assert!(
-                        w > 0.99 && w < 1.01,
-                        "βm {beta_m} βn {beta_n} h {} wo {wo}: weight {}",
-                        fibre.h(),
-                        s.weight
-                    );
+                let u = rng.random();
+                for (form, fibre) in forms(&m, h) {
+                    let Some(s) = fibre.sample(wo, u) else {
+                        continue;
+                    };
+                    for c in 0..3 {
+                        let w = s.weight[c];
+                        assert!(
+                            w > 0.99 && w < 1.01,
+                            "{form} βm {beta_m} βn {beta_n} h {h} wo {wo}: weight {}",
+                            s.weight
+                        );
+                    }
+                    sampled += 1;
                 }
-                sampled += 1;
             }
         }
     }
@@ -196,12 +238,14 @@ fn sample_weights_are_one_without_absorption() {
 fn sampled_furnace_matches_quadrature_with_absorption() {
     let m = model(|_| ());
     for (t, h) in [(-50.0, 0.3), (20.0, -0.9)] {
-        testing::assert_sampled_furnace_matches(
-            &format!("chiang default θo {t}° h {h}"),
-            &m.at(h),
-            testing::wo_at(t),
-            0.01,
-        );
+        for (form, b) in forms(&m, h) {
+            testing::assert_sampled_furnace_matches(
+                &format!("chiang {form} default θo {t}° h {h}"),
+                b.as_ref(),
+                testing::wo_at(t),
+                0.01,
+            );
+        }
     }
 }
 
@@ -218,11 +262,13 @@ fn sampler_chi_square() {
             p.beta_n = beta_n;
             p.alpha = f32::to_radians(alpha_deg);
         });
-        testing::chi_square_battery(
-            &format!("chiang βm {beta_m} βn {beta_n} h {h} α {alpha_deg}°"),
-            &m.at(h),
-            &CHI2_THETA_O_DEG,
-        );
+        for (form, b) in forms(&m, h) {
+            testing::chi_square_battery(
+                &format!("chiang {form} βm {beta_m} βn {beta_n} h {h} α {alpha_deg}°"),
+                b.as_ref(),
+                &CHI2_THETA_O_DEG,
+            );
+        }
     }
 }
 
@@ -269,7 +315,13 @@ fn uniform_sampling_furnace_and_chi_square() {
             0.01,
         );
     }
-    testing::chi_square_battery("chiang uniform", &absorbing.at(0.4), &CHI2_THETA_O_DEG[..2]);
+    for (form, b) in forms(&absorbing, 0.4) {
+        testing::chi_square_battery(
+            &format!("chiang uniform {form}"),
+            b.as_ref(),
+            &CHI2_THETA_O_DEG[..2],
+        );
+    }
     // Published (clamp-and-flip) sampling is Marschner's alone.
     let published = Chiang::new(ChiangParams {
         sampling: Sampling::ClampAndFlip,
@@ -286,11 +338,13 @@ fn pdf_integrates_to_one() {
             p.beta_n = beta_n;
         });
         for t in [-70.0, 0.0, 40.0] {
-            let i = testing::pdf_integral(&m.at(h), testing::wo_at(t));
-            assert!(
-                (i - 1.0).abs() < 1e-3,
-                "βm {beta_m} βn {beta_n} θo {t}°: ∫ pdf = {i}"
-            );
+            for (form, b) in forms(&m, h) {
+                let i = testing::pdf_integral(b.as_ref(), testing::wo_at(t));
+                assert!(
+                    (i - 1.0).abs() < 1e-3,
+                    "{form} βm {beta_m} βn {beta_n} θo {t}°: ∫ pdf = {i}"
+                );
+            }
         }
     }
 }
@@ -339,8 +393,11 @@ fn importance_and_uniform_sampling_agree() {
 #[test]
 fn reciprocity_only_term_by_term() {
     // The whole model is not reciprocal (A_p and h belong to the view).
-    testing::assert_reciprocal(&model(|_| ()).at(0.0), false);
-    testing::assert_reciprocal(&model(|p| p.alpha = 0.0).at(0.0), false);
+    for m in [model(|_| ()), model(|p| p.alpha = 0.0)] {
+        for (_, b) in forms(&m, 0.0) {
+            testing::assert_reciprocal(b.as_ref(), false);
+        }
+    }
     // M_p(θi, θo) = M_p(θo, θi); N_p even in φ at h = 0.
     let mut rng = Pcg32::new(1, 2);
     for _ in 0..1000 {
@@ -351,8 +408,12 @@ fn reciprocity_only_term_by_term() {
         let ((sa, ca), (sb, cb)) = (a.sin_cos(), b.sin_cos());
         for v in [0.001, 0.05, 0.5, 5.0] {
             let (x, y) = (m_p(v, sa, ca, sb, cb), m_p(v, sb, cb, sa, ca));
+            // Symmetric up to f32 rounding: swapping the angles reorders the fused products of the exponent, whose
+            // roundings scale M_p by a few ε times the exponent's terms, ln c(v) + 1/v ≈ −ln v and ln M_p.
+            let terms = 1.0 + (v as f32).ln().abs() + x.max(y).ln().abs();
+            let bound = 8.0 * f32::EPSILON * terms;
             assert!(
-                (x - y).abs() <= 1e-6 * x.max(y) + 1e-30,
+                x == y || (x - y).abs() <= bound * x.max(y) + 1e-30,
                 "M_p({a}, {b}) = {x} vs {y}"
             );
         }
@@ -499,10 +560,14 @@ fn finite_everywhere() {
                 p.sigma_a = sigma_a;
             });
             for h in [-1.0, -0.999, 0.0, 0.5, 1.0] {
-                testing::assert_finite_sweep(
-                    &format!("chiang βm {beta_m} βn {beta_n} α {alpha} σa {sigma_a} h {h}"),
-                    &m.at(h),
-                );
+                for (form, b) in forms(&m, h) {
+                    testing::assert_finite_sweep(
+                        &format!(
+                            "chiang {form} βm {beta_m} βn {beta_n} α {alpha} σa {sigma_a} h {h}"
+                        ),
+                        b.as_ref(),
+                    );
+                }
             }
         }
     }
@@ -562,4 +627,116 @@ fn validation_names_the_parameter() {
     );
     let e = sigma_a_from_melanin(-1.0, 0.0).unwrap_err();
     assert!(e.to_string().starts_with("chiang: eumelanin must be >= 0"));
+}
+
+/// Asserts that eight lanes give bit for bit the values of one shading point at a time (every lobe, channel and
+/// the pdf) over batches of (h, ωo, ωi), and that every value is finite and non-negative: the same generic code,
+/// whose functions are the same on one lane and on eight ([`crate::util::real`]).
+fn assert_lanes_match_scalar(name: &str, m: &Chiang, cases: &[(f32, Vec3, Vec3)]) {
+    for batch in cases.chunks_exact(LANES) {
+        let h = f32x8::new(std::array::from_fn(|k| batch[k].0));
+        let wo: [Vec3; LANES] = std::array::from_fn(|k| batch[k].1);
+        let wi: [Vec3; LANES] = std::array::from_fn(|k| batch[k].2);
+        let got = m.eval_view(&m.view(h, directions(&wo)), directions(&wi));
+        for k in 0..LANES {
+            let want = m.eval_view(&m.view(batch[k].0, wo[k].to_array()), wi[k].to_array());
+            let ((w, w_pdf), (g, g_pdf)) = (want.lane(0), got.lane(k));
+            let mut pairs = vec![(w_pdf, g_pdf)];
+            for (a, b) in [(w.r, g.r), (w.tt, g.tt), (w.trt, g.trt)] {
+                pairs.extend((0..3).map(|c| (a[c], b[c])));
+            }
+            for (a, b) in pairs {
+                assert!(b.is_finite() && b >= 0.0, "{name} case {:?}: {b}", batch[k]);
+                assert_eq!(
+                    a.to_bits(),
+                    b.to_bits(),
+                    "{name} case {:?}: {b} against {a}",
+                    batch[k]
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn eight_lanes_give_the_values_of_one_at_a_time() {
+    let mut rng = Pcg32::new(27, 8);
+    for beta_m in [0.001f32, 0.005, 0.02, 0.1, 0.3, 0.6, 1.0] {
+        for beta_n in [0.001f32, 0.05, 0.3, 0.9, 1.0] {
+            for sigma in [0.0f32, 0.5, 4.0] {
+                let m = model(|p| {
+                    (p.beta_m, p.beta_n) = (beta_m, beta_n);
+                    p.sigma_a = Vec3::new(sigma, 2.0 * sigma, 0.5 * sigma);
+                });
+                let cases: Vec<(f32, Vec3, Vec3)> = (0..16 * LANES)
+                    .map(|_| {
+                        let h = rng.random_range(-1.0f32..=1.0);
+                        let wo = uniform_sphere(rng.random(), rng.random());
+                        (h, wo, uniform_sphere(rng.random(), rng.random()))
+                    })
+                    .collect();
+                assert_lanes_match_scalar(
+                    &format!("βm {beta_m} βn {beta_n} σ {sigma}"),
+                    &m,
+                    &cases,
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn eight_lanes_draw_the_samples_of_one_at_a_time() {
+    // Same hits, same random numbers: the lanes must draw bit for bit the sample of one at a time.
+    let mut rng = Pcg32::new(27, 10);
+    let mut n = 0usize;
+    for beta_m in [0.01f32, 0.1, 0.3, 1.0] {
+        for beta_n in [0.01f32, 0.3, 1.0] {
+            let m = model(|p| (p.beta_m, p.beta_n) = (beta_m, beta_n));
+            for _ in 0..64 {
+                let h: [f32; LANES] = std::array::from_fn(|_| rng.random_range(-1.0f32..=1.0));
+                let wo: [Vec3; LANES] =
+                    std::array::from_fn(|_| uniform_sphere(rng.random(), rng.random()));
+                let u: [[f32; 3]; LANES] = std::array::from_fn(|_| rng.random());
+                let lanes = m.sample_view(
+                    &m.view(f32x8::new(h), directions(&wo)),
+                    std::array::from_fn(|c| f32x8::new(u.map(|u| u[c]))),
+                );
+                for k in 0..LANES {
+                    let one = m.sample_view(&m.view(h[k], wo[k].to_array()), u[k]);
+                    let (Some(want), Some(got)) = (one.to_sample(0), lanes.to_sample(k)) else {
+                        assert_eq!(one.eval.pdf > 0.0, lanes.eval.pdf.as_array_ref()[k] > 0.0);
+                        continue;
+                    };
+                    n += 1;
+                    assert_eq!(got, want, "βm {beta_m} βn {beta_n}");
+                }
+            }
+        }
+    }
+    assert!(n > 1000, "only {n} lanes compared");
+}
+
+#[test]
+fn eight_lanes_stay_finite_and_match_at_grazing_angles_and_edges() {
+    // ωo and ωi along the fibre (θ = ±90°), a hair's breadth from it, and across it; h at the fibre's edges and
+    // centre; the roughness range's ends: finite, non-negative and the same in lanes.
+    let thetas = [-90.0f32, -89.99, -60.0, 0.0, 45.0, 89.99, 90.0].map(f32::to_radians);
+    let dir = |t: f32, p: f32| Vec3::new(t.sin(), t.cos() * p.cos(), t.cos() * p.sin());
+    let mut cases = Vec::new();
+    for &to in &thetas {
+        for &ti in &thetas {
+            for pi in [0.0f32, 1.0, PI] {
+                for h in [-1.0f32, -0.9999, 0.0, 0.5, 0.9999, 1.0] {
+                    cases.push((h, dir(to, 0.3), dir(ti, 0.3 + pi)));
+                }
+            }
+        }
+    }
+    for beta_m in [0.001f32, 0.3, 1.0] {
+        for beta_n in [0.001f32, 0.3, 1.0] {
+            let m = model(|p| (p.beta_m, p.beta_n) = (beta_m, beta_n));
+            assert_lanes_match_scalar(&format!("βm {beta_m} βn {beta_n}"), &m, &cases);
+        }
+    }
 }

@@ -1,12 +1,12 @@
 //! The eight-lane path of the first vertex ([`Integrator::sample_lanes`], steps 1–2 of `docs/design/wavefront.md`):
-//! a batch of camera samples shaded by Chiang's model one f32×8 vector at a time; apart from the scalar path it
-//! reproduces.
+//! a batch of camera samples whose first vertices are shaded one f32×8 vector at a time through the material's
+//! lane form ([`crate::bsdf::PreparedLanes`]); apart from the scalar path it reproduces.
 
 use glam::Vec3;
 use wide::f32x8;
 
-use crate::bsdf::chiang::{directions, LANES};
 use crate::bsdf::frame::HairFrame;
+use crate::bsdf::lanes::{directions, LANES};
 use crate::light::LightSample;
 use crate::ray::Ray;
 
@@ -16,10 +16,10 @@ use super::trace::Found;
 use super::{fcos, Draw, Integrator, PathSample, RayCounts, Surface, Vertex};
 
 impl<'a> Integrator<'a> {
-    /// Whether [`Integrator::sample_lanes`] can shade this frame's first vertices in lanes: Chiang's model, one
-    /// light chosen per sample (`lights = "one"`) with one light and one material sample.
+    /// Whether [`Integrator::sample_lanes`] can shade this frame's first vertices in lanes: a material with a lane
+    /// form, one light chosen per sample (`lights = "one"`) with one light and one material sample.
     pub fn lanes_fit(&self) -> bool {
-        self.chiang.is_some()
+        self.material.has_lanes()
             && !self.lights.is_empty()
             && self.first.selection == LightSelection::One
             && self.first.light_samples == 1
@@ -27,9 +27,9 @@ impl<'a> Integrator<'a> {
     }
 
     /// [`Integrator::sample`] of eight camera samples (`rays[k]` with `samplers[k]`, sample `indices[k]`), their
-    /// first vertices shaded together where they are on Chiang fibres: the light samples' f and pdf by
-    /// [`Chiang::eval_lanes`](crate::bsdf::chiang::Chiang::eval_lanes), the material samples by
-    /// [`Chiang::sample_lanes`](crate::bsdf::chiang::Chiang::sample_lanes), everything else (light choice, rays, MIS,
+    /// first vertices shaded together where they are on fibres: the light samples' f and pdf by
+    /// [`PreparedLanes::eval`](crate::bsdf::PreparedLanes::eval), the material samples by
+    /// [`PreparedLanes::sample`](crate::bsdf::PreparedLanes::sample), everything else (light choice, rays, MIS,
     /// the deeper vertices) per sample as [`Integrator::sample`] does it. Step 2 of `docs/design/wavefront.md`,
     /// experimental: the lanes draw the same samples with f32 arithmetic, so images differ from
     /// [`Integrator::sample`]'s by its rounding. Needs [`Integrator::lanes_fit`].
@@ -41,7 +41,6 @@ impl<'a> Integrator<'a> {
         indices: &[u32; LANES],
         counts: &mut RayCounts,
     ) -> [PathSample; LANES] {
-        let model = self.chiang.expect("lanes_fit: a Chiang material");
         let found: [Found; LANES] = std::array::from_fn(|k| {
             counts.camera += 1;
             self.find_with(&rays[k], None, counts, false)
@@ -53,7 +52,7 @@ impl<'a> Integrator<'a> {
             },
             other => self.seen_directly(&rays[k], other),
         });
-        // The lanes on a fibre (every fibre is Chiang's here): (vertex, frame, tint, h).
+        // The lanes on a fibre: (vertex, frame, tint, h).
         let hair = |k: usize| match &found[k] {
             Found::Surface(v) => match &v.surface {
                 Surface::Hair { frame, tint, h, .. } => Some((v, *frame, *tint, *h)),
@@ -81,7 +80,10 @@ impl<'a> Integrator<'a> {
         let h = f32x8::new(lanes.map(|l| l.map_or(0.0, |l| l.3)));
         let wo_l: [Vec3; LANES] =
             lanes.map(|l| l.map_or(Vec3::Y, |(v, frame, ..)| frame.to_local(v.wo)));
-        let views = model.view_lanes(h, &directions(&wo_l));
+        let views = self
+            .material
+            .prepare_lanes(h, directions(&wo_l))
+            .expect("lanes_fit: a material with a lane form");
         let draw = |k: usize| Draw {
             sampler: &samplers[k],
             index: indices[k],
@@ -104,7 +106,7 @@ impl<'a> Integrator<'a> {
             (Some(l), Some((_, _, ls))) => l.1.to_local(ls.wi),
             _ => Vec3::X,
         });
-        let evals = model.eval_lanes(&views, &directions(&wi_l));
+        let evals = views.eval(directions(&wi_l));
         for k in 0..LANES {
             if let (Some((v, _, tint, _)), Some((j, count, ls))) = (&lanes[k], &light[k]) {
                 let (lobes, pdf) = evals.lane(k);
@@ -127,8 +129,7 @@ impl<'a> Integrator<'a> {
             Some(_) => draw(k).get_3(dim::vertex(0, dim::MATERIAL)),
             None => [0.5; 3],
         });
-        let drawn =
-            model.sample_lanes(&views, std::array::from_fn(|c| f32x8::new(u.map(|u| u[c]))));
+        let drawn = views.sample(std::array::from_fn(|c| f32x8::new(u.map(|u| u[c]))));
         for k in 0..LANES {
             let Some((v, frame, tint, _)) = &lanes[k] else {
                 shade_alone(k, &mut outs[k], counts);
