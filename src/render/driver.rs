@@ -15,6 +15,7 @@ use super::camera::Camera;
 use super::film::{self, PixelSums, Tile};
 use super::filter::GaussianFilter;
 use super::integrator::{Integrator, RayCounts};
+use super::settings::Shading;
 use super::strategy::{Fixed, PixelSampling, PixelSource};
 use super::{Frame, Region, RegionRender, RenderSettings, RenderStats};
 use crate::shadow::ShadowMaps;
@@ -113,7 +114,7 @@ pub(super) fn render_tiles(
         }
         (None, None) => pixel_by_pixel(&Fixed {
             spp: settings.film.spp,
-            lanes: settings.integrator.lanes && context.integrator.lanes_fit(),
+            lanes: settings.integrator.shading == Shading::Lanes && context.integrator.lanes_fit(),
         }),
     };
     bar.finish_and_clear();

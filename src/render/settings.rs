@@ -174,6 +174,20 @@ pub enum LightSelection {
     One,
 }
 
+/// How shading points are shaded: eight camera samples' first vertices together in f32×8 lanes, or one at a time.
+/// Both run the same model code and give the same image bit for bit (tested); the scalar path is the reference the
+/// tests compare against and the one the other vertices take.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Shading {
+    /// The first vertices of eight camera samples shaded together where the frame fits (a material with a lane
+    /// form, `lights = "one"`, one light and one material sample, a fixed spp); elsewhere one at a time.
+    #[default]
+    Lanes,
+    /// Every shading point one at a time.
+    Scalar,
+}
+
 /// `[integrator]`: the thesis' sample counts (§6, table 3) and the path length.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -197,13 +211,8 @@ pub struct IntegratorConfig {
     /// (`light_sampling_threshold`, 0.01 by default there, same test); 0 = off (cuticle's default, every light
     /// sample traced).
     pub light_threshold: f32,
-    /// Experimental (`docs/design/wavefront.md`, step 2): shade the first vertices of eight camera samples at
-    /// once, Chiang's view terms evaluated and sampled in f32×8 lanes, where the frame fits (Chiang's model,
-    /// `lights = "one"`, one light and one material sample, a fixed spp; elsewhere this does nothing). The lanes
-    /// draw the same samples with f32 arithmetic, so the image differs from the default one by that rounding
-    /// (RMS 5.6e-4 on the peer scene at 128², `cuticle render scenes/furball-peer.toml --res 128x128` with and
-    /// without it, `oiiotool --diff`). Off by default.
-    pub lanes: bool,
+    /// In lanes or one at a time ([`Shading`]); the same image either way.
+    pub shading: Shading,
 }
 
 impl Default for IntegratorConfig {
@@ -216,7 +225,7 @@ impl Default for IntegratorConfig {
             strategy: Strategy::Mis,
             lights: LightSelection::All,
             light_threshold: 0.0,
-            lanes: false,
+            shading: Shading::Lanes,
         }
     }
 }

@@ -69,7 +69,7 @@ impl<'s> PixelSource<'s> {
 }
 
 /// A fixed count per pixel (the film's spp); with `lanes`, the first vertices of eight samples at a time
-/// (`integrator.lanes`, `docs/design/wavefront.md` step 2), the rest one by one.
+/// (`integrator.shading = "lanes"`, `docs/design/wavefront.md` step 2), the rest one by one.
 pub(super) struct Fixed {
     pub spp: u32,
     pub lanes: bool,
