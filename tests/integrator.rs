@@ -769,12 +769,17 @@ fn embrees_fur_ball_renders_alike_on_both_backends() {
 /// A small peer-like frame (`scenes/furball-peer.toml`'s settings on a procedural fur ball): Chiang, opaque
 /// strands, an environment and a sun, one light chosen per sample, one light and one material sample.
 fn peer_like(shading: &str) -> Scene {
+    peer_like_with(shading, "lights = \"one\"", "opacity = 1.0")
+}
+
+/// [`peer_like`] with other `[integrator]` lines, and `more` lines in `[hair]` followed by further tables.
+fn peer_like_with(shading: &str, integrator: &str, more: &str) -> Scene {
     parse(
         &format!(
             r#"
 [hair]
 procedural = {{ kind = "fur-ball", strands = 1500 }}
-opacity = 1.0
+{more}
 
 [camera]
 margin = 0.9
@@ -797,7 +802,7 @@ radiance = [1.0, 1.0, 1.0]
 
 [integrator]
 path_length = 1
-lights = "one"
+{integrator}
 shading = "{shading}"
 "#
         ),
@@ -826,6 +831,28 @@ fn first_vertices_shaded_in_lanes_give_the_scalar_image_bit_for_bit() {
         differing, 0,
         "{differing} values differ between 1 and 2 threads"
     );
+    // Every light selection and sample count, the light threshold, translucent strands, ribbons, deep opacity
+    // maps, a second light and a shape beside the hair (shaded alone in its lane).
+    for (integrator, more) in [
+        ("lights = \"all\"\nlight_samples = 2\nmaterial_samples = 3", "opacity = 1.0"),
+        ("lights = \"one\"\nlight_samples = 3\nlight_threshold = 0.05", "opacity = 0.6"),
+        (
+            "lights = \"all\"",
+            "[[light]]\nkind = \"distant\"\ndirection = [-1.0, -0.5, 0.2]\nirradiance = 1.0\n",
+        ),
+        ("lights = \"all\"", "curves = \"flat\""),
+        ("lights = \"one\"", "[shadows]\nmode = \"deep-opacity\"\n"),
+        (
+            "lights = \"all\"\nmaterial_samples = 2",
+            "[[shape]]\nkind = \"quad\"\ncorner = [-3.0, -0.9, -3.0]\nedge_u = [6.0, 0.0, 0.0]\nedge_v = [0.0, 0.0, 6.0]\n",
+        ),
+    ] {
+        let (a, a_stats) = render_scene_with_stats(&peer_like_with("scalar", integrator, more), 2);
+        let (b, b_stats) = render_scene_with_stats(&peer_like_with("lanes", integrator, more), 2);
+        let differing = bit_differences(&a.data, &b.data);
+        assert_eq!(differing, 0, "{integrator} {more}: {differing} values differ");
+        assert_eq!(rays(&a_stats), rays(&b_stats), "{integrator} {more}");
+    }
 }
 
 #[test]
