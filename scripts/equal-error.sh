@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Equal error, not only equal samples: cuticle against Blender Cycles on the peer scene at
+# Equal error, not only equal samples: cuticle against Blender Cycles and Mitsuba 3 on the peer scene at
 # 256², 2 threads. Each renderer renders its own converged reference, then a sweep of sample counts with other seeds,
 # cuticle and Cycles taking turns at each point; every image's RMSE is measured against its own renderer's reference.
 # Writes docs/measured/equal-error/equal-error.csv, a log-log chart RMSE vs wall time (equal-error.png/.svg, drawn by
@@ -19,9 +19,13 @@
 #   UNBIASED=1 (default)          also render "cycles-unbiased": Cycles with Clamp Indirect 0 and Filter Glossy 0,
 #                                 Blender's two biased noise reductions off (its own reference cannot see their bias,
 #                                 cuticle has neither on); UNBIASED=0 for Blender's defaults only
+#   MITSUBA=1 (default)           also render "mitsuba": Mitsuba 3's llvm_ad_rgb variant (MITSUBA=0 to leave it out;
+#                                 set-up in ../shared/peers/SETUP.md)
 #
 # Scene: cuticle `scenes/furball-peer.toml --res 256x256`; Cycles `../shared/peers/cycles_furball.py --res 256
-# --shape thick --bounces 1 --sun` with the harness' material and lights (docs/measured/peers.md maps each setting).
+# --shape thick --bounces 1 --sun --offset -2`; Mitsuba `../shared/peers/mitsuba_furball.py --res 256 --max-depth 3
+# --variant llvm_ad_rgb --tilt 2` (the scene's cuticle scale tilt α = +2° is Cycles' Offset −2° and Mitsuba's
+# scale_tilt +2), each with the harness' material and lights (docs/measured/peers.md maps each setting).
 # Metric: RMS error over the beauty R, G, B of the whole image (every pixel, alpha and AOVs dropped: `oiiotool --ch
 # R,G,B`), both sides linear float EXRs (cuticle's beauty channels; Cycles' `--out *.exr`, 32-bit float, scene-linear,
 # not the view transform), computed by `oiiotool REF --ch R,G,B IMG --ch R,G,B --diff`.
@@ -40,6 +44,7 @@ CSV=$OUT/equal-error.csv
 REF_SEED=1000   # the sweep uses seeds 1, 2, ...: never the reference's
 RENDERERS="cuticle cycles"
 [ "${UNBIASED:-1}" = 1 ] && RENDERERS="$RENDERERS cycles-unbiased"
+[ "${MITSUBA:-1}" = 1 ] && RENDERERS="$RENDERERS mitsuba"
 mkdir -p "$OUT"
 
 if [ "${CHART_ONLY:-0}" != 1 ]; then
@@ -50,6 +55,8 @@ if [ "${CHART_ONLY:-0}" != 1 ]; then
   done
   echo "renders and logs in $WORK; $(nproc) cores, load $(cut -d' ' -f1-3 /proc/loadavg)"
 
+  # Mitsuba writes its curve file beside the hair it reads: a copy in $WORK.
+  [[ " $RENDERERS " == *" mitsuba "* ]] && cp "$HAIR" "$WORK/furball.hair"
   # render NAME RENDERER SPP SEED: one image, its whole-process and own render times in $WORK/NAME.{t,log}.
   render() {
     local name=$1 who=$2 spp=$3 seed=$4
@@ -57,11 +64,16 @@ if [ "${CHART_ONLY:-0}" != 1 ]; then
       /usr/bin/time -f %e -o "$WORK/$name.t" "$BIN" render "$SCENE" --res 256x256 --spp "$spp" --seed "$seed" \
         --threads 2 --quiet -o "$WORK/$name.exr" > "$WORK/$name.log" 2>&1
       sed -n 's/.*render \([0-9.]*\) s.*/\1/p' "$WORK/$name.log" | tail -1 > "$WORK/$name.r"
+    elif [ "$who" = mitsuba ]; then
+      /usr/bin/time -f %e -o "$WORK/$name.t" python3 "$PEERS/mitsuba_furball.py" --hair "$WORK/furball.hair" \
+        --res 256 --spp "$spp" --seed "$seed" --max-depth 3 --variant llvm_ad_rgb --threads 2 --tilt 2 \
+        --exr "$WORK/$name.exr" --out "$WORK/$name.png" > "$WORK/$name.log" 2>&1
+      sed -n 's/^MITSUBA_RENDER_SECONDS=//p' "$WORK/$name.log" | tail -1 > "$WORK/$name.r"
     else
       local extra=()
       [ "$who" = cycles-unbiased ] && extra=(--clamp-indirect 0 --blur-glossy 0)
       /usr/bin/time -f %e -o "$WORK/$name.t" blender -b --factory-startup --python "$PEERS/cycles_furball.py" -- \
-        --hair "$HAIR" --res 256 --spp "$spp" --seed "$seed" --shape thick --bounces 1 --sun --threads 2 \
+        --hair "$HAIR" --res 256 --spp "$spp" --seed "$seed" --shape thick --bounces 1 --sun --offset -2 --threads 2 \
         "${extra[@]}" --out "$WORK/$name.exr" > "$WORK/$name.log" 2>&1
       sed -n 's/^CYCLES_RENDER_SECONDS=//p' "$WORK/$name.log" | tail -1 > "$WORK/$name.r"
     fi
@@ -122,8 +134,8 @@ fmt = lambda t: "n/a" if t is None else f"{t:.2f}"
 # Samples per pixel needed as well: the sampling's share, free of this shared machine's timing noise.
 for col, what in (("wall_s", "wall time, whole process, s"), ("render_s", "own render time, s"),
                   ("spp", "samples per pixel")):
-    peers = [w for w in ("cycles", "cycles-unbiased") if any(r["renderer"] == w for r in rows)]
-    print(f"\nto reach RMSE ({what}; ratio target <= 0.7):")
+    peers = [w for w in ("cycles", "cycles-unbiased", "mitsuba") if any(r["renderer"] == w for r in rows)]
+    print(f"\nto reach RMSE ({what}; targets: cuticle / mitsuba <= 0.6, cuticle / cycles <= 0.5):")
     print("| RMSE | cuticle | " + " | ".join(peers) + " | " + " | ".join(f"cuticle / {p}" for p in peers) + " |")
     print("|---:" * (2 + 2 * len(peers)) + "|")
     for target in (0.07, 0.05, 0.04, 0.03):
