@@ -107,7 +107,7 @@ use longitudinal::{m_p_of, sample_sin_theta, Longitudinal};
 use super::frame::COS_THETA_MIN;
 use super::lanes::{At, EvalOf, Fibre, LobesOf, SampleOf};
 use super::{check, check_color, BsdfError, Sampling};
-use crate::util::real::Real;
+use crate::util::real::{Kernel, Real};
 use crate::util::sampling::UNIFORM_SPHERE_PDF;
 use glam::Vec3;
 use std::f32::consts::{FRAC_PI_8, PI, TAU};
@@ -343,6 +343,23 @@ pub struct ChiangView<R> {
     tilted_cos: [R; P_MAX + 1],
 }
 
+/// M_p N_p of one order ([`Kernel`]): arguments 1/v, ln c(v) + 1/v, sin θi, cos θi, sin θo′, cos θo′, φ − Φ(p) and
+/// 1 for the residual p ≥ 3 (whose N_p is uniform, 1/2π) or 0.
+struct LobeTerm<'a>(&'a Azimuthal);
+
+impl Kernel<8> for LobeTerm<'_> {
+    #[inline(always)]
+    fn run<R: Real>(&self, [inv_v, log_norm, si, ci, so, co, dphi, residual]: [R; 8]) -> R {
+        let m = m_p_of(inv_v, log_norm, [si, ci, so, co]);
+        let n = R::select(
+            residual.gt(R::splat(0.0)),
+            R::splat(0.5 / PI),
+            self.0.eval(wrap(dphi)),
+        );
+        m * n
+    }
+}
+
 /// (sin θ, cos θ ≥ 0) of a local direction (x along the fibre), scaled to unit length.
 #[inline(always)]
 fn sin_cos_theta<R: Real>([x, y, z]: [R; 3]) -> (R, R) {
@@ -427,21 +444,29 @@ impl Fibre for Chiang {
             .wo_y
             .mul_sub(z, view.wo_z * y)
             .atan2(view.wo_y.mul_add(y, view.wo_z * z));
-        let a = &self.azimuthal;
-        let mn: [R; P_MAX + 1] = std::array::from_fn(|p| {
-            let m = m_p_of(
-                self.longitudinal(p),
+        // M_p N_p of the four orders, side by side in lanes for one shading point ([`Real::four`]).
+        let lobe = |p: usize| {
+            let l = self.longitudinal(p);
+            let (dphi, residual) = if p < P_MAX {
+                (phi - view.phis[p], 0.0)
+            } else {
+                (R::splat(0.0), 1.0)
+            };
+            [
+                R::splat(l.inv_v),
+                R::splat(l.log_norm),
                 sin_i,
                 cos_i,
                 view.tilted_sin[p],
                 view.tilted_cos[p],
-            );
-            if p < P_MAX {
-                m * a.eval(wrap(phi - view.phis[p]))
-            } else {
-                m * R::splat(0.5 / PI)
-            }
-        });
+                dphi,
+                R::splat(residual),
+            ]
+        };
+        let mn = R::four(
+            &LobeTerm(&self.azimuthal),
+            [lobe(0), lobe(1), lobe(2), lobe(3)],
+        );
         let inv_cos = R::splat(1.0) / cos_i.max(R::splat(COS_THETA_MIN));
         let f = |p: usize| -> [R; 3] { std::array::from_fn(|c| view.ap[p][c] * mn[p] * inv_cos) };
         let (f2, f3) = (f(2), f(3));

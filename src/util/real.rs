@@ -48,6 +48,13 @@ impl RealMask for f32x8 {
     }
 }
 
+/// A function of `N` numbers written once over the number type, which [`Real::four`] runs on four argument sets at
+/// once: a model's per-lobe term (Chiang's M_p N_p over its four orders).
+pub trait Kernel<const N: usize> {
+    /// The function.
+    fn run<R: Real>(&self, x: [R; N]) -> R;
+}
+
 /// One f32 or a vector of f32 lanes, with the arithmetic and functions the fibre models use.
 pub trait Real:
     Copy
@@ -106,6 +113,10 @@ pub trait Real:
     fn eq(self, o: Self) -> Self::Mask;
     /// Per lane: `a` where `m` is set, else `b`.
     fn select(m: Self::Mask, a: Self, b: Self) -> Self;
+
+    /// `k` on four argument sets: for `f32` the four go into lanes 0–3 of one `f32x8` run (one shading point's
+    /// lobes side by side, each lane bit for bit what one `f32` run gives); for `f32x8` four runs, one per set.
+    fn four<K: Kernel<N>, const N: usize>(k: &K, x: [[Self; N]; 4]) -> [Self; 4];
 
     /// Clamped to [lo, hi] (NaN stays NaN in `f32`, becomes a bound in `f32x8`).
     #[inline(always)]
@@ -206,6 +217,17 @@ impl Real for f32 {
             b
         }
     }
+    #[inline(always)]
+    fn four<K: Kernel<N>, const N: usize>(k: &K, x: [[f32; N]; 4]) -> [f32; 4] {
+        // Lanes 4–7 repeat set 3: valid arguments, so they change no lane's value nor any `any`/`all` choice.
+        let args = std::array::from_fn(|n| {
+            let l = x[3][n];
+            f32x8::new([x[0][n], x[1][n], x[2][n], l, l, l, l, l])
+        });
+        let r = k.run::<f32x8>(args);
+        let r = r.as_array_ref();
+        [r[0], r[1], r[2], r[3]]
+    }
 }
 
 impl Real for f32x8 {
@@ -295,6 +317,10 @@ impl Real for f32x8 {
     fn select(m: f32x8, a: Self, b: Self) -> Self {
         m.blend(a, b)
     }
+    #[inline(always)]
+    fn four<K: Kernel<N>, const N: usize>(k: &K, x: [[f32x8; N]; 4]) -> [f32x8; 4] {
+        x.map(|x| k.run(x))
+    }
 }
 
 #[cfg(test)]
@@ -330,6 +356,26 @@ mod tests {
             let (s, c) = Real::sin_cos(x * 0.3);
             close(s, (x * 0.3).sin(), "sin");
             close(c, (x * 0.3).cos(), "cos");
+        }
+    }
+
+    struct Expression;
+    impl Kernel<2> for Expression {
+        fn run<R: Real>(&self, [x, y]: [R; 2]) -> R {
+            expression(x) * y
+        }
+    }
+
+    #[test]
+    fn four_at_once_match_one_at_a_time() {
+        let sets = [[-2.7f32, 0.5], [0.25, 3.0], [1.5, -1.0], [3.2, 2.0]];
+        let got = f32::four(&Expression, sets);
+        for (k, [x, y]) in sets.into_iter().enumerate() {
+            assert_eq!(
+                got[k].to_bits(),
+                Expression.run([x, y]).to_bits(),
+                "set {k}"
+            );
         }
     }
 

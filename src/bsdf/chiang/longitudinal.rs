@@ -39,14 +39,14 @@ impl Longitudinal {
     }
 }
 
-/// M_p(θi, θo′) of lobe `l` (d'Eon et al. 2011) from (sin θi, cos θi) and (sin θo′, cos θo′ ≥ 0), each pair of
+/// M_p(θi, θo′) of a lobe of 1/v = `inv_v` and ln c(v) + 1/v = `log_norm` ([`Longitudinal`]; per lane, so that
+/// one shading point's lobes can run side by side) from (sin θi, cos θi) and (sin θo′, cos θo′ ≥ 0), each pair of
 /// unit length (module docs: the form and its precision). A lane skips an expansion only when no lane needs it.
 #[inline(always)]
-pub(super) fn m_p_of<R: Real>(l: &Longitudinal, sin_i: R, cos_i: R, sin_o: R, cos_o: R) -> R {
+pub(super) fn m_p_of<R: Real>(inv_v: R, log_norm: R, [sin_i, cos_i, sin_o, cos_o]: [R; 4]) -> R {
     let one = R::splat(1.0);
     let zero = R::splat(0.0);
     let switch = R::splat(M_P_SWITCH as f32);
-    let inv_v = R::splat(l.inv_v);
     let a = cos_i * cos_o * inv_v;
     // 1 − cos(θi + θo′) without cancellation.
     let sin_sum = sin_i.mul_add(cos_o, cos_i * sin_o);
@@ -57,7 +57,7 @@ pub(super) fn m_p_of<R: Real>(l: &Longitudinal, sin_i: R, cos_i: R, sin_o: R, co
         one - cos_sum,
     );
     let series = a.le(switch);
-    let exponent = R::splat(l.log_norm) - one_minus_cos * inv_v - R::select(series, a, zero);
+    let exponent = log_norm - one_minus_cos * inv_v - R::select(series, a, zero);
     // Each expansion only where a lane needs it (TRT's and the residual's wide lobes never reach the asymptotic
     // one at the usual roughness, TT's narrow one seldom stays in the series).
     let small = if series.any() {
@@ -85,7 +85,8 @@ pub fn m_p(v: f64, sin_theta_i: f32, cos_theta_i: f32, sin_theta_o: f32, cos_the
     };
     let (si, ci) = unit(sin_theta_i, cos_theta_i);
     let (so, co) = unit(sin_theta_o, cos_theta_o);
-    m_p_of(&Longitudinal::new(v), si, ci, so, co)
+    let l = Longitudinal::new(v);
+    m_p_of(l.inv_v, l.log_norm, [si, ci, so, co])
 }
 
 /// sin θi of a direction drawn from M_p(·, θo′) (d'Eon et al. 2011's sampling) with the constants of the lobe

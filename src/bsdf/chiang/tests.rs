@@ -116,18 +116,21 @@ fn m_p_in_f32_and_in_lanes_matches_the_full_bessel_function() {
                 .collect();
             for chunk in outs.chunks_exact(LANES) {
                 let lanes = m_p_of(
-                    &l,
-                    f32x8::splat(sc_i.0),
-                    f32x8::splat(sc_i.1),
-                    f32x8::new(std::array::from_fn(|k| chunk[k].0)),
-                    f32x8::new(std::array::from_fn(|k| chunk[k].1)),
+                    f32x8::splat(l.inv_v),
+                    f32x8::splat(l.log_norm),
+                    [
+                        f32x8::splat(sc_i.0),
+                        f32x8::splat(sc_i.1),
+                        f32x8::new(std::array::from_fn(|k| chunk[k].0)),
+                        f32x8::new(std::array::from_fn(|k| chunk[k].1)),
+                    ],
                 );
                 for (k, &sc_o) in chunk.iter().enumerate() {
                     let want = m_p_reference(v, sc_i, sc_o);
                     if want < 1e-30 {
                         continue;
                     }
-                    let one = m_p_of(&l, sc_i.0, sc_i.1, sc_o.0, sc_o.1) as f64;
+                    let one = m_p_of(l.inv_v, l.log_norm, [sc_i.0, sc_i.1, sc_o.0, sc_o.1]) as f64;
                     let lane = lanes.as_array_ref()[k] as f64;
                     let tolerance = 8.0 * eps * (1.0 + want.ln().abs());
                     for (form, got) in [("f32", one), ("f32x8", lane)] {
