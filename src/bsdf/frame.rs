@@ -24,6 +24,7 @@
 //!   an elliptical cross-section would not be (not implemented).
 
 use crate::util::hash::{hash64, unit_f32};
+use crate::util::real::Real;
 use crate::util::sampling::uniform_sphere;
 use glam::Vec3;
 use std::f32::consts::{FRAC_PI_2, FRAC_PI_4, PI, TAU};
@@ -116,41 +117,10 @@ pub fn theta(local: Vec3) -> f32 {
 /// t = min/max ∈ [0, 1], then to |u| ≤ tan(π/8) by atan t = π/4 + atan((t − 1)/(t + 1)) (one division from min and
 /// max directly), where the Maclaurin series
 /// of atan to u¹⁵ is off by less than tan(π/8)¹⁷/17 = 2e-8. Cheaper than libm's `atan2f`, which dominated
-/// [`Angles::new`] and so every eval (the angles of every model go through here).
+/// [`Angles::new`] and so every eval (the angles of every model go through here). [`atan2_of`] at `f32`.
 #[inline]
 pub fn atan2(y: f32, x: f32) -> f32 {
-    let (ax, ay) = (x.abs(), y.abs());
-    let (num, den) = if ay > ax { (ax, ay) } else { (ay, ax) };
-    if den.is_nan() {
-        return den;
-    }
-    if den == 0.0 {
-        // Both zero: the direction is along ±u, where φ is undefined; 0 as `f32::atan2` gives.
-        return 0.0;
-    }
-    // t = num/den; past tan(π/8), u = (t − 1)/(t + 1) = (num − den)/(num + den): one division either way, and
-    // written as (num − k den)/(den + k num) with k ∈ {0, 1} it needs no branch.
-    let k = if num > 0.414_213_57 * den { 1.0 } else { 0.0 };
-    let u = (num - k * den) / (den + k * num);
-    let base = k * FRAC_PI_4;
-    let (v, v2) = (u * u, (u * u) * (u * u));
-    // atan u = u (1 − u²/3 + u⁴/5 − … − u¹⁴/15), by Estrin's scheme in v = u² (pairs, then v², v⁴): a dependency
-    // chain of three multiply-adds instead of Horner's seven.
-    let poly = (1.0 + v * (-1.0 / 3.0))
-        + v2 * (1.0 / 5.0 + v * (-1.0 / 7.0))
-        + (v2 * v2) * ((1.0 / 9.0 + v * (-1.0 / 11.0)) + v2 * (1.0 / 13.0 + v * (-1.0 / 15.0)));
-    let mut a = base + u * poly;
-    if ay > ax {
-        a = FRAC_PI_2 - a;
-    }
-    if x < 0.0 {
-        a = PI - a;
-    }
-    if y < 0.0 {
-        -a
-    } else {
-        a
-    }
+    atan2_of(y, x)
 }
 
 /// √(y² + z²), the length of the normal-plane projection (plain sqrt: directions are O(1), so the overflow
@@ -163,13 +133,7 @@ fn rho(local: Vec3) -> f32 {
 /// (sin θ, cos θ) from x = ω·u and ρ = √(y² + z²), for any non-zero length; (0, 1) for a zero vector.
 #[inline]
 fn sin_cos_from(x: f32, rho: f32) -> (f32, f32) {
-    let len2 = x * x + rho * rho;
-    if len2 > 0.0 {
-        let inv = 1.0 / len2.sqrt();
-        (x * inv, rho * inv)
-    } else {
-        (0.0, 1.0)
-    }
+    sin_cos_from_of(x, rho)
 }
 
 /// φ of a local direction: atan2(z, y) ∈ [−π, π] (0 for a direction along ±u).
@@ -207,17 +171,10 @@ pub fn from_sin_cos_theta_and_relative_azimuth(
     cos_phi: f32,
     sin_phi: f32,
 ) -> Vec3 {
-    let rho_o = rho(wo);
-    let (cos_r, sin_r) = if rho_o > 0.0 {
-        let inv = 1.0 / rho_o;
-        (wo.y * inv, wo.z * inv)
-    } else {
-        (1.0, 0.0)
-    };
-    let cos_i = cos_r * cos_phi + sin_r * sin_phi;
-    let sin_i = sin_r * cos_phi - cos_r * sin_phi;
-    let cos_t = cos_t.max(0.0);
-    Vec3::new(sin_t, cos_t * cos_i, cos_t * sin_i)
+    let (cos_r, sin_r, _) = unit_azimuth_of(wo.y, wo.z, rho(wo));
+    Vec3::from(turned_by_relative_azimuth_of(
+        sin_t, cos_t, cos_r, sin_r, cos_phi, sin_phi,
+    ))
 }
 
 /// An angle wrapped to [−π, π].
@@ -262,24 +219,14 @@ impl Angles {
     #[inline(always)]
     pub fn new(wo: Vec3, wi: Vec3) -> Angles {
         let (rho_o, rho_i) = (rho(wo), rho(wi));
-        // θr + θi ∈ [−π, π] from its sine and cosine (angle-sum formulas, each scaled by |ωo||ωi| > 0, which the
-        // arctangent ignores), so θh costs one arctangent, not two, and does not wait for the normalisation below.
-        // Exactly at a pole the sine may be a zero of either sign; θr + θi = ±π then takes the sign of the poles.
-        let sin_sum = wo.x * rho_i + rho_o * wi.x;
-        let cos_sum = rho_o * rho_i - wo.x * wi.x;
-        let theta_h = if sin_sum == 0.0 && cos_sum < 0.0 {
-            FRAC_PI_2.copysign(wo.x + wi.x)
-        } else {
-            0.5 * atan2(sin_sum, cos_sum)
-        };
+        // θh in one arctangent of θr + θi ([`theta_h_of`]), not two, and not waiting for the normalisation below.
+        let theta_h = theta_h_of(wo.x, rho_o, wi.x, rho_i);
         let (sin_theta_o, cos_theta_o) = sin_cos_from(wo.x, rho_o);
         let (sin_theta_i, cos_theta_i) = sin_cos_from(wi.x, rho_i);
-        let (c, s) = (cos_theta_o + cos_theta_i, sin_theta_o + sin_theta_i);
-        let cos_theta_d = (0.5 * (c * c + s * s).sqrt()).min(1.0);
+        let cos_theta_d = half_length_of(cos_theta_o + cos_theta_i, sin_theta_o + sin_theta_i);
         let cos_half_phi = if rho_o > 0.0 && rho_i > 0.0 {
             let (a, b) = (1.0 / rho_o, 1.0 / rho_i);
-            let (y, z) = (wo.y * a + wi.y * b, wo.z * a + wi.z * b);
-            (0.5 * (y * y + z * z).sqrt()).min(1.0)
+            half_length_of(wo.y * a + wi.y * b, wo.z * a + wi.z * b)
         } else {
             1.0
         };
@@ -317,14 +264,13 @@ impl Angles {
         sin_phi: f32,
     ) -> Angles {
         let cos_theta_i = cos_theta_i.max(0.0);
-        let (c, s) = (cos_theta_o + cos_theta_i, sin_theta_o + sin_theta_i);
         Angles {
             sin_theta_o,
             sin_theta_i,
             cos_theta_o,
             cos_theta_i,
             theta_h: 0.5 * (theta_o + theta_i),
-            cos_theta_d: (0.5 * (c * c + s * s).sqrt()).min(1.0),
+            cos_theta_d: half_length_of(cos_theta_o + cos_theta_i, sin_theta_o + sin_theta_i),
             cos_half_phi,
             phi_sin: sin_phi,
             phi_cos: cos_phi,
@@ -381,6 +327,106 @@ pub fn h_from_ribbon(v: f32, across: Vec3, tangent: Vec3, wo: Vec3) -> f32 {
     ((2.0 * v - 1.0) * b.dot(w.cross(u))).clamp(-1.0, 1.0)
 }
 
+/// [`atan2`] over any [`Real`] (one f32 or eight lanes), branches as selects: the one implementation of the
+/// polynomial arctangent, which the scalar [`atan2`] is at `f32`.
+#[inline(always)]
+pub fn atan2_of<R: Real>(y: R, x: R) -> R {
+    let zero = R::splat(0.0);
+    let (ax, ay) = (x.abs(), y.abs());
+    let swap = ay.gt(ax);
+    let (num, den) = (R::select(swap, ax, ay), R::select(swap, ay, ax));
+    // t = num/den; past tan(π/8), u = (t − 1)/(t + 1) = (num − den)/(num + den): one division either way, and
+    // written as (num − k den)/(den + k num) with k ∈ {0, 1} it needs no branch.
+    let k = R::select(num.gt(R::splat(0.414_213_57) * den), R::splat(1.0), zero);
+    let u = (num - k * den) / (den + k * num);
+    let base = k * R::splat(FRAC_PI_4);
+    let (v, v2) = (u * u, (u * u) * (u * u));
+    let c = R::splat;
+    // atan u = u (1 − u²/3 + u⁴/5 − … − u¹⁴/15), by Estrin's scheme in v = u² (pairs, then v², v⁴): a dependency
+    // chain of three multiply-adds instead of Horner's seven.
+    let poly = (c(1.0) + v * c(-1.0 / 3.0))
+        + v2 * (c(1.0 / 5.0) + v * c(-1.0 / 7.0))
+        + (v2 * v2)
+            * ((c(1.0 / 9.0) + v * c(-1.0 / 11.0)) + v2 * (c(1.0 / 13.0) + v * c(-1.0 / 15.0)));
+    let a = base + u * poly;
+    let a = R::select(swap, c(FRAC_PI_2) - a, a);
+    let a = R::select(x.lt(zero), c(PI) - a, a);
+    let a = R::select(y.lt(zero), -a, a);
+    // Both zero (0/0 above): the direction is along ±u, where φ is undefined; 0 as `f32::atan2` gives. A NaN
+    // argument stays NaN (no comparison holds).
+    R::select(den.eq(zero), zero, a)
+}
+
+/// θh = (θr + θi)/2 of two directions given by their tangent components x and normal-plane lengths ρ, over any
+/// [`Real`]: θr + θi ∈ [−π, π] from its sine and cosine (angle-sum formulas, each scaled by |ωo||ωi| > 0, which
+/// the arctangent ignores), so θh costs one arctangent, not two, and needs no normalisation. Exactly at a pole the
+/// sine may be a zero of either sign; θr + θi = ±π then takes the sign of the poles.
+#[inline(always)]
+pub fn theta_h_of<R: Real>(x_o: R, rho_o: R, x_i: R, rho_i: R) -> R {
+    let sin_sum = x_o * rho_i + rho_o * x_i;
+    let cos_sum = rho_o * rho_i - x_o * x_i;
+    let zero = R::splat(0.0);
+    let pole = sin_sum.eq(zero) & cos_sum.lt(zero);
+    let half_pi = R::splat(FRAC_PI_2);
+    R::select(
+        pole,
+        R::select((x_o + x_i).lt(zero), -half_pi, half_pi),
+        R::splat(0.5) * atan2_of(sin_sum, cos_sum),
+    )
+}
+
+/// Half the length of (a, b), at most 1: cos θd from (cos θo + cos θi, sin θo + sin θi) (accurate also near
+/// θd = ±π/2), cos(φ/2) from the sum of the two unit normal-plane projections (accurate near φ = ±π, where
+/// 1 + cos φ would cancel).
+#[inline(always)]
+pub fn half_length_of<R: Real>(a: R, b: R) -> R {
+    (R::splat(0.5) * (a * a + b * b).sqrt()).min(R::splat(1.0))
+}
+
+/// (sin θ, cos θ) from x = ω·u and ρ = √(y² + z²) over any [`Real`], for any non-zero length; (0, 1) for a zero
+/// vector. [`sin_cos_theta`]'s arithmetic.
+#[inline(always)]
+pub fn sin_cos_from_of<R: Real>(x: R, rho: R) -> (R, R) {
+    let len2 = x * x + rho * rho;
+    let some = len2.gt(R::splat(0.0));
+    let inv = R::splat(1.0) / len2.sqrt();
+    (
+        R::select(some, x * inv, R::splat(0.0)),
+        R::select(some, rho * inv, R::splat(1.0)),
+    )
+}
+
+/// (cos φ, sin φ) of the normal-plane projection (y, z) of a direction, ρ = √(y² + z²) its length, and whether
+/// it has one (ρ > 0); (1, 0) along ±u, where [`phi`] gives 0.
+#[inline(always)]
+pub fn unit_azimuth_of<R: Real>(y: R, z: R, rho: R) -> (R, R, R::Mask) {
+    let some = rho.gt(R::splat(0.0));
+    let inv = R::splat(1.0) / rho;
+    (
+        R::select(some, y * inv, R::splat(1.0)),
+        R::select(some, z * inv, R::splat(0.0)),
+        some,
+    )
+}
+
+/// The unit direction of [`from_sin_cos_theta_and_relative_azimuth`] over any [`Real`], given ωo's normal-plane
+/// direction (cos φr, sin φr) ([`unit_azimuth_of`]): (cos φi, sin φi) is it turned by −φ (the angle difference
+/// formulas), φ given by its cosine and sine.
+#[inline(always)]
+pub fn turned_by_relative_azimuth_of<R: Real>(
+    sin_t: R,
+    cos_t: R,
+    cos_r: R,
+    sin_r: R,
+    cos_phi: R,
+    sin_phi: R,
+) -> [R; 3] {
+    let cos_i = cos_r * cos_phi + sin_r * sin_phi;
+    let sin_i = sin_r * cos_phi - cos_r * sin_phi;
+    let cos_t = cos_t.max(R::splat(0.0));
+    [sin_t, cos_t * cos_i, cos_t * sin_i]
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -415,6 +461,28 @@ mod tests {
         assert!(worst < 6e-7, "{worst}");
         assert_eq!(atan2(0.0, 0.0), 0.0);
         assert!(atan2(f32::NAN, 1.0).is_nan());
+    }
+
+    #[test]
+    fn generic_angles_in_eight_lanes_match_one_at_a_time() {
+        // The polynomial arctangent and θh's angle sum in f32x8 against f32: the same arithmetic, so equal to
+        // rounding (no FMA contraction either way).
+        use wide::f32x8;
+        let xs: [f32; 8] = [-2.0, -0.7, -1e-30, 0.0, 0.3, 1.0, 1.5, 2.0];
+        let ys: [f32; 8] = [0.5, -1.2, 0.0, 0.0, -0.0, 1e-30, -3.0, 0.9];
+        let (x8, y8) = (f32x8::new(xs), f32x8::new(ys));
+        let a8 = atan2_of(y8, x8);
+        let h8 = theta_h_of(x8, y8.abs(), y8, x8.abs());
+        for k in 0..8 {
+            assert_eq!(a8.lane(k), atan2(ys[k], xs[k]), "atan2 lane {k}");
+            assert_eq!(
+                h8.lane(k),
+                theta_h_of(xs[k], ys[k].abs(), ys[k], xs[k].abs())
+            );
+        }
+        // The poles: θh = ±π/2 with the sign of the poles.
+        assert_eq!(theta_h_of(1.0f32, 0.0, 1.0, 0.0), FRAC_PI_2);
+        assert_eq!(theta_h_of(-1.0f32, 0.0, -1.0, 0.0), -FRAC_PI_2);
     }
 
     #[test]

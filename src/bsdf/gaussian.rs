@@ -814,3 +814,473 @@ mod tests {
         assert!((tg.sample(0.25) - 0.25).abs() < 1e-12);
     }
 }
+
+// Over any `Real` (one f32 or eight lanes, `crate::util::real`): the pieces of the truncated Gaussian that the
+// fibre models' generic code samples and evaluates with, vectorised where f32 serves and lane by lane in f64 where
+// it does not (say so where it happens).
+
+use crate::util::real::{Real, RealMask};
+
+/// [`exp_lobe`] over any [`Real`]: e^x for the (non-positive) exponents of Gaussian lobes, 0 below −104 without
+/// computing the exponential when no lane needs it (at `f32` a branch, so libm's underflow path is skipped as in
+/// [`exp_lobe`]). `f32x8`'s exponential is 0 from −87.3 down, where libm's gives subnormals (< 1.2e-38).
+#[inline(always)]
+pub fn exp_lobe_of<R: Real>(x: R) -> R {
+    let live = !x.lt(R::splat(-104.0));
+    if live.any() {
+        R::select(live, x.exp(), R::splat(0.0))
+    } else {
+        R::splat(0.0)
+    }
+}
+
+/// The coefficients of [`ERFCC`], each rounded to the nearest f32.
+const ERFCC_F32: [f32; 10] = {
+    let mut c = [0.0f32; 10];
+    let mut i = 0;
+    while i < 10 {
+        c[i] = ERFCC[i] as f32;
+        i += 1;
+    }
+    c
+};
+
+/// `erfc_parts_f32` over any [`Real`]: (t, P(t)) of Press et al.'s fit, erfc z = t·e^{−z² + P(t)} for z ≥ 0, the
+/// same f32 coefficients and Estrin scheme.
+#[inline(always)]
+pub fn erfc_parts_of<R: Real>(z: R) -> (R, R) {
+    let c = |i: usize| R::splat(ERFCC_F32[i]);
+    let t = R::splat(1.0) / (R::splat(1.0) + R::splat(0.5) * z);
+    let (t2, t4) = (t * t, (t * t) * (t * t));
+    let p01 = c(0) + c(1) * t;
+    let p23 = c(2) + c(3) * t;
+    let p45 = c(4) + c(5) * t;
+    let p67 = c(6) + c(7) * t;
+    let p89 = c(8) + c(9) * t;
+    (t, (p01 + t2 * p23) + t4 * ((p45 + t2 * p67) + t4 * p89))
+}
+
+/// ½ erfc(z/√2) = Φ(−z) for z ≥ 0 over any [`Real`] (`upper_tail_f32`'s arithmetic, z in f32), 0 beyond
+/// `NEGLIGIBLE_TAIL`.
+#[inline(always)]
+pub fn upper_tail_of<R: Real>(z: R) -> R {
+    let far = z.gt(R::splat(NEGLIGIBLE_TAIL as f32));
+    if far.all() {
+        return R::splat(0.0);
+    }
+    let z = z * R::splat(FRAC_1_SQRT_2 as f32);
+    let (t, p) = erfc_parts_of(z);
+    R::select(far, R::splat(0.0), R::splat(0.5) * t * (-z * z + p).exp())
+}
+
+/// Φ⁻¹(p) over any [`Real`], in f32: Wichura 1988's `PPND7` (AS 241's seven-digit companion of [`normal_quantile`]'s
+/// `PPND16`): a rational function of degree 3/3 in (p − ½)² for |p − ½| ≤ 0.425, else of degree 3/2 in
+/// r = √(−ln min(p, 1 − p)) (two pieces, split at r = 5). Relative accuracy about 1e-7, the f32 result's own, for
+/// every p whose nearer tail is a normal f32. That suffices where the samplers use it: their levels are always the
+/// nearer tail (≤ ½), formed with relative accuracy, so f32 loses nothing that f64 would keep (tested against
+/// [`normal_quantile`]). p ≤ 0 gives −∞ and p ≥ 1 gives +∞. The tail pieces (a logarithm) are computed only when
+/// some lane needs them.
+// The coefficients are AS 241's ten-digit ones as published, kept verbatim so they can be checked against it.
+#[allow(clippy::excessive_precision)]
+#[inline(always)]
+pub fn normal_quantile_of<R: Real>(p: R) -> R {
+    let c = R::splat;
+    let q = p - c(0.5);
+    let r = c(0.180_625) - q * q;
+    let num = ((c(5.910_937_472e1) * r + c(1.592_911_320_2e2)) * r + c(5.043_427_193_8e1)) * r
+        + c(3.387_132_717_9);
+    let den =
+        ((c(6.718_756_36e1) * r + c(7.875_775_766_4e1)) * r + c(1.789_516_946_9e1)) * r + c(1.0);
+    let central = q.abs().le(c(0.425));
+    let x = q * num / den;
+    if central.all() {
+        return x;
+    }
+    // The nearer tail's probability; below the smallest normal f32 only the infinities below are returned.
+    let s = p.min(c(1.0) - p);
+    let r = (-(s.max(c(f32::MIN_POSITIVE))).ln()).sqrt();
+    let near = r.le(c(5.0));
+    let rc = r - c(1.6);
+    let mut t = (((c(1.702_382_110_3e-1) * rc + c(1.306_728_481_6)) * rc + c(2.756_815_39)) * rc
+        + c(1.423_437_277_7))
+        / ((c(1.202_113_297_5e-1) * rc + c(7.370_016_425e-1)) * rc + c(1.0));
+    if !near.all() {
+        let re = r - c(5.0);
+        let far = (((c(1.733_720_399_7e-2) * re + c(4.286_829_433_7e-1)) * re + c(3.081_226_386))
+            * re
+            + c(6.657_905_115))
+            / ((c(1.225_820_263_5e-2) * re + c(2.419_789_422_5e-1)) * re + c(1.0));
+        t = R::select(near, t, far);
+    }
+    let lower = q.lt(c(0.0));
+    let t = R::select(s.le(c(0.0)), c(f32::INFINITY), t);
+    R::select(central, x, R::select(lower, -t, t))
+}
+
+/// [`TruncatedGaussianF32`] over any [`Real`], the distribution per lane: N(μ, σ²) on [lo, hi], sampled by
+/// inverse CDF, with the matching pdf. The three cases of [`TruncatedGaussianF32`] (after mirroring so that
+/// a ≤ 0):
+///
+/// - **Central** (b > 0), vectorised in f32: tails Φ(a) and 1 − Φ(b) ([`upper_tail_of`]),
+///   Z = 1 − Φ(a) − (1 − Φ(b)) (≥ 0.38 for the models' ranges, so it does not cancel), pdf = e^{−x²/2}/(σ√(2π) Z);
+///   the sampler inverts that CDF with the same f32 tails and Z and [`normal_quantile_of`], so it draws exactly the
+///   density `pdf` returns up to f32 rounding (tested against the f64 [`TruncatedGaussian`]).
+/// - **Tail** (b ≤ 0: the interval on one side of the mean, a lobe whose shift puts it outside the view's range),
+///   pdf vectorised in f32 as [`TruncatedGaussianF32`]'s: Z = ½ e^{−b²/2} [T(|b|/√2) − T(|a|/√2) e^{−(a² − b²)/2}]
+///   and density e^{−(x² − b²)/2}, with each (u² − v²)/2 = ½(u − v)(u + v) formed from distances between f32
+///   angles (|y − n| for x − b, n the end nearer the mean), which neither cancel nor overflow however far out the
+///   interval is. Sampling there needs the tails' levels themselves (e^{−b²/2} underflows f32 beyond |b| ≈ 13), so
+///   those lanes draw from the f64 [`TruncatedGaussian`] one at a time (`R::from_fn`); rare.
+/// - **Uniform**: where the interval's mass underflows a double, both read the f64 type's uniform fallback.
+///
+/// Precision: the standardised ends and points are formed in f32 (the f64 type forms them in f64). Differences
+/// of angles are exact where they cancel (Sterbenz), so a standardised value carries ≈ 2e-7 relative error and
+/// an exponent −e ≈ 4e-7·e, < 1e-5 where the density is within e^{−20} of its peak: below what the models' own
+/// angles carry (an arctangent's 6e-7 rad is 6e-7/σ in x). The ends are f32 angles (≤ 3e-8 rad from the f64 ones),
+/// which moves where the interval is cut, not the agreement of sampler and pdf. Z = 1 − p_a − p_b is rounded once
+/// more in f32 (6e-8 relative), so the sampler's two halves meet at the median within that.
+#[derive(Clone, Copy)]
+pub struct TruncatedGaussianOf<R: Real> {
+    mu: R,
+    sigma: R,
+    lo: R,
+    hi: R,
+    /// Standardised and, where `flip`, mirrored ends: the variable s·(y − μ)/σ ∈ [a, b] with a ≤ 0. The central
+    /// case is b > 0.
+    a: R,
+    b: R,
+    flip: R::Mask,
+    /// 1/σ.
+    inv_sigma: R,
+    /// Φ(a), 1 − Φ(b), Z and 1/Z (central lanes; finite and unused elsewhere).
+    p_a: R,
+    p_b: R,
+    z: R,
+    inv_z: R,
+    /// Tail lanes: the end n nearer the mean and |n − μ| = −bσ, P(t_b), 1/(scaled mass) and the uniform fallback
+    /// (unused elsewhere).
+    near: R,
+    near_dist: R,
+    tail_p_b: R,
+    tail_inv_scaled: R,
+    uniform: R::Mask,
+}
+
+impl<R: Real> TruncatedGaussianOf<R> {
+    /// N(`mu`, `sigma`²) on [`lo`, `hi`] per lane; `inv_sigma` = 1/`sigma` (callers keep both: no division here).
+    #[inline(always)]
+    pub fn new(mu: f32, sigma: f32, inv_sigma: f32, lo: R, hi: R) -> TruncatedGaussianOf<R> {
+        let (m, is) = (R::splat(mu), R::splat(inv_sigma));
+        let (a0, b0) = ((lo - m) * is, (hi - m) * is);
+        let flip = a0.gt(R::splat(0.0));
+        let (a, b) = (R::select(flip, -b0, a0), R::select(flip, -a0, b0));
+        let zero = R::splat(0.0);
+        let p_a = upper_tail_of((-a).max(zero));
+        let p_b = upper_tail_of(b.max(zero));
+        let z = R::splat(1.0) - p_a - p_b;
+        let central = b.gt(zero);
+        let (near, far) = (R::select(flip, lo, hi), R::select(flip, hi, lo));
+        let near_dist = (near - m).abs();
+        let (mut tail_p_b, mut tail_inv_scaled, mut uniform) = (zero, zero, zero.lt(zero));
+        if !central.all() {
+            // The tail case, as `TruncatedGaussianF32::new`: T and P of both ends' standardised distances
+            // |b| = |n − μ|/σ and |a| = |f − μ|/σ, and (a² − b²)/2 = ½ · (hi − lo)/σ · (|f − μ| + |n − μ|)/σ.
+            let far_dist = (far - m).abs();
+            let h = R::splat(FRAC_1_SQRT_2 as f32);
+            let (tb, pb) = erfc_parts_of(near_dist * is * h);
+            let (ta, pa) = erfc_parts_of(far_dist * is * h);
+            let d = R::splat(0.5) * ((hi - lo) * is) * ((far_dist + near_dist) * is);
+            // e^{−40} is below f32's resolution: the far end's tail is then negligible.
+            let ratio = R::select(d.gt(R::splat(40.0)), zero, ta / tb * (pa - pb - d).exp());
+            let scaled = R::splat(0.5) * tb * (R::splat(1.0) - ratio);
+            // Mass = scaled · e^{−b²/2 + P(t_b)}: below 1e-300 (ln = −690.8) the f64 type is uniform.
+            let nb = near_dist * is;
+            let log_mass = R::splat(-0.5) * nb * nb + pb + scaled.ln();
+            uniform = !central & nb.gt(R::splat(36.0)) & log_mass.le(R::splat(-690.775_5));
+            (tail_p_b, tail_inv_scaled) = (pb, R::splat(1.0) / scaled);
+        }
+        TruncatedGaussianOf {
+            mu: m,
+            sigma: R::splat(sigma),
+            lo,
+            hi,
+            a,
+            b,
+            flip,
+            inv_sigma: is,
+            p_a,
+            p_b,
+            z,
+            inv_z: R::splat(1.0) / z,
+            near,
+            near_dist,
+            tail_p_b,
+            tail_inv_scaled,
+            uniform,
+        }
+    }
+
+    /// Per lane: `x`'s distribution where `m` is set, else `y`'s.
+    #[inline(always)]
+    pub fn pick(m: R::Mask, x: &Self, y: &Self) -> Self {
+        let s = |a: R, b: R| R::select(m, a, b);
+        TruncatedGaussianOf {
+            mu: s(x.mu, y.mu),
+            sigma: s(x.sigma, y.sigma),
+            lo: s(x.lo, y.lo),
+            hi: s(x.hi, y.hi),
+            a: s(x.a, y.a),
+            b: s(x.b, y.b),
+            flip: (m & x.flip) | (!m & y.flip),
+            inv_sigma: s(x.inv_sigma, y.inv_sigma),
+            p_a: s(x.p_a, y.p_a),
+            p_b: s(x.p_b, y.p_b),
+            z: s(x.z, y.z),
+            inv_z: s(x.inv_z, y.inv_z),
+            near: s(x.near, y.near),
+            near_dist: s(x.near_dist, y.near_dist),
+            tail_p_b: s(x.tail_p_b, y.tail_p_b),
+            tail_inv_scaled: s(x.tail_inv_scaled, y.tail_inv_scaled),
+            uniform: (m & x.uniform) | (!m & y.uniform),
+        }
+    }
+
+    /// Lane `k` as the f32-normalised scalar type, in f64 (sampling the tail and uniform cases).
+    #[inline(never)]
+    fn lane_f64(&self, k: usize) -> TruncatedGaussianF32 {
+        let sigma = self.sigma.lane(k) as f64;
+        TruncatedGaussianF32::new(
+            self.mu.lane(k) as f64,
+            sigma,
+            1.0 / sigma,
+            self.lo.lane(k) as f64,
+            self.hi.lane(k) as f64,
+        )
+    }
+
+    /// The density at `y` (0 outside [lo, hi]), given `g` = e^{−x²/2}/(σ√(2π)) at its standardised point x (a
+    /// caller that has it already, Marschner's M, shares one exponential): g/Z in central lanes; tail lanes
+    /// take their own exponential, of −(x² − b²)/2 = −½ · |y − n|/σ · (|y − μ| + |n − μ|)/σ (g would underflow).
+    #[inline(always)]
+    pub fn pdf_given(&self, y: R, g: R) -> R {
+        let central = self.b.gt(R::splat(0.0));
+        let mut p = g * self.inv_z;
+        if !central.all() {
+            let is = self.inv_sigma;
+            let e = R::splat(0.5)
+                * ((y - self.near).abs() * is)
+                * (((y - self.mu).abs() + self.near_dist) * is);
+            let norm = R::splat(INV_SQRT_TAU) * is;
+            let tail = norm * (-e - self.tail_p_b).exp() * self.tail_inv_scaled;
+            let tail = if self.uniform.any() {
+                R::select(self.uniform, R::splat(1.0) / (self.hi - self.lo), tail)
+            } else {
+                tail
+            };
+            p = R::select(central, p, tail);
+        }
+        let inside = self.lo.le(y) & y.le(self.hi);
+        R::select(inside, p, R::splat(0.0))
+    }
+
+    /// The value at CDF level `u` ∈ [0, 1]: in central lanes Φ⁻¹ of the lower-tail level p_a + uZ below the
+    /// median and −Φ⁻¹ of the upper-tail level p_b + (1 − u)Z above it (mirrored lanes run the other way, with
+    /// u and 1 − u swapped rather than 1 − u formed twice); the other lanes draw from the f64
+    /// [`TruncatedGaussian`], as [`TruncatedGaussianF32::sample`] does.
+    #[inline(always)]
+    pub fn sample(&self, u: R) -> R {
+        let one = R::splat(1.0);
+        let v = one - u;
+        let (lower_u, upper_u) = (R::select(self.flip, v, u), R::select(self.flip, u, v));
+        let t = self.p_a + lower_u * self.z;
+        let lower = t.le(R::splat(0.5));
+        let level = R::select(lower, t, self.p_b + upper_u * self.z);
+        let q = normal_quantile_of(level);
+        // Clamped to [a, b] (an infinite quantile at level 0 lands on the end).
+        let x = R::select(lower, q, -q).max(self.a).min(self.b);
+        let x = R::select(self.flip, -x, x);
+        let mut y = (self.mu + self.sigma * x).max(self.lo).min(self.hi);
+        let central = self.b.gt(R::splat(0.0));
+        if !central.all() {
+            let other = R::from_fn(|k| {
+                if self.b.lane(k) > 0.0 {
+                    0.0
+                } else {
+                    self.lane_f64(k).sample(u.lane(k) as f64) as f32
+                }
+            });
+            y = R::select(central, y, other);
+        }
+        y
+    }
+}
+
+#[cfg(test)]
+mod tests_of {
+    use super::*;
+    use std::f32::consts::{FRAC_PI_2, FRAC_PI_4, PI};
+    use wide::f32x8;
+
+    #[test]
+    fn f32_quantile_matches_f64() {
+        // PPND7 in f32 against PPND16 in f64, over levels from 1e-30 to 1 − 1e-7 (both tails, all three pieces),
+        // in f32 and in eight lanes: within 1e-6 of |x| (the f32 result's own resolution is 6e-8).
+        let mut levels = Vec::new();
+        for i in 0..=600 {
+            let p = 10f64.powf(-30.0 + 30.0 * i as f64 / 600.0);
+            levels.push(p as f32);
+            levels.push((1.0 - p.max(1e-7)) as f32);
+        }
+        let mut worst = 0.0f64;
+        for chunk in levels.chunks_exact(8) {
+            let lanes = normal_quantile_of(f32x8::new(chunk.try_into().unwrap()));
+            for (k, &p) in chunk.iter().enumerate() {
+                let want = normal_quantile(p as f64);
+                let one = normal_quantile_of(p) as f64;
+                let eight = lanes.lane(k) as f64;
+                for got in [one, eight] {
+                    worst = worst.max((got - want).abs() / want.abs().max(1.0));
+                }
+            }
+        }
+        assert!(worst < 1e-6, "worst {worst:e}");
+        assert_eq!(normal_quantile_of(0.0f32), f32::NEG_INFINITY);
+        assert_eq!(normal_quantile_of(1.0f32), f32::INFINITY);
+        assert_eq!(normal_quantile_of(0.5f32), 0.0);
+    }
+
+    /// The grid of the f32 type's tests with the ends as a model forms them in f32, θr/2 ∓ π/4, and the f64 type
+    /// on those same ends: (μ, σ, lo, hi).
+    fn grid_f32() -> impl Iterator<Item = (f32, f32, f32, f32)> {
+        const WIDTHS: [f32; 7] = [1e-4, 1e-3, 0.01, 0.1, 0.3, 1.0, FRAC_PI_2];
+        (0..=40).flat_map(|i| {
+            let mu = -FRAC_PI_4 + i as f32 * FRAC_PI_2 / 40.0;
+            WIDTHS.into_iter().flat_map(move |sigma| {
+                (0..=60).map(move |k| {
+                    let c = 0.5 * (-FRAC_PI_2 + k as f32 * PI / 60.0);
+                    (mu, sigma, c - FRAC_PI_4, c + FRAC_PI_4)
+                })
+            })
+        })
+    }
+
+    /// Eight distributions of the grid at once, or one.
+    fn both_forms(
+        mu: f32,
+        sigma: f32,
+        lo: f32,
+        hi: f32,
+    ) -> (TruncatedGaussianOf<f32>, TruncatedGaussianOf<f32x8>) {
+        let inv = (1.0 / sigma as f64) as f32;
+        // The query in lane 3; other lanes hold other ends, so a lane that leaked would show.
+        let spread = |x: f32, d: f32| {
+            f32x8::new(std::array::from_fn(|k| {
+                if k == 3 {
+                    x
+                } else {
+                    x + d * k as f32
+                }
+            }))
+        };
+        (
+            TruncatedGaussianOf::new(mu, sigma, inv, lo, hi),
+            TruncatedGaussianOf::new(mu, sigma, inv, spread(lo, 0.07), spread(hi, 0.07)),
+        )
+    }
+
+    #[test]
+    fn generic_pdf_matches_f64() {
+        // Every case (central, tail, uniform) against the f64 type on the same ends, where the density is within
+        // e^{−20} of the interval's largest, in log form; allowed: 1e-6 plus the f32 standardisation's 4e-7 per
+        // unit of the exponent (see the type's docs).
+        let (mut worst, mut tails, mut fallbacks) = (0.0f64, 0, 0);
+        for (mu, sigma, lo, hi) in grid_f32() {
+            let (m64, s64, lo64, hi64) = (mu as f64, sigma as f64, lo as f64, hi as f64);
+            let tg = TruncatedGaussian::new(m64, s64, lo64, hi64);
+            let (one, eight) = both_forms(mu, sigma, lo, hi);
+            tails += (one.b <= 0.0) as u32;
+            fallbacks += (tg.mass() == 0.0) as u32;
+            let peak = tg.pdf(m64.clamp(lo64, hi64));
+            for j in 0..=200 {
+                let y = lo + (hi - lo) * j as f32 / 200.0;
+                let exact = tg.pdf(y as f64);
+                if exact == 0.0 || (peak / exact).ln() > 20.0 {
+                    continue;
+                }
+                let x = (y - mu) * (1.0 / sigma);
+                let g = INV_SQRT_TAU / sigma * exp_lobe(-0.5 * x * x);
+                let e = 0.5
+                    * (((y as f64 - m64) / s64).powi(2)
+                        - ((m64.clamp(lo64, hi64) - m64) / s64).powi(2));
+                let spread =
+                    |x: f32| f32x8::new(std::array::from_fn(|k| if k == 3 { x } else { 0.0 }));
+                let got = [
+                    one.pdf_given(y, g) as f64,
+                    eight.pdf_given(spread(y), spread(g)).lane(3) as f64,
+                ];
+                for got in got {
+                    worst = worst.max((got / exact).ln().abs() / (1e-6 + 4e-7 * e));
+                }
+            }
+        }
+        assert!(
+            tails > 1000 && fallbacks > 0,
+            "{tails} tails, {fallbacks} fallbacks"
+        );
+        assert!(worst < 1.0, "worst error {worst} of the allowance");
+    }
+
+    #[test]
+    fn generic_sampler_matches_f64() {
+        // As `f32_sampler_matches_f64`, every case: the f32 value against the f64 sampler's, in CDF level
+        // (≈ pdf · |y32 − y64|) beyond the f32 rounding of the value itself (an ulp of y, which the old scalar
+        // sampler had too).
+        let (mut worst, mut central) = (0.0f64, 0);
+        for (mu, sigma, lo, hi) in grid_f32() {
+            let tg = TruncatedGaussian::new(mu as f64, sigma as f64, lo as f64, hi as f64);
+            let (one, eight) = both_forms(mu, sigma, lo, hi);
+            central += (one.b > 0.0) as u32;
+            for j in 0..=100 {
+                let u = j as f32 / 100.0;
+                let y64 = tg.sample(u as f64);
+                let spread = f32x8::new(std::array::from_fn(|k| if k == 3 { u } else { 0.5 }));
+                for y32 in [one.sample(u), eight.sample(spread).lane(3)] {
+                    let ulp = (y64 as f32).abs().max(1e-30) * f32::EPSILON;
+                    let d = ((y32 as f64 - y64).abs() - ulp as f64).max(0.0);
+                    let level = d * tg.pdf(0.5 * (y32 as f64 + y64));
+                    worst = worst.max(level);
+                }
+            }
+        }
+        assert!(central > 1000 && worst < 2e-6, "worst {worst:e}");
+    }
+
+    #[test]
+    fn generic_tails_and_exponential_match_the_scalar_ones() {
+        let zs = [0.0f32, 0.3, 1.0, 2.5, 4.0, 5.9, 6.1, 30.0];
+        let eight = upper_tail_of(f32x8::new(zs));
+        for (k, &z) in zs.iter().enumerate() {
+            let want = upper_tail_f32(z as f64);
+            // (z/√2 is rounded in f32 here, in f64 there: the exponent −z²/2 differs by ~1e-7 z².)
+            for got in [upper_tail_of(z), eight.lane(k)] {
+                assert!(
+                    (got - want).abs() <= 4e-7 * (1.0 + z * z) * want,
+                    "Φ(−{z}): {got} vs {want}"
+                );
+            }
+        }
+        let xs = [0.0f32, -1.0, -20.0, -87.0, -100.0, -103.9, -104.1, -1e6];
+        let eight = exp_lobe_of(f32x8::new(xs));
+        for (k, &x) in xs.iter().enumerate() {
+            // f32's exponential is the lanes' on one lane (util::real): the two forms agree bit for bit, and with
+            // libm's within a few ulp (subnormal results flush to 0).
+            assert_eq!(exp_lobe_of(x).to_bits(), eight.lane(k).to_bits());
+            let want = exp_lobe(x);
+            let got = eight.lane(k);
+            assert!(
+                (got - want).abs() <= 4e-7 * want + 1.2e-38,
+                "e^{x}: {got} vs {want}"
+            );
+        }
+    }
+}

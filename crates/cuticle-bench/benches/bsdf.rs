@@ -10,7 +10,7 @@ use criterion::{black_box, criterion_group, criterion_main, Criterion, Throughpu
 use cuticle::bsdf::chiang::{Chiang, ChiangParams, ChiangView};
 use cuticle::bsdf::ishair::{IsHair, IsHairParams, LobeSelection};
 use cuticle::bsdf::kajiya_kay::{KajiyaKay, KajiyaKayParams};
-use cuticle::bsdf::lanes::{directions, Fibre, LANES};
+use cuticle::bsdf::lanes::{self as fibre, directions, Fibre, LANES};
 use cuticle::bsdf::marschner::{Marschner, MarschnerParams};
 use cuticle::bsdf::{Bsdf, Sampling};
 use cuticle::util::sampling::uniform_sphere;
@@ -88,6 +88,7 @@ fn bsdfs(c: &mut Criterion) {
         .unwrap();
         bench_model(c, &format!("marschner-{}", sampling.name()), &m, &x);
     }
+    bench_marschner_lanes(c, &x);
     for selection in [LobeSelection::Uniform, LobeSelection::ByEnergy] {
         let m = IsHair::new(IsHairParams {
             selection,
@@ -167,6 +168,66 @@ fn bench_chiang_lanes(c: &mut Criterion, chiang: &Chiang, x: &Inputs) {
             acc
         })
     });
+    g.finish();
+}
+
+/// Marschner's eight-lane form (the generic code at `f32x8`, `bsdf::lanes::Fibre`) on the inputs of the
+/// `marschner-*` groups, eight calls at a time: each call takes the view of its ωo and then evaluates or samples,
+/// as the scalar `Bsdf` calls do, so time per element against theirs is the per-lane cost. `eval` reads f alone
+/// (as `Bsdf::eval`), `eval+pdf` f and the pdf (as one `eval` and one `pdf` call), `sample` the sample.
+fn bench_marschner_lanes(c: &mut Criterion, x: &Inputs) {
+    let eight = |w: &[Vec3]| fibre::directions(w.try_into().unwrap());
+    let wo: Vec<[f32x8; 3]> = x.wo.chunks_exact(fibre::LANES).map(eight).collect();
+    let wi: Vec<[f32x8; 3]> = x.wi.chunks_exact(fibre::LANES).map(eight).collect();
+    let u: Vec<[f32x8; 3]> =
+        x.u.chunks_exact(fibre::LANES)
+            .map(|u| std::array::from_fn(|c| f32x8::new(std::array::from_fn(|k| u[k][c]))))
+            .collect();
+    let h = f32x8::splat(0.0);
+    let mut g = c.benchmark_group("marschner-lanes");
+    g.throughput(Throughput::Elements(BATCH as u64));
+    for sampling in [
+        Sampling::ExactPdf,
+        Sampling::ClampAndFlip,
+        Sampling::Uniform,
+    ] {
+        let m = Marschner::new(MarschnerParams {
+            sampling,
+            ..Default::default()
+        })
+        .unwrap();
+        g.bench_function(format!("{}/eval", sampling.name()), |b| {
+            b.iter(|| {
+                let mut acc = f32x8::splat(0.0);
+                for (wo, wi) in wo.iter().zip(&wi) {
+                    let e = m.eval_view(&m.view(h, *black_box(wo)), *black_box(wi));
+                    let l = &e.lobes;
+                    acc += (l.r[0] + l.trt[0] + l.diffuse[0]) + (l.r[1] + l.trt[1] + l.diffuse[1]);
+                }
+                acc.reduce_add()
+            })
+        });
+        g.bench_function(format!("{}/eval+pdf", sampling.name()), |b| {
+            b.iter(|| {
+                let mut acc = f32x8::splat(0.0);
+                for (wo, wi) in wo.iter().zip(&wi) {
+                    let e = m.eval_view(&m.view(h, *black_box(wo)), *black_box(wi));
+                    acc += e.lobes.r[0] + e.lobes.trt[0] + e.lobes.diffuse[0] + e.pdf;
+                }
+                acc.reduce_add()
+            })
+        });
+        g.bench_function(format!("{}/sample", sampling.name()), |b| {
+            b.iter(|| {
+                let mut acc = f32x8::splat(0.0);
+                for (wo, u) in wo.iter().zip(&u) {
+                    let s = m.sample_view(&m.view(h, *black_box(wo)), *black_box(u));
+                    acc += s.eval.pdf + s.eval.lobes.r[0] + s.wi[0];
+                }
+                acc.reduce_add()
+            })
+        });
+    }
     g.finish();
 }
 
