@@ -24,6 +24,7 @@
 //!   an elliptical cross-section would not be (not implemented).
 
 use crate::util::hash::{hash64, unit_f32};
+use crate::util::real::{Real, RealMask};
 use crate::util::sampling::uniform_sphere;
 use glam::Vec3;
 use std::f32::consts::{FRAC_PI_2, FRAC_PI_4, PI, TAU};
@@ -109,7 +110,14 @@ pub fn strand_noise(strand_id: u32) -> Vec3 {
 /// θ of a local direction: atan2(x, √(y² + z²)) ∈ [−π/2, π/2] (exact near the poles, unlike asin(x)).
 #[inline]
 pub fn theta(local: Vec3) -> f32 {
-    atan2(local.x, rho(local))
+    theta_of(&local.to_array())
+}
+
+/// [`theta`] of directions given component by component (`[x, y, z]`), in any number type ([`Real`]): one
+/// direction per lane. The arctangent of the unnormalised (x, ρ), so it does not wait for a normalisation.
+#[inline(always)]
+pub fn theta_of<R: Real>(w: &[R; 3]) -> R {
+    atan2_of(w[0], (w[1] * w[1] + w[2] * w[2]).sqrt())
 }
 
 /// atan2(y, x) ∈ [−π, π] (0 for x = y = 0), absolute error < 6e-7 rad (2 f32 ulps at π): reduction to
@@ -119,38 +127,41 @@ pub fn theta(local: Vec3) -> f32 {
 /// [`Angles::new`] and so every eval (the angles of every model go through here).
 #[inline]
 pub fn atan2(y: f32, x: f32) -> f32 {
+    atan2_of(y, x)
+}
+
+/// [`atan2`] in any number type ([`Real`]), one angle per lane: the same arithmetic, its branches as selects
+/// (for `f32` the early return at x = y = 0 stays a branch).
+#[inline(always)]
+pub fn atan2_of<R: Real>(y: R, x: R) -> R {
+    let zero = R::splat(0.0);
     let (ax, ay) = (x.abs(), y.abs());
-    let (num, den) = if ay > ax { (ax, ay) } else { (ay, ax) };
-    if den.is_nan() {
-        return den;
-    }
-    if den == 0.0 {
-        // Both zero: the direction is along ±u, where φ is undefined; 0 as `f32::atan2` gives.
-        return 0.0;
+    let swap = ay.gt(ax);
+    let (num, den) = (R::select(swap, ax, ay), R::select(swap, ay, ax));
+    // Both zero: the direction is along ±u, where φ is undefined; 0 as `f32::atan2` gives. (A NaN goes through
+    // the arithmetic below and comes out NaN.)
+    let both_zero = den.eq(zero);
+    if both_zero.all() {
+        return zero;
     }
     // t = num/den; past tan(π/8), u = (t − 1)/(t + 1) = (num − den)/(num + den): one division either way, and
     // written as (num − k den)/(den + k num) with k ∈ {0, 1} it needs no branch.
-    let k = if num > 0.414_213_57 * den { 1.0 } else { 0.0 };
+    let k = R::select(num.gt(R::splat(0.414_213_57) * den), R::splat(1.0), zero);
     let u = (num - k * den) / (den + k * num);
-    let base = k * FRAC_PI_4;
+    let base = k * R::splat(FRAC_PI_4);
     let (v, v2) = (u * u, (u * u) * (u * u));
+    let c = |x: f32| R::splat(x);
     // atan u = u (1 − u²/3 + u⁴/5 − … − u¹⁴/15), by Estrin's scheme in v = u² (pairs, then v², v⁴): a dependency
     // chain of three multiply-adds instead of Horner's seven.
-    let poly = (1.0 + v * (-1.0 / 3.0))
-        + v2 * (1.0 / 5.0 + v * (-1.0 / 7.0))
-        + (v2 * v2) * ((1.0 / 9.0 + v * (-1.0 / 11.0)) + v2 * (1.0 / 13.0 + v * (-1.0 / 15.0)));
+    let poly = (c(1.0) + v * c(-1.0 / 3.0))
+        + v2 * (c(1.0 / 5.0) + v * c(-1.0 / 7.0))
+        + (v2 * v2)
+            * ((c(1.0 / 9.0) + v * c(-1.0 / 11.0)) + v2 * (c(1.0 / 13.0) + v * c(-1.0 / 15.0)));
     let mut a = base + u * poly;
-    if ay > ax {
-        a = FRAC_PI_2 - a;
-    }
-    if x < 0.0 {
-        a = PI - a;
-    }
-    if y < 0.0 {
-        -a
-    } else {
-        a
-    }
+    a = R::select(swap, c(FRAC_PI_2) - a, a);
+    a = R::select(x.lt(zero), c(PI) - a, a);
+    a = R::select(y.lt(zero), -a, a);
+    R::select(both_zero, zero, a)
 }
 
 /// √(y² + z²), the length of the normal-plane projection (plain sqrt: directions are O(1), so the overflow
@@ -160,15 +171,23 @@ fn rho(local: Vec3) -> f32 {
     (local.y * local.y + local.z * local.z).sqrt()
 }
 
-/// (sin θ, cos θ) from x = ω·u and ρ = √(y² + z²), for any non-zero length; (0, 1) for a zero vector.
-#[inline]
-fn sin_cos_from(x: f32, rho: f32) -> (f32, f32) {
+/// (sin θ, cos θ) from x = ω·u and ρ = √(y² + z²), for any non-zero length; (0, 1) for a zero vector. Generic over
+/// the number type ([`Real`]); for `f32` the zero test is the branch it always was.
+#[inline(always)]
+fn sin_cos_from<R: Real>(x: R, rho: R) -> (R, R) {
     let len2 = x * x + rho * rho;
-    if len2 > 0.0 {
-        let inv = 1.0 / len2.sqrt();
+    let nonzero = len2.gt(R::splat(0.0));
+    if nonzero.all() {
+        let inv = R::splat(1.0) / len2.sqrt();
         (x * inv, rho * inv)
+    } else if nonzero.any() {
+        let inv = R::splat(1.0) / len2.sqrt();
+        (
+            R::select(nonzero, x * inv, R::splat(0.0)),
+            R::select(nonzero, rho * inv, R::splat(1.0)),
+        )
     } else {
-        (0.0, 1.0)
+        (R::splat(0.0), R::splat(1.0))
     }
 }
 
@@ -181,17 +200,30 @@ pub fn phi(local: Vec3) -> f32 {
 /// (sin θ, cos θ) of a local direction, for any non-zero length; cos θ ≥ 0. A zero vector gives (0, 1).
 #[inline]
 pub fn sin_cos_theta(local: Vec3) -> (f32, f32) {
-    sin_cos_from(local.x, rho(local))
+    sin_cos_theta_of(&local.to_array())
+}
+
+/// [`sin_cos_theta`] of directions given component by component (`[x, y, z]`), in any number type ([`Real`]):
+/// one direction per lane.
+#[inline(always)]
+pub fn sin_cos_theta_of<R: Real>(w: &[R; 3]) -> (R, R) {
+    sin_cos_from(w[0], (w[1] * w[1] + w[2] * w[2]).sqrt())
 }
 
 /// The unit local direction with longitudinal angle `theta` and azimuth `phi`: (sin θ, cos θ cos φ, cos θ sin φ).
 /// cos θ is clamped at 0 so θ slightly past ±π/2 (rounding) does not flip the azimuth.
 #[inline]
 pub fn from_spherical(theta: f32, phi: f32) -> Vec3 {
+    Vec3::from_array(from_spherical_of(theta, phi))
+}
+
+/// [`from_spherical`] in any number type ([`Real`]), one direction per lane, component by component (`[x, y, z]`).
+#[inline(always)]
+pub fn from_spherical_of<R: Real>(theta: R, phi: R) -> [R; 3] {
     let (sin_t, cos_t) = theta.sin_cos();
     let (sin_p, cos_p) = phi.sin_cos();
-    let cos_t = cos_t.max(0.0);
-    Vec3::new(sin_t, cos_t * cos_p, cos_t * sin_p)
+    let cos_t = cos_t.max(R::splat(0.0));
+    [sin_t, cos_t * cos_p, cos_t * sin_p]
 }
 
 /// The unit local direction with longitudinal angle θi, given by `sin_t` and `cos_t` (a sampler keeps them for
@@ -392,6 +424,38 @@ mod tests {
         assert!(worst < 6e-7, "{worst}");
         assert_eq!(atan2(0.0, 0.0), 0.0);
         assert!(atan2(f32::NAN, 1.0).is_nan());
+        assert!(atan2(1.0, f32::NAN).is_nan());
+    }
+
+    #[test]
+    fn atan2_in_lanes_is_the_scalar_one_bit_for_bit() {
+        // The same arithmetic in every lane: equal bits, zeros of both signs and both-zero lanes among others.
+        use wide::f32x8;
+        let mut pairs: Vec<(f32, f32)> = (0..=40)
+            .flat_map(|i| (0..=40).map(move |j| (-2.0 + i as f32 * 0.1, -2.0 + j as f32 * 0.1)))
+            .collect();
+        pairs.extend([
+            (0.0, 0.0),
+            (-0.0, 0.0),
+            (0.0, -0.0),
+            (0.0, -1.0),
+            (-0.0, -1.0),
+            (1e-30, 1.0),
+        ]);
+        for chunk in pairs.chunks(8) {
+            let at = |k: usize| chunk[k.min(chunk.len() - 1)];
+            let lanes = atan2_of(
+                f32x8::new(std::array::from_fn(|k| at(k).0)),
+                f32x8::new(std::array::from_fn(|k| at(k).1)),
+            );
+            for (k, &(y, x)) in chunk.iter().enumerate() {
+                assert_eq!(
+                    lanes.lane(k).to_bits(),
+                    atan2(y, x).to_bits(),
+                    "atan2({y}, {x})"
+                );
+            }
+        }
     }
 
     #[test]

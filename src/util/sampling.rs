@@ -1,6 +1,7 @@
 //! Sampling of directions: the uniform sphere, the `Sampling::Uniform` baseline of every hair model, the sampler of
 //! points on spherical lights and of constant environments, and the map of per-strand noise vectors.
 
+use crate::util::real::Real;
 use glam::Vec3;
 use std::f32::consts::{PI, TAU};
 
@@ -12,10 +13,18 @@ pub const UNIFORM_SPHERE_PDF: f32 = 1.0 / (4.0 * PI);
 /// from +y towards +z.
 #[inline]
 pub fn uniform_sphere(a: f32, b: f32) -> Vec3 {
-    let sin_theta = (1.0 - 2.0 * a).clamp(-1.0, 1.0);
-    let cos_theta = (1.0 - sin_theta * sin_theta).max(0.0).sqrt();
-    let (s, c) = (TAU * b).sin_cos();
-    Vec3::new(sin_theta, cos_theta * c, cos_theta * s)
+    Vec3::from_array(uniform_sphere_of(a, b))
+}
+
+/// [`uniform_sphere`] in any number type ([`Real`]), one direction per lane, component by component
+/// (`[x, y, z]`).
+#[inline(always)]
+pub fn uniform_sphere_of<R: Real>(a: R, b: R) -> [R; 3] {
+    let one = R::splat(1.0);
+    let sin_theta = (one - R::splat(2.0) * a).clamp_to(-1.0, 1.0);
+    let cos_theta = (one - sin_theta * sin_theta).max(R::splat(0.0)).sqrt();
+    let (s, c) = (R::splat(TAU) * b).sin_cos();
+    [sin_theta, cos_theta * c, cos_theta * s]
 }
 
 #[cfg(test)]
