@@ -14,6 +14,7 @@
 //!
 //! erfc and Φ⁻¹ stay hand-written rather than from `statrs`: they are on the samplers' measured hot path.
 
+use crate::util::real::{Real, RealMask};
 use std::f64::consts::{FRAC_1_SQRT_2, SQRT_2};
 
 /// 1/√(2π).
@@ -60,7 +61,7 @@ pub fn gaussian_unit_integral(beta: f32, lo: f32, hi: f32) -> f32 {
 }
 
 /// The coefficients of P in Press et al.'s erfc fit (Numerical Recipes in C 2nd ed. §6.2, `erfcc`), shared by
-/// [`erfc_nonneg`] (f64) and [`erfc_parts_f32`] (f32).
+/// [`erfc_nonneg`] (f64) and [`erfc_parts`] (f32).
 const ERFCC: [f64; 10] = [
     -1.265_512_23,
     1.000_023_68,
@@ -261,9 +262,10 @@ pub fn normal_quantile(p: f64) -> f64 {
 
 /// (t, P(t)) of [`erfc_nonneg`]'s fit in f32, erfc z = t·e^{−z² + P(t)} for z ≥ 0 (Press et al. §6.2): the scaled
 /// complementary error function e^{z²} erfc z = t·e^{P(t)} without its exponential, so that callers can fold
-/// e^{−z²} into a ratio of tails that would each underflow f32.
+/// e^{−z²} into a ratio of tails that would each underflow f32. Generic over the number type ([`Real`]): one z
+/// per lane, the same arithmetic in each.
 #[inline]
-fn erfc_parts_f32(z: f32) -> (f32, f32) {
+fn erfc_parts<R: Real>(z: R) -> (R, R) {
     // The same coefficients, each rounded to the nearest f32.
     const C: [f32; 10] = {
         let mut c = [0.0f32; 10];
@@ -274,14 +276,22 @@ fn erfc_parts_f32(z: f32) -> (f32, f32) {
         }
         c
     };
-    let t = 1.0 / (1.0 + 0.5 * z);
+    let c = |k: usize| R::splat(C[k]);
+    let t = R::splat(1.0) / (R::splat(1.0) + R::splat(0.5) * z);
     let (t2, t4) = (t * t, (t * t) * (t * t));
-    let p01 = C[0] + C[1] * t;
-    let p23 = C[2] + C[3] * t;
-    let p45 = C[4] + C[5] * t;
-    let p67 = C[6] + C[7] * t;
-    let p89 = C[8] + C[9] * t;
+    let p01 = c(0) + c(1) * t;
+    let p23 = c(2) + c(3) * t;
+    let p45 = c(4) + c(5) * t;
+    let p67 = c(6) + c(7) * t;
+    let p89 = c(8) + c(9) * t;
     (t, (p01 + t2 * p23) + t4 * ((p45 + t2 * p67) + t4 * p89))
+}
+
+/// ½ erfc(s) for s ≥ 0 in f32 arithmetic ([`erfc_parts`]; relative accuracy ~1.2e-7 plus f32 rounding), per lane.
+#[inline(always)]
+fn half_erfc<R: Real>(s: R) -> R {
+    let (t, p) = erfc_parts(s);
+    R::splat(0.5) * t * (-s * s + p).exp()
 }
 
 /// ½ erfc(z/√2) = Φ(−z) for z ≥ 0 in f32, 0 beyond `NEGLIGIBLE_TAIL` (as [`TruncatedGaussian::new`] drops it).
@@ -290,9 +300,71 @@ fn upper_tail_f32(z: f64) -> f32 {
     if z > NEGLIGIBLE_TAIL {
         return 0.0;
     }
-    let z = (z * FRAC_1_SQRT_2) as f32;
-    let (t, p) = erfc_parts_f32(z);
-    0.5 * t * (-z * z + p).exp()
+    half_erfc((z * FRAC_1_SQRT_2) as f32)
+}
+
+/// Φ(−z) = ½ erfc(z/√2) for z ≥ 0, per lane in f32 arithmetic, 0 beyond `NEGLIGIBLE_TAIL` standard deviations
+/// (Φ(−6) = 9.9e-10, below f32's resolution of a mass ≥ ½, as [`TruncatedGaussian::new`] drops it); the error
+/// function is skipped when every lane is that far out.
+#[inline(always)]
+pub fn normal_upper_tail<R: Real>(z: R) -> R {
+    let far = z.gt(R::splat(NEGLIGIBLE_TAIL as f32));
+    if far.all() {
+        return R::splat(0.0);
+    }
+    let tail = half_erfc(z * R::splat(std::f32::consts::FRAC_1_SQRT_2));
+    R::select(far, R::splat(0.0), tail)
+}
+
+/// Φ⁻¹(p) in f32 arithmetic, per lane: Wichura 1988's `PPND7` (Algorithm AS 241, the single-precision companion
+/// of [`normal_quantile`]'s `PPND16`): a rational function of degree 3/3 in (p − ½)² for |p − ½| ≤ 0.425, else of
+/// degree 3/2 in r = √(−ln min(p, 1 − p)), split at r = 5. Relative accuracy 3e-7 (Wichura quotes "about 1 part
+/// in 10⁷"; tested against [`normal_quantile`]), a few times the resolution of the f32 levels it is given. p below f32's smallest normal number is
+/// taken as that number (Φ⁻¹ ≈ −13.2; callers clamp to their interval), so the result is always finite. The
+/// central and tail pieces are each computed only when some lane needs them.
+// The coefficients are AS 241's as published (11 digits), kept verbatim so they can be checked against it.
+#[allow(clippy::excessive_precision)]
+#[inline(always)]
+pub fn normal_quantile_f32<R: Real>(p: R) -> R {
+    const A: [f32; 4] = [3.3871327179, 5.0434271938e1, 1.5929113202e2, 5.9109374720e1];
+    const B: [f32; 4] = [1.0, 1.7895169469e1, 7.8757757664e1, 6.7187563600e1];
+    const C: [f32; 4] = [1.4234372777, 2.7568153900, 1.3067284816, 1.7023821103e-1];
+    const D: [f32; 3] = [1.0, 7.3700164250e-1, 1.2021132975e-1];
+    const E: [f32; 4] = [6.6579051150, 3.0812263860, 4.2868294337e-1, 1.7337203997e-2];
+    const F: [f32; 3] = [1.0, 2.4197894225e-1, 1.2258202635e-2];
+    #[inline(always)]
+    fn poly<R: Real, const N: usize>(c: &[f32; N], r: R) -> R {
+        let mut acc = R::splat(c[N - 1]);
+        for k in (0..N - 1).rev() {
+            acc = acc.mul_add(r, R::splat(c[k]));
+        }
+        acc
+    }
+    let half = R::splat(0.5);
+    let q = p - half;
+    let central = q.abs().le(R::splat(0.425));
+    let mut x = R::splat(0.0);
+    if central.any() {
+        let r = R::splat(0.180_625) - q * q;
+        x = q * poly(&A, r) / poly(&B, r);
+    }
+    if !central.all() {
+        let below = q.lt(R::splat(0.0));
+        let tail = R::select(below, p, R::splat(1.0) - p).max(R::splat(f32::MIN_POSITIVE));
+        let r = (-tail.ln()).sqrt();
+        let near = r.le(R::splat(5.0));
+        let mut y = R::splat(0.0);
+        if near.any() {
+            let s = r - R::splat(1.6);
+            y = poly(&C, s) / poly(&D, s);
+        }
+        if !near.all() {
+            let s = r - R::splat(5.0);
+            y = R::select(near, y, poly(&E, s) / poly(&F, s));
+        }
+        x = R::select(central, x, R::select(below, -y, y));
+    }
+    x
 }
 
 /// A [`TruncatedGaussian`] whose normalisation is taken in f32, for densities that are f32 anyway: the θh
@@ -300,7 +372,7 @@ fn upper_tail_f32(z: f64) -> f32 {
 /// the f64 constructor's two double exponentials would be the largest single cost of a sample.
 ///
 /// The standardised ends and points are formed in f64 as [`TruncatedGaussian::new`] forms them (they cancel for
-/// narrow lobes; f64 subtraction and multiplication cost nothing), the error functions in f32 (`erfc_parts_f32`,
+/// narrow lobes; f64 subtraction and multiplication cost nothing), the error functions in f32 (`erfc_parts`,
 /// the same fit). Three cases:
 ///
 /// - **Central** (the interval contains the mean; after mirroring so that a ≤ 0, b > 0): tails Φ(a) and 1 − Φ(b)
@@ -358,13 +430,13 @@ impl TruncatedGaussianF32 {
             let z = 1.0 - p_a as f64 - p_b as f64;
             Mass::Central { p_a, p_b, z }
         } else {
-            let (tb, pb) = erfc_parts_f32((-b * FRAC_1_SQRT_2) as f32);
+            let (tb, pb) = erfc_parts((-b * FRAC_1_SQRT_2) as f32);
             // (a² − b²)/2 ≥ 0: the lower end's tail relative to the upper end's; e^{−40} is below f32's resolution.
             let d = (0.5 * (a - b) * (a + b)) as f32;
             let ratio = if d > 40.0 {
                 0.0
             } else {
-                let (ta, pa) = erfc_parts_f32((-a * FRAC_1_SQRT_2) as f32);
+                let (ta, pa) = erfc_parts((-a * FRAC_1_SQRT_2) as f32);
                 ta / tb * (pa - pb - d).exp()
             };
             let scaled = 0.5 * tb * (1.0 - ratio);
@@ -749,6 +821,60 @@ mod tests {
         assert_eq!(normal_quantile(0.5), 0.0);
         assert_eq!(normal_quantile(0.0), f64::NEG_INFINITY);
         assert_eq!(normal_quantile(1.0), f64::INFINITY);
+    }
+
+    #[test]
+    fn f32_quantile_and_tail_match_f64_in_both_forms() {
+        // Φ⁻¹ by PPND7 against PPND16 (relative, absolute within 1e-3 of 0) over levels from f32's smallest normal
+        // number to 1 − 2⁻²⁴ (log-spaced tails, linear middle), one level per lane and one at a time; and Φ(−z)
+        // against the f64 erfc for z ∈ [0, 7] (0 beyond 6).
+        use wide::f32x8;
+        let mut levels: Vec<f32> = (0..=370)
+            .map(|i| 10f32.powf(-37.9 + 0.1 * i as f32))
+            .collect();
+        levels.extend((1..1000).map(|i| i as f32 / 1000.0));
+        levels.extend(levels.clone().iter().map(|&p| 1.0 - p).filter(|&p| p < 1.0));
+        let (mut worst_q, mut worst_t) = (0.0f64, 0.0f64);
+        for chunk in levels.chunks(8) {
+            let lanes = normal_quantile_f32(f32x8::new(std::array::from_fn(|k| {
+                chunk[k.min(chunk.len() - 1)]
+            })));
+            for (k, &p) in chunk.iter().enumerate() {
+                let want = normal_quantile(p as f64);
+                for got in [normal_quantile_f32(p), lanes.lane(k)] {
+                    let err = (got as f64 - want).abs() / want.abs().max(1e-3);
+                    worst_q = worst_q.max(err);
+                    // PPND7's own error reaches 2.6e-7 (near |p − ½| = 0.44), plus the f32 rounding.
+                    assert!(err < 5e-7, "Φ⁻¹({p}) = {got}, want {want}");
+                }
+            }
+        }
+        let zs: Vec<f32> = (0..=700).map(|i| i as f32 * 0.01).collect();
+        for chunk in zs.chunks(8) {
+            let lanes = normal_upper_tail(f32x8::new(std::array::from_fn(|k| {
+                chunk[k.min(chunk.len() - 1)]
+            })));
+            for (k, &z) in chunk.iter().enumerate() {
+                let want = if z as f64 > NEGLIGIBLE_TAIL {
+                    0.0
+                } else {
+                    normal_cdf(-(z as f64))
+                };
+                for got in [normal_upper_tail(z), lanes.lane(k)] {
+                    let err = if want == 0.0 {
+                        got as f64
+                    } else {
+                        (got as f64 / want - 1.0).abs()
+                    };
+                    // The fit's 1.2e-7 plus the f32 rounding of the exponent z²/2 (about 1.2e-7 per unit: the
+                    // argument's rounding doubles in its square).
+                    let e = 0.5 * (z as f64).powi(2);
+                    worst_t = worst_t.max(err / (1.0 + e));
+                    assert!(err < 3e-7 * (1.0 + e), "Φ(−{z}) = {got}, want {want}");
+                }
+            }
+        }
+        eprintln!("worst Φ⁻¹ {worst_q:e}, worst Φ(−z) {worst_t:e} × (1 + z²/2)");
     }
 
     #[test]
