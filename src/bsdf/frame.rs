@@ -110,7 +110,14 @@ pub fn strand_noise(strand_id: u32) -> Vec3 {
 /// θ of a local direction: atan2(x, √(y² + z²)) ∈ [−π/2, π/2] (exact near the poles, unlike asin(x)).
 #[inline]
 pub fn theta(local: Vec3) -> f32 {
-    atan2(local.x, rho(local))
+    theta_of(&local.to_array())
+}
+
+/// [`theta`] of directions given component by component (`[x, y, z]`), in any number type ([`Real`]): one
+/// direction per lane. The arctangent of the unnormalised (x, ρ), so it does not wait for a normalisation.
+#[inline(always)]
+pub fn theta_of<R: Real>(w: &[R; 3]) -> R {
+    atan2_of(w[0], (w[1] * w[1] + w[2] * w[2]).sqrt())
 }
 
 /// atan2(y, x) ∈ [−π, π] (0 for x = y = 0), absolute error < 6e-7 rad (2 f32 ulps at π): reduction to
@@ -145,17 +152,30 @@ pub fn phi(local: Vec3) -> f32 {
 /// (sin θ, cos θ) of a local direction, for any non-zero length; cos θ ≥ 0. A zero vector gives (0, 1).
 #[inline]
 pub fn sin_cos_theta(local: Vec3) -> (f32, f32) {
-    sin_cos_from(local.x, rho(local))
+    sin_cos_theta_of(&local.to_array())
+}
+
+/// [`sin_cos_theta`] of directions given component by component (`[x, y, z]`), in any number type ([`Real`]):
+/// one direction per lane.
+#[inline(always)]
+pub fn sin_cos_theta_of<R: Real>(w: &[R; 3]) -> (R, R) {
+    sin_cos_from_of(w[0], (w[1] * w[1] + w[2] * w[2]).sqrt())
 }
 
 /// The unit local direction with longitudinal angle `theta` and azimuth `phi`: (sin θ, cos θ cos φ, cos θ sin φ).
 /// cos θ is clamped at 0 so θ slightly past ±π/2 (rounding) does not flip the azimuth.
 #[inline]
 pub fn from_spherical(theta: f32, phi: f32) -> Vec3 {
+    Vec3::from_array(from_spherical_of(theta, phi))
+}
+
+/// [`from_spherical`] in any number type ([`Real`]), one direction per lane, component by component (`[x, y, z]`).
+#[inline(always)]
+pub fn from_spherical_of<R: Real>(theta: R, phi: R) -> [R; 3] {
     let (sin_t, cos_t) = theta.sin_cos();
     let (sin_p, cos_p) = phi.sin_cos();
-    let cos_t = cos_t.max(0.0);
-    Vec3::new(sin_t, cos_t * cos_p, cos_t * sin_p)
+    let cos_t = cos_t.max(R::splat(0.0));
+    [sin_t, cos_t * cos_p, cos_t * sin_p]
 }
 
 /// The unit local direction with longitudinal angle θi, given by `sin_t` and `cos_t` (a sampler keeps them for
@@ -461,6 +481,38 @@ mod tests {
         assert!(worst < 6e-7, "{worst}");
         assert_eq!(atan2(0.0, 0.0), 0.0);
         assert!(atan2(f32::NAN, 1.0).is_nan());
+        assert!(atan2(1.0, f32::NAN).is_nan());
+    }
+
+    #[test]
+    fn atan2_in_lanes_is_the_scalar_one_bit_for_bit() {
+        // The same arithmetic in every lane: equal bits, zeros of both signs and both-zero lanes among others.
+        use wide::f32x8;
+        let mut pairs: Vec<(f32, f32)> = (0..=40)
+            .flat_map(|i| (0..=40).map(move |j| (-2.0 + i as f32 * 0.1, -2.0 + j as f32 * 0.1)))
+            .collect();
+        pairs.extend([
+            (0.0, 0.0),
+            (-0.0, 0.0),
+            (0.0, -0.0),
+            (0.0, -1.0),
+            (-0.0, -1.0),
+            (1e-30, 1.0),
+        ]);
+        for chunk in pairs.chunks(8) {
+            let at = |k: usize| chunk[k.min(chunk.len() - 1)];
+            let lanes = atan2_of(
+                f32x8::new(std::array::from_fn(|k| at(k).0)),
+                f32x8::new(std::array::from_fn(|k| at(k).1)),
+            );
+            for (k, &(y, x)) in chunk.iter().enumerate() {
+                assert_eq!(
+                    lanes.lane(k).to_bits(),
+                    atan2(y, x).to_bits(),
+                    "atan2({y}, {x})"
+                );
+            }
+        }
     }
 
     #[test]

@@ -1,22 +1,36 @@
 //! Unpolarised Fresnel reflectance of a dielectric interface, used by [`super::Balance::Fresnel`] (thesis §8.2:
 //! balancing specular and diffuse on a Fresnel-based coefficient).
 
+use crate::util::real::{Real, RealMask};
+
 /// F_r for light arriving at cosine `cos_i` (clamped to [0, 1]) on a dielectric of relative index `eta` (> 0):
 /// the mean of the s- and p-polarised reflectances (Fresnel equations; e.g. pbrt-v4 §9.3.2 `FrDielectric`).
-/// Returns 1 under total internal reflection (only possible for `eta` < 1).
+/// Returns 1 under total internal reflection (only possible for `eta` < 1). Generic over the number type
+/// ([`Real`]): one cosine per lane.
 #[inline]
-pub fn dielectric(cos_i: f32, eta: f32) -> f32 {
-    let cos_i = cos_i.clamp(0.0, 1.0);
+pub fn dielectric<R: Real>(cos_i: R, eta: f32) -> R {
+    let one = R::splat(1.0);
+    let cos_i = cos_i.clamp_to(0.0, 1.0);
+    let eta = R::splat(eta);
     // Snell: sin θt = sin θi / η.
-    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
-    if sin2_t >= 1.0 {
-        return 1.0;
+    let sin2_t = (one - cos_i * cos_i) / (eta * eta);
+    let total = one.le(sin2_t);
+    if total.all() {
+        return one;
     }
-    let cos_t = (1.0 - sin2_t).sqrt();
+    // Lanes past the critical angle take 1 below; the max keeps their square root real meanwhile.
+    let cos_t = (one - sin2_t).max(R::splat(0.0)).sqrt();
     let r_parl = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
     let r_perp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
-    let f = 0.5 * (r_parl * r_parl + r_perp * r_perp);
-    debug_assert!(f.is_finite(), "fresnel({cos_i}, {eta}) = {f}");
+    let f = R::splat(0.5) * (r_parl * r_parl + r_perp * r_perp);
+    let f = R::select(total, one, f);
+    debug_assert!(
+        (0..R::LANES).all(|k| f.lane(k).is_finite()),
+        "fresnel({cos_i:?}, {eta:?}) = {f:?}",
+        cos_i = (0..R::LANES).map(|k| cos_i.lane(k)).collect::<Vec<_>>(),
+        eta = eta.lane(0),
+        f = (0..R::LANES).map(|k| f.lane(k)).collect::<Vec<_>>(),
+    );
     f
 }
 

@@ -14,6 +14,7 @@
 //!
 //! erfc and Φ⁻¹ stay hand-written rather than from `statrs`: they are on the samplers' measured hot path.
 
+use crate::util::real::{Real, RealMask};
 use std::f64::consts::{FRAC_1_SQRT_2, SQRT_2};
 
 /// 1/√(2π).
@@ -60,7 +61,7 @@ pub fn gaussian_unit_integral(beta: f32, lo: f32, hi: f32) -> f32 {
 }
 
 /// The coefficients of P in Press et al.'s erfc fit (Numerical Recipes in C 2nd ed. §6.2, `erfcc`), shared by
-/// [`erfc_nonneg`] (f64) and [`erfc_parts_f32`] (f32).
+/// [`erfc_nonneg`] (f64) and [`erfc_parts`] (f32).
 const ERFCC: [f64; 10] = [
     -1.265_512_23,
     1.000_023_68,
@@ -261,9 +262,10 @@ pub fn normal_quantile(p: f64) -> f64 {
 
 /// (t, P(t)) of [`erfc_nonneg`]'s fit in f32, erfc z = t·e^{−z² + P(t)} for z ≥ 0 (Press et al. §6.2): the scaled
 /// complementary error function e^{z²} erfc z = t·e^{P(t)} without its exponential, so that callers can fold
-/// e^{−z²} into a ratio of tails that would each underflow f32.
+/// e^{−z²} into a ratio of tails that would each underflow f32. Generic over the number type ([`Real`]): one z
+/// per lane, the same arithmetic in each.
 #[inline]
-fn erfc_parts_f32(z: f32) -> (f32, f32) {
+pub fn erfc_parts<R: Real>(z: R) -> (R, R) {
     // The same coefficients, each rounded to the nearest f32.
     const C: [f32; 10] = {
         let mut c = [0.0f32; 10];
@@ -274,14 +276,22 @@ fn erfc_parts_f32(z: f32) -> (f32, f32) {
         }
         c
     };
-    let t = 1.0 / (1.0 + 0.5 * z);
+    let c = |k: usize| R::splat(C[k]);
+    let t = R::splat(1.0) / (R::splat(1.0) + R::splat(0.5) * z);
     let (t2, t4) = (t * t, (t * t) * (t * t));
-    let p01 = C[0] + C[1] * t;
-    let p23 = C[2] + C[3] * t;
-    let p45 = C[4] + C[5] * t;
-    let p67 = C[6] + C[7] * t;
-    let p89 = C[8] + C[9] * t;
+    let p01 = c(0) + c(1) * t;
+    let p23 = c(2) + c(3) * t;
+    let p45 = c(4) + c(5) * t;
+    let p67 = c(6) + c(7) * t;
+    let p89 = c(8) + c(9) * t;
     (t, (p01 + t2 * p23) + t4 * ((p45 + t2 * p67) + t4 * p89))
+}
+
+/// ½ erfc(s) for s ≥ 0 in f32 arithmetic ([`erfc_parts`]; relative accuracy ~1.2e-7 plus f32 rounding), per lane.
+#[inline(always)]
+fn half_erfc<R: Real>(s: R) -> R {
+    let (t, p) = erfc_parts(s);
+    R::splat(0.5) * t * (-s * s + p).exp()
 }
 
 /// ½ erfc(z/√2) = Φ(−z) for z ≥ 0 in f32, 0 beyond `NEGLIGIBLE_TAIL` (as [`TruncatedGaussian::new`] drops it).
@@ -290,9 +300,7 @@ fn upper_tail_f32(z: f64) -> f32 {
     if z > NEGLIGIBLE_TAIL {
         return 0.0;
     }
-    let z = (z * FRAC_1_SQRT_2) as f32;
-    let (t, p) = erfc_parts_f32(z);
-    0.5 * t * (-z * z + p).exp()
+    half_erfc((z * FRAC_1_SQRT_2) as f32)
 }
 
 /// A [`TruncatedGaussian`] whose normalisation is taken in f32, for densities that are f32 anyway: the θh
@@ -300,7 +308,7 @@ fn upper_tail_f32(z: f64) -> f32 {
 /// the f64 constructor's two double exponentials would be the largest single cost of a sample.
 ///
 /// The standardised ends and points are formed in f64 as [`TruncatedGaussian::new`] forms them (they cancel for
-/// narrow lobes; f64 subtraction and multiplication cost nothing), the error functions in f32 (`erfc_parts_f32`,
+/// narrow lobes; f64 subtraction and multiplication cost nothing), the error functions in f32 (`erfc_parts`,
 /// the same fit). Three cases:
 ///
 /// - **Central** (the interval contains the mean; after mirroring so that a ≤ 0, b > 0): tails Φ(a) and 1 − Φ(b)
@@ -358,13 +366,13 @@ impl TruncatedGaussianF32 {
             let z = 1.0 - p_a as f64 - p_b as f64;
             Mass::Central { p_a, p_b, z }
         } else {
-            let (tb, pb) = erfc_parts_f32((-b * FRAC_1_SQRT_2) as f32);
+            let (tb, pb) = erfc_parts((-b * FRAC_1_SQRT_2) as f32);
             // (a² − b²)/2 ≥ 0: the lower end's tail relative to the upper end's; e^{−40} is below f32's resolution.
             let d = (0.5 * (a - b) * (a + b)) as f32;
             let ratio = if d > 40.0 {
                 0.0
             } else {
-                let (ta, pa) = erfc_parts_f32((-a * FRAC_1_SQRT_2) as f32);
+                let (ta, pa) = erfc_parts((-a * FRAC_1_SQRT_2) as f32);
                 ta / tb * (pa - pb - d).exp()
             };
             let scaled = 0.5 * tb * (1.0 - ratio);
@@ -752,6 +760,60 @@ mod tests {
     }
 
     #[test]
+    fn f32_quantile_and_tail_match_f64_in_both_forms() {
+        // Φ⁻¹ by PPND7 against PPND16 (relative, absolute within 1e-3 of 0) over levels from f32's smallest normal
+        // number to 1 − 2⁻²⁴ (log-spaced tails, linear middle), one level per lane and one at a time; and Φ(−z)
+        // against the f64 erfc for z ∈ [0, 7] (0 beyond 6).
+        use wide::f32x8;
+        let mut levels: Vec<f32> = (0..=370)
+            .map(|i| 10f32.powf(-37.9 + 0.1 * i as f32))
+            .collect();
+        levels.extend((1..1000).map(|i| i as f32 / 1000.0));
+        levels.extend(levels.clone().iter().map(|&p| 1.0 - p).filter(|&p| p < 1.0));
+        let (mut worst_q, mut worst_t) = (0.0f64, 0.0f64);
+        for chunk in levels.chunks(8) {
+            let lanes = normal_quantile_of(f32x8::new(std::array::from_fn(|k| {
+                chunk[k.min(chunk.len() - 1)]
+            })));
+            for (k, &p) in chunk.iter().enumerate() {
+                let want = normal_quantile(p as f64);
+                for got in [normal_quantile_of(p), lanes.lane(k)] {
+                    let err = (got as f64 - want).abs() / want.abs().max(1e-3);
+                    worst_q = worst_q.max(err);
+                    // PPND7's own error reaches 2.6e-7 (near |p − ½| = 0.44), plus the f32 rounding.
+                    assert!(err < 5e-7, "Φ⁻¹({p}) = {got}, want {want}");
+                }
+            }
+        }
+        let zs: Vec<f32> = (0..=700).map(|i| i as f32 * 0.01).collect();
+        for chunk in zs.chunks(8) {
+            let lanes = upper_tail_of(f32x8::new(std::array::from_fn(|k| {
+                chunk[k.min(chunk.len() - 1)]
+            })));
+            for (k, &z) in chunk.iter().enumerate() {
+                let want = if z as f64 > NEGLIGIBLE_TAIL {
+                    0.0
+                } else {
+                    normal_cdf(-(z as f64))
+                };
+                for got in [upper_tail_of(z), lanes.lane(k)] {
+                    let err = if want == 0.0 {
+                        got as f64
+                    } else {
+                        (got as f64 / want - 1.0).abs()
+                    };
+                    // The fit's 1.2e-7 plus the f32 rounding of the exponent z²/2 (about 1.2e-7 per unit: the
+                    // argument's rounding doubles in its square).
+                    let e = 0.5 * (z as f64).powi(2);
+                    worst_t = worst_t.max(err / (1.0 + e));
+                    assert!(err < 3e-7 * (1.0 + e), "Φ(−{z}) = {got}, want {want}");
+                }
+            }
+        }
+        eprintln!("worst Φ⁻¹ {worst_q:e}, worst Φ(−z) {worst_t:e} × (1 + z²/2)");
+    }
+
+    #[test]
     fn gaussian_normalisations() {
         // Midpoint rule over ±10β: ∫ g = 1 (eq. 5), ∫ unit-height = β√(2π) (eq. 16).
         let beta = 0.1f32;
@@ -819,8 +881,6 @@ mod tests {
 // fibre models' generic code samples and evaluates with, vectorised where f32 serves and lane by lane in f64 where
 // it does not (say so where it happens).
 
-use crate::util::real::{Real, RealMask};
-
 /// [`exp_lobe`] over any [`Real`]: e^x for the (non-positive) exponents of Gaussian lobes, 0 below −104 without
 /// computing the exponential when no lane needs it (at `f32` a branch, so libm's underflow path is skipped as in
 /// [`exp_lobe`]). `f32x8`'s exponential is 0 from −87.3 down, where libm's gives subnormals (< 1.2e-38).
@@ -834,32 +894,6 @@ pub fn exp_lobe_of<R: Real>(x: R) -> R {
     }
 }
 
-/// The coefficients of [`ERFCC`], each rounded to the nearest f32.
-const ERFCC_F32: [f32; 10] = {
-    let mut c = [0.0f32; 10];
-    let mut i = 0;
-    while i < 10 {
-        c[i] = ERFCC[i] as f32;
-        i += 1;
-    }
-    c
-};
-
-/// `erfc_parts_f32` over any [`Real`]: (t, P(t)) of Press et al.'s fit, erfc z = t·e^{−z² + P(t)} for z ≥ 0, the
-/// same f32 coefficients and Estrin scheme.
-#[inline(always)]
-pub fn erfc_parts_of<R: Real>(z: R) -> (R, R) {
-    let c = |i: usize| R::splat(ERFCC_F32[i]);
-    let t = R::splat(1.0) / (R::splat(1.0) + R::splat(0.5) * z);
-    let (t2, t4) = (t * t, (t * t) * (t * t));
-    let p01 = c(0) + c(1) * t;
-    let p23 = c(2) + c(3) * t;
-    let p45 = c(4) + c(5) * t;
-    let p67 = c(6) + c(7) * t;
-    let p89 = c(8) + c(9) * t;
-    (t, (p01 + t2 * p23) + t4 * ((p45 + t2 * p67) + t4 * p89))
-}
-
 /// ½ erfc(z/√2) = Φ(−z) for z ≥ 0 over any [`Real`] (`upper_tail_f32`'s arithmetic, z in f32), 0 beyond
 /// `NEGLIGIBLE_TAIL`.
 #[inline(always)]
@@ -869,7 +903,7 @@ pub fn upper_tail_of<R: Real>(z: R) -> R {
         return R::splat(0.0);
     }
     let z = z * R::splat(FRAC_1_SQRT_2 as f32);
-    let (t, p) = erfc_parts_of(z);
+    let (t, p) = erfc_parts(z);
     R::select(far, R::splat(0.0), R::splat(0.5) * t * (-z * z + p).exp())
 }
 
@@ -987,8 +1021,8 @@ impl<R: Real> TruncatedGaussianOf<R> {
             // |b| = |n − μ|/σ and |a| = |f − μ|/σ, and (a² − b²)/2 = ½ · (hi − lo)/σ · (|f − μ| + |n − μ|)/σ.
             let far_dist = (far - m).abs();
             let h = R::splat(FRAC_1_SQRT_2 as f32);
-            let (tb, pb) = erfc_parts_of(near_dist * is * h);
-            let (ta, pa) = erfc_parts_of(far_dist * is * h);
+            let (tb, pb) = erfc_parts(near_dist * is * h);
+            let (ta, pa) = erfc_parts(far_dist * is * h);
             let d = R::splat(0.5) * ((hi - lo) * is) * ((far_dist + near_dist) * is);
             // e^{−40} is below f32's resolution: the far end's tail is then negligible.
             let ratio = R::select(d.gt(R::splat(40.0)), zero, ta / tb * (pa - pb - d).exp());

@@ -72,7 +72,7 @@ use super::frame::{
     unit_azimuth_of, COS_THETA_MIN,
 };
 use super::gaussian::{exp_lobe_of, TruncatedGaussianOf, INV_SQRT_TAU};
-use super::kajiya_kay::{diffuse_f, diffuse_pdf, selection_probability};
+use super::kajiya_kay::{diffuse_f, diffuse_pdf, sample_diffuse_of, selection_probability};
 use super::lanes::{EvalOf, Fibre, LobesOf, SampleOf, LANES};
 use super::{
     check, check_color, check_width, make_sample, Balance, Bsdf, BsdfError, BsdfSample, Lobe,
@@ -245,25 +245,6 @@ pub fn phi_eq12<R: Real>(xi: R) -> R {
         * (R::splat(2.0) * xi - R::splat(1.0))
             .clamp_to(-1.0, 1.0)
             .asin()
-}
-
-/// [`super::kajiya_kay::sample_diffuse`] over any [`Real`], as `[x, y, z]`: kajiya_kay.rs's sampler is scalar,
-/// and this is its arithmetic step for step (equal to it bit for bit at `f32`, tested), so that the eight-lane
-/// form draws the diffuse term as the scalar one does.
-#[inline(always)]
-fn sample_diffuse_of<R: Real>(a: R, b: R, c: R) -> [R; 3] {
-    let sin_theta = (a.sqrt() * (R::splat(TAU) * b).cos()).clamp_to(-1.0, 1.0);
-    let cos_theta = (R::splat(1.0) - sin_theta * sin_theta)
-        .max(R::splat(0.0))
-        .sqrt();
-    let (s, co) = (R::splat(TAU) * c - R::splat(PI)).sin_cos();
-    [sin_theta, cos_theta * co, cos_theta * s]
-}
-
-/// [`diffuse_pdf`] over any [`Real`]: it is linear in cos θi (cos θi/π²), so its value at 1 is the factor.
-#[inline(always)]
-fn diffuse_pdf_of<R: Real>(cos_theta_i: R) -> R {
-    cos_theta_i * R::splat(diffuse_pdf(1.0))
 }
 
 /// What [`Marschner`]'s eval and sample share for one ωo ([`Fibre::View`]), one per lane.
@@ -532,7 +513,7 @@ impl Marschner {
             // Eq. 13 is linear in M: the mixture's claim is eq. 13 of the mixed M.
             None => pdf_eq13(p0 * m[0] + p1 * m[1], n, p.cos_i),
         };
-        v.p_s * p_spec + (c(1.0) - v.p_s) * diffuse_pdf_of(p.cos_i)
+        v.p_s * p_spec + (c(1.0) - v.p_s) * diffuse_pdf(p.cos_i)
     }
 
     /// A direction from one of the R lobes (`u[0]` < the view's p_s), with its angles, and the lanes that drew
@@ -1151,18 +1132,6 @@ mod tests {
                 assert_eq!(m.sample(wo, u), at.sample(wo, u), "{name}");
             }
         }
-    }
-
-    #[test]
-    fn diffuse_sampler_is_kajiya_kays() {
-        // The generic diffuse sampler is kajiya_kay's, bit for bit at f32.
-        let mut rng = Pcg32::new(8, 8);
-        for _ in 0..10_000 {
-            let [a, b, c]: [f32; 3] = rng.random();
-            let want = super::super::kajiya_kay::sample_diffuse(a, b, c);
-            assert_eq!(Vec3::from(sample_diffuse_of(a, b, c)), want);
-        }
-        assert_eq!(diffuse_pdf_of(0.3f32), diffuse_pdf(0.3));
     }
 
     #[test]

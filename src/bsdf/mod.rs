@@ -45,6 +45,7 @@ pub mod material;
 #[cfg(test)]
 mod testing;
 
+use crate::util::real::Real;
 use glam::{Vec3, Vec3A};
 
 pub use material::{HitBsdf, Material, PreparedBsdf, PreparedLanes, Scattering};
@@ -229,15 +230,16 @@ impl Default for Balance {
 }
 
 impl Balance {
-    /// (w_d, w_s) for a view direction with longitudinal cosine `cos_theta_o`.
+    /// (w_d, w_s) for a view direction with longitudinal cosine `cos_theta_o`, in any number type ([`Real`]): one
+    /// view per lane.
     #[inline]
-    pub fn weights(&self, cos_theta_o: f32) -> (f32, f32) {
+    pub fn weights<R: Real>(&self, cos_theta_o: R) -> (R, R) {
         match *self {
-            Balance::Sum => (1.0, 1.0),
-            Balance::User { specular } => (1.0 - specular, specular),
+            Balance::Sum => (R::splat(1.0), R::splat(1.0)),
+            Balance::User { specular } => (R::splat(1.0 - specular), R::splat(specular)),
             Balance::Fresnel { eta } => {
                 let f = fresnel::dielectric(cos_theta_o, eta);
-                (1.0 - f, f)
+                (R::splat(1.0) - f, f)
             }
         }
     }

@@ -76,6 +76,7 @@ fn bsdfs(c: &mut Criterion) {
     let x = inputs();
     let kk = KajiyaKay::from_params(KajiyaKayParams::default()).unwrap();
     bench_model(c, "kajiya-kay", &kk, &x);
+    bench_kajiya_kay_lanes(c, &kk, &x);
     for sampling in [
         Sampling::ExactPdf,
         Sampling::ClampAndFlip,
@@ -228,6 +229,58 @@ fn bench_marschner_lanes(c: &mut Criterion, x: &Inputs) {
             })
         });
     }
+    g.finish();
+}
+
+/// Kajiya-Kay's generic code (`Fibre`) one shading point at a time (`R = f32`, what its `Bsdf` runs) against eight at
+/// once (`R = f32x8`), on the inputs of the `kajiya-kay` group: each call takes the view of ωo and then evaluates
+/// (f per lobe and the pdf, what a light sample needs) or samples, as the scalar `eval`, `pdf` and `sample` do.
+fn bench_kajiya_kay_lanes(c: &mut Criterion, kk: &KajiyaKay, x: &Inputs) {
+    const L: usize = fibre::LANES;
+    let pack = |w: &[Vec3]| fibre::directions(w.try_into().unwrap());
+    let lanes: Vec<([f32x8; 3], [f32x8; 3], [f32x8; 3])> = (0..BATCH / L)
+        .map(|b| {
+            let r = b * L..(b + 1) * L;
+            let u: [f32x8; 3] =
+                std::array::from_fn(|k| f32x8::new(std::array::from_fn(|j| x.u[b * L + j][k])));
+            (pack(&x.wo[r.clone()]), pack(&x.wi[r]), u)
+        })
+        .collect();
+    let mut g = c.benchmark_group("kajiya-kay-lanes");
+    g.throughput(Throughput::Elements(BATCH as u64));
+    g.bench_function("eval+pdf one at a time", |b| {
+        b.iter(|| {
+            let mut acc = 0.0f32;
+            for k in 0..BATCH {
+                let view = kk.view(0.0, black_box(x.wo[k]).to_array());
+                let e = kk.eval_view(&view, black_box(x.wi[k]).to_array());
+                acc += e.lobes.r[0] + e.lobes.diffuse[0] + e.pdf;
+            }
+            acc
+        })
+    });
+    g.bench_function("eval+pdf eight at once", |b| {
+        b.iter(|| {
+            let mut acc = f32x8::ZERO;
+            for (wo, wi, _) in &lanes {
+                let view = kk.view(f32x8::ZERO, *black_box(wo));
+                let e = kk.eval_view(&view, *black_box(wi));
+                acc += e.lobes.r[0] + e.lobes.diffuse[0] + e.pdf;
+            }
+            acc.reduce_add()
+        })
+    });
+    g.bench_function("sample eight at once", |b| {
+        b.iter(|| {
+            let mut acc = f32x8::ZERO;
+            for (wo, _, u) in &lanes {
+                let view = kk.view(f32x8::ZERO, *black_box(wo));
+                let s = kk.sample_view(&view, *black_box(u));
+                acc += s.eval.pdf + s.eval.lobes.r[0] + s.eval.lobes.diffuse[0] + s.wi[0];
+            }
+            acc.reduce_add()
+        })
+    });
     g.finish();
 }
 
