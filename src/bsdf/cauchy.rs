@@ -47,32 +47,6 @@ impl TruncatedCauchy {
         }
     }
 
-    /// The same distribution with its normalisation A − B given instead of computed: for a sampler whose pdf is
-    /// normalised with [`width_f32`] (ISHair computes the widths of all three θh distributions for its mixture pdf
-    /// anyway), so sampler and pdf share one A − B and the constructor's f64 arctangent is saved. A width within
-    /// 1e-6 (relative) of the exact one moves the drawn distribution by as little: the top 1e-6 of the CDF is cut
-    /// off, or piles up at `hi` by the clamp in [`TruncatedCauchy::sample`]. `width` ≤ 0 selects the uniform
-    /// fallback, as [`width_f32`]'s 0 does. `inv_gamma` = 1/`gamma` (callers keep both: no division on the
-    /// sampling path).
-    #[inline]
-    pub fn with_width(
-        c: f64,
-        gamma: f64,
-        inv_gamma: f64,
-        lo: f64,
-        hi: f64,
-        width: f64,
-    ) -> TruncatedCauchy {
-        TruncatedCauchy {
-            c,
-            gamma,
-            lo,
-            hi,
-            x_lo: (lo - c) * inv_gamma,
-            width: if width > 0.0 { width } else { 0.0 },
-        }
-    }
-
     /// A − B, the normalisation of thesis eq. 20.
     pub fn width(&self) -> f64 {
         self.width
@@ -93,22 +67,6 @@ impl TruncatedCauchy {
         (self.c + self.gamma * x).clamp(self.lo, self.hi)
     }
 
-    /// [`TruncatedCauchy::sample`] with the tangent in f32 (libm's `tanf` instead of `tan`, a third of the cost).
-    /// The argument w = u(A − B) rounded to f32 and `tanf`'s own error perturb w by a few parts in 1e7 of w (or of
-    /// π/2 near the pole, where tan w is huge): the same as drawing with u off by that much relative, u' = w'/(A − B)
-    /// (exact inversion of a CDF that is *uniform* in w). The tangent-sum step stays f64, so the value drawn is the
-    /// exact inverse CDF at a level within ~4e-7 (relative to u, or 1e-6 absolute near tan's pole) of `u`; a
-    /// sampler test bounds |CDF(sample_f32(u)) − u| against the closed form.
-    #[inline]
-    pub fn sample_f32(&self, u: f32) -> f64 {
-        if self.width == 0.0 {
-            return self.lo + u as f64 * (self.hi - self.lo);
-        }
-        let t = ((u as f64 * self.width) as f32).tan() as f64;
-        let x = (self.x_lo + t) / (1.0 - self.x_lo * t);
-        (self.c + self.gamma * x).clamp(self.lo, self.hi)
-    }
-
     /// The density at `x` (0 outside [lo, hi]): 1 / ((A − B) γ (1 + ((x − c)/γ)²)), written with (x − c)/γ so
     /// that neither a tiny nor a huge γ overflows.
     #[inline]
@@ -121,68 +79,6 @@ impl TruncatedCauchy {
         }
         let z = (x - self.c) / self.gamma;
         1.0 / (self.width * self.gamma * (1.0 + z * z))
-    }
-}
-
-/// [`TruncatedCauchy::pdf`] in f32 with its constants taken once ([`TruncatedCauchy::pdf_f32`]): for the
-/// parameter-only azimuth distributions of ISHair (eq. 21b, 21d), whose pdf is then one f32 division per call
-/// instead of two f64 ones. The uniform fallback is the same formula with 1/γ = 0.
-#[derive(Debug, Clone, Copy)]
-pub struct CauchyPdfF32 {
-    c: f32,
-    inv_gamma: f32,
-    /// 1 / ((A − B) γ) (eq. 20), or 1 / (hi − lo) for the fallback.
-    norm: f32,
-    lo: f32,
-    hi: f32,
-}
-
-impl CauchyPdfF32 {
-    /// The density at `x` (0 outside [lo, hi]): norm / (1 + ((x − c)/γ)²).
-    #[inline]
-    pub fn pdf(&self, x: f32) -> f32 {
-        if !(self.lo..=self.hi).contains(&x) {
-            return 0.0;
-        }
-        let z = (x - self.c) * self.inv_gamma;
-        self.norm / (1.0 + z * z)
-    }
-}
-
-impl TruncatedCauchy {
-    /// This distribution's pdf in f32 (see [`CauchyPdfF32`]).
-    pub fn pdf_f32(&self) -> CauchyPdfF32 {
-        let (inv_gamma, norm) = if self.width == 0.0 {
-            (0.0, 1.0 / (self.hi - self.lo))
-        } else {
-            (1.0 / self.gamma, 1.0 / (self.width * self.gamma))
-        };
-        CauchyPdfF32 {
-            c: self.c as f32,
-            inv_gamma: inv_gamma as f32,
-            norm: norm as f32,
-            lo: self.lo as f32,
-            hi: self.hi as f32,
-        }
-    }
-}
-
-/// A − B of [`TruncatedCauchy::new`] for pdfs that are f32 anyway: the same one-arctangent form, its arguments
-/// formed in f64 as there (lo − c and hi − c cancel when γ is small; in f64 that costs nothing), but the
-/// arctangent is [`super::frame::atan2`] in f32 (absolute error < 6e-7 rad, and a few ulps relative also for
-/// small widths, where it is its unreduced series) instead of libm's f64 `atan2`, the cost of the constructor.
-/// Relative error < 1e-6 (tested): a sampler built by [`TruncatedCauchy::new`] draws the density that a pdf
-/// normalised with this width returns, to that. 0 (callers fall back to uniform) where it is not positive.
-/// Takes 1/γ (`inv_gamma`): callers keep it, and f64 divisions were most of what is left of the cost.
-#[inline]
-pub fn width_f32(c: f64, inv_gamma: f64, lo: f64, hi: f64) -> f32 {
-    let x_lo = (lo - c) * inv_gamma;
-    let x_hi = (hi - c) * inv_gamma;
-    let width = super::frame::atan2((x_hi - x_lo) as f32, (1.0 + x_lo * x_hi) as f32);
-    if width > 0.0 && width.is_finite() {
-        width
-    } else {
-        0.0
     }
 }
 
@@ -332,61 +228,6 @@ mod tests {
     use wide::f32x8;
 
     #[test]
-    fn f32_pdf_matches_f64() {
-        // ISHair's azimuth distributions: TT on [−π, π] about 0, the glint on [0, π/2] about φ_g, γ ∈ [1e-4, 1e6].
-        let mut worst = 0.0f64;
-        for gamma in [1e-4, 1e-3, 0.01, 0.1, 0.3, 1.0, 10.0, 1e6] {
-            for (c, lo, hi) in [
-                (0.0, -std::f64::consts::PI, std::f64::consts::PI),
-                // φ_g is an f32 parameter: its f64 centre is exactly the f32 one.
-                (0.6f32 as f64, 0.0, std::f64::consts::FRAC_PI_2),
-                (0.0, 0.0, std::f64::consts::FRAC_PI_2),
-            ] {
-                let tc = TruncatedCauchy::new(c, gamma, lo, hi);
-                let f = tc.pdf_f32();
-                for j in 1..1000 {
-                    let x = (lo + (hi - lo) * j as f64 / 1000.0) as f32;
-                    let exact = tc.pdf(x as f64);
-                    worst = worst.max((f.pdf(x) as f64 / exact - 1.0).abs());
-                }
-            }
-        }
-        // (x − c)/γ rounded in f32 (z² doubles its 6e-8) and the final division.
-        assert!(worst < 1e-6, "worst relative error {worst:e}");
-    }
-
-    #[test]
-    fn f32_width_matches_f64() {
-        // The θh distributions of ISHair: c = α, γ = β, [θr/2 − π/4, θr/2 + π/4] (`theta_h_grid`).
-        let mut worst = 0.0f64;
-        for (c, gamma, lo, hi) in super::super::testing::theta_h_grid() {
-            let exact = TruncatedCauchy::new(c, gamma, lo, hi).width();
-            let got = width_f32(c, 1.0 / gamma, lo, hi) as f64;
-            worst = worst.max((got - exact).abs() / exact);
-        }
-        // The f32 rounding of the arctangent's arguments (6e-8 each) and its 6e-7 absolute error.
-        assert!(worst < 1e-6, "worst relative error {worst:e}");
-    }
-
-    #[test]
-    fn with_width_is_the_same_distribution() {
-        for (c, gamma, lo, hi) in [(0.2, 0.1, -1.0, 1.0), (3.0, 1e-3, 0.0, 1.0)] {
-            let tc = TruncatedCauchy::new(c, gamma, lo, hi);
-            let given = TruncatedCauchy::with_width(c, gamma, 1.0 / gamma, lo, hi, tc.width());
-            for k in 0..=20 {
-                let u = k as f64 / 20.0;
-                assert!((tc.sample(u) - given.sample(u)).abs() < 1e-12);
-                let x = lo + (hi - lo) * u;
-                assert!((tc.pdf(x) / given.pdf(x) - 1.0).abs() < 1e-12);
-            }
-        }
-        // A width of 0 is the uniform fallback, as `width_f32`'s 0 means.
-        let flat = TruncatedCauchy::with_width(0.0, 1.0, 1.0, 2.0, 4.0, 0.0);
-        assert_eq!(flat.sample(0.25), 2.5);
-        assert_eq!(flat.pdf(3.0), 0.5);
-    }
-
-    #[test]
     fn generic_pdf_matches_f64() {
         // ISHair's azimuth distributions: TT on [−π, π] about 0, the glint on [0, π/2] about φ_g, γ ∈ [1e-4, 1e6].
         let mut worst = 0.0f64;
@@ -467,13 +308,6 @@ mod tests {
                     cdf(x)
                 );
             }
-            // The f32-tangent sampler: the inverse CDF at a level within ~1e-7 of u (see `sample_f32`).
-            let mut worst = 0.0f64;
-            for k in 0..=1000 {
-                let u = k as f32 / 1000.0;
-                worst = worst.max((cdf(tc.sample_f32(u)) - u as f64).abs());
-            }
-            assert!(worst < 1e-6, "c {c} γ {gamma}: sample_f32 off by {worst:e}");
             // The f32 sampler, one value and eight lanes: the inverse CDF at a level within ~1e-7 of u (see
             // `TruncatedCauchyOf::sample`).
             let f = tc.to_f32();
