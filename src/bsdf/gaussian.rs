@@ -594,6 +594,35 @@ impl TruncatedGaussian {
     }
 }
 
+/// The exponent below which [`exp_lobe_real`] returns 0: −87.3, where e^x leaves the normal f32 range
+/// (e^{−87.3} ≈ 1.2e-38) and where `wide`'s vector exponential returns 0.
+pub const EXP_LOBE_REAL_MIN: f32 = -87.3;
+
+/// [`exp_lobe`] over the number type [`Real`](crate::util::real::Real) (one f32 or eight lanes): e^x for the
+/// non-positive exponents of Gaussian lobes, 0 at and below [`EXP_LOBE_REAL_MIN`]. The cut is where `wide`'s f32x8
+/// exponential stops (it returns 0 there), so that both number types agree lane by lane; it drops values ≤ 1.2e-38
+/// (the edge of the normal f32 range, 1e-38 of a lobe's unit peak), which no pixel can show. When every lane is
+/// below, no exponential is taken (for f32 the comparison is the branch [`exp_lobe`] takes: narrow lobes underflow
+/// for most directions, and libm's underflow path is slow).
+#[inline(always)]
+pub fn exp_lobe_real<R: crate::util::real::Real>(x: R) -> R {
+    let zero = R::splat(0.0);
+    let under = x.le(R::splat(EXP_LOBE_REAL_MIN));
+    if crate::util::real::RealMask::all(under) {
+        return zero;
+    }
+    R::select(under, zero, x.exp())
+}
+
+/// The exponent −(x/β)²/2 of a unit-height Gaussian over [`Real`](crate::util::real::Real), given 1/β
+/// (`inv_beta`): [`gaussian_exponent`] with the division taken once by the caller (a multiplication per call;
+/// differs from x/β by one rounding).
+#[inline(always)]
+pub fn gaussian_exponent_real<R: crate::util::real::Real>(inv_beta: R, x: R) -> R {
+    let z = x * inv_beta;
+    R::splat(-0.5) * z * z
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -26,7 +26,7 @@
 //! (2∫M dθh over the valid range × ∫N dφ × lum(C_X) × cos²θi/cos²θd at the lobe's peak). Then:
 //!
 //! - θ (eq. 18–20): θh from a Cauchy centred at α_X with scale β_X truncated to [θr/2 − π/4, θr/2 + π/4]
-//!   ([`TruncatedCauchy`]), θi = 2θh − θr, so p(θi) = p(θh)/2, and per solid angle p/cos θi, which is eq. 20,
+//!   ([`TruncatedCauchyOf`]), θi = 2θh − θr, so p(θi) = p(θh)/2, and per solid angle p/cos θi, which is eq. 20,
 //!   1/(2 cos θi (A − B)) · β/((θh − α)² + β²).
 //! - φ: R and TRT−g: φ = 2 asin(2ξ − 1) (eq. 21a, 21c), density cos(φ/2)/4; TT: φ = π + γ_TT tan(C_TT(ξ − ½))
 //!   (eq. 21b), a Cauchy about π truncated to one turn; glint: |φ| = φ_g + γ_g tan(ξ(C_g − D_g) + D_g) (eq. 21d),
@@ -36,6 +36,22 @@
 //! pdf() is the whole mixture: Σ selection probability × lobe pdf, exactly what sample() draws (chi-square
 //! tested). Cauchy tails are heavier than the Gaussian lobes', so weights stay bounded. [`Sampling::Uniform`]:
 //! the sphere. [`Sampling::ClampAndFlip`] is refused.
+//!
+//! # One shading point or eight ([`Fibre`])
+//!
+//! The model is written once, over the number type [`Real`]: [`IsHair`]'s [`Fibre`] implementation. Its view
+//! ([`IsHairView`]) holds what eval and sample share for one ωo: θo with its sine and cosine, the balance
+//! weights and p_s, and the three θh distributions with their normalisations A − B. The scalar [`Bsdf`] is that
+//! code at `R = f32` ([`At`]); at `R = f32x8` it shades eight points at once, each lane choosing its own lobe
+//! (comparisons give masks, branches are selects, and work no lane needs is skipped). Terms that another file
+//! implements as a scalar function (the Fresnel balance, Kajiya-Kay's diffuse sampler, eq. 12's azimuth, the
+//! uniform sphere) are computed lane by lane ([`Real::from_fn`]), so each stays one implementation.
+//!
+//! Precision: all arithmetic is f32. The θh ranges' standardised ends, which reach 1.5e4 for β = 1e-4, are kept
+//! exact by compensated sums ([`theta_h_distribution`]), so A − B is within 1e-6 of its f64 value; the Cauchy
+//! samplers draw the exact inverse CDF at a level within ~1e-6 of ξ ([`TruncatedCauchyOf::sample`]); the lobe
+//! exponentials are 0 below e^{−87.3} ([`exp_lobe_real`]). One lane and eight differ only in their exponential,
+//! sine and cosine (libm's against `wide`'s polynomials, a few ulp), tested lane by lane.
 //!
 //! # Parameters ([`IsHairParams`]; angles in radians)
 //!
@@ -54,19 +70,18 @@
 //!
 //! The papers leave intensities to the artist; the defaults marked "chosen here" are not from them.
 
-use super::cauchy::{width_f32, CauchyPdfF32, TruncatedCauchy};
-use super::frame::{
-    atan2, from_sin_cos_theta_and_relative_azimuth, sin_cos_theta, theta, theta_h_range, Angles,
-    COS_THETA_MIN,
-};
-use super::gaussian::{exp_lobe, gaussian_exponent, gaussian_unit, gaussian_unit_integral};
+use super::cauchy::{TruncatedCauchy, TruncatedCauchyOf};
+use super::frame::COS_THETA_MIN;
+use super::gaussian::{exp_lobe_real, gaussian_exponent_real, gaussian_unit_integral};
 use super::kajiya_kay::{diffuse_f, diffuse_pdf, sample_diffuse, selection_probability};
+use super::lanes::{At, EvalOf, Fibre, LobesOf, SampleOf, LANES};
 use super::marschner::phi_eq12_parts;
 use super::{
     check, check_color, check_width, Balance, Bsdf, BsdfError, BsdfSample, Lobe, LobeValues,
     Sampling,
 };
 use crate::util::color::luminance;
+use crate::util::real::{Real, RealMask};
 use crate::util::sampling::{uniform_sphere, UNIFORM_SPHERE_PDF};
 use glam::Vec3;
 use std::f32::consts::{FRAC_PI_2, FRAC_PI_4, PI};
@@ -145,54 +160,81 @@ impl Default for IsHairParams {
     }
 }
 
-/// The specular lobes in sampling order.
-const LOBES: [Lobe; 4] = [Lobe::R, Lobe::Tt, Lobe::Trt, Lobe::Glint];
-
 /// Sadeghi et al.'s four-lobe model with Ou et al.'s sampling, plus Kajiya-Kay diffuse.
 #[derive(Debug, Clone, Copy)]
 pub struct IsHair {
     params: IsHairParams,
-    /// (α, β) of the longitudinal terms: R, TT, TRT (the glint shares TRT's).
-    longitudinal: [(f32, f32); 3],
-    /// 1/β of R, TT, TRT in f64, for the pdf's standardised θh (multiplications, not f64 divisions).
-    inv_beta: [f64; 3],
+    /// α of the longitudinal terms R, TT, TRT (the glint shares TRT's).
+    alpha: [f32; 3],
+    /// β of R, TT, TRT.
+    beta: [f32; 3],
+    /// 1/β of R, TT, TRT (multiplications per call, not divisions).
+    inv_beta: [f32; 3],
+    /// 1/γ_TT and 1/γ_g.
+    inv_gamma_tt: f32,
+    inv_gamma_g: f32,
     /// Selection probabilities of R, TT, TRT − g, g among the specular lobes.
     probs: [f32; 4],
+    /// Their running sums q_R, q_R + q_TT, q_R + q_TT + q_TRT: the thresholds of the lobe choice.
+    cum: [f32; 3],
+    /// q_R + q_TT + q_TRT + q_g/2: below it a glint sample takes the positive azimuth.
+    glint_split: f32,
     /// Σ E_X, the estimated specular albedo (diffuse vs specular split).
     e_spec: f32,
     /// Estimated albedo E_X of each lobe at θo = 0.
     energies: [f32; 4],
+    /// lum(k_d), the diffuse term's share of the split.
+    lum_kd: f32,
+    /// The diffuse f, k_d/π² ([`diffuse_f`]), per channel.
+    diffuse: [f32; 3],
+    /// (w_d, w_s, p_s) when the balance does not depend on ωo (every [`Balance`] but Fresnel).
+    fixed_balance: Option<[f32; 3]>,
     /// The TT azimuth distribution (eq. 21b), which depends on the parameters only.
-    tt: TruncatedCauchy,
+    tt: TruncatedCauchyOf<f32>,
     /// The glint azimuth distribution (eq. 21d).
-    glint: TruncatedCauchy,
-    /// Their pdfs in f32, constants taken once.
-    tt_pdf: CauchyPdfF32,
-    glint_pdf: CauchyPdfF32,
+    glint: TruncatedCauchyOf<f32>,
+}
+
+/// The exponent of M_X = e^{−(θh − α)²/2β²} (thesis eq. 15–16), given 1/β.
+#[inline(always)]
+fn m_exponent<R: Real>(inv_beta: R, alpha: R, theta_h: R) -> R {
+    gaussian_exponent_real(inv_beta, theta_h - alpha)
+}
+
+/// The exponent of N_TT = e^{−(π − |φ|)²/2γ²} (eq. 17, π − φ as the distance to π), given 1/γ and |φ|.
+#[inline(always)]
+fn n_tt_exponent<R: Real>(inv_gamma_tt: R, abs_phi: R) -> R {
+    gaussian_exponent_real(inv_gamma_tt, R::splat(PI) - abs_phi)
+}
+
+/// The exponent of N_g = e^{−(|φ| − φ_g)²/2γ_g²} (eq. 17), given 1/γ_g and |φ|.
+#[inline(always)]
+fn n_g_exponent<R: Real>(inv_gamma_g: R, phi_g: R, abs_phi: R) -> R {
+    gaussian_exponent_real(inv_gamma_g, abs_phi - phi_g)
 }
 
 /// M_X = e^{−(θh − α)²/2β²} (thesis eq. 15–16), unit height.
 #[inline]
-pub fn m_x(beta: f32, alpha: f32, theta_h: f32) -> f32 {
-    gaussian_unit(beta, theta_h - alpha)
+pub fn m_x<R: Real>(beta: R, alpha: R, theta_h: R) -> R {
+    exp_lobe_real(m_exponent(R::splat(1.0) / beta, alpha, theta_h))
 }
 
 /// N_R = N_TRT−g = cos(φ/2) (eq. 17).
 #[inline]
-pub fn n_r(phi: f32) -> f32 {
-    (0.5 * phi).cos().max(0.0)
+pub fn n_r<R: Real>(phi: R) -> R {
+    (R::splat(0.5) * phi).cos().max(R::splat(0.0))
 }
 
 /// N_TT = e^{−(π − |φ|)²/2γ²} (eq. 17, π − φ as the distance to π).
 #[inline]
-pub fn n_tt(gamma_tt: f32, phi: f32) -> f32 {
-    gaussian_unit(gamma_tt, PI - phi.abs())
+pub fn n_tt<R: Real>(gamma_tt: R, phi: R) -> R {
+    exp_lobe_real(n_tt_exponent(R::splat(1.0) / gamma_tt, phi.abs()))
 }
 
 /// N_g = e^{−(|φ| − φ_g)²/2γ_g²} (eq. 17): two glints at ±φ_g.
 #[inline]
-pub fn n_g(gamma_g: f32, phi_g: f32, phi: f32) -> f32 {
-    gaussian_unit(gamma_g, phi.abs() - phi_g)
+pub fn n_g<R: Real>(gamma_g: R, phi_g: R, phi: R) -> R {
+    exp_lobe_real(n_g_exponent(R::splat(1.0) / gamma_g, phi_g, phi.abs()))
 }
 
 /// The TT azimuth distribution (eq. 21b) in δ = φ − π wrapped: Cauchy(0, γ_TT) on [−π, π].
@@ -215,6 +257,297 @@ fn glint_distribution(gamma_g: f32, phi_g: f32) -> TruncatedCauchy {
         0.0,
         std::f64::consts::FRAC_PI_2,
     )
+}
+
+/// The index in [`Lobe::ALL`] of a lobe, as [`SampleOf::lobe`] carries it.
+const fn lobe_index(lobe: Lobe) -> f32 {
+    match lobe {
+        Lobe::R => 0.0,
+        Lobe::Tt => 1.0,
+        Lobe::Trt => 2.0,
+        Lobe::Glint => 3.0,
+        Lobe::Diffuse => 4.0,
+    }
+}
+
+/// π/4 as the sum of two f32s, [`FRAC_PI_4`] (rounded) and the rest, for the θh range's ends (see
+/// [`theta_h_range`]).
+const FRAC_PI_4_LO: f32 = (std::f64::consts::FRAC_PI_4 - FRAC_PI_4 as f64) as f32;
+
+/// The θh range [θo/2 − π/4, θo/2 + π/4] of a view at θo (θi = 2θh − θo ∈ [−π/2, π/2]), each end as its f32 value
+/// and the rest, (lo, lo′) and (hi, hi′) with lo + lo′ = θo/2 − π/4 to ~1e-15: the ends the θh distributions are
+/// truncated to, and what [`theta_h_distribution`] needs to standardise them exactly. θo/2 ± [`FRAC_PI_4`] is
+/// rounded with its error kept (Dekker's fast two-sum, exact since |θo/2| ≤ π/4 in f32), and π/4's own rest
+/// [`FRAC_PI_4_LO`] is added to it.
+#[inline(always)]
+fn theta_h_range<R: Real>(theta_o: R) -> ([R; 2], [R; 2]) {
+    let half = R::splat(0.5) * theta_o;
+    let end = |q: f32| {
+        let s = R::splat(q) + half;
+        // The error of that sum, exact for |q| ≥ |θo/2| (θo from `atan2` lies within ±FRAC_PI_2 as f32).
+        let rest = half - (s - R::splat(q));
+        [s, rest + R::splat(q.signum() * FRAC_PI_4_LO)]
+    };
+    (end(-FRAC_PI_4), end(FRAC_PI_4))
+}
+
+/// The θh distribution of a longitudinal term (α, β) for a view whose θh range is `lo`, `hi` ([`theta_h_range`];
+/// eq. 18–19): Cauchy(α, β) on [lo, hi], with its normalisation A − B (eq. 20).
+///
+/// Precision: the standardised ends x = (lo − α)/β, (hi − α)/β reach ±1.5e4 for β = 1e-4, where the f32 rounding
+/// of lo (~1e-7 rad) would move x by ~1e-3 and A − B by up to 1e-3 relative when an end sits near the peak. So lo
+/// − α is formed from the rounded end and its rest: lo − α rounds exactly where it cancels (Sterbenz), and adding
+/// the rest leaves ~1 ulp of the difference itself (relative error ~1e-7, as the f64 ends of
+/// [`TruncatedCauchy::new`] rounded to f32). A − B is then one arctangent of (x_hi − x_lo, 1 + x_lo x_hi) (the
+/// tangent of a difference, the product fused), as there. Within 1e-6 (relative) of the f64 width over the
+/// parameter grid (tested); the sampler and the pdf share this one value, so they agree exactly whatever its error.
+#[inline(always)]
+fn theta_h_distribution<R: Real>(
+    alpha: f32,
+    beta: f32,
+    inv_beta: f32,
+    [lo, lo_rest]: [R; 2],
+    [hi, hi_rest]: [R; 2],
+) -> TruncatedCauchyOf<R> {
+    let alpha_r = R::splat(alpha);
+    let inv_beta = R::splat(inv_beta);
+    let x_lo = ((lo - alpha_r) + lo_rest) * inv_beta;
+    let x_hi = ((hi - alpha_r) + hi_rest) * inv_beta;
+    let width = atan2(x_hi - x_lo, x_lo.mul_add(x_hi, R::splat(1.0)));
+    TruncatedCauchyOf::new(alpha_r, R::splat(beta), inv_beta, lo, hi, x_lo, width)
+}
+
+/// atan2(y, x) ∈ [−π, π] over [`Real`] (0 for x = y = 0), absolute error < 6e-7 rad: the reduction and Estrin
+/// series of [`super::frame::atan2`] (see there), its branches written as selects, so that one f32 and eight lanes
+/// compute bit for bit the same (tested), where [`Real::atan2`] would be libm's `atan2f` for one (which costs more
+/// than the rest of an eval) and `wide`'s polynomial for eight.
+#[inline(always)]
+pub(crate) fn atan2<R: Real>(y: R, x: R) -> R {
+    let c = R::splat;
+    let zero = c(0.0);
+    let (ax, ay) = (x.abs(), y.abs());
+    let swap = ay.gt(ax);
+    let (num, den) = (R::select(swap, ax, ay), R::select(swap, ay, ax));
+    // Past tan(π/8), atan t = π/4 + atan((t − 1)/(t + 1)): u = (num − k den)/(den + k num), k ∈ {0, 1}.
+    let k = R::select(num.gt(c(0.414_213_57) * den), c(1.0), zero);
+    let u = (num - k * den) / (den + k * num);
+    let base = k * c(FRAC_PI_4);
+    let (v, v2) = (u * u, (u * u) * (u * u));
+    let poly = (c(1.0) + v * c(-1.0 / 3.0))
+        + v2 * (c(1.0 / 5.0) + v * c(-1.0 / 7.0))
+        + (v2 * v2)
+            * ((c(1.0 / 9.0) + v * c(-1.0 / 11.0)) + v2 * (c(1.0 / 13.0) + v * c(-1.0 / 15.0)));
+    let a = base + u * poly;
+    let a = R::select(swap, c(FRAC_PI_2) - a, a);
+    let a = R::select(x.lt(zero), c(PI) - a, a);
+    let a = R::select(y.lt(zero), -a, a);
+    // Both zero (a direction along ±u, φ undefined): 0, as `f32::atan2` gives.
+    R::select(den.eq(zero), zero, a)
+}
+
+/// (sin θ, cos θ) from x = ω·u and ρ = √(y² + z²), for any non-zero length; (0, 1) for a zero vector (as
+/// [`super::frame::sin_cos_theta`]).
+#[inline(always)]
+fn sin_cos_from<R: Real>(x: R, rho: R) -> (R, R) {
+    let len2 = x * x + rho * rho;
+    let inv = R::splat(1.0) / len2.sqrt();
+    let some = len2.gt(R::splat(0.0));
+    (
+        R::select(some, x * inv, R::splat(0.0)),
+        R::select(some, rho * inv, R::splat(1.0)),
+    )
+}
+
+/// √(y² + z²), the length of a direction's normal-plane projection.
+#[inline(always)]
+fn rho<R: Real>(y: R, z: R) -> R {
+    (y * y + z * z).sqrt()
+}
+
+/// cos θd ≥ 0 as half the length of (cos θo + cos θi, sin θo + sin θi) (accurate also near θd = ±π/2).
+#[inline(always)]
+fn cos_theta_d<R: Real>(sin_o: R, cos_o: R, sin_i: R, cos_i: R) -> R {
+    let (c, s) = (cos_o + cos_i, sin_o + sin_i);
+    (R::splat(0.5) * (c * c + s * s).sqrt()).min(R::splat(1.0))
+}
+
+/// `N` numbers computed lane by lane by `f` (lane k's values): for terms taken from another file's scalar function
+/// (the Fresnel balance, Kajiya-Kay's diffuse sampler, eq. 12's azimuth, the uniform sphere), which stay the one
+/// implementation of each; with one lane (`f32`) it is a plain call.
+#[inline(always)]
+fn per_lane<R: Real, const N: usize>(mut f: impl FnMut(usize) -> [f32; N]) -> [R; N] {
+    let mut v = [[0.0f32; N]; LANES];
+    for (k, x) in v.iter_mut().enumerate().take(R::LANES) {
+        *x = f(k);
+    }
+    // Plain loops, not `array::from_fn` or `map`, whose closures LLVM does not always inline (in the scalar eval an
+    // uninlined call also keeps terms alive that only the pdf reads).
+    let mut out = [R::splat(0.0); N];
+    for (c, o) in out.iter_mut().enumerate() {
+        *o = R::from_fn(|k| v[k][c]);
+    }
+    out
+}
+
+/// `a()` in the lanes where `m` is set and `b()` elsewhere, merged by `blend`; a side no lane needs is not computed
+/// (for one lane that is a branch, as a scalar sampler takes).
+#[inline(always)]
+fn branch<R: Real, T>(
+    m: R::Mask,
+    a: impl FnOnce() -> T,
+    b: impl FnOnce() -> T,
+    blend: impl FnOnce(R::Mask, T, T) -> T,
+) -> T {
+    if m.all() {
+        a()
+    } else if (!m).all() {
+        b()
+    } else {
+        blend(m, a(), b())
+    }
+}
+
+/// Per lane: `a` where `m` is set, else `b`, element by element.
+#[inline(always)]
+fn blend<R: Real, const N: usize>(m: R::Mask, a: [R; N], b: [R; N]) -> [R; N] {
+    let mut out = a;
+    for (o, (&x, &y)) in out.iter_mut().zip(a.iter().zip(&b)) {
+        *o = R::select(m, x, y);
+    }
+    out
+}
+
+/// What eval and sample share for one ωo ([`Fibre::view`]), in number type `R`.
+#[derive(Debug, Clone, Copy)]
+pub struct IsHairView<R> {
+    /// ωo as given (x, y, z).
+    wo: [R; 3],
+    /// ρo = √(y² + z²) of ωo.
+    rho_o: R,
+    /// (cos φr, sin φr): ωo's normal-plane projection made unit; (1, 0) along ±u (φr = 0 there).
+    cos_r: R,
+    sin_r: R,
+    /// sin θo, cos θo ≥ 0, θo.
+    sin_o: R,
+    cos_o: R,
+    theta_o: R,
+    /// The diffuse and specular weights (w_d, w_s) and the probability p_s of sampling the specular lobes.
+    w_d: R,
+    w_s: R,
+    p_s: R,
+    /// The θh range [θo/2 − π/4, θo/2 + π/4].
+    theta_h_lo: R,
+    theta_h_hi: R,
+    /// The θh distributions of R, TT and TRT (eq. 18–19), which the pdf and the sampler share.
+    theta_h: [TruncatedCauchyOf<R>; 3],
+}
+
+/// The angles of a pair (ωo, ωi) the lobes and the pdf read (thesis Table 1; θo's are in the view). Taken from the
+/// two directions ([`Pair::of_directions`]), or, for a sampled ωi, from what the sampler drew
+/// ([`Pair::of_sampled`]): that needs no arctangent, and f and the pdf are then those of the direction drawn.
+#[derive(Debug, Clone, Copy)]
+struct Pair<R> {
+    /// sin θi, cos θi ≥ 0.
+    sin_i: R,
+    cos_i: R,
+    /// θh = (θo + θi)/2.
+    theta_h: R,
+    /// cos θd ≥ 0.
+    cos_theta_d: R,
+    /// cos(φ/2) ≥ 0 for φ ∈ [−π, π] (N_R, and the density of eq. 21a, 21c).
+    cos_half_phi: R,
+    /// |φ| ∈ [0, π], all the lobes need of the relative azimuth φ = φr − φi.
+    abs_phi: R,
+}
+
+impl<R: Real> Pair<R> {
+    /// The angles of `wi` (any non-zero length) seen from the view's ωo, as [`super::frame::Angles::new`] takes
+    /// them: θh from the sine and cosine of θo + θi (one arctangent), cos θd and cos(φ/2) as half-lengths of sums
+    /// of unit vectors (accurate where they vanish), |φ| from the sine and cosine of φr − φi (one arctangent).
+    #[inline(always)]
+    fn of_directions(v: &IsHairView<R>, wi: [R; 3]) -> Pair<R> {
+        let c = R::splat;
+        let zero = c(0.0);
+        let wo = v.wo;
+        let rho_i = rho(wi[1], wi[2]);
+        // θo + θi ∈ [−π, π] from its sine and cosine (angle-sum formulas, scaled by |ωo||ωi| > 0). Exactly at a pole
+        // the sine may be a zero of either sign; θo + θi = ±π then takes the sign of the poles.
+        let sin_sum = wo[0] * rho_i + v.rho_o * wi[0];
+        let cos_sum = v.rho_o * rho_i - wo[0] * wi[0];
+        let at_poles = sin_sum.eq(zero) & cos_sum.lt(zero);
+        let pole = R::select((wo[0] + wi[0]).lt(zero), c(-FRAC_PI_2), c(FRAC_PI_2));
+        let theta_h = R::select(at_poles, pole, c(0.5) * atan2(sin_sum, cos_sum));
+        let (sin_i, cos_i) = sin_cos_from(wi[0], rho_i);
+        // cos(φ/2): half the length of the sum of the unit normal-plane projections; 1 when either direction lies
+        // along ±u (φ = 0 there).
+        let inv_i = c(1.0) / rho_i;
+        let (y, z) = (v.cos_r + wi[1] * inv_i, v.sin_r + wi[2] * inv_i);
+        let projected = v.rho_o.gt(zero) & rho_i.gt(zero);
+        let cos_half_phi = R::select(
+            projected,
+            (c(0.5) * (y * y + z * z).sqrt()).min(c(1.0)),
+            c(1.0),
+        );
+        // sin(φr − φi) ρo ρi and cos(φr − φi) ρo ρi.
+        let phi_sin = wo[2] * wi[1] - wo[1] * wi[2];
+        let phi_cos = wo[1] * wi[1] + wo[2] * wi[2];
+        Pair {
+            sin_i,
+            cos_i,
+            theta_h,
+            cos_theta_d: cos_theta_d(v.sin_o, v.cos_o, sin_i, cos_i),
+            cos_half_phi,
+            abs_phi: atan2(phi_sin.abs(), phi_cos),
+        }
+    }
+
+    /// The angles of a pair the sampler has just drawn, from θi (in [−π/2, π/2]) with its sine and cosine, and
+    /// the relative azimuth by cos(φ/2) and |φ| (as [`super::frame::Angles::from_sampled`]). These are the angles
+    /// of the direction drawn; the direction returned is that one rounded to f32 (see
+    /// `testing::assert_sample_consistent`, which bounds the difference).
+    #[inline(always)]
+    fn of_sampled(
+        v: &IsHairView<R>,
+        theta_i: R,
+        (sin_i, cos_i): (R, R),
+        cos_half_phi: R,
+        abs_phi: R,
+    ) -> Pair<R> {
+        let cos_i = cos_i.max(R::splat(0.0));
+        Pair {
+            sin_i,
+            cos_i,
+            theta_h: R::splat(0.5) * (v.theta_o + theta_i),
+            cos_theta_d: cos_theta_d(v.sin_o, v.cos_o, sin_i, cos_i),
+            cos_half_phi,
+            abs_phi,
+        }
+    }
+
+    /// Per lane: `a` where `m` is set, else `b`.
+    #[inline(always)]
+    fn blend(m: R::Mask, a: Pair<R>, b: Pair<R>) -> Pair<R> {
+        let s = |x: R, y: R| R::select(m, x, y);
+        Pair {
+            sin_i: s(a.sin_i, b.sin_i),
+            cos_i: s(a.cos_i, b.cos_i),
+            theta_h: s(a.theta_h, b.theta_h),
+            cos_theta_d: s(a.cos_theta_d, b.cos_theta_d),
+            cos_half_phi: s(a.cos_half_phi, b.cos_half_phi),
+            abs_phi: s(a.abs_phi, b.abs_phi),
+        }
+    }
+}
+
+/// The unit direction with longitudinal angle θi (by its sine and cosine) whose azimuth is φi = φr − φ, φ given by
+/// its cosine and sine: (cos φi, sin φi) is the view's (cos φr, sin φr) turned by −φ (the angle-difference
+/// formulas), so no angle is formed (as [`super::frame::from_sin_cos_theta_and_relative_azimuth`]).
+#[inline(always)]
+fn direction<R: Real>(v: &IsHairView<R>, (sin_t, cos_t): (R, R), cos_phi: R, sin_phi: R) -> [R; 3] {
+    let cos_i = v.cos_r * cos_phi + v.sin_r * sin_phi;
+    let sin_i = v.sin_r * cos_phi - v.cos_r * sin_phi;
+    let cos_t = cos_t.max(R::splat(0.0));
+    [sin_t, cos_t * cos_i, cos_t * sin_i]
 }
 
 impl IsHair {
@@ -288,17 +621,36 @@ impl IsHair {
             LobeSelection::ByEnergy if e_spec > 0.0 => energies.map(|e| e / e_spec),
             LobeSelection::ByEnergy => [0.25; 4],
         };
+        let cum = [
+            probs[0],
+            probs[0] + probs[1],
+            probs[0] + probs[1] + probs[2],
+        ];
+        let lum_kd = luminance(p.k_d);
+        let fixed_balance = match p.balance {
+            Balance::Fresnel { .. } => None,
+            b => {
+                let (w_d, w_s) = b.weights(1.0);
+                Some([w_d, w_s, selection_probability(w_s * e_spec, w_d * lum_kd)])
+            }
+        };
         Ok(IsHair {
             params,
-            longitudinal,
-            inv_beta: longitudinal.map(|(_, beta)| 1.0 / beta as f64),
+            alpha: longitudinal.map(|(alpha, _)| alpha),
+            beta: longitudinal.map(|(_, beta)| beta),
+            inv_beta: longitudinal.map(|(_, beta)| 1.0 / beta),
+            inv_gamma_tt: 1.0 / p.gamma_tt,
+            inv_gamma_g: 1.0 / p.gamma_g,
             probs,
+            cum,
+            glint_split: cum[2] + 0.5 * probs[3],
             e_spec,
             energies,
-            tt: tt_distribution(p.gamma_tt),
-            glint: glint_distribution(p.gamma_g, p.phi_g),
-            tt_pdf: tt_distribution(p.gamma_tt).pdf_f32(),
-            glint_pdf: glint_distribution(p.gamma_g, p.phi_g).pdf_f32(),
+            lum_kd,
+            diffuse: diffuse_f(p.k_d).to_array(),
+            fixed_balance,
+            tt: tt_distribution(p.gamma_tt).to_f32(),
+            glint: glint_distribution(p.gamma_g, p.phi_g).to_f32(),
         })
     }
 
@@ -317,203 +669,301 @@ impl IsHair {
         self.probs
     }
 
-    /// The probability of sampling the specular lobes (vs diffuse) for view cosine `cos_theta_o`.
-    #[inline]
-    fn specular_probability(&self, cos_theta_o: f32) -> f32 {
-        let (w_d, w_s) = self.params.balance.weights(cos_theta_o);
-        selection_probability(w_s * self.e_spec, w_d * luminance(self.params.k_d))
-    }
-
-    /// The normalisations A − B (eq. 20) of the θh distributions of R, TT and TRT (eq. 18–19) for a view at
-    /// `theta_o`, in f32 ([`width_f32`]): what the pdf needs, and what the sampler of the lobe drawn from is built
-    /// with ([`IsHair::theta_h_distribution`]), so neither needs a libm arctangent.
-    #[inline]
-    fn theta_h_widths(&self, theta_o: f32) -> [f32; 3] {
-        let (lo, hi) = theta_h_range(theta_o);
-        let w = |k: usize| width_f32(self.longitudinal[k].0 as f64, self.inv_beta[k], lo, hi);
-        [w(0), w(1), w(2)]
-    }
-
-    /// The θh distribution of longitudinal term `k` (R, TT, TRT) for a view at `theta_o` (eq. 18–19): Cauchy(α, β)
-    /// on [`theta_h_range`], normalised with `width` from [`IsHair::theta_h_widths`].
-    #[inline]
-    fn theta_h_distribution(&self, k: usize, theta_o: f32, width: f32) -> TruncatedCauchy {
-        let (lo, hi) = theta_h_range(theta_o);
-        let (alpha, beta) = self.longitudinal[k];
-        TruncatedCauchy::with_width(
-            alpha as f64,
-            beta as f64,
-            self.inv_beta[k],
-            lo,
-            hi,
-            width as f64,
-        )
-    }
-
-    /// Every lobe's f for the angles of a pair of directions and their relative azimuth `phi` (`a.phi()`; only |φ|
-    /// matters, so samplers pass the |φ| they drew).
+    /// (w_d, w_s, p_s) for a view with longitudinal cosine `cos_theta_o`: the diffuse and specular weights, and the
+    /// probability of sampling the specular lobes, w_s ΣE_X against w_d lum(k_d).
     #[inline(always)]
-    fn lobes_at(&self, a: &Angles, phi: f32) -> LobeValues {
-        let p = &self.params;
-        let (w_d, w_s) = p.balance.weights(a.cos_theta_o);
-        // Guard: cos θd → 0 only for θr = −θi = ±π/2.
-        let cos_d = a.cos_theta_d.max(COS_THETA_MIN);
-        let s = w_s / (cos_d * cos_d);
-        // Exponents of the unit-height Gaussians: M_X (eq. 15–16) in θh, N_TT and N_g (eq. 17) in φ. The products
-        // M_TT N_TT and M_TRT N_g are each one exponential of the summed exponents (what `m_x`, `n_tt` and `n_g`
-        // multiply out to), so f costs four exponentials, not five.
-        let [e_r, e_tt, e_trt] = self
-            .longitudinal
-            .map(|(alpha, beta)| gaussian_exponent(beta, a.theta_h - alpha));
-        let e_n_tt = gaussian_exponent(p.gamma_tt, PI - phi.abs());
-        let e_n_g = gaussian_exponent(p.gamma_g, phi.abs() - p.phi_g);
-        let m_trt = exp_lobe(e_trt);
-        // N_R = N_TRT−g = cos(φ/2) from the half-angle vector (see `Angles`).
-        let n_r = a.cos_half_phi;
-        LobeValues {
-            r: (p.color_r * (s * exp_lobe(e_r) * n_r)).into(),
-            tt: (p.color_tt * (s * exp_lobe(e_tt + e_n_tt))).into(),
-            trt: (p.color_trt * (s * m_trt * n_r)).into(),
-            glint: (p.color_trt * (s * p.glint * exp_lobe(e_trt + e_n_g))).into(),
-            diffuse: (diffuse_f(p.k_d) * w_d).into(),
+    fn balance<R: Real>(&self, cos_theta_o: R) -> [R; 3] {
+        match self.fixed_balance {
+            Some([w_d, w_s, p_s]) => [R::splat(w_d), R::splat(w_s), R::splat(p_s)],
+            // The Fresnel balance depends on θo: lane by lane through `Balance::weights` (`fresnel::dielectric`)
+            // and `selection_probability`, the one implementation of each, which every model shares; once per view.
+            None => per_lane(|k| {
+                let (w_d, w_s) = self.params.balance.weights(cos_theta_o.lane(k));
+                [
+                    w_d,
+                    w_s,
+                    selection_probability(w_s * self.e_spec, w_d * self.lum_kd),
+                ]
+            }),
         }
     }
 
-    /// The mixture pdf for the angles of a pair of directions, given [`IsHair::theta_h_widths`] at their θo.
-    #[inline]
-    fn pdf_at(&self, a: &Angles, theta_o: f32, phi: f32, widths: &[f32; 3]) -> f32 {
-        let p_s = self.specular_probability(a.cos_theta_o);
+    /// Every lobe's f at the angles of a pair.
+    #[inline(always)]
+    fn lobes_at<R: Real>(&self, v: &IsHairView<R>, a: &Pair<R>) -> LobesOf<R> {
+        let c = R::splat;
+        let p = &self.params;
+        // Guard: cos θd → 0 only for θr = −θi = ±π/2.
+        let cos_d = a.cos_theta_d.max(c(COS_THETA_MIN));
+        let s = v.w_s / (cos_d * cos_d);
+        // Exponents of the unit-height Gaussians: M_X (eq. 15–16) in θh, N_TT and N_g (eq. 17) in |φ|. The products
+        // M_TT N_TT and M_TRT N_g are each one exponential of the summed exponents (what `m_x`, `n_tt` and `n_g`
+        // multiply out to), so f costs four exponentials, not five.
+        let e = |k: usize| m_exponent(c(self.inv_beta[k]), c(self.alpha[k]), a.theta_h);
+        let (e_r, e_tt, e_trt) = (e(0), e(1), e(2));
+        let e_n_tt = n_tt_exponent(c(self.inv_gamma_tt), a.abs_phi);
+        let e_n_g = n_g_exponent(c(self.inv_gamma_g), c(p.phi_g), a.abs_phi);
+        // N_R = N_TRT−g = cos(φ/2), from the half-angle vector (see `Pair`).
+        let n_r = a.cos_half_phi;
+        let r = s * exp_lobe_real(e_r) * n_r;
+        let tt = s * exp_lobe_real(e_tt + e_n_tt);
+        let trt = s * exp_lobe_real(e_trt) * n_r;
+        let glint = s * c(p.glint) * exp_lobe_real(e_trt + e_n_g);
+        let coloured = |colour: Vec3, x: R| [c(colour.x) * x, c(colour.y) * x, c(colour.z) * x];
+        LobesOf {
+            r: coloured(p.color_r, r),
+            tt: coloured(p.color_tt, tt),
+            trt: coloured(p.color_trt, trt),
+            glint: coloured(p.color_trt, glint),
+            diffuse: [
+                c(self.diffuse[0]) * v.w_d,
+                c(self.diffuse[1]) * v.w_d,
+                c(self.diffuse[2]) * v.w_d,
+            ],
+        }
+    }
+
+    /// The pdf with which [`Fibre::sample_view`] draws a pair: the whole mixture, Σ selection probability × lobe
+    /// pdf.
+    #[inline(always)]
+    fn pdf_at<R: Real>(&self, v: &IsHairView<R>, a: &Pair<R>) -> R {
+        let c = R::splat;
+        if self.params.sampling == Sampling::Uniform {
+            return c(UNIFORM_SPHERE_PDF);
+        }
         // θh is in range by construction; clamp away the rounding at θi = ±π/2.
-        let (lo, hi) = theta_h_range(theta_o);
-        let theta_h = (a.theta_h as f64).clamp(lo, hi);
-        // p(θi) = p(θh)/2 = β / (2 (A − B) ((θh − α)² + β²)) (eq. 20 without its 1/cos θi, applied once below),
-        // written with z = (θh − α)/β (in f64: θh − α cancels for narrow lobes) as [`TruncatedCauchy::pdf`] is;
-        // uniform on the range if A − B vanished.
-        let p_theta = [0, 1, 2].map(|k| {
-            let (alpha, beta) = self.longitudinal[k];
-            let z = ((theta_h - alpha as f64) * self.inv_beta[k]) as f32;
-            if widths[k] > 0.0 {
-                0.5 / (widths[k] * beta * (1.0 + z * z))
-            } else {
-                0.5 / FRAC_PI_2
-            }
-        });
-        let p_r = 0.25 * a.cos_half_phi;
-        // eq. 21b and 21d's densities (the glint's halved between ±φ_g). TT's is in δ = φ − π wrapped to [−π, π],
-        // a Cauchy centred on 0 there, so even: its value at |δ| = π − |φ| (no wrapping, which cost a division and
-        // a rounding call).
-        let p_tt = self.tt_pdf.pdf(PI - phi.abs());
-        let p_g = 0.5 * self.glint_pdf.pdf(phi.abs());
-        let spec = self.probs[0] * p_theta[0] * p_r
-            + self.probs[1] * p_theta[1] * p_tt
-            + self.probs[2] * p_theta[2] * p_r
-            + self.probs[3] * p_theta[2] * p_g;
-        p_s * spec / a.cos_theta_i.max(COS_THETA_MIN) + (1.0 - p_s) * diffuse_pdf(a.cos_theta_i)
+        let theta_h = a.theta_h.max(v.theta_h_lo).min(v.theta_h_hi);
+        // p(θh) of each longitudinal term (eq. 18–19), β/((A − B)((θh − α)² + β²)); p(θi) = p(θh)/2, and eq. 20's
+        // 1/cos θi is applied once below.
+        let [p_theta_r, p_theta_tt, p_theta_trt] = [
+            v.theta_h[0].pdf(theta_h),
+            v.theta_h[1].pdf(theta_h),
+            v.theta_h[2].pdf(theta_h),
+        ];
+        // φ: eq. 21a and 21c's density cos(φ/2)/4; eq. 21b's in δ = φ − π wrapped to [−π, π], a Cauchy centred on
+        // 0 there, so even: its value at |δ| = π − |φ|; eq. 21d's halved between ±φ_g.
+        let p_r = c(0.25) * a.cos_half_phi;
+        let p_tt = self.tt.splat::<R>().pdf(c(PI) - a.abs_phi);
+        let p_g = c(0.5) * self.glint.splat::<R>().pdf(a.abs_phi);
+        let q = [
+            c(self.probs[0]),
+            c(self.probs[1]),
+            c(self.probs[2]),
+            c(self.probs[3]),
+        ];
+        let spec = c(0.5)
+            * (q[0] * p_theta_r * p_r
+                + q[1] * p_theta_tt * p_tt
+                + p_theta_trt * (q[2] * p_r + q[3] * p_g));
+        // The diffuse pdf, cos θi/π² ([`diffuse_pdf`], linear in cos θi: its value at 1 is the factor).
+        v.p_s * spec / a.cos_i.max(c(COS_THETA_MIN))
+            + (c(1.0) - v.p_s) * (c(diffuse_pdf(1.0)) * a.cos_i)
+    }
+
+    /// A diffuse sample in every lane: Kajiya-Kay's exact sampler ([`sample_diffuse`], lane by lane: the one
+    /// implementation), with u0 rescaled over the diffuse share [p_s, 1).
+    #[inline(always)]
+    fn sample_diffuse_lanes<R: Real>(&self, v: &IsHairView<R>, u: [R; 3]) -> ([R; 3], Pair<R>, R) {
+        let c = ((u[0] - v.p_s) / (R::splat(1.0) - v.p_s)).min(R::splat(1.0));
+        let wi = per_lane(|k| sample_diffuse(u[1].lane(k), u[2].lane(k), c.lane(k)).to_array());
+        (
+            wi,
+            Pair::of_directions(v, wi),
+            R::splat(lobe_index(Lobe::Diffuse)),
+        )
+    }
+
+    /// A specular sample in every lane (Ou et al. 2012): the lobe by u0/p_s against the running selection
+    /// probabilities, θh from the lobe's Cauchy (eq. 18, TRT's for the glint too), φ by eq. 21a–d.
+    #[inline(always)]
+    fn sample_specular_lanes<R: Real>(&self, v: &IsHairView<R>, u: [R; 3]) -> ([R; 3], Pair<R>, R) {
+        let c = R::splat;
+        let x = u[0] / v.p_s;
+        let is_r = x.lt(c(self.cum[0]));
+        let is_tt = !is_r & x.lt(c(self.cum[1]));
+        let is_trt = !(is_r | is_tt) & x.lt(c(self.cum[2]));
+        let lobe = R::select(
+            is_r,
+            c(lobe_index(Lobe::R)),
+            R::select(
+                is_tt,
+                c(lobe_index(Lobe::Tt)),
+                R::select(is_trt, c(lobe_index(Lobe::Trt)), c(lobe_index(Lobe::Glint))),
+            ),
+        );
+        // θ: eq. 18, θi = 2θh − θo.
+        let theta_h = TruncatedCauchyOf::select(
+            is_r,
+            &v.theta_h[0],
+            &TruncatedCauchyOf::select(is_tt, &v.theta_h[1], &v.theta_h[2]),
+        )
+        .sample(u[1]);
+        let theta_i = (c(2.0) * theta_h - v.theta_o).clamp_to(-FRAC_PI_2, FRAC_PI_2);
+        let sc_i = theta_i.sin_cos();
+        // φ: eq. 21a–d, as cos(φ/2), cos φ, sin φ (φi = φr − φ is then turned from ωo's azimuth, no arctangent)
+        // and |φ|, each from the half angle: cos(φ/2) stays accurate where it vanishes (φ → ±π).
+        let [cos_half, cos_phi, sin_phi, abs_phi] = branch::<R, _>(
+            is_r | is_trt,
+            || {
+                // R and TRT − g: eq. 12 by double angles (`phi_eq12_parts`, lane by lane: the one
+                // implementation); |φ| ∈ [0, π] from its cosine and |sine|.
+                let [c_half, cos_phi, sin_phi]: [R; 3] = per_lane(|k| {
+                    let (c_half, cos_phi, sin_phi) = phi_eq12_parts(u[2].lane(k));
+                    [c_half, cos_phi, sin_phi]
+                });
+                [c_half, cos_phi, sin_phi, atan2(sin_phi.abs(), cos_phi)]
+            },
+            || {
+                // TT (eq. 21b, δ = φ − π) and the glint (eq. 21d, ψ = |φ|): one Cauchy draw with the lobe's
+                // distribution, one half-angle sine and cosine.
+                let d = TruncatedCauchyOf::select(
+                    is_tt,
+                    &self.tt.splat::<R>(),
+                    &self.glint.splat::<R>(),
+                );
+                let y = d.sample(u[2]);
+                let (s, co) = (c(0.5) * y).sin_cos();
+                let two_sc = c(2.0) * s * co;
+                // φ = π + δ: cos(φ/2) = |sin(δ/2)|, cos φ = −cos δ, sin φ = −sin δ, |φ| = π − |δ|.
+                let tt = [s.abs(), c(2.0) * s * s - c(1.0), -two_sc, c(PI) - y.abs()];
+                // |φ| = ψ ∈ [0, π/2], the sign by the remainder of the lobe choice (the thesis leaves it implicit).
+                let sin_psi = R::select(x.lt(c(self.glint_split)), two_sc, -two_sc);
+                let glint = [co, c(1.0) - c(2.0) * s * s, sin_psi, y];
+                blend(is_tt, tt, glint)
+            },
+            blend,
+        );
+        (
+            direction(v, sc_i, cos_phi, sin_phi),
+            Pair::of_sampled(v, theta_i, sc_i, cos_half, abs_phi),
+            lobe,
+        )
     }
 }
 
-impl Bsdf for IsHair {
-    fn eval_lobes(&self, wo: Vec3, wi: Vec3) -> LobeValues {
-        let a = Angles::new(wo, wi);
-        self.lobes_at(&a, a.phi())
-    }
+/// The model written once over the number type: `R = f32` is its scalar [`Bsdf`] (below, through [`At`]), `R =
+/// f32x8` eight shading points at a time.
+impl Fibre for IsHair {
+    type View<R: Real> = IsHairView<R>;
 
-    /// The sum of [`Bsdf::eval_lobes`], with the lobes summed where they are computed (the default method
-    /// received them through memory from a call).
-    fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
-        let a = Angles::new(wo, wi);
-        self.lobes_at(&a, a.phi()).sum()
-    }
-
-    fn sample(&self, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
-        if self.params.sampling == Sampling::Uniform {
-            return super::finish_sample(self, wo, uniform_sphere(u[0], u[1]), None);
+    #[inline(always)]
+    fn view<R: Real>(&self, _h: R, wo: [R; 3]) -> IsHairView<R> {
+        let c = R::splat;
+        let rho_o = rho(wo[1], wo[2]);
+        let (sin_o, cos_o) = sin_cos_from(wo[0], rho_o);
+        let theta_o = atan2(wo[0], rho_o);
+        let inv = c(1.0) / rho_o;
+        let projected = rho_o.gt(c(0.0));
+        let [w_d, w_s, p_s] = self.balance(cos_o);
+        let (lo, hi) = theta_h_range(theta_o);
+        IsHairView {
+            wo,
+            rho_o,
+            cos_r: R::select(projected, wo[1] * inv, c(1.0)),
+            sin_r: R::select(projected, wo[2] * inv, c(0.0)),
+            sin_o,
+            cos_o,
+            theta_o,
+            w_d,
+            w_s,
+            p_s,
+            theta_h_lo: lo[0],
+            theta_h_hi: hi[0],
+            theta_h: [
+                theta_h_distribution(self.alpha[0], self.beta[0], self.inv_beta[0], lo, hi),
+                theta_h_distribution(self.alpha[1], self.beta[1], self.inv_beta[1], lo, hi),
+                theta_h_distribution(self.alpha[2], self.beta[2], self.inv_beta[2], lo, hi),
+            ],
         }
-        let theta_o = theta(wo);
-        let sc_o = sin_cos_theta(wo);
-        let widths = self.theta_h_widths(theta_o);
-        let p_s = self.specular_probability(sc_o.1);
-        // The angles of the pair and |φ| (all the lobes need of φ), from what the sampler drew where it can.
-        let (a, abs_phi, wi, lobe) = if u[0] >= p_s {
-            let c = ((u[0] - p_s) / (1.0 - p_s)).min(1.0);
-            let wi = sample_diffuse(u[1], u[2], c);
-            let a = Angles::new(wo, wi);
-            (a, a.phi().abs(), wi, Lobe::Diffuse)
-        } else {
-            // Which specular lobe (u[0] rescaled; the remainder decides the glint's sign).
-            let mut v = u[0] / p_s;
-            let mut j = 3;
-            for (k, &q) in self.probs.iter().enumerate() {
-                if v < q || k == 3 {
-                    j = k;
-                    v = (v / q.max(f32::MIN_POSITIVE)).min(1.0);
-                    break;
-                }
-                v -= q;
-            }
-            // θ: eq. 18 (TRT's longitudinal term for the glint too).
-            let k = j.min(2);
-            let theta_h = self
-                .theta_h_distribution(k, theta_o, widths[k])
-                .sample_f32(u[1]) as f32;
-            let theta_i = (2.0 * theta_h - theta_o).clamp(-FRAC_PI_2, FRAC_PI_2);
-            let sc_i = theta_i.sin_cos();
-            // φ: eq. 21a–d, as cos(φ/2), cos φ, sin φ (φi = φr − φ is then turned from ωo's azimuth, no
-            // arctangent) and |φ|, each from the half angle: cos(φ/2) stays accurate where it vanishes (φ → ±π).
-            let (cos_half, cos_phi, sin_phi, abs_phi) = match LOBES[j] {
-                Lobe::Tt => {
-                    // φ = π + δ: cos(φ/2) = |sin(δ/2)|, cos φ = −cos δ, sin φ = −sin δ, |φ| = π − |δ|.
-                    let delta = self.tt.sample_f32(u[2]) as f32;
-                    let (s, c) = (0.5 * delta).sin_cos();
-                    (s.abs(), 2.0 * s * s - 1.0, -2.0 * s * c, PI - delta.abs())
-                }
-                Lobe::Glint => {
-                    // |φ| = ψ ∈ [0, π/2], the sign by the remainder of the lobe choice.
-                    let psi = self.glint.sample_f32(u[2]) as f32;
-                    let (s, c) = (0.5 * psi).sin_cos();
-                    let sin_psi = 2.0 * s * c;
-                    (
-                        c,
-                        1.0 - 2.0 * s * s,
-                        if v < 0.5 { sin_psi } else { -sin_psi },
-                        psi,
-                    )
-                }
-                _ => {
-                    // eq. 12 by double angles (`phi_eq12_parts`); |φ| ∈ [0, π] from its cosine and |sine|.
-                    let (c, cos_phi, sin_phi) = phi_eq12_parts(u[2]);
-                    (c, cos_phi, sin_phi, atan2(sin_phi.abs(), cos_phi))
-                }
+    }
+
+    #[inline(always)]
+    fn eval_view<R: Real>(&self, v: &IsHairView<R>, wi: [R; 3]) -> EvalOf<R> {
+        let a = Pair::of_directions(v, wi);
+        EvalOf {
+            lobes: self.lobes_at(v, &a),
+            pdf: self.pdf_at(v, &a),
+        }
+    }
+
+    #[inline(always)]
+    fn sample_view<R: Real>(&self, v: &IsHairView<R>, u: [R; 3]) -> SampleOf<R> {
+        if self.params.sampling == Sampling::Uniform {
+            // The sphere, the baseline of thesis §7 (`uniform_sphere`, lane by lane: the one implementation).
+            let wi = per_lane(|k| uniform_sphere(u[0].lane(k), u[1].lane(k)).to_array());
+            return SampleOf {
+                wi,
+                eval: self.eval_view(v, wi),
+                lobe: R::splat(-1.0),
             };
-            let wi = from_sin_cos_theta_and_relative_azimuth(sc_i.0, sc_i.1, wo, cos_phi, sin_phi);
-            let a = Angles::from_sampled(theta_o, sc_o, theta_i, sc_i, cos_half, cos_phi, sin_phi);
-            (a, abs_phi, wi, LOBES[j])
-        };
-        // One set of angles and one |φ| for f and for the mixture pdf.
-        let f = self.lobes_at(&a, abs_phi).sum();
-        super::make_sample(
+        }
+        // Diffuse or specular by u0 against p_s; then one set of angles for f and for the mixture pdf.
+        let (wi, a, lobe) = branch::<R, _>(
+            u[0].lt(v.p_s),
+            || self.sample_specular_lanes(v, u),
+            || self.sample_diffuse_lanes(v, u),
+            |m, s, d| {
+                (
+                    blend(m, s.0, d.0),
+                    Pair::blend(m, s.1, d.1),
+                    R::select(m, s.2, d.2),
+                )
+            },
+        );
+        SampleOf {
             wi,
-            f,
-            self.pdf_at(&a, theta_o, abs_phi, &widths),
-            a.cos_theta_i,
-            Some(lobe),
-        )
+            eval: EvalOf {
+                lobes: self.lobes_at(v, &a),
+                pdf: self.pdf_at(v, &a),
+            },
+            lobe,
+        }
+    }
+}
+
+/// The scalar form: the generic code at `R = f32` ([`At`]; ISHair does not read h).
+impl Bsdf for IsHair {
+    #[inline]
+    fn eval_lobes(&self, wo: Vec3, wi: Vec3) -> LobeValues {
+        At {
+            model: self,
+            h: 0.0,
+        }
+        .eval_lobes(wo, wi)
     }
 
-    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        if self.params.sampling == Sampling::Uniform {
-            return UNIFORM_SPHERE_PDF;
+    #[inline]
+    fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
+        self.eval_lobes(wo, wi).sum()
+    }
+
+    #[inline]
+    fn sample(&self, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
+        At {
+            model: self,
+            h: 0.0,
         }
-        let theta_o = theta(wo);
-        let a = Angles::new(wo, wi);
-        self.pdf_at(&a, theta_o, a.phi(), &self.theta_h_widths(theta_o))
+        .sample(wo, u)
+    }
+
+    #[inline]
+    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        At {
+            model: self,
+            h: 0.0,
+        }
+        .pdf(wo, wi)
     }
 }
 
 #[cfg(test)]
 mod tests {
+    use super::super::lanes::{directions, InLanes};
     use super::super::testing::{self, mean, wo_at};
     use super::*;
+    use rand::Rng;
+    use rand_pcg::Pcg32;
+    use wide::f32x8;
 
     /// θo of the furnace grid, degrees.
     const THETA_O_DEG: [f32; 5] = [-80.0, -40.0, 0.0, 30.0, 75.0];
@@ -529,6 +979,15 @@ mod tests {
         let mut p = IsHairParams::default();
         f(&mut p);
         IsHair::new(p).unwrap()
+    }
+
+    /// The two forms every check runs on: the scalar [`Bsdf`] (the generic code at f32, through [`At`]) and the
+    /// eight-lane form (the generic code at f32x8, each query in one lane of a batch: [`InLanes`]).
+    fn forms(m: &IsHair) -> [(&'static str, Box<dyn Bsdf + '_>); 2] {
+        [
+            ("scalar", Box::new(*m)),
+            ("lanes", Box::new(InLanes { model: m, h: 0.3 })),
+        ]
     }
 
     /// Only the specular lobes, all colours white, w_s = 1, all longitudinal widths β.
@@ -552,90 +1011,111 @@ mod tests {
         // θo ∈ ±80° and β ∈ {0.5° .. 30°} is asserted against the measured range, and checked to scale with β
         // as ∫M = β√(2π) predicts where the lobe is not cut (R at θo = 0: ≈ 8√(2π) β ≈ 20 β, times
         // cos²θi/cos²θd = cos²2α/cos²α at the peak).
-        let mut ranges = [(f32::MAX, f32::MIN); 4];
-        for beta in [0.5, 2.0, 5.0, 10.0, 20.0, 30.0] {
-            let m = white_lobes(beta);
-            for t in THETA_O_DEG {
-                let a = testing::albedo(&m, wo_at(t));
-                let v = [a.r.x, a.tt.x, a.trt.x, a.glint.x];
-                for k in 0..4 {
-                    ranges[k] = (ranges[k].0.min(v[k]), ranges[k].1.max(v[k]));
-                }
-                if t == 0.0 && beta <= 5.0 {
-                    let alpha = m.params().alpha_r;
-                    let tilt = ((2.0 * alpha).cos() / alpha.cos()).powi(2);
-                    let want = 8.0 * std::f32::consts::TAU.sqrt() * beta.to_radians() * tilt;
-                    assert!(
-                        (a.r.x / want - 1.0).abs() < 0.05,
-                        "β {beta}°: R albedo {} vs 20β = {want}",
-                        a.r.x
-                    );
+        for form in 0..2 {
+            let mut ranges = [(f32::MAX, f32::MIN); 4];
+            let mut name = "";
+            for beta in [0.5, 2.0, 5.0, 10.0, 20.0, 30.0] {
+                let m = white_lobes(beta);
+                let (form_name, b) = forms(&m).into_iter().nth(form).unwrap();
+                name = form_name;
+                for t in THETA_O_DEG {
+                    let a = testing::albedo(b.as_ref(), wo_at(t));
+                    let v = [a.r.x, a.tt.x, a.trt.x, a.glint.x];
+                    for k in 0..4 {
+                        ranges[k] = (ranges[k].0.min(v[k]), ranges[k].1.max(v[k]));
+                    }
+                    if t == 0.0 && beta <= 5.0 {
+                        let alpha = m.params().alpha_r;
+                        let tilt = ((2.0 * alpha).cos() / alpha.cos()).powi(2);
+                        let want = 8.0 * std::f32::consts::TAU.sqrt() * beta.to_radians() * tilt;
+                        assert!(
+                            (a.r.x / want - 1.0).abs() < 0.05,
+                            "{name} β {beta}°: R albedo {} vs 20β = {want}",
+                            a.r.x
+                        );
+                    }
                 }
             }
-        }
-        // Measured: the widest lobes reach 11.6 (R at θo = −80°, β = 30°), TRT and the glint
-        // vanish where their shifted peak leaves the sphere (θo = −80°, β = 0.5°: θi = 2α_TRT − θo = 102.5°).
-        let want = [(0.0013, 11.61), (0.0032, 1.054), (0.0, 10.83), (0.0, 3.518)];
-        for (k, name) in ["R", "TT", "TRT-g", "g"].iter().enumerate() {
-            let (lo, hi) = ranges[k];
-            assert!(
-                close(lo, want[k].0) && close(hi, want[k].1),
-                "{name} albedo range [{lo}, {hi}]"
-            );
+            // Measured: the widest lobes reach 11.6 (R at θo = −80°, β = 30°), TRT and the glint
+            // vanish where their shifted peak leaves the sphere (θo = −80°, β = 0.5°: θi = 2α_TRT − θo = 102.5°).
+            let want = [(0.0013, 11.61), (0.0032, 1.054), (0.0, 10.83), (0.0, 3.518)];
+            for (k, lobe) in ["R", "TT", "TRT-g", "g"].iter().enumerate() {
+                let (lo, hi) = ranges[k];
+                assert!(
+                    close(lo, want[k].0) && close(hi, want[k].1),
+                    "{name} {lobe} albedo range [{lo}, {hi}]"
+                );
+            }
         }
     }
 
     #[test]
     fn white_furnace_default_model() {
         let m = IsHair::new(IsHairParams::default()).unwrap();
-        let (mut lo, mut hi) = (f64::MAX, f64::MIN);
-        for t in THETA_O_DEG {
-            let a = testing::albedo(&m, wo_at(t));
-            let total = mean(a.sum());
-            assert!((mean(a.diffuse) - 0.175).abs() < 1e-3);
-            (lo, hi) = (lo.min(total), hi.max(total));
+        for (name, b) in forms(&m) {
+            let (mut lo, mut hi) = (f64::MAX, f64::MIN);
+            for t in THETA_O_DEG {
+                let a = testing::albedo(b.as_ref(), wo_at(t));
+                let total = mean(a.sum());
+                assert!((mean(a.diffuse) - 0.175).abs() < 1e-3, "{name}");
+                (lo, hi) = (lo.min(total), hi.max(total));
+            }
+            // Measured: the default colours keep the whole model below 1 over θo ∈ ±80°.
+            assert!(
+                close(lo as f32, 0.526) && close(hi as f32, 0.726),
+                "{name}: [{lo}, {hi}]"
+            );
         }
-        // Measured: the default colours keep the whole model below 1 over θo ∈ ±80°.
-        assert!(
-            close(lo as f32, 0.526) && close(hi as f32, 0.726),
-            "[{lo}, {hi}]"
-        );
     }
 
     #[test]
     fn estimated_energies_match_furnace_at_normal_view() {
         // E_X takes cos²θi/cos²θd at the peak only, so it is an estimate: within 5% of the furnace at θo = 0.
         let m = white_lobes(5.0);
-        let a = testing::albedo(&m, wo_at(0.0));
         let e = m.estimated_energies();
-        for (k, got) in [a.r.x, a.tt.x, a.trt.x, a.glint.x].iter().enumerate() {
-            assert!(
-                (e[k] / got - 1.0).abs() < 0.05,
-                "lobe {k}: estimate {} vs furnace {got}",
-                e[k]
-            );
+        for (name, b) in forms(&m) {
+            let a = testing::albedo(b.as_ref(), wo_at(0.0));
+            for (k, got) in [a.r.x, a.tt.x, a.trt.x, a.glint.x].iter().enumerate() {
+                assert!(
+                    (e[k] / got - 1.0).abs() < 0.05,
+                    "{name} lobe {k}: estimate {} vs furnace {got}",
+                    e[k]
+                );
+            }
         }
     }
 
     #[test]
     fn sampler_chi_square() {
+        let mut models = Vec::new();
         for selection in [LobeSelection::Uniform, LobeSelection::ByEnergy] {
-            let m = with(|p| p.selection = selection);
-            testing::chi_square_battery(&format!("ishair {selection:?}"), &m, &CHI2_THETA_O_DEG);
+            models.push((
+                format!("ishair {selection:?}"),
+                with(|p| p.selection = selection),
+                &CHI2_THETA_O_DEG[..],
+            ));
         }
         // Narrow lobes and a Fresnel balance.
-        let m = with(|p| {
-            p.beta_r = 2f32.to_radians();
-            p.gamma_tt = 5f32.to_radians();
-            p.gamma_g = 5f32.to_radians();
-            p.balance = Balance::Fresnel { eta: 1.55 };
-        });
-        testing::chi_square_battery("ishair narrow", &m, &CHI2_THETA_O_DEG);
-        testing::chi_square_battery(
-            "ishair uniform",
-            &with(|p| p.sampling = Sampling::Uniform),
+        models.push((
+            "ishair narrow".to_string(),
+            with(|p| {
+                p.beta_r = 2f32.to_radians();
+                p.gamma_tt = 5f32.to_radians();
+                p.gamma_g = 5f32.to_radians();
+                p.balance = Balance::Fresnel { eta: 1.55 };
+            }),
+            &CHI2_THETA_O_DEG[..],
+        ));
+        models.push((
+            "ishair uniform".to_string(),
+            with(|p| p.sampling = Sampling::Uniform),
             &CHI2_THETA_O_DEG[..2],
-        );
+        ));
+        for (name, m, thetas) in &models {
+            for (form, b) in forms(m) {
+                testing::chi_square_battery(&format!("{name} {form}"), b.as_ref(), thetas);
+            }
+        }
     }
 
     #[test]
@@ -645,19 +1125,21 @@ mod tests {
             ("by energy", with(|p| p.selection = LobeSelection::ByEnergy)),
             ("uniform sphere", with(|p| p.sampling = Sampling::Uniform)),
         ] {
-            for t in [-60.0, 0.0, 45.0] {
-                let wo = wo_at(t);
-                let integral = testing::pdf_integral(&m, wo);
-                assert!(
-                    (integral - 1.0).abs() < 2e-3,
-                    "{name} θo {t}°: ∫ pdf = {integral}"
-                );
-                testing::assert_sampled_furnace_matches(
-                    &format!("ishair {name} θo {t}°"),
-                    &m,
-                    wo,
-                    0.01,
-                );
+            for (form, b) in forms(&m) {
+                for t in [-60.0, 0.0, 45.0] {
+                    let wo = wo_at(t);
+                    let integral = testing::pdf_integral(b.as_ref(), wo);
+                    assert!(
+                        (integral - 1.0).abs() < 2e-3,
+                        "{name} {form} θo {t}°: ∫ pdf = {integral}"
+                    );
+                    testing::assert_sampled_furnace_matches(
+                        &format!("ishair {name} {form} θo {t}°"),
+                        b.as_ref(),
+                        wo,
+                        0.01,
+                    );
+                }
             }
         }
     }
@@ -679,24 +1161,34 @@ mod tests {
                     p.sampling = sampling;
                 })
             };
-            let se = |m: IsHair| testing::sampled_furnace(&m, wo, 200_000, 1).1;
-            let se_u = se(build(LobeSelection::Uniform, Sampling::ExactPdf));
-            let se_e = se(build(LobeSelection::ByEnergy, Sampling::ExactPdf));
-            let se_s = se(build(LobeSelection::Uniform, Sampling::Uniform));
-            assert!(
-                se_u < se_s && se_e < se_s,
-                "{name}: standard errors by energy {se_e}, uniform selection {se_u}, uniform sphere {se_s}"
-            );
-            if faint {
-                assert!(se_e < 0.9 * se_u, "{name}: {se_e} vs {se_u}");
+            for form in 0..2 {
+                let se = |m: IsHair| {
+                    let (_, b) = forms(&m).into_iter().nth(form).unwrap();
+                    testing::sampled_furnace(b.as_ref(), wo, 200_000, 1).1
+                };
+                let se_u = se(build(LobeSelection::Uniform, Sampling::ExactPdf));
+                let se_e = se(build(LobeSelection::ByEnergy, Sampling::ExactPdf));
+                let se_s = se(build(LobeSelection::Uniform, Sampling::Uniform));
+                assert!(
+                    se_u < se_s && se_e < se_s,
+                    "{name} form {form}: standard errors by energy {se_e}, uniform selection {se_u}, uniform \
+                     sphere {se_s}"
+                );
+                if faint {
+                    assert!(se_e < 0.9 * se_u, "{name} form {form}: {se_e} vs {se_u}");
+                }
             }
         }
     }
 
     #[test]
     fn reciprocity() {
-        testing::assert_reciprocal(&with(|_| ()), true);
-        testing::assert_reciprocal(&with(|p| p.balance = Balance::Fresnel { eta: 1.55 }), false);
+        let m = with(|_| ());
+        let fresnel = with(|p| p.balance = Balance::Fresnel { eta: 1.55 });
+        for ((_, b), (_, f)) in forms(&m).into_iter().zip(forms(&fresnel)) {
+            testing::assert_reciprocal(b.as_ref(), true);
+            testing::assert_reciprocal(f.as_ref(), false);
+        }
     }
 
     #[test]
@@ -723,10 +1215,14 @@ mod tests {
                         p.selection = selection;
                         p.sampling = sampling;
                     });
-                    testing::assert_finite_sweep(
-                        &format!("ishair β {beta}° γ {gamma} {selection:?} {sampling:?}"),
-                        &m,
-                    );
+                    for (form, b) in forms(&m) {
+                        testing::assert_finite_sweep(
+                            &format!(
+                                "ishair {form} β {beta}° γ {gamma} {selection:?} {sampling:?}"
+                            ),
+                            b.as_ref(),
+                        );
+                    }
                 }
             }
         }
@@ -738,25 +1234,260 @@ mod tests {
             p.color_trt = Vec3::ZERO;
             p.selection = LobeSelection::ByEnergy;
         });
-        testing::assert_finite_sweep("ishair black", &m);
+        for (form, b) in forms(&m) {
+            testing::assert_finite_sweep(&format!("ishair black {form}"), b.as_ref());
+        }
     }
 
     #[test]
     fn lobe_shapes() {
         let m = white_lobes(5.0);
-        let az = super::super::lobe_curves::azimuthal_lobes(&m, 0.0, 0.0, 721);
-        let argmax = |f: &dyn Fn(&LobeValues) -> f32| {
-            az.iter()
-                .fold(
-                    (0.0f32, f32::MIN),
-                    |b, (p, l)| if f(l) > b.1 { (*p, f(l)) } else { b },
-                )
-                .0
+        for (name, b) in forms(&m) {
+            let az = super::super::lobe_curves::azimuthal_lobes(b.as_ref(), 0.0, 0.0, 721);
+            let argmax = |f: &dyn Fn(&LobeValues) -> f32| {
+                az.iter()
+                    .fold(
+                        (0.0f32, f32::MIN),
+                        |b, (p, l)| if f(l) > b.1 { (*p, f(l)) } else { b },
+                    )
+                    .0
+            };
+            // TT peaks at φ = ±π (forward scattering), the glints at ±φ_g, R at φ = 0.
+            assert!((argmax(&|l| l.tt.x).abs() - PI).abs() < 0.01, "{name}");
+            assert!(
+                (argmax(&|l| l.glint.x).abs() - m.params().phi_g).abs() < 0.01,
+                "{name}"
+            );
+            assert!(argmax(&|l| l.r.x).abs() < 0.01, "{name}");
+        }
+    }
+
+    /// Every selection, sampling and balance mode, with the default widths and with narrow ones.
+    fn every_mode() -> Vec<(String, IsHair)> {
+        let mut v = Vec::new();
+        for selection in [LobeSelection::Uniform, LobeSelection::ByEnergy] {
+            for sampling in [Sampling::ExactPdf, Sampling::Uniform] {
+                for balance in [
+                    Balance::default(),
+                    Balance::Sum,
+                    Balance::Fresnel { eta: 1.55 },
+                ] {
+                    for narrow in [false, true] {
+                        let m = with(|p| {
+                            p.selection = selection;
+                            p.sampling = sampling;
+                            p.balance = balance;
+                            if narrow {
+                                p.beta_r = 0.5f32.to_radians();
+                                p.beta_tt = 1f32.to_radians();
+                                p.gamma_tt = 2f32.to_radians();
+                                p.gamma_g = 2f32.to_radians();
+                            }
+                        });
+                        let name =
+                            format!("{selection:?} {sampling:?} {balance:?} narrow {narrow}");
+                        v.push((name, m));
+                    }
+                }
+            }
+        }
+        v
+    }
+
+    /// |a − b| within `rel` of the larger, or below 1e-30.
+    fn near(a: f32, b: f32, rel: f32) -> bool {
+        (a - b).abs() <= rel * a.abs().max(b.abs()) + 1e-30
+    }
+
+    #[test]
+    fn lanes_match_the_scalar_form_lane_by_lane() {
+        // The same generic code at f32 and f32x8 differs only in the exponential, sine and cosine (libm against
+        // `wide`'s polynomials): f per lobe and the pdf within 1e-5 (relative) at random pairs, eight different
+        // views per batch; a sample draws the same lobe and, within 1e-5, the same direction.
+        let mut rng = Pcg32::new(31, 4);
+        let dir = |rng: &mut Pcg32| uniform_sphere(rng.random(), rng.random());
+        for (name, m) in every_mode() {
+            let (mut worst_f, mut worst_pdf, mut worst_wi) = (0.0f32, 0.0f32, 0.0f32);
+            let mut draws = [0usize; 6];
+            let mut stretched = 0;
+            for _ in 0..500 {
+                let wo: [Vec3; LANES] = std::array::from_fn(|_| dir(&mut rng));
+                let wi: [Vec3; LANES] = std::array::from_fn(|_| dir(&mut rng));
+                let u: [[f32; 3]; LANES] = std::array::from_fn(|_| rng.random());
+                let h = f32x8::new(std::array::from_fn(|k| k as f32 / 4.0 - 0.9));
+                let view = m.view(h, directions(&wo));
+                let e = m.eval_view(&view, directions(&wi));
+                let u8: [f32x8; 3] = std::array::from_fn(|c| f32x8::new(u.map(|v| v[c])));
+                let s = m.sample_view(&view, u8);
+                for k in 0..LANES {
+                    let one = m.view(h.lane(k), wo[k].to_array());
+                    let (lobes, pdf) = e.lane(k);
+                    let (want_lobes, want_pdf) = m.eval_view(&one, wi[k].to_array()).lane(0);
+                    for lobe in Lobe::ALL {
+                        for c in 0..3 {
+                            let (got, want) = (lobes.get(lobe)[c], want_lobes.get(lobe)[c]);
+                            assert!(
+                                near(got, want, 1e-5),
+                                "{name}: {lobe:?} lane {got} vs scalar {want} at wo {} wi {}",
+                                wo[k],
+                                wi[k]
+                            );
+                            worst_f = worst_f.max((got - want).abs() / want.abs().max(1e-30));
+                        }
+                    }
+                    assert!(near(pdf, want_pdf, 1e-5), "{name}: pdf {pdf} vs {want_pdf}");
+                    worst_pdf = worst_pdf.max((pdf - want_pdf).abs() / want_pdf.max(1e-30));
+                    // The sample: same lobe, same direction. The two forms' sines and cosines differ by a few ulp,
+                    // which draws at CDF levels ~1e-7 apart; where a narrow lobe's Cauchy tail stretches the
+                    // inverse CDF (dθh/dξ = (A − B)β(1 + x²), up to ~1e3), that moves ωi by more than 1e-5. So ωi is
+                    // held to 1e-5 plus how far the scalar sample itself moves with ξ1, ξ2 changed by 1e-6; f and
+                    // the pdf to 1e-3 (relative), or to what the scalar samples span there.
+                    let want = m.sample_view(&one, u[k]);
+                    assert_eq!(s.lobe.lane(k), want.lobe, "{name}: lobe at u {:?}", u[k]);
+                    let moved: Vec<SampleOf<f32>> = [(1, 1e-6), (1, -1e-6), (2, 1e-6), (2, -1e-6)]
+                        .iter()
+                        .map(|&(c, du)| {
+                            let mut v = u[k];
+                            v[c] = (v[c] + du).clamp(0.0, 1.0 - f32::EPSILON / 2.0);
+                            m.sample_view(&one, v)
+                        })
+                        .collect();
+                    let spread = moved
+                        .iter()
+                        .map(|t| (t.wi(0) - want.wi(0)).length())
+                        .fold(0.0f32, f32::max);
+                    let d = (s.wi(k) - want.wi(0)).length();
+                    assert!(
+                        d < 1e-5 + spread,
+                        "{name}: wi {} vs {} (u {:?}, scalar spread {spread})",
+                        s.wi(k),
+                        want.wi(0),
+                        u[k]
+                    );
+                    if d >= 1e-5 {
+                        stretched += 1;
+                    }
+                    worst_wi = worst_wi.max(d);
+                    let within = |x8: f32, x1: f32, of: &dyn Fn(&SampleOf<f32>) -> f32| {
+                        near(x8, x1, 1e-3)
+                            || moved.iter().any(|t| {
+                                let y = of(t);
+                                (x8 - x1).abs() <= (y - x1).abs() * 2.0 + 1e-30
+                            })
+                    };
+                    let (p8, p1) = (s.eval.pdf.lane(k), want.eval.pdf);
+                    assert!(
+                        within(p8, p1, &|t| t.eval.pdf),
+                        "{name}: sample pdf {p8} vs {p1} (u {:?})",
+                        u[k]
+                    );
+                    let (f8, f1) = (s.eval.lobes.lane(k).sum(), want.eval.lobes.lane(0).sum());
+                    for c in 0..3 {
+                        assert!(
+                            within(f8[c], f1[c], &|t| t.eval.lobes.lane(0).sum()[c]),
+                            "{name}: sample f {f8} vs {f1} (u {:?})",
+                            u[k]
+                        );
+                    }
+                    draws[if want.lobe < 0.0 {
+                        5
+                    } else {
+                        want.lobe as usize
+                    }] += 1;
+                }
+            }
+            eprintln!(
+                "{name}: worst relative f {worst_f:e}, pdf {worst_pdf:e}; worst |Δwi| {worst_wi:e} ({stretched} of \
+                 4000 beyond 1e-5, within the scalar's own spread); draws per lobe (R, TT, TRT, g, d, uniform) \
+                 {draws:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn lobe_exponential_agrees_in_both_forms() {
+        // `exp_lobe_real`: libm's e^x in f32, `wide`'s in f32x8, a few ulp apart; 0 at and below the cut in both.
+        let mut worst = 0.0f32;
+        for i in 0..=2000 {
+            let x = -(i as f32) * 0.05;
+            let one = exp_lobe_real(x);
+            let lanes = exp_lobe_real(f32x8::new(std::array::from_fn(|k| x + k as f32))).lane(0);
+            if x <= super::super::gaussian::EXP_LOBE_REAL_MIN {
+                assert_eq!((one, lanes), (0.0, 0.0), "e^{x}");
+            } else {
+                assert_eq!(one, x.exp());
+                worst = worst.max((lanes / one - 1.0).abs());
+            }
+        }
+        assert!(worst < 1e-6, "worst relative difference {worst:e}");
+    }
+
+    #[test]
+    fn lobe_indices_follow_lobe_all() {
+        for (k, lobe) in Lobe::ALL.into_iter().enumerate() {
+            assert_eq!(lobe_index(lobe), k as f32);
+        }
+    }
+
+    #[test]
+    fn atan2_matches_libm_in_both_forms() {
+        let mut worst = 0.0f32;
+        let mut check = |y: f32, x: f32| {
+            let one = atan2(y, x);
+            let lanes = atan2(
+                f32x8::splat(y),
+                f32x8::new([x, 1.0, -1.0, 0.0, x, 2.0, x, -3.0]),
+            );
+            assert_eq!(one.to_bits(), lanes.lane(0).to_bits(), "atan2({y}, {x})");
+            worst = worst.max((one - y.atan2(x)).abs());
         };
-        // TT peaks at φ = ±π (forward scattering), the glints at ±φ_g, R at φ = 0.
-        assert!((argmax(&|l| l.tt.x).abs() - PI).abs() < 0.01);
-        assert!((argmax(&|l| l.glint.x).abs() - m.params().phi_g).abs() < 0.01);
-        assert!(argmax(&|l| l.r.x).abs() < 0.01);
+        for i in 0..=400 {
+            for j in 0..=400 {
+                check(-2.0 + i as f32 * 0.01, -2.0 + j as f32 * 0.01);
+            }
+        }
+        for (y, x) in [
+            (1e-30, 1.0),
+            (1.0, 1e-30),
+            (-1.0, -1e-30),
+            (1e30, -1e30),
+            (0.0, -1.0),
+            (0.0, 1.0),
+        ] {
+            check(y, x);
+        }
+        // The series is off by < 2e-8; the rest is f32 rounding (2 ulps of π = 4.8e-7).
+        assert!(worst < 6e-7, "{worst}");
+        assert_eq!(atan2(0.0f32, 0.0), 0.0);
+        assert!(atan2(f32::NAN, 1.0).is_nan());
+    }
+
+    #[test]
+    fn theta_h_width_matches_f64() {
+        // The θh distributions over the grid of centres α, widths β and views θr, against the f64 width of
+        // `TruncatedCauchy::new` on the f64 range: A − B within 1e-6 (relative), in both forms, and the ends
+        // standardised alike (the sampler's tan B).
+        let (mut worst, mut worst_x) = (0.0f64, 0.0f64);
+        for (c, gamma, lo, hi) in testing::theta_h_grid() {
+            // The grid's centre, width and view are f32 values (θr = lo + hi to f64 rounding, exact in f32).
+            let (alpha, beta, theta_r) = (c as f32, gamma as f32, (lo + hi) as f32);
+            let exact = TruncatedCauchy::new(c, gamma, lo, hi);
+            let (l, h) = theta_h_range(theta_r);
+            let one = theta_h_distribution(alpha, beta, 1.0 / beta, l, h);
+            let (l, h) = theta_h_range(f32x8::splat(theta_r));
+            let lanes = theta_h_distribution(alpha, beta, 1.0 / beta, l, h);
+            for (width, x_lo) in [
+                (one.width(), one.x_lo()),
+                (lanes.width().lane(3), lanes.x_lo().lane(3)),
+            ] {
+                worst = worst.max((width as f64 - exact.width()).abs() / exact.width());
+                let want = (lo - c) / gamma;
+                worst_x = worst_x.max((x_lo as f64 - want).abs() / want.abs().max(1.0));
+            }
+        }
+        // The f32 ends (~1e-7 relative each), the fused product and the arctangent's 6e-7 absolute error.
+        assert!(worst < 1e-6, "worst relative error of A − B {worst:e}");
+        assert!(worst_x < 3e-7, "worst relative error of tan B {worst_x:e}");
     }
 
     #[test]
@@ -790,5 +1521,44 @@ mod tests {
         })
         .unwrap_err();
         assert!(e.to_string().contains("\"published\" is not available"));
+    }
+
+    #[test]
+    fn helpers_are_the_lobes() {
+        // m_x, n_r, n_tt and n_g, at one f32 and in lanes, multiply out to the lobes the model evaluates: at φ and
+        // θh known from the directions (θo = 20°, θi = −10°, φ = 50°, so θh = 5°, θd = 15°).
+        let m = white_lobes(5.0);
+        let p = *m.params();
+        let d = |x: f32| x.to_radians();
+        let (wo, wi) = (
+            super::super::frame::from_spherical(d(20.0), d(70.0)),
+            super::super::frame::from_spherical(d(-10.0), d(20.0)),
+        );
+        let l = m.eval_lobes(wo, wi);
+        let (theta_h, phi) = (d(5.0), d(50.0));
+        let s = p.balance.weights(0.0).1 / d(15.0).cos().powi(2);
+        let r = s * m_x(p.beta_r, p.alpha_r, theta_h) * n_r(phi);
+        let tt = s * m_x(p.beta_tt, p.alpha_tt, theta_h) * n_tt(p.gamma_tt, phi);
+        let trt = s * m_x(p.beta_trt, p.alpha_trt, theta_h) * n_r(phi);
+        let g = s * m_x(p.beta_trt, p.alpha_trt, theta_h) * n_g(p.gamma_g, p.phi_g, phi);
+        for (got, want) in [(l.r.x, r), (l.tt.x, tt), (l.trt.x, trt), (l.glint.x, g)] {
+            assert!(near(got, want, 2e-4), "{got} vs {want}");
+        }
+        let lanes = m_x(
+            f32x8::splat(p.beta_r),
+            f32x8::splat(p.alpha_r),
+            f32x8::splat(theta_h),
+        );
+        assert!(near(lanes.lane(7), m_x(p.beta_r, p.alpha_r, theta_h), 1e-6));
+        assert!(near(
+            n_g(
+                f32x8::splat(p.gamma_g),
+                f32x8::splat(p.phi_g),
+                f32x8::splat(-phi)
+            )
+            .lane(2),
+            n_g(p.gamma_g, p.phi_g, phi),
+            1e-6
+        ));
     }
 }
