@@ -594,20 +594,20 @@ impl TruncatedGaussian {
     }
 }
 
-/// The exponent below which [`exp_lobe_real`] returns 0: −87.3, where e^x leaves the normal f32 range
+/// The exponent below which [`exp_lobe_of`] returns 0: −87.3, where e^x leaves the normal f32 range
 /// (e^{−87.3} ≈ 1.2e-38) and where `wide`'s vector exponential returns 0.
-pub const EXP_LOBE_REAL_MIN: f32 = -87.3;
+pub const EXP_LOBE_MIN_OF: f32 = -87.3;
 
 /// [`exp_lobe`] over the number type [`Real`](crate::util::real::Real) (one f32 or eight lanes): e^x for the
-/// non-positive exponents of Gaussian lobes, 0 at and below [`EXP_LOBE_REAL_MIN`]. The cut is where `wide`'s f32x8
+/// non-positive exponents of Gaussian lobes, 0 at and below [`EXP_LOBE_MIN_OF`]. The cut is where `wide`'s f32x8
 /// exponential stops (it returns 0 there), so that both number types agree lane by lane; it drops values ≤ 1.2e-38
 /// (the edge of the normal f32 range, 1e-38 of a lobe's unit peak), which no pixel can show. When every lane is
 /// below, no exponential is taken (for f32 the comparison is the branch [`exp_lobe`] takes: narrow lobes underflow
 /// for most directions, and libm's underflow path is slow).
 #[inline(always)]
-pub fn exp_lobe_real<R: crate::util::real::Real>(x: R) -> R {
+pub fn exp_lobe_of<R: crate::util::real::Real>(x: R) -> R {
     let zero = R::splat(0.0);
-    let under = x.le(R::splat(EXP_LOBE_REAL_MIN));
+    let under = x.le(R::splat(EXP_LOBE_MIN_OF));
     if crate::util::real::RealMask::all(under) {
         return zero;
     }
@@ -618,7 +618,7 @@ pub fn exp_lobe_real<R: crate::util::real::Real>(x: R) -> R {
 /// (`inv_beta`): [`gaussian_exponent`] with the division taken once by the caller (a multiplication per call;
 /// differs from x/β by one rounding).
 #[inline(always)]
-pub fn gaussian_exponent_real<R: crate::util::real::Real>(inv_beta: R, x: R) -> R {
+pub fn gaussian_exponent_of<R: crate::util::real::Real>(inv_beta: R, x: R) -> R {
     let z = x * inv_beta;
     R::splat(-0.5) * z * z
 }
@@ -909,19 +909,6 @@ mod tests {
 // Over any `Real` (one f32 or eight lanes, `crate::util::real`): the pieces of the truncated Gaussian that the
 // fibre models' generic code samples and evaluates with, vectorised where f32 serves and lane by lane in f64 where
 // it does not (say so where it happens).
-
-/// [`exp_lobe`] over any [`Real`]: e^x for the (non-positive) exponents of Gaussian lobes, 0 below −104 without
-/// computing the exponential when no lane needs it (at `f32` a branch, so libm's underflow path is skipped as in
-/// [`exp_lobe`]). `f32x8`'s exponential is 0 from −87.3 down, where libm's gives subnormals (< 1.2e-38).
-#[inline(always)]
-pub fn exp_lobe_of<R: Real>(x: R) -> R {
-    let live = !x.lt(R::splat(-104.0));
-    if live.any() {
-        R::select(live, x.exp(), R::splat(0.0))
-    } else {
-        R::splat(0.0)
-    }
-}
 
 /// ½ erfc(z/√2) = Φ(−z) for z ≥ 0 over any [`Real`] (`upper_tail_f32`'s arithmetic, z in f32), 0 beyond
 /// `NEGLIGIBLE_TAIL`.

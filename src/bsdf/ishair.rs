@@ -50,7 +50,7 @@
 //! Precision: all arithmetic is f32. The θh ranges' standardised ends, which reach 1.5e4 for β = 1e-4, are kept
 //! exact by compensated sums ([`theta_h_distribution`]), so A − B is within 1e-6 of its f64 value; the Cauchy
 //! samplers draw the exact inverse CDF at a level within ~1e-6 of ξ ([`TruncatedCauchyOf::sample`]); the lobe
-//! exponentials are 0 below e^{−87.3} ([`exp_lobe_real`]). One lane and eight differ only in their exponential,
+//! exponentials are 0 below e^{−87.3} ([`exp_lobe_of`]). One lane and eight differ only in their exponential,
 //! sine and cosine (libm's against `wide`'s polynomials, a few ulp), tested lane by lane.
 //!
 //! # Parameters ([`IsHairParams`]; angles in radians)
@@ -72,7 +72,7 @@
 
 use super::cauchy::{TruncatedCauchy, TruncatedCauchyOf};
 use super::frame::COS_THETA_MIN;
-use super::gaussian::{exp_lobe_real, gaussian_exponent_real, gaussian_unit_integral};
+use super::gaussian::{exp_lobe_of, gaussian_exponent_of, gaussian_unit_integral};
 use super::kajiya_kay::{diffuse_f, diffuse_pdf, sample_diffuse, selection_probability};
 use super::lanes::{At, EvalOf, Fibre, LobesOf, SampleOf, LANES};
 use super::marschner::phi_eq12_parts;
@@ -198,25 +198,25 @@ pub struct IsHair {
 /// The exponent of M_X = e^{−(θh − α)²/2β²} (thesis eq. 15–16), given 1/β.
 #[inline(always)]
 fn m_exponent<R: Real>(inv_beta: R, alpha: R, theta_h: R) -> R {
-    gaussian_exponent_real(inv_beta, theta_h - alpha)
+    gaussian_exponent_of(inv_beta, theta_h - alpha)
 }
 
 /// The exponent of N_TT = e^{−(π − |φ|)²/2γ²} (eq. 17, π − φ as the distance to π), given 1/γ and |φ|.
 #[inline(always)]
 fn n_tt_exponent<R: Real>(inv_gamma_tt: R, abs_phi: R) -> R {
-    gaussian_exponent_real(inv_gamma_tt, R::splat(PI) - abs_phi)
+    gaussian_exponent_of(inv_gamma_tt, R::splat(PI) - abs_phi)
 }
 
 /// The exponent of N_g = e^{−(|φ| − φ_g)²/2γ_g²} (eq. 17), given 1/γ_g and |φ|.
 #[inline(always)]
 fn n_g_exponent<R: Real>(inv_gamma_g: R, phi_g: R, abs_phi: R) -> R {
-    gaussian_exponent_real(inv_gamma_g, abs_phi - phi_g)
+    gaussian_exponent_of(inv_gamma_g, abs_phi - phi_g)
 }
 
 /// M_X = e^{−(θh − α)²/2β²} (thesis eq. 15–16), unit height.
 #[inline]
 pub fn m_x<R: Real>(beta: R, alpha: R, theta_h: R) -> R {
-    exp_lobe_real(m_exponent(R::splat(1.0) / beta, alpha, theta_h))
+    exp_lobe_of(m_exponent(R::splat(1.0) / beta, alpha, theta_h))
 }
 
 /// N_R = N_TRT−g = cos(φ/2) (eq. 17).
@@ -228,13 +228,13 @@ pub fn n_r<R: Real>(phi: R) -> R {
 /// N_TT = e^{−(π − |φ|)²/2γ²} (eq. 17, π − φ as the distance to π).
 #[inline]
 pub fn n_tt<R: Real>(gamma_tt: R, phi: R) -> R {
-    exp_lobe_real(n_tt_exponent(R::splat(1.0) / gamma_tt, phi.abs()))
+    exp_lobe_of(n_tt_exponent(R::splat(1.0) / gamma_tt, phi.abs()))
 }
 
 /// N_g = e^{−(|φ| − φ_g)²/2γ_g²} (eq. 17): two glints at ±φ_g.
 #[inline]
 pub fn n_g<R: Real>(gamma_g: R, phi_g: R, phi: R) -> R {
-    exp_lobe_real(n_g_exponent(R::splat(1.0) / gamma_g, phi_g, phi.abs()))
+    exp_lobe_of(n_g_exponent(R::splat(1.0) / gamma_g, phi_g, phi.abs()))
 }
 
 /// The TT azimuth distribution (eq. 21b) in δ = φ − π wrapped: Cauchy(0, γ_TT) on [−π, π].
@@ -705,10 +705,10 @@ impl IsHair {
         let e_n_g = n_g_exponent(c(self.inv_gamma_g), c(p.phi_g), a.abs_phi);
         // N_R = N_TRT−g = cos(φ/2), from the half-angle vector (see `Pair`).
         let n_r = a.cos_half_phi;
-        let r = s * exp_lobe_real(e_r) * n_r;
-        let tt = s * exp_lobe_real(e_tt + e_n_tt);
-        let trt = s * exp_lobe_real(e_trt) * n_r;
-        let glint = s * c(p.glint) * exp_lobe_real(e_trt + e_n_g);
+        let r = s * exp_lobe_of(e_r) * n_r;
+        let tt = s * exp_lobe_of(e_tt + e_n_tt);
+        let trt = s * exp_lobe_of(e_trt) * n_r;
+        let glint = s * c(p.glint) * exp_lobe_of(e_trt + e_n_g);
         let coloured = |colour: Vec3, x: R| [c(colour.x) * x, c(colour.y) * x, c(colour.z) * x];
         LobesOf {
             r: coloured(p.color_r, r),
@@ -1406,13 +1406,13 @@ mod tests {
 
     #[test]
     fn lobe_exponential_agrees_in_both_forms() {
-        // `exp_lobe_real`: libm's e^x in f32, `wide`'s in f32x8, a few ulp apart; 0 at and below the cut in both.
+        // `exp_lobe_of`: libm's e^x in f32, `wide`'s in f32x8, a few ulp apart; 0 at and below the cut in both.
         let mut worst = 0.0f32;
         for i in 0..=2000 {
             let x = -(i as f32) * 0.05;
-            let one = exp_lobe_real(x);
-            let lanes = exp_lobe_real(f32x8::new(std::array::from_fn(|k| x + k as f32))).lane(0);
-            if x <= super::super::gaussian::EXP_LOBE_REAL_MIN {
+            let one = exp_lobe_of(x);
+            let lanes = exp_lobe_of(f32x8::new(std::array::from_fn(|k| x + k as f32))).lane(0);
+            if x <= super::super::gaussian::EXP_LOBE_MIN_OF {
                 assert_eq!((one, lanes), (0.0, 0.0), "e^{x}");
             } else {
                 assert_eq!(one, x.exp());

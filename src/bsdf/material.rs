@@ -1,26 +1,66 @@
-//! A fibre material ready to shade: the scattering model of a scene's `[material]`, built once per frame.
+//! A fibre material ready to shade: the scattering model of a scene's `[material]`, built once per frame, and what
+//! it hands the integrator at a hit.
 //!
-//! # Models that depend on the hit
-//!
-//! Marschner, ISHair and Kajiya-Kay are one [`Bsdf`] for every hit. Chiang et al. 2016 also depends on the offset
-//! h = sin γo of the hit across the fibre ([`super::chiang`]), which the [`Bsdf`] trait does not carry. Rather than
-//! widen the trait, a [`Material`] hands the integrator a per-hit [`HitBsdf`] from [`Material::at`]: for the fixed
-//! models a borrowed reference to the one model (no work), for Chiang the model at h
-//! ([`super::chiang::Chiang::at`]: an arcsine and a square root, on the stack). Nothing is allocated per hit or per
-//! sample, and the integrator computes h only when [`Material::uses_offset`] says the model reads it.
+//! Every model is one [`Fibre`] (written once over the number type, [`super::lanes`]). At a hit the material
+//! prepares it for the hit's offset h and ωo ([`Material::prepare`], as pbrt-v4's materials build a BxDF per hit):
+//! a [`PreparedBsdf`] for one shading point, a [`PreparedLanes`] for eight ([`Material::prepare_lanes`]). The
+//! integrator evaluates and samples those and names no model. Nothing is allocated per hit or per sample; the
+//! integrator computes h only when [`Material::uses_offset`] says the model reads it (Chiang et al.).
 
-use super::chiang::{Chiang, ChiangView};
+use super::chiang::Chiang;
+use super::ishair::IsHair;
+use super::kajiya_kay::KajiyaKay;
 use super::lanes::{At, EvalOf, Fibre, SampleOf};
+use super::marschner::Marschner;
 use super::{Bsdf, BsdfSample, LobeValues};
 use glam::Vec3;
 use wide::f32x8;
 
 /// The scattering model of a [`Material`].
+#[derive(Debug, Clone)]
 pub enum Scattering {
-    /// A model that is the same at every hit (Kajiya-Kay, Marschner, ISHair).
-    Fixed(Box<dyn Bsdf + Send + Sync>),
+    /// Kajiya & Kay 1989.
+    KajiyaKay(KajiyaKay),
+    /// Marschner's R lobes as Hery & Ramamoorthi sample them (thesis §4.2).
+    Marschner(Marschner),
+    /// ISHair (Ou et al. 2012, thesis §4.3).
+    IsHair(IsHair),
     /// Chiang et al. 2016, which depends on the hit's offset h across the fibre.
     Chiang(Chiang),
+}
+
+/// `$body` with `$m` bound to the model of a [`Scattering`]; in the second form, the result wrapped in the
+/// same-named variant of the enum `$out` (one arm per model, written once).
+macro_rules! per_model {
+    ($scattering:expr, $m:ident => $body:expr) => {
+        match $scattering {
+            Scattering::KajiyaKay($m) => $body,
+            Scattering::Marschner($m) => $body,
+            Scattering::IsHair($m) => $body,
+            Scattering::Chiang($m) => $body,
+        }
+    };
+    ($scattering:expr, $m:ident, $out:ident => $body:expr) => {
+        match $scattering {
+            Scattering::KajiyaKay($m) => $out::KajiyaKay($body),
+            Scattering::Marschner($m) => $out::Marschner($body),
+            Scattering::IsHair($m) => $out::IsHair($body),
+            Scattering::Chiang($m) => $out::Chiang($body),
+        }
+    };
+}
+
+/// `$body` with `$m` and `$v` bound to the model and view of a prepared enum (`$ty`: [`Viewed`] or
+/// [`PreparedLanes`]).
+macro_rules! per_prepared {
+    ($ty:ident, $prepared:expr, ($m:ident, $v:ident) => $body:expr) => {
+        match $prepared {
+            $ty::KajiyaKay(($m, $v)) => $body,
+            $ty::Marschner(($m, $v)) => $body,
+            $ty::IsHair(($m, $v)) => $body,
+            $ty::Chiang(($m, $v)) => $body,
+        }
+    };
 }
 
 /// A material ready to shade: the model and whether the strand colour tints its diffuse lobe.
@@ -34,79 +74,78 @@ pub struct Material {
 }
 
 impl Material {
-    /// Whether [`Material::at`] reads h (so the integrator need not compute it otherwise).
+    /// Whether the model reads the offset h (so the integrator need not compute it otherwise).
     #[inline]
     pub fn uses_offset(&self) -> bool {
-        matches!(self.scattering, Scattering::Chiang(_))
+        per_model!(&self.scattering, m => m.uses_offset())
     }
 
     /// The scattering of a hit of offset `h` across the fibre seen from `wo` (local frame), prepared once for every
-    /// light sample, material sample and pdf of the shading point ([`PreparedBsdf`]). With `view` false (a hit
-    /// that is not shaded further, e.g. a path's last vertex under light sampling alone) nothing is precomputed.
+    /// light sample, material sample and pdf of the shading point. With `view` false (a hit whose shading the
+    /// caller does in lanes, [`Material::prepare_lanes`]) nothing is computed until it is used.
     #[inline]
     pub fn prepare(&self, h: f32, wo: Vec3, view: bool) -> PreparedBsdf<'_> {
-        match &self.scattering {
-            Scattering::Chiang(c) if view => PreparedBsdf::Chiang {
-                model: c,
-                view: c.view(h, wo.to_array()),
-            },
-            _ => PreparedBsdf::Direct {
-                bsdf: self.at(h),
-                wo,
-            },
+        if !view {
+            return PreparedBsdf::Later(self, h, wo);
         }
+        let wo = wo.to_array();
+        PreparedBsdf::Viewed(per_model!(&self.scattering, m, Viewed => (m, m.view(h, wo))))
     }
 
-    /// The [`Bsdf`] at a hit of offset `h` = sin γo ∈ [−1, 1] across the fibre (ignored by the fixed models).
+    /// Eight hits prepared together, lane k at offset `h` lane k seen from `wo` lane k (local frames): the same
+    /// model as [`Material::prepare`] in f32×8 lanes.
+    #[inline]
+    pub fn prepare_lanes(&self, h: f32x8, wo: [f32x8; 3]) -> PreparedLanes<'_> {
+        per_model!(&self.scattering, m, PreparedLanes => (m, m.view(h, wo)))
+    }
+
+    /// The [`Bsdf`] at a hit of offset `h` = sin γo ∈ [−1, 1] across the fibre (ignored by the models that do not
+    /// read it), for tools that take any [`Bsdf`] (plots, albedo tables).
     #[inline]
     pub fn at(&self, h: f32) -> HitBsdf<'_> {
-        match &self.scattering {
-            Scattering::Fixed(b) => HitBsdf::Fixed(b.as_ref()),
-            Scattering::Chiang(c) => HitBsdf::Chiang(c.at(h)),
-        }
+        per_model!(&self.scattering, m, HitBsdf => At { model: m, h })
     }
 }
 
 /// The [`Bsdf`] of one hit ([`Material::at`]); a plain value, no allocation.
 #[derive(Clone, Copy)]
 pub enum HitBsdf<'a> {
-    /// A model that is the same at every hit.
-    Fixed(&'a (dyn Bsdf + Send + Sync)),
-    /// Chiang et al. at the hit's h.
+    #[allow(missing_docs)]
+    KajiyaKay(At<'a, KajiyaKay>),
+    #[allow(missing_docs)]
+    Marschner(At<'a, Marschner>),
+    #[allow(missing_docs)]
+    IsHair(At<'a, IsHair>),
+    #[allow(missing_docs)]
     Chiang(At<'a, Chiang>),
+}
+
+/// `$body` with `$b` bound to a [`HitBsdf`]'s model at its h.
+macro_rules! per_hit {
+    ($hit:expr, $b:ident => $body:expr) => {
+        match $hit {
+            HitBsdf::KajiyaKay($b) => $body,
+            HitBsdf::Marschner($b) => $body,
+            HitBsdf::IsHair($b) => $body,
+            HitBsdf::Chiang($b) => $body,
+        }
+    };
 }
 
 impl Bsdf for HitBsdf<'_> {
     #[inline]
     fn eval_lobes(&self, wo: Vec3, wi: Vec3) -> LobeValues {
-        match self {
-            HitBsdf::Fixed(b) => b.eval_lobes(wo, wi),
-            HitBsdf::Chiang(c) => c.eval_lobes(wo, wi),
-        }
-    }
-
-    #[inline]
-    fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
-        match self {
-            HitBsdf::Fixed(b) => b.eval(wo, wi),
-            HitBsdf::Chiang(c) => c.eval(wo, wi),
-        }
+        per_hit!(self, b => b.eval_lobes(wo, wi))
     }
 
     #[inline]
     fn sample(&self, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
-        match self {
-            HitBsdf::Fixed(b) => b.sample(wo, u),
-            HitBsdf::Chiang(c) => c.sample(wo, u),
-        }
+        per_hit!(self, b => b.sample(wo, u))
     }
 
     #[inline]
     fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
-        match self {
-            HitBsdf::Fixed(b) => b.pdf(wo, wi),
-            HitBsdf::Chiang(c) => c.pdf(wo, wi),
-        }
+        per_hit!(self, b => b.pdf(wo, wi))
     }
 }
 
@@ -119,27 +158,30 @@ impl std::fmt::Debug for Material {
     }
 }
 
-/// A hit's fibre scattering prepared for its ωo ([`Material::prepare`], as pbrt-v4's materials build a BxDF at
-/// each hit): what the integrator evaluates and samples, without knowing the model.
-// The Chiang variant carries its view terms (~150 bytes): a vertex lives on the stack for one path step, and boxing
-// it would allocate per vertex.
-#[allow(clippy::large_enum_variant)]
+/// A hit's fibre scattering prepared for its h and ωo ([`Material::prepare`]): what the integrator evaluates and
+/// samples, without knowing the model.
 #[derive(Clone, Copy)]
 pub enum PreparedBsdf<'a> {
-    /// A model evaluated from (ωo, ωi) at each call.
-    Direct {
-        /// The model at the hit.
-        bsdf: HitBsdf<'a>,
-        /// ωo, local frame.
-        wo: Vec3,
-    },
-    /// Chiang et al. with the terms of this ωo and h computed once.
-    Chiang {
-        /// The model.
-        model: &'a Chiang,
-        /// The terms of the hit's ωo and h.
-        view: ChiangView<f32>,
-    },
+    /// The model with the terms of this h and ωo.
+    Viewed(Viewed<'a>),
+    /// Not prepared yet: the material, h and ωo (local frame).
+    Later(&'a Material, f32, Vec3),
+}
+
+/// A model with the terms of one hit's h and ωo ([`PreparedBsdf::Viewed`]).
+// Chiang's variant carries its view terms (~120 bytes): a vertex lives on the stack for one path step, and boxing it
+// would allocate per vertex.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Copy)]
+pub enum Viewed<'a> {
+    #[allow(missing_docs)]
+    KajiyaKay((&'a KajiyaKay, <KajiyaKay as Fibre>::View<f32>)),
+    #[allow(missing_docs)]
+    Marschner((&'a Marschner, <Marschner as Fibre>::View<f32>)),
+    #[allow(missing_docs)]
+    IsHair((&'a IsHair, <IsHair as Fibre>::View<f32>)),
+    #[allow(missing_docs)]
+    Chiang((&'a Chiang, <Chiang as Fibre>::View<f32>)),
 }
 
 impl PreparedBsdf<'_> {
@@ -147,8 +189,10 @@ impl PreparedBsdf<'_> {
     #[inline]
     pub fn eval(&self, wi: Vec3) -> (LobeValues, f32) {
         match self {
-            PreparedBsdf::Direct { bsdf, wo } => (bsdf.eval_lobes(*wo, wi), bsdf.pdf(*wo, wi)),
-            PreparedBsdf::Chiang { model, view } => model.eval_view(view, wi.to_array()).lane(0),
+            PreparedBsdf::Viewed(p) => {
+                per_prepared!(Viewed, p, (m, v) => m.eval_view(v, wi.to_array()).lane(0))
+            }
+            PreparedBsdf::Later(material, h, wo) => material.prepare(*h, *wo, true).eval(wi),
         }
     }
 
@@ -156,69 +200,41 @@ impl PreparedBsdf<'_> {
     #[inline]
     pub fn sample(&self, u: [f32; 3]) -> Option<(BsdfSample, LobeValues)> {
         match self {
-            PreparedBsdf::Direct { bsdf, wo } => {
-                let s = bsdf.sample(*wo, u)?;
-                // The sample's pdf is the mixture pdf already; only the per-lobe split is evaluated.
-                let lobes = bsdf.eval_lobes(*wo, s.wi);
-                Some((s, lobes))
-            }
-            PreparedBsdf::Chiang { model, view } => {
-                let s = model.sample_view(view, u);
+            PreparedBsdf::Viewed(p) => {
+                let s = per_prepared!(Viewed, p, (m, v) => m.sample_view(v, u));
                 Some((s.to_sample(0)?, s.eval.lobes.lane(0)))
             }
-        }
-    }
-}
-
-impl Material {
-    /// Whether the model has a form in lanes ([`Material::prepare_lanes`]).
-    pub fn has_lanes(&self) -> bool {
-        matches!(self.scattering, Scattering::Chiang(_))
-    }
-
-    /// Eight hits prepared together, lane k at offset `h` lane k seen from `wo` lane k (local frames): the same
-    /// model as [`Material::prepare`] in f32×8 lanes ([`super::lanes`]). None for a model without a lane form
-    /// ([`Material::has_lanes`]).
-    #[inline]
-    pub fn prepare_lanes(&self, h: f32x8, wo: [f32x8; 3]) -> Option<PreparedLanes<'_>> {
-        match &self.scattering {
-            Scattering::Chiang(c) => Some(PreparedLanes::Chiang {
-                model: c,
-                view: c.view(h, wo),
-            }),
-            Scattering::Fixed(_) => None,
+            PreparedBsdf::Later(material, h, wo) => material.prepare(*h, *wo, true).sample(u),
         }
     }
 }
 
 /// Eight hits' fibre scattering prepared together ([`Material::prepare_lanes`]): what a batch of paths evaluates
 /// and samples in lanes, without knowing the model.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Copy)]
 pub enum PreparedLanes<'a> {
-    /// Chiang et al. with the terms of each lane's ωo and h.
-    Chiang {
-        /// The model.
-        model: &'a Chiang,
-        /// The terms per lane.
-        view: ChiangView<f32x8>,
-    },
+    #[allow(missing_docs)]
+    KajiyaKay((&'a KajiyaKay, <KajiyaKay as Fibre>::View<f32x8>)),
+    #[allow(missing_docs)]
+    Marschner((&'a Marschner, <Marschner as Fibre>::View<f32x8>)),
+    #[allow(missing_docs)]
+    IsHair((&'a IsHair, <IsHair as Fibre>::View<f32x8>)),
+    #[allow(missing_docs)]
+    Chiang((&'a Chiang, <Chiang as Fibre>::View<f32x8>)),
 }
 
 impl PreparedLanes<'_> {
     /// f per lobe and the pdf towards `wi` per lane (local frames).
     #[inline]
     pub fn eval(&self, wi: [f32x8; 3]) -> EvalOf<f32x8> {
-        match self {
-            PreparedLanes::Chiang { model, view } => model.eval_view(view, wi),
-        }
+        per_prepared!(PreparedLanes, self, (m, v) => m.eval_view(v, wi))
     }
 
     /// A sampled ωi per lane with the random numbers `u`, with f and the pdf there.
     #[inline]
     pub fn sample(&self, u: [f32x8; 3]) -> SampleOf<f32x8> {
-        match self {
-            PreparedLanes::Chiang { model, view } => model.sample_view(view, u),
-        }
+        per_prepared!(PreparedLanes, self, (m, v) => m.sample_view(v, u))
     }
 }
 
@@ -226,7 +242,7 @@ impl PreparedLanes<'_> {
 mod tests {
     use super::*;
     use crate::bsdf::chiang::ChiangParams;
-    use crate::bsdf::kajiya_kay::{KajiyaKay, KajiyaKayParams};
+    use crate::bsdf::kajiya_kay::KajiyaKayParams;
 
     #[test]
     fn chiang_material_depends_on_h_and_fixed_does_not() {
@@ -249,9 +265,9 @@ mod tests {
         let model = Chiang::new(ChiangParams::default()).unwrap();
         assert_eq!(chiang.at(0.6).eval(wo, wi), model.at(0.6).eval(wo, wi));
         let kk = Material {
-            scattering: Scattering::Fixed(Box::new(
+            scattering: Scattering::KajiyaKay(
                 KajiyaKay::from_params(KajiyaKayParams::default()).unwrap(),
-            )),
+            ),
             tint_diffuse_by_strand: true,
             name: "kajiya-kay",
         };

@@ -266,24 +266,6 @@ impl Balance {
     }
 }
 
-/// Completes a sample drawn by `model`'s sampler: f, the mixture pdf and the weight f · cos θi / pdf. `None` if the
-/// pdf is not positive (a direction the sampler cannot produce).
-#[inline]
-pub(crate) fn finish_sample<B: Bsdf + ?Sized>(
-    model: &B,
-    wo: Vec3,
-    wi: Vec3,
-    lobe: Option<Lobe>,
-) -> Option<BsdfSample> {
-    make_sample(
-        wi,
-        model.eval(wo, wi),
-        model.pdf(wo, wi),
-        frame::sin_cos_theta(wi).1,
-        lobe,
-    )
-}
-
 /// A [`BsdfSample`] from its parts, with the weight f · cos θi / pdf; `None` unless the pdf is positive.
 #[inline]
 pub(crate) fn make_sample(

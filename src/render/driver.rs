@@ -114,7 +114,7 @@ pub(super) fn render_tiles(
         }
         (None, None) => pixel_by_pixel(&Fixed {
             spp: settings.film.spp,
-            lanes: settings.integrator.shading == Shading::Lanes && context.integrator.lanes_fit(),
+            lanes: settings.integrator.shading == Shading::Lanes,
         }),
     };
     bar.finish_and_clear();

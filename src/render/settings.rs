@@ -180,8 +180,8 @@ pub enum LightSelection {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Shading {
-    /// The first vertices of eight camera samples shaded together where the frame fits (a material with a lane
-    /// form, `lights = "one"`, one light and one material sample, a fixed spp); elsewhere one at a time.
+    /// The first vertices of eight camera samples shaded together (every model; a fixed spp: adaptive sampling
+    /// and `--quality auto`'s pilots shade one at a time).
     #[default]
     Lanes,
     /// Every shading point one at a time.

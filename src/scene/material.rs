@@ -32,7 +32,7 @@ use crate::bsdf::chiang::{self, Chiang, ChiangParams};
 use crate::bsdf::ishair::{IsHair, IsHairParams, LobeSelection};
 use crate::bsdf::kajiya_kay::{KajiyaKay, KajiyaKayParams};
 use crate::bsdf::marschner::{Marschner, MarschnerParams};
-use crate::bsdf::{Balance, Bsdf, BsdfError, Material, Sampling, Scattering};
+use crate::bsdf::{Balance, BsdfError, Material, Sampling, Scattering};
 
 /// `[material]`, tagged by `model`.
 #[derive(Debug, Clone, Deserialize)]
@@ -441,9 +441,6 @@ impl MaterialConfig {
         // The models name their own parameters; prefix with the table so the user finds the key.
         let named = |e: crate::bsdf::BsdfError| format!("material: {e}");
         let white = |c: Option<[f32; 3]>| c.map_or(Vec3::ONE, Vec3::from);
-        let fixed = |b: Box<dyn Bsdf + Send + Sync>, color: Option<[f32; 3]>| {
-            (Scattering::Fixed(b), color.is_none())
-        };
         let (scattering, tint_diffuse_by_strand) = match self {
             MaterialConfig::KajiyaKay(c) => {
                 if !(..=MAX_KK_EXPONENT).contains(&c.exponent) {
@@ -466,7 +463,7 @@ impl MaterialConfig {
                     sampling: c.sampling.into(),
                 })
                 .map_err(named)?;
-                fixed(Box::new(model), c.color)
+                (Scattering::KajiyaKay(model), c.color.is_none())
             }
             MaterialConfig::Marschner(c) => {
                 check_widths(&[("beta_1", c.beta_1), ("beta_2", c.beta_2)])?;
@@ -488,7 +485,7 @@ impl MaterialConfig {
                     sampling: c.sampling.into(),
                 })
                 .map_err(named)?;
-                fixed(Box::new(model), c.color)
+                (Scattering::Marschner(model), c.color.is_none())
             }
             MaterialConfig::Ishair(c) => {
                 if !(..=MAX_GLINT).contains(&c.glint) {
@@ -538,7 +535,7 @@ impl MaterialConfig {
                     },
                 })
                 .map_err(named)?;
-                fixed(Box::new(model), c.color)
+                (Scattering::IsHair(model), c.color.is_none())
             }
             // No diffuse lobe: the strand colours of the file are unused.
             MaterialConfig::Chiang(c) => (

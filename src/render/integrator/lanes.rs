@@ -20,17 +20,11 @@ use super::{fcos, Draw, Integrator, PathSample, RayCounts, Surface, Vertex};
 type OnFibre<'v, 'a> = Option<(&'v Vertex<'a>, HairFrame, Vec3)>;
 
 impl<'a> Integrator<'a> {
-    /// Whether [`Integrator::sample_lanes`] can shade this frame's first vertices in lanes: a material with a lane
-    /// form.
-    pub fn lanes_fit(&self) -> bool {
-        self.material.has_lanes()
-    }
-
     /// [`Integrator::sample`] of eight camera samples (`rays[k]` with `samplers[k]`, sample `indices[k]`), their
     /// first vertices shaded together where they are on fibres: the light samples' f and pdf by
     /// [`PreparedLanes::eval`], the material samples by [`PreparedLanes::sample`], everything else (light choice,
     /// rays, MIS, the deeper vertices) per sample as [`Integrator::sample`] does it, in the same order, so that each
-    /// lane's result is the scalar path's bit for bit. Needs [`Integrator::lanes_fit`].
+    /// lane's result is the scalar path's bit for bit.
     pub fn sample_lanes(
         &self,
         rays: &[Ray; LANES],
@@ -68,10 +62,7 @@ impl<'a> Integrator<'a> {
             }));
             let wo_l: [Vec3; LANES] =
                 lanes.map(|l| l.map_or(Vec3::Y, |(v, frame, _)| frame.to_local(v.wo)));
-            let views = self
-                .material
-                .prepare_lanes(h, directions(&wo_l))
-                .expect("lanes_fit: a material with a lane form");
+            let views = self.material.prepare_lanes(h, directions(&wo_l));
             let batch = Batch {
                 lanes: &lanes,
                 views: &views,
