@@ -769,11 +769,11 @@ fn embrees_fur_ball_renders_alike_on_both_backends() {
 /// A small peer-like frame (`scenes/furball-peer.toml`'s settings on a procedural fur ball): Chiang, opaque
 /// strands, an environment and a sun, one light chosen per sample, one light and one material sample.
 fn peer_like(shading: &str) -> Scene {
-    peer_like_with(shading, "lights = \"one\"", "opacity = 1.0")
+    peer_like_with(shading, "lights = \"one\"", "opacity = 1.0", "chiang")
 }
 
 /// [`peer_like`] with other `[integrator]` lines, and `more` lines in `[hair]` followed by further tables.
-fn peer_like_with(shading: &str, integrator: &str, more: &str) -> Scene {
+fn peer_like_with(shading: &str, integrator: &str, more: &str, model: &str) -> Scene {
     parse(
         &format!(
             r#"
@@ -790,7 +790,7 @@ spp = 16
 aovs = ["albedo", "lobe_TT", "lobe_TRT", "direct", "indirect"]
 
 [material]
-model = "chiang"
+model = "{model}"
 
 [[light]]
 kind = "distant"
@@ -847,11 +847,15 @@ fn first_vertices_shaded_in_lanes_give_the_scalar_image_bit_for_bit() {
             "[[shape]]\nkind = \"quad\"\ncorner = [-3.0, -0.9, -3.0]\nedge_u = [6.0, 0.0, 0.0]\nedge_v = [0.0, 0.0, 6.0]\n",
         ),
     ] {
-        let (a, a_stats) = render_scene_with_stats(&peer_like_with("scalar", integrator, more), 2);
-        let (b, b_stats) = render_scene_with_stats(&peer_like_with("lanes", integrator, more), 2);
-        let differing = bit_differences(&a.data, &b.data);
-        assert_eq!(differing, 0, "{integrator} {more}: {differing} values differ");
-        assert_eq!(rays(&a_stats), rays(&b_stats), "{integrator} {more}");
+        // Every model, in turn, with each configuration.
+        for model in ["chiang", "marschner", "ishair", "kajiya-kay"] {
+            let scene = |shading| peer_like_with(shading, integrator, more, model);
+            let (a, a_stats) = render_scene_with_stats(&scene("scalar"), 2);
+            let (b, b_stats) = render_scene_with_stats(&scene("lanes"), 2);
+            let differing = bit_differences(&a.data, &b.data);
+            assert_eq!(differing, 0, "{model} {integrator} {more}: {differing} values differ");
+            assert_eq!(rays(&a_stats), rays(&b_stats), "{model} {integrator} {more}");
+        }
     }
 }
 

@@ -77,13 +77,13 @@ use super::kajiya_kay::{diffuse_f, diffuse_pdf, sample_diffuse, selection_probab
 use super::lanes::{At, EvalOf, Fibre, LobesOf, SampleOf, LANES};
 use super::marschner::phi_eq12_parts;
 use super::{
-    check, check_color, check_width, Balance, Bsdf, BsdfError, BsdfSample, Lobe, LobeValues,
-    Sampling,
+    check, check_color, check_width, make_sample, Balance, Bsdf, BsdfError, BsdfSample, Lobe,
+    LobeValues, Sampling,
 };
 use crate::util::color::luminance;
 use crate::util::real::{Real, RealMask};
 use crate::util::sampling::{uniform_sphere, UNIFORM_SPHERE_PDF};
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 use std::f32::consts::{FRAC_PI_2, FRAC_PI_4, PI};
 
 /// How the sample budget is split between the four specular lobes.
@@ -389,22 +389,20 @@ fn per_lane<R: Real, const N: usize>(mut f: impl FnMut(usize) -> [f32; N]) -> [R
     out
 }
 
-/// `a()` in the lanes where `m` is set and `b()` elsewhere, merged by `blend`; a side no lane needs is not computed
-/// (for one lane that is a branch, as a scalar sampler takes).
-#[inline(always)]
-fn branch<R: Real, T>(
-    m: R::Mask,
-    a: impl FnOnce() -> T,
-    b: impl FnOnce() -> T,
-    blend: impl FnOnce(R::Mask, T, T) -> T,
-) -> T {
-    if m.all() {
-        a()
-    } else if (!m).all() {
-        b()
-    } else {
-        blend(m, a(), b())
-    }
+/// `$a` in the lanes where the mask `$m` is set and `$b` elsewhere, merged by `$blend(mask, a, b)`; a side no lane
+/// needs is not computed (for one lane, `f32`, that is a branch, as a scalar sampler takes). A macro, not a function
+/// of closures: closures this large are called out of line, and their results pass through memory.
+macro_rules! branch {
+    ($m:expr, $a:expr, $b:expr, $blend:expr $(,)?) => {{
+        let m = $m;
+        if RealMask::all(m) {
+            $a
+        } else if RealMask::all(!m) {
+            $b
+        } else {
+            ($blend)(m, $a, $b)
+        }
+    }};
 }
 
 /// Per lane: `a` where `m` is set, else `b`, element by element.
@@ -688,9 +686,10 @@ impl IsHair {
         }
     }
 
-    /// Every lobe's f at the angles of a pair.
+    /// Every lobe's f at the angles of a pair, before its colour: the factors of C_R, C_TT, C_TRT (TRT − g), C_TRT
+    /// (the glint) and k_d/π² (the diffuse term).
     #[inline(always)]
-    fn lobes_at<R: Real>(&self, v: &IsHairView<R>, a: &Pair<R>) -> LobesOf<R> {
+    fn lobe_factors<R: Real>(&self, v: &IsHairView<R>, a: &Pair<R>) -> [R; 5] {
         let c = R::splat;
         let p = &self.params;
         // Guard: cos θd → 0 only for θr = −θi = ±π/2.
@@ -705,10 +704,21 @@ impl IsHair {
         let e_n_g = n_g_exponent(c(self.inv_gamma_g), c(p.phi_g), a.abs_phi);
         // N_R = N_TRT−g = cos(φ/2), from the half-angle vector (see `Pair`).
         let n_r = a.cos_half_phi;
-        let r = s * exp_lobe_of(e_r) * n_r;
-        let tt = s * exp_lobe_of(e_tt + e_n_tt);
-        let trt = s * exp_lobe_of(e_trt) * n_r;
-        let glint = s * c(p.glint) * exp_lobe_of(e_trt + e_n_g);
+        [
+            s * exp_lobe_of(e_r) * n_r,
+            s * exp_lobe_of(e_tt + e_n_tt),
+            s * exp_lobe_of(e_trt) * n_r,
+            s * c(p.glint) * exp_lobe_of(e_trt + e_n_g),
+            v.w_d,
+        ]
+    }
+
+    /// Every lobe's f at the angles of a pair, channel by channel.
+    #[inline(always)]
+    fn lobes_at<R: Real>(&self, v: &IsHairView<R>, a: &Pair<R>) -> LobesOf<R> {
+        let c = R::splat;
+        let p = &self.params;
+        let [r, tt, trt, glint, w_d] = self.lobe_factors(v, a);
         let coloured = |colour: Vec3, x: R| [c(colour.x) * x, c(colour.y) * x, c(colour.z) * x];
         LobesOf {
             r: coloured(p.color_r, r),
@@ -716,11 +726,28 @@ impl IsHair {
             trt: coloured(p.color_trt, trt),
             glint: coloured(p.color_trt, glint),
             diffuse: [
-                c(self.diffuse[0]) * v.w_d,
-                c(self.diffuse[1]) * v.w_d,
-                c(self.diffuse[2]) * v.w_d,
+                c(self.diffuse[0]) * w_d,
+                c(self.diffuse[1]) * w_d,
+                c(self.diffuse[2]) * w_d,
             ],
         }
+    }
+
+    /// f at one pair in f32, summed over the lobes with their colours as vectors: the scalar eval and sample's f,
+    /// the same products and the same order of sums as [`IsHair::lobes_at`] and [`LobeValues::sum`] (so equal to
+    /// that sum bit for bit), five vector multiplications instead of fifteen scalar ones.
+    #[inline(always)]
+    fn f_at(&self, v: &IsHairView<f32>, a: &Pair<f32>) -> Vec3 {
+        let p = &self.params;
+        let [r, tt, trt, glint, w_d] = self.lobe_factors(v, a);
+        let colour = |c: Vec3| Vec3A::from(c);
+        Vec3::from(
+            colour(p.color_r) * r
+                + colour(p.color_tt) * tt
+                + colour(p.color_trt) * trt
+                + colour(p.color_trt) * glint
+                + Vec3A::from_array(self.diffuse) * w_d,
+        )
     }
 
     /// The pdf with which [`Fibre::sample_view`] draws a pair: the whole mixture, Σ selection probability × lobe
@@ -802,9 +829,9 @@ impl IsHair {
         let sc_i = theta_i.sin_cos();
         // φ: eq. 21a–d, as cos(φ/2), cos φ, sin φ (φi = φr − φ is then turned from ωo's azimuth, no arctangent)
         // and |φ|, each from the half angle: cos(φ/2) stays accurate where it vanishes (φ → ±π).
-        let [cos_half, cos_phi, sin_phi, abs_phi] = branch::<R, _>(
+        let [cos_half, cos_phi, sin_phi, abs_phi] = branch!(
             is_r | is_trt,
-            || {
+            {
                 // R and TRT − g: eq. 12 by double angles (`phi_eq12_parts`, lane by lane: the one
                 // implementation); |φ| ∈ [0, π] from its cosine and |sine|.
                 let [c_half, cos_phi, sin_phi]: [R; 3] = per_lane(|k| {
@@ -813,7 +840,7 @@ impl IsHair {
                 });
                 [c_half, cos_phi, sin_phi, atan2(sin_phi.abs(), cos_phi)]
             },
-            || {
+            {
                 // TT (eq. 21b, δ = φ − π) and the glint (eq. 21d, ψ = |φ|): one Cauchy draw with the lobe's
                 // distribution, one half-angle sine and cosine.
                 let d = TruncatedCauchyOf::select(
@@ -888,28 +915,7 @@ impl Fibre for IsHair {
 
     #[inline(always)]
     fn sample_view<R: Real>(&self, v: &IsHairView<R>, u: [R; 3]) -> SampleOf<R> {
-        if self.params.sampling == Sampling::Uniform {
-            // The sphere, the baseline of thesis §7 (`uniform_sphere`, lane by lane: the one implementation).
-            let wi = per_lane(|k| uniform_sphere(u[0].lane(k), u[1].lane(k)).to_array());
-            return SampleOf {
-                wi,
-                eval: self.eval_view(v, wi),
-                lobe: R::splat(-1.0),
-            };
-        }
-        // Diffuse or specular by u0 against p_s; then one set of angles for f and for the mixture pdf.
-        let (wi, a, lobe) = branch::<R, _>(
-            u[0].lt(v.p_s),
-            || self.sample_specular_lanes(v, u),
-            || self.sample_diffuse_lanes(v, u),
-            |m, s, d| {
-                (
-                    blend(m, s.0, d.0),
-                    Pair::blend(m, s.1, d.1),
-                    R::select(m, s.2, d.2),
-                )
-            },
-        );
+        let (wi, a, lobe) = self.draw(v, u);
         SampleOf {
             wi,
             eval: EvalOf {
@@ -918,6 +924,32 @@ impl Fibre for IsHair {
             },
             lobe,
         }
+    }
+}
+
+impl IsHair {
+    /// The direction [`Fibre::sample_view`] draws, with the angles of its pair and the lobe chosen (its index in
+    /// [`Lobe::ALL`], −1 for [`Sampling::Uniform`]).
+    #[inline(always)]
+    fn draw<R: Real>(&self, v: &IsHairView<R>, u: [R; 3]) -> ([R; 3], Pair<R>, R) {
+        if self.params.sampling == Sampling::Uniform {
+            // The sphere, the baseline of thesis §7 (`uniform_sphere`, lane by lane: the one implementation).
+            let wi = per_lane(|k| uniform_sphere(u[0].lane(k), u[1].lane(k)).to_array());
+            return (wi, Pair::of_directions(v, wi), R::splat(-1.0));
+        }
+        // Diffuse or specular by u0 against p_s.
+        branch!(
+            u[0].lt(v.p_s),
+            self.sample_specular_lanes(v, u),
+            self.sample_diffuse_lanes(v, u),
+            |m, s: ([R; 3], Pair<R>, R), d: ([R; 3], Pair<R>, R)| {
+                (
+                    blend(m, s.0, d.0),
+                    Pair::blend(m, s.1, d.1),
+                    R::select(m, s.2, d.2),
+                )
+            }
+        )
     }
 }
 
@@ -932,18 +964,26 @@ impl Bsdf for IsHair {
         .eval_lobes(wo, wi)
     }
 
+    /// The lobes summed where they are computed ([`IsHair::f_at`]): the generic code at f32, as [`At`] runs it, but
+    /// inlined here (`At::eval_lobes` is kept out of line, and its lobes then pass through memory).
     #[inline]
     fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
-        self.eval_lobes(wo, wi).sum()
+        let view = self.view(0.0f32, wo.to_array());
+        self.f_at(&view, &Pair::of_directions(&view, wi.to_array()))
     }
 
+    /// [`Fibre::sample_view`] at f32 (what [`At`] runs), with f summed as in [`IsHair::eval`].
     #[inline]
     fn sample(&self, wo: Vec3, u: [f32; 3]) -> Option<BsdfSample> {
-        At {
-            model: self,
-            h: 0.0,
-        }
-        .sample(wo, u)
+        let view = self.view(0.0f32, wo.to_array());
+        let (wi, a, lobe) = self.draw(&view, u);
+        make_sample(
+            Vec3::from_array(wi),
+            self.f_at(&view, &a),
+            self.pdf_at(&view, &a),
+            a.cos_i,
+            (lobe >= 0.0).then(|| Lobe::ALL[lobe as usize]),
+        )
     }
 
     #[inline]
@@ -1406,7 +1446,8 @@ mod tests {
 
     #[test]
     fn lobe_exponential_agrees_in_both_forms() {
-        // `exp_lobe_of`: libm's e^x in f32, `wide`'s in f32x8, a few ulp apart; 0 at and below the cut in both.
+        // `exp_lobe_of`: `wide`'s e^x in both forms (f32 runs it on one lane, util::real), within a few ulp of libm's;
+        // 0 at and below the cut in both.
         let mut worst = 0.0f32;
         for i in 0..=2000 {
             let x = -(i as f32) * 0.05;
@@ -1415,11 +1456,39 @@ mod tests {
             if x <= super::super::gaussian::EXP_LOBE_MIN_OF {
                 assert_eq!((one, lanes), (0.0, 0.0), "e^{x}");
             } else {
-                assert_eq!(one, x.exp());
-                worst = worst.max((lanes / one - 1.0).abs());
+                worst = worst.max((one / x.exp() - 1.0).abs());
+                let alone = exp_lobe_of(f32x8::splat(x)).lane(0);
+                assert_eq!(one.to_bits(), alone.to_bits(), "e^{x}");
+                worst = worst.max((lanes / exp_lobe_of(x + 0.0) - 1.0).abs());
             }
         }
         assert!(worst < 1e-6, "worst relative difference {worst:e}");
+    }
+
+    #[test]
+    fn scalar_bsdf_is_the_generic_code_at_f32() {
+        // `eval` and `sample` sum the lobes as vectors where they are computed; they give what `At` gives from the
+        // same generic code: f bit for bit, the same direction, pdf and lobe; the weight differs only by cos θi
+        // taken from the drawn angle rather than from the returned direction.
+        for m in [
+            with(|p| p.balance = Balance::Fresnel { eta: 1.55 }),
+            with(|p| p.sampling = Sampling::Uniform),
+        ] {
+            let at = At { model: &m, h: 0.0 };
+            let mut rng = Pcg32::new(3, 3);
+            for _ in 0..2000 {
+                let (wo, wi) = (
+                    uniform_sphere(rng.random(), rng.random()),
+                    uniform_sphere(rng.random(), rng.random()),
+                );
+                assert_eq!(m.eval(wo, wi), at.eval(wo, wi));
+                assert_eq!(m.pdf(wo, wi), at.pdf(wo, wi));
+                let u = rng.random();
+                let (s, t) = (m.sample(wo, u).unwrap(), at.sample(wo, u).unwrap());
+                assert_eq!((s.wi, s.f, s.pdf, s.lobe), (t.wi, t.f, t.pdf, t.lobe));
+                assert!((s.weight - t.weight).abs().max_element() <= 1e-6 * t.weight.max_element());
+            }
+        }
     }
 
     #[test]

@@ -300,11 +300,14 @@ mod tests {
                             q.map(|s| (s.wi, s.pdf)),
                             "{name}"
                         );
-                        if let Some((s, lobes)) = p {
-                            assert_eq!(
-                                lobes.sum(),
-                                bsdf.eval_lobes(wo, s.wi).sum(),
-                                "{name} h {h}"
+                        // f per lobe at the sampled direction, as eval gives it there to f32 rounding (Marschner
+                        // evaluates at the angles it drew, not at the rounded direction); except along the fibre's
+                        // axis, where the azimuth is undefined and a sampler's f follows the azimuth it drew.
+                        if let Some((s, lobes)) = p.filter(|(s, _)| s.wi.x.abs() < 1.0 - 1e-6) {
+                            let (a, b) = (lobes.sum(), bsdf.eval_lobes(wo, s.wi).sum());
+                            assert!(
+                                (a - b).abs().max_element() <= 1e-5 * b.max_element(),
+                                "{name} h {h}: {a} against {b}"
                             );
                         }
                     }

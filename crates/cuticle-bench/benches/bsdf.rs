@@ -98,6 +98,7 @@ fn bsdfs(c: &mut Criterion) {
         .unwrap();
         bench_model(c, &format!("ishair-{selection:?}").to_lowercase(), &m, &x);
     }
+    bench_ishair_lanes(c, &IsHair::new(IsHairParams::default()).unwrap(), &x);
     // Chiang et al. 2016 with its defaults (pbrt-v4's: eumelanin 1.3, βm = βn = 0.3, α = 2°, η = 1.55) at one
     // offset across the fibre (the cost does not depend on h).
     let chiang = Chiang::new(ChiangParams::default()).unwrap();
@@ -277,6 +278,71 @@ fn bench_kajiya_kay_lanes(c: &mut Criterion, kk: &KajiyaKay, x: &Inputs) {
                 let view = kk.view(f32x8::ZERO, *black_box(wo));
                 let s = kk.sample_view(&view, *black_box(u));
                 acc += s.eval.pdf + s.eval.lobes.r[0] + s.eval.lobes.diffuse[0] + s.wi[0];
+            }
+            acc.reduce_add()
+        })
+    });
+    g.finish();
+}
+
+/// ISHair through its generic code (`Fibre`), view included, on the same 1024 (ωo, ωi, ξ) as `ishair-uniform`: one
+/// shading point at a time (`R = f32`, what its `Bsdf` runs) against eight at once (`R = f32x8`). Eval gives f per
+/// lobe and the pdf together; sample gives ωi with f and the pdf there.
+fn bench_ishair_lanes(c: &mut Criterion, m: &IsHair, x: &Inputs) {
+    let wo8: Vec<[f32x8; 3]> =
+        x.wo.chunks_exact(LANES)
+            .map(|w| fibre::directions(w.try_into().unwrap()))
+            .collect();
+    let wi8: Vec<[f32x8; 3]> =
+        x.wi.chunks_exact(LANES)
+            .map(|w| fibre::directions(w.try_into().unwrap()))
+            .collect();
+    let u8: Vec<[f32x8; 3]> =
+        x.u.chunks_exact(LANES)
+            .map(|u| std::array::from_fn(|c| f32x8::new(std::array::from_fn(|k| u[k][c]))))
+            .collect();
+    let mut g = c.benchmark_group("ishair-lanes");
+    g.throughput(Throughput::Elements(BATCH as u64));
+    g.bench_function("eval one at a time", |b| {
+        b.iter(|| {
+            let mut acc = 0.0f32;
+            for k in 0..BATCH {
+                let v = m.view(0.0f32, black_box(x.wo[k]).to_array());
+                let e = m.eval_view(&v, black_box(x.wi[k]).to_array());
+                acc += e.lobes.r[0] + e.lobes.tt[0] + e.lobes.trt[0] + e.lobes.glint[0] + e.pdf;
+            }
+            acc
+        })
+    });
+    g.bench_function("eval eight at once", |b| {
+        b.iter(|| {
+            let mut acc = f32x8::splat(0.0);
+            for (wo, wi) in wo8.iter().zip(&wi8) {
+                let v = m.view(f32x8::splat(0.0), *black_box(wo));
+                let e = m.eval_view(&v, *black_box(wi));
+                acc += e.lobes.r[0] + e.lobes.tt[0] + e.lobes.trt[0] + e.lobes.glint[0] + e.pdf;
+            }
+            acc.reduce_add()
+        })
+    });
+    g.bench_function("sample one at a time", |b| {
+        b.iter(|| {
+            let mut acc = 0.0f32;
+            for k in 0..BATCH {
+                let v = m.view(0.0f32, black_box(x.wo[k]).to_array());
+                let s = m.sample_view(&v, black_box(x.u[k]));
+                acc += s.wi[0] + s.eval.lobes.r[0] + s.eval.pdf;
+            }
+            acc
+        })
+    });
+    g.bench_function("sample eight at once", |b| {
+        b.iter(|| {
+            let mut acc = f32x8::splat(0.0);
+            for (wo, u) in wo8.iter().zip(&u8) {
+                let v = m.view(f32x8::splat(0.0), *black_box(wo));
+                let s = m.sample_view(&v, *black_box(u));
+                acc += s.wi[0] + s.eval.lobes.r[0] + s.eval.pdf;
             }
             acc.reduce_add()
         })
