@@ -71,7 +71,7 @@
 //! The papers leave intensities to the artist; the defaults marked "chosen here" are not from them.
 
 use super::cauchy::{TruncatedCauchy, TruncatedCauchyOf};
-use super::frame::COS_THETA_MIN;
+use super::frame::{atan2_of as atan2, sin_cos_from_of as sin_cos_from, COS_THETA_MIN};
 use super::gaussian::{exp_lobe_of, gaussian_exponent_of, gaussian_unit_integral};
 use super::kajiya_kay::{diffuse_f, diffuse_pdf, sample_diffuse, selection_probability};
 use super::lanes::{At, EvalOf, Fibre, LobesOf, SampleOf, LANES};
@@ -315,47 +315,6 @@ fn theta_h_distribution<R: Real>(
     let x_hi = ((hi - alpha_r) + hi_rest) * inv_beta;
     let width = atan2(x_hi - x_lo, x_lo.mul_add(x_hi, R::splat(1.0)));
     TruncatedCauchyOf::new(alpha_r, R::splat(beta), inv_beta, lo, hi, x_lo, width)
-}
-
-/// atan2(y, x) ∈ [−π, π] over [`Real`] (0 for x = y = 0), absolute error < 6e-7 rad: the reduction and Estrin
-/// series of [`super::frame::atan2`] (see there), its branches written as selects, so that one f32 and eight lanes
-/// compute bit for bit the same (tested), where [`Real::atan2`] would be libm's `atan2f` for one (which costs more
-/// than the rest of an eval) and `wide`'s polynomial for eight.
-#[inline(always)]
-pub(crate) fn atan2<R: Real>(y: R, x: R) -> R {
-    let c = R::splat;
-    let zero = c(0.0);
-    let (ax, ay) = (x.abs(), y.abs());
-    let swap = ay.gt(ax);
-    let (num, den) = (R::select(swap, ax, ay), R::select(swap, ay, ax));
-    // Past tan(π/8), atan t = π/4 + atan((t − 1)/(t + 1)): u = (num − k den)/(den + k num), k ∈ {0, 1}.
-    let k = R::select(num.gt(c(0.414_213_57) * den), c(1.0), zero);
-    let u = (num - k * den) / (den + k * num);
-    let base = k * c(FRAC_PI_4);
-    let (v, v2) = (u * u, (u * u) * (u * u));
-    let poly = (c(1.0) + v * c(-1.0 / 3.0))
-        + v2 * (c(1.0 / 5.0) + v * c(-1.0 / 7.0))
-        + (v2 * v2)
-            * ((c(1.0 / 9.0) + v * c(-1.0 / 11.0)) + v2 * (c(1.0 / 13.0) + v * c(-1.0 / 15.0)));
-    let a = base + u * poly;
-    let a = R::select(swap, c(FRAC_PI_2) - a, a);
-    let a = R::select(x.lt(zero), c(PI) - a, a);
-    let a = R::select(y.lt(zero), -a, a);
-    // Both zero (a direction along ±u, φ undefined): 0, as `f32::atan2` gives.
-    R::select(den.eq(zero), zero, a)
-}
-
-/// (sin θ, cos θ) from x = ω·u and ρ = √(y² + z²), for any non-zero length; (0, 1) for a zero vector (as
-/// [`super::frame::sin_cos_theta`]).
-#[inline(always)]
-fn sin_cos_from<R: Real>(x: R, rho: R) -> (R, R) {
-    let len2 = x * x + rho * rho;
-    let inv = R::splat(1.0) / len2.sqrt();
-    let some = len2.gt(R::splat(0.0));
-    (
-        R::select(some, x * inv, R::splat(0.0)),
-        R::select(some, rho * inv, R::splat(1.0)),
-    )
 }
 
 /// √(y² + z²), the length of a direction's normal-plane projection.
@@ -1496,39 +1455,6 @@ mod tests {
         for (k, lobe) in Lobe::ALL.into_iter().enumerate() {
             assert_eq!(lobe_index(lobe), k as f32);
         }
-    }
-
-    #[test]
-    fn atan2_matches_libm_in_both_forms() {
-        let mut worst = 0.0f32;
-        let mut check = |y: f32, x: f32| {
-            let one = atan2(y, x);
-            let lanes = atan2(
-                f32x8::splat(y),
-                f32x8::new([x, 1.0, -1.0, 0.0, x, 2.0, x, -3.0]),
-            );
-            assert_eq!(one.to_bits(), lanes.lane(0).to_bits(), "atan2({y}, {x})");
-            worst = worst.max((one - y.atan2(x)).abs());
-        };
-        for i in 0..=400 {
-            for j in 0..=400 {
-                check(-2.0 + i as f32 * 0.01, -2.0 + j as f32 * 0.01);
-            }
-        }
-        for (y, x) in [
-            (1e-30, 1.0),
-            (1.0, 1e-30),
-            (-1.0, -1e-30),
-            (1e30, -1e30),
-            (0.0, -1.0),
-            (0.0, 1.0),
-        ] {
-            check(y, x);
-        }
-        // The series is off by < 2e-8; the rest is f32 rounding (2 ulps of π = 4.8e-7).
-        assert!(worst < 6e-7, "{worst}");
-        assert_eq!(atan2(0.0f32, 0.0), 0.0);
-        assert!(atan2(f32::NAN, 1.0).is_nan());
     }
 
     #[test]
