@@ -32,7 +32,7 @@
 //!   φr − φi of [`super::frame::Angles`]). s = √(π/8) (0.265 βn + 1.194 βn² + 5.372 βn²²) (the paper's fit).
 //!   N₃ = 1/2π.
 //!
-//! Lobes: R (p = 0) → [`LobeValues::r`], TT (p = 1) → `tt`, TRT (p = 2) **and** the residual p ≥ 3 → `trt`;
+//! Lobes: R (p = 0) → [`LobeValues::r`](super::LobeValues::r), TT (p = 1) → `tt`, TRT (p = 2) **and** the residual p ≥ 3 → `trt`;
 //! `glint` and `diffuse` are zero.
 //!
 //! # Units and conventions
@@ -64,7 +64,7 @@
 //! p is chosen with probability lum(A_p)/Σ lum(A_p) (Rec. 709 luminance), θi is drawn from M_p exactly (d'Eon
 //! et al.'s von Mises–Fisher construction: cos of the angle to the mirror direction by inverting
 //! ∝ e^{cos/v}, a uniform azimuth about it, then its θ), φ from the trimmed logistic about Φ(p) by inverting its
-//! CDF (uniform for p = 3). [`Bsdf::pdf`] is the whole mixture Σ_p P(p) M_p N_p (per solid angle), exactly what
+//! CDF (uniform for p = 3). [`Bsdf::pdf`](super::Bsdf::pdf) is the whole mixture Σ_p P(p) M_p N_p (per solid angle), exactly what
 //! `sample` draws (χ² tested), so with σa = 0 every sample's weight f cos θi/pdf is 1.
 //!
 //! [`Sampling::Uniform`] (`sampling = "uniform"`): directions uniform over the sphere and pdf 1/4π, the baseline

@@ -598,7 +598,7 @@ impl TruncatedGaussian {
 /// (e^{−87.3} ≈ 1.2e-38) and where `wide`'s vector exponential returns 0.
 pub const EXP_LOBE_MIN_OF: f32 = -87.3;
 
-/// [`exp_lobe`] over the number type [`Real`](crate::util::real::Real) (one f32 or eight lanes): e^x for the
+/// [`exp_lobe`] over the number type [`Real`] (one f32 or eight lanes): e^x for the
 /// non-positive exponents of Gaussian lobes, 0 at and below [`EXP_LOBE_MIN_OF`]. The cut is where `wide`'s f32x8
 /// exponential stops (it returns 0 there), so that both number types agree lane by lane; it drops values ≤ 1.2e-38
 /// (the edge of the normal f32 range, 1e-38 of a lobe's unit peak), which no pixel can show. When every lane is
@@ -614,7 +614,7 @@ pub fn exp_lobe_of<R: crate::util::real::Real>(x: R) -> R {
     R::select(under, zero, x.exp())
 }
 
-/// The exponent −(x/β)²/2 of a unit-height Gaussian over [`Real`](crate::util::real::Real), given 1/β
+/// The exponent −(x/β)²/2 of a unit-height Gaussian over [`Real`], given 1/β
 /// (`inv_beta`): [`gaussian_exponent`] with the division taken once by the caller (a multiplication per call;
 /// differs from x/β by one rounding).
 #[inline(always)]

@@ -1,5 +1,5 @@
 //! `[material]`: which fibre model shades the hair, with its parameters as a user writes them (angles in degrees,
-//! colours linear RGB), and how they become a [`Bsdf`].
+//! colours linear RGB), and how they become a [`Material`].
 //!
 //! ```toml
 //! [material]
