@@ -73,8 +73,8 @@
 use super::cauchy::{TruncatedCauchy, TruncatedCauchyOf};
 use super::frame::{atan2_of as atan2, sin_cos_from_of as sin_cos_from, COS_THETA_MIN};
 use super::gaussian::{exp_lobe_of, gaussian_exponent_of, gaussian_unit_integral};
-use super::kajiya_kay::{diffuse_f, diffuse_pdf, sample_diffuse, selection_probability};
-use super::lanes::{At, EvalOf, Fibre, LobesOf, SampleOf, LANES};
+use super::kajiya_kay::{diffuse_f, diffuse_pdf, sample_diffuse_of, selection_probability};
+use super::lanes::{At, EvalOf, Fibre, LobesOf, SampleOf};
 use super::marschner::phi_eq12_parts;
 use super::{
     check, check_color, check_width, make_sample, Balance, Bsdf, BsdfError, BsdfSample, Lobe,
@@ -82,7 +82,7 @@ use super::{
 };
 use crate::util::color::luminance;
 use crate::util::real::{Real, RealMask};
-use crate::util::sampling::{uniform_sphere, UNIFORM_SPHERE_PDF};
+use crate::util::sampling::{uniform_sphere_of, UNIFORM_SPHERE_PDF};
 use glam::{Vec3, Vec3A};
 use std::f32::consts::{FRAC_PI_2, FRAC_PI_4, PI};
 
@@ -328,24 +328,6 @@ fn rho<R: Real>(y: R, z: R) -> R {
 fn cos_theta_d<R: Real>(sin_o: R, cos_o: R, sin_i: R, cos_i: R) -> R {
     let (c, s) = (cos_o + cos_i, sin_o + sin_i);
     (R::splat(0.5) * (c * c + s * s).sqrt()).min(R::splat(1.0))
-}
-
-/// `N` numbers computed lane by lane by `f` (lane k's values): for terms taken from another file's scalar function
-/// (the Fresnel balance, Kajiya-Kay's diffuse sampler, eq. 12's azimuth, the uniform sphere), which stay the one
-/// implementation of each; with one lane (`f32`) it is a plain call.
-#[inline(always)]
-fn per_lane<R: Real, const N: usize>(mut f: impl FnMut(usize) -> [f32; N]) -> [R; N] {
-    let mut v = [[0.0f32; N]; LANES];
-    for (k, x) in v.iter_mut().enumerate().take(R::LANES) {
-        *x = f(k);
-    }
-    // Plain loops, not `array::from_fn` or `map`, whose closures LLVM does not always inline (in the scalar eval an
-    // uninlined call also keeps terms alive that only the pdf reads).
-    let mut out = [R::splat(0.0); N];
-    for (c, o) in out.iter_mut().enumerate() {
-        *o = R::from_fn(|k| v[k][c]);
-    }
-    out
 }
 
 /// `$a` in the lanes where the mask `$m` is set and `$b` elsewhere, merged by `$blend(mask, a, b)`; a side no lane
@@ -632,16 +614,14 @@ impl IsHair {
     fn balance<R: Real>(&self, cos_theta_o: R) -> [R; 3] {
         match self.fixed_balance {
             Some([w_d, w_s, p_s]) => [R::splat(w_d), R::splat(w_s), R::splat(p_s)],
-            // The Fresnel balance depends on θo: lane by lane through `Balance::weights` (`fresnel::dielectric`)
-            // and `selection_probability`, the one implementation of each, which every model shares; once per view.
-            None => per_lane(|k| {
-                let (w_d, w_s) = self.params.balance.weights(cos_theta_o.lane(k));
-                [
-                    w_d,
-                    w_s,
-                    selection_probability(w_s * self.e_spec, w_d * self.lum_kd),
-                ]
-            }),
+            // The Fresnel balance depends on θo: `Balance::weights` (`fresnel::dielectric`) and
+            // `selection_probability`, the one implementation of each, which every model shares; once per view.
+            None => {
+                let (w_d, w_s) = self.params.balance.weights(cos_theta_o);
+                let p_s =
+                    selection_probability(w_s * R::splat(self.e_spec), w_d * R::splat(self.lum_kd));
+                [w_d, w_s, p_s]
+            }
         }
     }
 
@@ -751,7 +731,7 @@ impl IsHair {
     #[inline(always)]
     fn sample_diffuse_lanes<R: Real>(&self, v: &IsHairView<R>, u: [R; 3]) -> ([R; 3], Pair<R>, R) {
         let c = ((u[0] - v.p_s) / (R::splat(1.0) - v.p_s)).min(R::splat(1.0));
-        let wi = per_lane(|k| sample_diffuse(u[1].lane(k), u[2].lane(k), c.lane(k)).to_array());
+        let wi = sample_diffuse_of(u[1], u[2], c);
         (
             wi,
             Pair::of_directions(v, wi),
@@ -791,12 +771,9 @@ impl IsHair {
         let [cos_half, cos_phi, sin_phi, abs_phi] = branch!(
             is_r | is_trt,
             {
-                // R and TRT − g: eq. 12 by double angles (`phi_eq12_parts`, lane by lane: the one
-                // implementation); |φ| ∈ [0, π] from its cosine and |sine|.
-                let [c_half, cos_phi, sin_phi]: [R; 3] = per_lane(|k| {
-                    let (c_half, cos_phi, sin_phi) = phi_eq12_parts(u[2].lane(k));
-                    [c_half, cos_phi, sin_phi]
-                });
+                // R and TRT − g: eq. 12 by double angles (`phi_eq12_parts`, the one implementation); |φ| ∈ [0, π]
+                // from its cosine and |sine|.
+                let (c_half, cos_phi, sin_phi) = phi_eq12_parts(u[2]);
                 [c_half, cos_phi, sin_phi, atan2(sin_phi.abs(), cos_phi)]
             },
             {
@@ -893,7 +870,7 @@ impl IsHair {
     fn draw<R: Real>(&self, v: &IsHairView<R>, u: [R; 3]) -> ([R; 3], Pair<R>, R) {
         if self.params.sampling == Sampling::Uniform {
             // The sphere, the baseline of thesis §7 (`uniform_sphere`, lane by lane: the one implementation).
-            let wi = per_lane(|k| uniform_sphere(u[0].lane(k), u[1].lane(k)).to_array());
+            let wi = uniform_sphere_of(u[0], u[1]);
             return (wi, Pair::of_directions(v, wi), R::splat(-1.0));
         }
         // Diffuse or specular by u0 against p_s.
@@ -960,6 +937,8 @@ mod tests {
     use super::super::lanes::{directions, InLanes};
     use super::super::testing::{self, mean, wo_at};
     use super::*;
+    use crate::bsdf::lanes::LANES;
+    use crate::util::sampling::uniform_sphere;
     use rand::Rng;
     use rand_pcg::Pcg32;
     use wide::f32x8;
