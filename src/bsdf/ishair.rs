@@ -726,7 +726,7 @@ impl IsHair {
             + (c(1.0) - v.p_s) * (c(diffuse_pdf(1.0)) * a.cos_i)
     }
 
-    /// A diffuse sample in every lane: Kajiya-Kay's exact sampler ([`sample_diffuse_of`], lane by lane: the one
+    /// A diffuse sample in every lane: Kajiya-Kay's exact sampler ([`sample_diffuse_of`], in lanes: the one
     /// implementation), with u0 rescaled over the diffuse share [p_s, 1).
     #[inline(always)]
     fn sample_diffuse_lanes<R: Real>(&self, v: &IsHairView<R>, u: [R; 3]) -> ([R; 3], Pair<R>, R) {
