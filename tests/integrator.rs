@@ -801,13 +801,102 @@ irradiance = 3.0
 radiance = [1.0, 1.0, 1.0]
 
 [integrator]
-path_length = 1
 {integrator}
 shading = "{shading}"
-"#
+"#,
+            integrator = if integrator.contains("path_length") {
+                integrator.to_string()
+            } else {
+                format!("path_length = 1\n{integrator}")
+            }
         ),
         Path::new("."),
     )
+}
+
+#[test]
+fn the_wavefront_gives_the_scalar_image_on_long_paths_adaptive_frames_and_the_pilots() {
+    use cuticle::render::adaptive::Schedule;
+    use cuticle::render::integrator::RayCost;
+    use cuticle::render::{render_bounces, thread_pool, Frame, Region, Request};
+    // Deeper vertices: lanes at different bounces in one round, lanes refilled as paths end, a lane on a quad
+    // beside lanes on fibres; every model, translucent strands, both light selections.
+    let quad = "[[shape]]\nkind = \"quad\"\ncorner = [-3.0, -0.9, -3.0]\nedge_u = [6.0, 0.0, 0.0]\nedge_v = [0.0, 0.0, 6.0]\n";
+    let rays = |s: &cuticle::render::RenderStats| s.rays;
+    for model in ["chiang", "marschner", "ishair", "kajiya-kay"] {
+        for (integrator, more) in [
+            (
+                "path_length = 4\nlights = \"one\"",
+                "opacity = 0.7".to_string(),
+            ),
+            (
+                "path_length = 3\nlights = \"all\"\nmaterial_samples = 2",
+                format!("opacity = 1.0\n{quad}"),
+            ),
+        ] {
+            let scene = |shading| peer_like_with(shading, integrator, &more, model);
+            let (a, a_stats) = render_scene_with_stats(&scene("scalar"), 2);
+            let (b, b_stats) = render_scene_with_stats(&scene("lanes"), 2);
+            let differing = bit_differences(&a.data, &b.data);
+            assert_eq!(
+                differing, 0,
+                "{model} {integrator}: {differing} values differ"
+            );
+            assert_eq!(rays(&a_stats), rays(&b_stats), "{model} {integrator}");
+            assert!(
+                a_stats.rays.deep > 0,
+                "{model} {integrator}: no path went past bounce 1"
+            );
+        }
+    }
+    // Adaptive sampling weighed by cost (every sample's rays read), and the pilots' cut renders.
+    let pool = thread_pool(Some(2)).unwrap();
+    let load = |shading| {
+        let scene = peer_like_with(shading, "path_length = 3", "opacity = 0.7", "chiang");
+        Frame::load(scene.resolve().unwrap()).unwrap()
+    };
+    let (scalar, lanes) = (load("scalar"), load("lanes"));
+    let adaptive = |frame: &Frame| {
+        let mut settings = frame.settings.clone();
+        settings.adaptive = Some(Schedule {
+            min: 4,
+            max: 64,
+            target: 0.05,
+            cost: Some(RayCost {
+                camera: 1.0,
+                shadow: 0.5,
+                material: 0.7,
+                map_lookup: 0.1,
+                deep: 0.3,
+            }),
+            sampler_gain: 1.0,
+        });
+        pool.install(|| frame.render(Request::new(&settings)))
+    };
+    let (a, b) = (adaptive(&scalar), adaptive(&lanes));
+    assert_eq!(bit_differences(&a.image.data, &b.image.data), 0, "adaptive");
+    assert_eq!(a.stats.rays, b.stats.rays, "adaptive");
+    assert!(
+        a.stats.rays.camera > 32 * 32 * 4,
+        "the adaptive rounds took more samples"
+    );
+    let region = Region::full(32, 32);
+    let cut = |frame: &Frame| pool.install(|| render_bounces(frame, &frame.settings, None, region));
+    let (a, b) = (cut(&scalar), cut(&lanes));
+    assert_eq!(a.rays, b.rays, "pilots' rays by path length");
+    for j in 0..a.pixels.len() {
+        let bits = |v: &[glam::Vec3]| v.iter().flat_map(|p| p.to_array()).collect::<Vec<f32>>();
+        assert_eq!(
+            bit_differences(&bits(&a.pixels[j]), &bits(&b.pixels[j])),
+            0,
+            "pilot cut {j}"
+        );
+        assert_eq!(
+            bit_differences(&bits(&a.variances[j]), &bits(&b.variances[j])),
+            0,
+            "pilot cut {j}"
+        );
+    }
 }
 
 #[test]

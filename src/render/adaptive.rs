@@ -83,6 +83,8 @@ pub use convergence::Convergence;
 pub(crate) use schedule::neighbourhood;
 pub use schedule::{Schedule, BACKGROUND_MAX_ORDER};
 
+use std::ops::Range;
+
 use rayon::prelude::*;
 
 use super::film::{PixelSums, Tile};
@@ -104,13 +106,16 @@ struct Work {
     counts: RayCounts,
 }
 
+/// What takes a pixel's samples: handed each sample in index order with the rays it traced.
+pub(super) type Sink<'s> = &'s mut dyn FnMut(u32, &PathSample, &RayCounts);
+
 impl Work {
     /// Takes each pixel's samples up to `goal(x, y)`, in index order.
     fn grow(
         &mut self,
         goal: impl Fn(u32, u32) -> u32,
         cost: Option<RayCost>,
-        sample: &(impl Fn(u32, u32, u32, &mut RayCounts) -> PathSample + Sync),
+        samples: &(impl Fn(u32, u32, Range<u32>, &mut RayCounts, Sink) + Sync),
     ) {
         let t = &self.tile;
         let mut k = 0;
@@ -119,11 +124,12 @@ impl Work {
                 let p = &mut self.pixels[k];
                 k += 1;
                 let g = goal(x, y);
-                while p.taken < g {
-                    let before = self.counts;
-                    let s = sample(x, y, p.taken, &mut self.counts);
+                if p.taken >= g {
+                    continue;
+                }
+                samples(x, y, p.taken..g, &mut self.counts, &mut |_, s, rays| {
                     if let Some(cost) = &cost {
-                        p.stats.add_cost(cost.seconds(&self.counts.since(&before)));
+                        p.stats.add_cost(cost.seconds(rays));
                     }
                     if s.beauty.is_finite() {
                         if s.alpha > 0.0 {
@@ -132,9 +138,9 @@ impl Work {
                             p.stats.add_uncovered(s.beauty);
                         }
                     }
-                    p.sums.add(&s);
+                    p.sums.add(s);
                     p.taken += 1;
-                }
+                });
             }
         }
     }
@@ -142,8 +148,8 @@ impl Work {
 
 /// The pixel loop of the image-level rule over `tiles` (work tiles of `region`, made by `new_tile`): a first round to
 /// `schedule.min` everywhere, then rounds decided by [`Schedule::next_round`] from the whole region's pixels in
-/// row-major order, each after every tile of the round before is done (rayon's join is the barrier). `sample`
-/// draws a pixel's i-th camera sample, `centre` writes its centre-ray channels. Once `cancelled` holds no new
+/// row-major order, each after every tile of the round before is done (rayon's join is the barrier). `samples`
+/// draws a range of a pixel's camera samples, `centre` writes its centre-ray channels. Once `cancelled` holds no new
 /// tile of the first round starts and no further round does (the tiles rendered keep the samples they took).
 #[allow(clippy::too_many_arguments)]
 pub(super) fn render_rounds(
@@ -152,7 +158,7 @@ pub(super) fn render_rounds(
     schedule: Schedule,
     progress: &indicatif::ProgressBar,
     new_tile: &(impl Fn(u32, u32) -> Tile + Sync),
-    sample: &(impl Fn(u32, u32, u32, &mut RayCounts) -> PathSample + Sync),
+    samples: &(impl Fn(u32, u32, Range<u32>, &mut RayCounts, Sink) + Sync),
     centre: &(impl Fn(u32, u32, &mut [f32], &mut RayCounts) + Sync),
     cancelled: &(impl Fn() -> bool + Sync),
 ) -> Vec<(Tile, RayCounts)> {
@@ -169,7 +175,7 @@ pub(super) fn render_rounds(
                 pixels: (0..n).map(|_| Pixel::default()).collect(),
                 counts: RayCounts::default(),
             };
-            w.grow(|_, _| schedule.min, schedule.cost, sample);
+            w.grow(|_, _| schedule.min, schedule.cost, samples);
             progress.inc(1);
             Some(w)
         })
@@ -199,7 +205,7 @@ pub(super) fn render_rounds(
         progress.set_prefix(format!("round {}", round + 1));
         progress.set_length(progress.length().unwrap_or(0) + tiles.len() as u64);
         work.par_iter_mut().for_each(|w| {
-            w.grow(|x, y| next[index(x, y)], schedule.cost, sample);
+            w.grow(|x, y| next[index(x, y)], schedule.cost, samples);
             progress.inc(1);
         });
     }

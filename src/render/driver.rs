@@ -26,6 +26,8 @@ pub(super) struct Context<'f> {
     pub(super) filter: Arc<GaussianFilter>,
     pub(super) integrator: Integrator<'f>,
     pub(super) seed: u32,
+    /// Whether pixels take their samples through the wavefront (`integrator.shading = "lanes"`).
+    pub(super) lanes: bool,
 }
 
 /// Renders `region` of `frame` with `settings` (and `maps` in deep-opacity mode) on the current rayon pool, in
@@ -49,6 +51,7 @@ pub(super) fn render_tiles(
         filter: GaussianFilter::shared(settings.film.filter_width),
         integrator: Integrator::new(frame, settings, maps),
         seed: settings.film.seed,
+        lanes: settings.integrator.shading == Shading::Lanes,
     };
 
     let tiles_x = region.width().div_ceil(tile_side);
@@ -105,8 +108,8 @@ pub(super) fn render_tiles(
     let rendered = match (sampling, settings.adaptive) {
         (Some(strategy), _) => pixel_by_pixel(strategy),
         (None, Some(schedule)) => {
-            let sample = |x: u32, y: u32, i: u32, counts: &mut RayCounts| {
-                PixelSource::new(x, y, &context, counts).sample(i)
+            let sample = |x: u32, y: u32, samples, counts: &mut RayCounts, sink: adaptive::Sink| {
+                PixelSource::new(x, y, &context, counts).take(samples, sink)
             };
             adaptive::render_rounds(
                 &tiles, region, schedule, &bar, &new_tile, &sample, &centre, &cancelled,
@@ -114,7 +117,6 @@ pub(super) fn render_tiles(
         }
         (None, None) => pixel_by_pixel(&Fixed {
             spp: settings.film.spp,
-            lanes: settings.integrator.shading == Shading::Lanes,
         }),
     };
     bar.finish_and_clear();

@@ -52,12 +52,12 @@ use super::Frame;
 
 mod first;
 mod indirect;
-mod lanes;
 mod mis;
 mod trace;
 
-use mis::Mis;
-use trace::Found;
+pub(in crate::render) use indirect::{DeeperLight, Step, Walk};
+pub(in crate::render) use mis::Mis;
+pub(in crate::render) use trace::Found;
 
 /// The largest `path_length` the sample dimensions allow: path vertices 0..=`path_length` each take a block of
 /// [`dim::PER_VERTEX`] dimensions.
@@ -204,7 +204,7 @@ impl BounceRecorder for () {
 // and boxing it would allocate per vertex.
 #[allow(clippy::large_enum_variant)]
 #[derive(Clone, Copy)]
-enum Surface<'a> {
+pub(in crate::render) enum Surface<'a> {
     Hair {
         frame: HairFrame,
         /// Multiplies the diffuse lobe (the strand colour, or 1).
@@ -230,25 +230,25 @@ enum Surface<'a> {
 
 /// A point being shaded.
 #[derive(Clone, Copy)]
-struct Vertex<'a> {
-    p: Vec3,
-    wo: Vec3,
-    surface: Surface<'a>,
+pub(in crate::render) struct Vertex<'a> {
+    pub p: Vec3,
+    pub wo: Vec3,
+    pub surface: Surface<'a>,
 }
 
 /// The random numbers of one sample of one strategy: sample `index` of the pixel's `sampler`, scrambled by `salt`
 /// (0, or a light's index so that the samples of different lights are independent), in the dimensions of
 /// [`dim`].
 #[derive(Clone, Copy)]
-struct Draw<'s> {
-    sampler: &'s CameraSample<'s>,
-    index: u32,
-    salt: u32,
+pub(in crate::render) struct Draw<'s> {
+    pub sampler: &'s CameraSample<'s>,
+    pub index: u32,
+    pub salt: u32,
 }
 
 impl Draw<'_> {
     #[inline]
-    fn get(&self, dimension: u32) -> f32 {
+    pub(in crate::render) fn get(&self, dimension: u32) -> f32 {
         self.sampler.get_salted(self.index, dimension, self.salt)
     }
 
@@ -260,7 +260,7 @@ impl Draw<'_> {
 
     /// Dimensions `dimension` to `dimension + 2`.
     #[inline]
-    fn get_3(&self, dimension: u32) -> [f32; 3] {
+    pub(in crate::render) fn get_3(&self, dimension: u32) -> [f32; 3] {
         self.sampler.get_n(self.index, dimension, self.salt)
     }
 
@@ -276,14 +276,14 @@ pub struct Integrator<'a> {
     strands: &'a Strands,
     tracer: &'a dyn Tracer,
     shapes: &'a Shapes,
-    lights: &'a [Light],
-    material: &'a Material,
+    pub(in crate::render) lights: &'a [Light],
+    pub(in crate::render) material: &'a Material,
     curves: CurveKind,
-    settings: Settings,
+    pub(in crate::render) settings: Settings,
     /// The first vertex's strategies and weights (from `settings`).
-    first: Mis,
+    pub(in crate::render) first: Mis,
     /// Light selection ∝ [`Light::selection_weight`], for `lights = "one"` and the vertices after the first.
-    select: Distribution1D,
+    pub(in crate::render) select: Distribution1D,
     /// Offset of shadow-ray origins off Lambert surfaces (hair rays skip their own strand instead).
     epsilon: f32,
     /// Whether camera rays that escape see the infinite lights.
@@ -308,7 +308,7 @@ pub struct Integrator<'a> {
 
 /// f · cos θi per lobe from f per lobe at local `wi_l`, the diffuse lobe tinted by `tint`.
 #[inline]
-fn fcos(mut lobes: LobeValues, tint: Vec3, wi_l: Vec3) -> LobeValues {
+pub(in crate::render) fn fcos(mut lobes: LobeValues, tint: Vec3, wi_l: Vec3) -> LobeValues {
     lobes.diffuse *= Vec3A::from(tint);
     lobes.scaled(sin_cos_theta(wi_l).1)
 }
@@ -404,7 +404,7 @@ impl<'a> Integrator<'a> {
 
     /// f · cos θi per lobe, and the material's sampling pdf, for light leaving `v` along ωo arriving from `wi`.
     #[inline]
-    fn eval(&self, v: &Vertex, wi: Vec3) -> (LobeValues, f32) {
+    pub(in crate::render) fn eval(&self, v: &Vertex, wi: Vec3) -> (LobeValues, f32) {
         match v.surface {
             Surface::Hair {
                 frame, tint, bsdf, ..
@@ -429,7 +429,11 @@ impl<'a> Integrator<'a> {
 
     /// A material sample at `v`: (ωi, f · cos θi per lobe, pdf).
     #[inline]
-    fn sample_material(&self, v: &Vertex, u: [f32; 3]) -> Option<(Vec3, LobeValues, f32)> {
+    pub(in crate::render) fn sample_material(
+        &self,
+        v: &Vertex,
+        u: [f32; 3],
+    ) -> Option<(Vec3, LobeValues, f32)> {
         match v.surface {
             Surface::Hair {
                 frame, tint, bsdf, ..
@@ -544,14 +548,34 @@ impl<'a> Integrator<'a> {
         record: &mut R,
         before: &RayCounts,
     ) {
-        out.direct = out.lobes.sum();
-        record.vertex(0, out.direct, &counts.since(before));
+        end_first_vertex(out, &counts.since(before), record);
         // By reference: the second vertex is not moved out of `next`.
-        if let Some((second, first_weights)) = next {
-            let indirect = self.indirect(second, first_weights, sampler, index, counts, record);
-            out.indirect = indirect.sum();
-            add_lobes(&mut out.lobes, &indirect, Vec3::ONE);
-        }
-        out.beauty = out.direct + out.indirect;
+        let indirect = next.as_ref().map(|(second, first_weights)| {
+            self.indirect(second, first_weights, sampler, index, counts, record)
+        });
+        end_path(out, indirect.as_ref());
     }
+}
+
+/// The first vertex shaded (`out`'s lobes hold its light, `rays` traced since the camera ray): the direct pass,
+/// reported to `record` as vertex 0.
+#[inline]
+pub(in crate::render) fn end_first_vertex<R: BounceRecorder>(
+    out: &mut PathSample,
+    rays: &RayCounts,
+    record: &mut R,
+) {
+    out.direct = out.lobes.sum();
+    record.vertex(0, out.direct, rays);
+}
+
+/// The path ended: its `indirect` light (by the first vertex's lobes, if it went beyond the first vertex) into the
+/// indirect pass and the lobes, and the beauty.
+#[inline]
+pub(in crate::render) fn end_path(out: &mut PathSample, indirect: Option<&LobeValues>) {
+    if let Some(indirect) = indirect {
+        out.indirect = indirect.sum();
+        add_lobes(&mut out.lobes, indirect, Vec3::ONE);
+    }
+    out.beauty = out.direct + out.indirect;
 }

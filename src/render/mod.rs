@@ -22,6 +22,7 @@ pub mod sampler;
 pub mod settings;
 pub mod strategy;
 pub mod tiles;
+mod wavefront;
 
 use std::sync::atomic::AtomicUsize;
 
@@ -33,7 +34,7 @@ use crate::shadow::ShadowMaps;
 
 use camera::Camera;
 use filter::GaussianFilter;
-use integrator::{Integrator, RayCounts};
+use integrator::{Integrator, PathSample, RayCounts};
 use sampler::{dim, CameraSample, PixelSampler};
 
 pub use film::CHANNELS;
@@ -193,6 +194,7 @@ pub fn render_bounces(
     region: Region,
 ) -> BounceRender {
     /// One camera sample's light and rays by vertex.
+    #[derive(Default)]
     struct Vertices {
         radiance: [Vec3; integrator::MAX_PATH_LENGTH as usize + 1],
         rays: [RayCounts; integrator::MAX_PATH_LENGTH as usize + 1],
@@ -209,14 +211,11 @@ pub fn render_bounces(
     let camera = Camera::from_config(&settings.camera, frame.hair_bounds(), width, height);
     let filter = GaussianFilter::shared(settings.film.filter_width);
     let integrator = Integrator::new(frame, settings, maps);
+    let lanes = settings.integrator.shading == settings::Shading::Lanes;
     let lengths = settings.integrator.path_length as usize + 1;
     let mut pixels = vec![Vec::with_capacity((region.width() * region.height()) as usize); lengths];
     let mut variances = pixels.clone();
-    let mut counts = RayCounts::default();
-    let mut v = Vertices {
-        radiance: [Vec3::ZERO; integrator::MAX_PATH_LENGTH as usize + 1],
-        rays: [RayCounts::default(); integrator::MAX_PATH_LENGTH as usize + 1],
-    };
+    // Every sample's rays by vertex.
     let mut rays = vec![RayCounts::default(); lengths];
     for y in region.y0..region.y1 {
         for x in region.x0..region.x1 {
@@ -224,13 +223,12 @@ pub fn render_bounces(
             // Σx and Σx² of each cut, in f64.
             let mut sums = vec![[[0.0f64; 3]; 2]; lengths];
             let mut kept = 0u32;
-            for i in 0..settings.film.spp {
-                let sampler = CameraSample::new(&pixel, i);
-                let ray = camera_ray(&camera, &filter, &sampler, x, y, i);
-                v.radiance[..lengths].fill(Vec3::ZERO);
-                let s = integrator.sample_recording(&ray, &sampler, i, &mut counts, &mut v);
+            let mut add = |s: &PathSample, v: &Vertices| {
+                for (r, v) in rays.iter_mut().zip(&v.rays) {
+                    r.add(v);
+                }
                 if !s.beauty.is_finite() {
-                    continue;
+                    return;
                 }
                 kept += 1;
                 let mut prefix = Vec3::ZERO;
@@ -240,6 +238,25 @@ pub fn render_bounces(
                         sum[c] += f64::from(x);
                         squares[c] += f64::from(x) * f64::from(x);
                     }
+                }
+            };
+            let ray = |sampler: &CameraSample, i| camera_ray(&camera, &filter, sampler, x, y, i);
+            if lanes {
+                let samples = 0..settings.film.spp;
+                wavefront::run(&integrator, &pixel, samples, ray, |_, s, _, v| add(s, v));
+            } else {
+                let mut counts = RayCounts::default();
+                for i in 0..settings.film.spp {
+                    let sampler = CameraSample::new(&pixel, i);
+                    let mut v = Vertices::default();
+                    let s = integrator.sample_recording(
+                        &ray(&sampler, i),
+                        &sampler,
+                        i,
+                        &mut counts,
+                        &mut v,
+                    );
+                    add(&s, &v);
                 }
             }
             let k = f64::from(kept);
@@ -258,8 +275,8 @@ pub fn render_bounces(
         }
     }
     let mut prefix = RayCounts::default();
-    for (j, r) in rays.iter_mut().enumerate() {
-        prefix.add(&v.rays[j]);
+    for r in rays.iter_mut() {
+        prefix.add(r);
         *r = prefix;
     }
     BounceRender {

@@ -174,14 +174,14 @@ pub enum LightSelection {
     One,
 }
 
-/// How shading points are shaded: eight camera samples' first vertices together in f32×8 lanes, or one at a time.
-/// Both run the same model code and give the same image bit for bit (tested); the scalar path is the reference the
-/// tests compare against and the one the other vertices take.
+/// Which integrator shades: the wavefront (eight paths of a pixel in flight, every vertex shaded in f32×8 lanes) or
+/// the scalar path tracer (one path at a time). Both run the same model code and give the same image bit for bit
+/// (tested); the scalar path is the reference the tests compare against.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Shading {
-    /// The first vertices of eight camera samples shaded together (every model; a fixed spp: adaptive sampling
-    /// and `--quality auto`'s pilots shade one at a time).
+    /// The wavefront ([`crate::render::wavefront`]): every model, shadow mode and light, fixed or adaptive
+    /// sampling, `--quality auto`'s pilots.
     #[default]
     Lanes,
     /// Every shading point one at a time.

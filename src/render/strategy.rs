@@ -9,8 +9,8 @@ use super::driver::Context;
 use super::film::PixelSums;
 use super::integrator::{PathSample, RayCounts};
 use super::sampler::{CameraSample, PixelSampler};
-use crate::bsdf::lanes::LANES;
-use crate::ray::Ray;
+use super::wavefront;
+use std::ops::Range;
 
 /// A pixel-by-pixel sampling strategy: takes the samples of one pixel from `source`, indices 0, 1, 2, … in order,
 /// adds each to `sums` and returns how many it took. A strategy whose decisions depend on the pixel's own samples
@@ -48,47 +48,46 @@ impl<'s> PixelSource<'s> {
         c.integrator.sample(&ray, &sampler, i, self.counts)
     }
 
-    /// The pixel's camera samples `first .. first + LANES`, their first vertices shaded together.
-    pub(super) fn sample_lanes(&mut self, first: u32) -> [PathSample; LANES] {
-        let indices: [u32; LANES] = std::array::from_fn(|k| first + k as u32);
-        let samplers = indices.map(|j| CameraSample::new(&self.pixel, j));
+    /// The pixel's camera samples `samples`, each handed to `sink` in index order with the rays it traced: eight
+    /// paths at a time through the wavefront ([`super::wavefront`]) under `integrator.shading = "lanes"`, else one
+    /// by one through the scalar path; the same values either way.
+    pub fn take(
+        &mut self,
+        samples: Range<u32>,
+        mut sink: impl FnMut(u32, &PathSample, &RayCounts),
+    ) {
         let c = self.context;
-        let rays: [Ray; LANES] = std::array::from_fn(|k| {
-            camera_ray(
-                &c.camera,
-                &c.filter,
-                &samplers[k],
-                self.x,
-                self.y,
-                indices[k],
-            )
-        });
-        c.integrator
-            .sample_lanes(&rays, &samplers, &indices, self.counts)
+        if !c.lanes {
+            for i in samples {
+                let before = *self.counts;
+                let s = self.sample(i);
+                sink(i, &s, &self.counts.since(&before));
+            }
+            return;
+        }
+        let (x, y) = (self.x, self.y);
+        let counts = &mut *self.counts;
+        wavefront::run(
+            &c.integrator,
+            &self.pixel,
+            samples,
+            |sampler, i| camera_ray(&c.camera, &c.filter, sampler, x, y, i),
+            |i, s, rays, _: &()| {
+                counts.add(rays);
+                sink(i, s, rays);
+            },
+        );
     }
 }
 
-/// A fixed count per pixel (the film's spp); with `lanes`, the first vertices of eight samples at a time
-/// (`integrator.shading = "lanes"`, `docs/design/wavefront.md` step 2), the rest one by one.
+/// A fixed count per pixel (the film's spp).
 pub(super) struct Fixed {
     pub spp: u32,
-    pub lanes: bool,
 }
 
 impl PixelSampling for Fixed {
     fn take(&self, source: &mut PixelSource<'_>, sums: &mut PixelSums) -> u32 {
-        let mut i = 0;
-        if self.lanes {
-            while i + LANES as u32 <= self.spp {
-                for s in source.sample_lanes(i) {
-                    sums.add(&s);
-                }
-                i += LANES as u32;
-            }
-        }
-        for i in i..self.spp {
-            sums.add(&source.sample(i));
-        }
+        source.take(0..self.spp, |_, s, _| sums.add(s));
         self.spp
     }
 }

@@ -18,7 +18,7 @@ impl<'a> Integrator<'a> {
     /// [`Integrator::sample`]'s steps 2–5 for a camera ray that found the surface `v` (`out` as it starts; the
     /// ray counts were `before` at the camera ray).
     #[inline]
-    pub(super) fn shade_first<R: BounceRecorder>(
+    pub(in crate::render) fn shade_first<R: BounceRecorder>(
         &self,
         v: &Vertex,
         (sampler, index): (&CameraSample, u32),
@@ -35,7 +35,7 @@ impl<'a> Integrator<'a> {
     /// Step 1, a camera ray that found no surface (`found` is an emitter or nothing): the area light's L_e, with
     /// alpha 1; or the background, Σ L_e of the infinite lights (black unless the environment is visible), with
     /// alpha 0.
-    pub(super) fn seen_directly(&self, ray: &Ray, found: &Found) -> PathSample {
+    pub(in crate::render) fn seen_directly(&self, ray: &Ray, found: &Found) -> PathSample {
         let mut out = PathSample::default();
         match *found {
             Found::Emitter(radiance, _) => {
@@ -57,7 +57,7 @@ impl<'a> Integrator<'a> {
     /// "one"` each of the `light_samples` samples first picks one light ∝ its selection weight
     /// ([`Light::selection_weight`](crate::light::Light::selection_weight)). Under material-only sampling only delta
     /// lights are light-sampled ([`Mis::samples_light`](super::mis::Mis::samples_light)).
-    fn first_vertex_light_samples(
+    pub(in crate::render) fn first_vertex_light_samples(
         &self,
         v: &Vertex,
         sampler: &CameraSample,
@@ -130,7 +130,7 @@ impl<'a> Integrator<'a> {
     /// The light sample's direction: [`Light::sample_li`](crate::light::Light::sample_li) of light `j` at `v` with
     /// the draw's numbers.
     #[inline]
-    pub(super) fn first_vertex_light_draw(
+    pub(in crate::render) fn first_vertex_light_draw(
         &self,
         v: &Vertex,
         j: usize,
@@ -143,7 +143,7 @@ impl<'a> Integrator<'a> {
     /// pdf (`pdf_m`) at the light sample `ls` are known.
     #[allow(clippy::too_many_arguments)]
     #[inline]
-    pub(super) fn first_vertex_light_finish(
+    pub(in crate::render) fn first_vertex_light_finish(
         &self,
         v: &Vertex,
         j: usize,
@@ -181,7 +181,7 @@ impl<'a> Integrator<'a> {
     /// number `u` (read only then). The factor its visibility is multiplied by: 1 at or above t, 1/p if kept, `None`
     /// if dropped (no ray; the estimate stays unbiased, E = p · 1/p).
     #[inline]
-    pub(super) fn light_roulette(
+    pub(in crate::render) fn light_roulette(
         &self,
         contribution: Vec3,
         u: impl FnOnce() -> f32,
@@ -206,7 +206,7 @@ impl<'a> Integrator<'a> {
     /// pass (f cos θi / p_m) and, if `path_length` > 0, continues the path: it returns the second vertex with the
     /// first's f cos θi / p_m per lobe. A sample that can neither add light (light-only strategy, only delta lights)
     /// nor continue traces no ray.
-    fn first_vertex_material_samples(
+    pub(in crate::render) fn first_vertex_material_samples(
         &self,
         v: &Vertex,
         sampler: &CameraSample,
@@ -226,18 +226,19 @@ impl<'a> Integrator<'a> {
             let Some((wi, fcos, pdf)) = self.sample_material(v, draw.get_3(d)) else {
                 continue;
             };
-            self.first_vertex_material_finish(v, k, draw, (wi, fcos, pdf), out, counts, &mut next);
+            let sample = (wi, fcos, pdf);
+            self.first_vertex_material_finish(v, k, draw, sample, out, counts, &mut next, true);
         }
         next
     }
 
     /// The rest of material sample `k` of [`Integrator::first_vertex_material_samples`] once its direction
     /// (world space), f · cos θi per lobe and pdf are drawn: the albedo pass, the ray, the light it finds, and the
-    /// second vertex into `next` if it continues the path.
+    /// second vertex into `next` if it continues the path (a hair vertex with its view prepared only if `view`).
     // The sample's state and the path's three outputs, as `first_vertex_light_finish` takes them.
     #[allow(clippy::too_many_arguments)]
     #[inline]
-    pub(super) fn first_vertex_material_finish(
+    pub(in crate::render) fn first_vertex_material_finish(
         &self,
         v: &Vertex,
         k: u32,
@@ -246,6 +247,7 @@ impl<'a> Integrator<'a> {
         out: &mut PathSample,
         counts: &mut RayCounts,
         next: &mut Option<(Vertex<'a>, LobeValues)>,
+        view: bool,
     ) {
         let d = dim::vertex(0, dim::MATERIAL);
         let weights = fcos.scaled(1.0 / pdf);
@@ -258,7 +260,7 @@ impl<'a> Integrator<'a> {
         }
         let le = if continues {
             let (le, found) =
-                self.trace_material_sample(v, &self.first, wi, pdf, draw.key(d), counts);
+                self.trace_material_sample(v, &self.first, wi, pdf, draw.key(d), counts, view);
             if let Found::Surface(second) = found {
                 *next = Some((second, weights));
             }

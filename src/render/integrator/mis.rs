@@ -27,7 +27,7 @@ use super::{LightSelection, Settings, Strategy};
 /// weighted and `b` = n_b p_b of the other: w_a = a² / (a² + b²). An infinite `a` takes weight 1; two zero (or
 /// non-finite) densities weight 0.
 #[inline]
-pub(super) fn power_heuristic(a: f32, b: f32) -> f32 {
+pub(in crate::render) fn power_heuristic(a: f32, b: f32) -> f32 {
     let (a2, b2) = (a * a, b * b);
     if a2 + b2 > 0.0 && (a2 + b2).is_finite() {
         a2 / (a2 + b2)
@@ -40,16 +40,16 @@ pub(super) fn power_heuristic(a: f32, b: f32) -> f32 {
 
 /// The strategies of one path vertex and how their samples are weighted (see the module docs).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub(super) struct Mis {
+pub(in crate::render) struct Mis {
     /// Which strategies estimate direct light.
-    pub(super) strategy: Strategy,
+    pub(in crate::render) strategy: Strategy,
     /// Whether every light gets `light_samples` samples or each sample goes to one light chosen ∝ its selection
     /// weight.
-    pub(super) selection: LightSelection,
+    pub(in crate::render) selection: LightSelection,
     /// n_l: light samples (per light under [`LightSelection::All`], in all under [`LightSelection::One`]).
-    pub(super) light_samples: u32,
+    pub(in crate::render) light_samples: u32,
     /// n_m: material samples.
-    pub(super) material_samples: u32,
+    pub(in crate::render) material_samples: u32,
     /// Whether this is the path's last vertex (the last-vertex rule applies).
     pub(super) last: bool,
 }
@@ -58,7 +58,7 @@ impl Mis {
     /// The first shading point: the settings' sample counts (at least 1 each) and light selection. It is never
     /// the last vertex in the sense of [`Mis::light_only`], even with `path_length` = 0: its material samples are
     /// the thesis' "material samples".
-    pub(super) fn first_vertex(s: &Settings) -> Mis {
+    pub(in crate::render) fn first_vertex(s: &Settings) -> Mis {
         Mis {
             strategy: s.strategy,
             selection: s.light_selection,
@@ -70,7 +70,7 @@ impl Mis {
 
     /// A vertex after the first: one light chosen ∝ its selection weight, one material sample; `last` at the path's
     /// end.
-    pub(super) fn deeper_vertex(strategy: Strategy, last: bool) -> Mis {
+    pub(in crate::render) fn deeper_vertex(strategy: Strategy, last: bool) -> Mis {
         Mis {
             strategy,
             selection: LightSelection::One,
@@ -84,21 +84,21 @@ impl Mis {
     /// (a material sample would weigh 0 there). Under MIS the last vertex keeps its material sample (see the
     /// module docs); under material sampling it carries the non-delta lights.
     #[inline]
-    pub(super) fn light_only(&self) -> bool {
+    pub(in crate::render) fn light_only(&self) -> bool {
         self.last && self.strategy == Strategy::Light
     }
 
     /// Whether the light strategy samples a light at all: not a non-delta light under material-only sampling
     /// (material samples find it); a delta light always (nothing else can).
     #[inline]
-    pub(super) fn samples_light(&self, delta: bool) -> bool {
+    pub(in crate::render) fn samples_light(&self, delta: bool) -> bool {
         delta || self.strategy != Strategy::Material
     }
 
     /// Samples one light gets under [`LightSelection::All`]: n_l, or 1 for a delta light (more would all draw
     /// the same direction).
     #[inline]
-    pub(super) fn samples_per_light(&self, delta: bool) -> u32 {
+    pub(in crate::render) fn samples_per_light(&self, delta: bool) -> u32 {
         if delta {
             1
         } else {
@@ -109,7 +109,7 @@ impl Mis {
     /// n_j, the number of light samples a light expects here: [`Mis::samples_per_light`] under
     /// [`LightSelection::All`], n_l · `p_select` (its selection probability) under [`LightSelection::One`].
     #[inline]
-    pub(super) fn light_count(&self, delta: bool, p_select: f32) -> f32 {
+    pub(in crate::render) fn light_count(&self, delta: bool, p_select: f32) -> f32 {
         match self.selection {
             LightSelection::All => self.samples_per_light(delta) as f32,
             LightSelection::One => self.light_samples as f32 * p_select,
@@ -118,14 +118,20 @@ impl Mis {
 
     /// n_m p_m: the material strategy's count-weighted density for a direction it draws with density `pdf`.
     #[inline]
-    pub(super) fn material_density(&self, pdf: f32) -> f32 {
+    pub(in crate::render) fn material_density(&self, pdf: f32) -> f32 {
         self.material_samples as f32 * pdf
     }
 
     /// n_j p_j: the light strategy's count-weighted density for `light` (selection probability `p_select`) to
     /// draw `wi` from `p` — 0 for a delta light, which no material sample can hit.
     #[inline]
-    pub(super) fn light_density(&self, light: &Light, p_select: f32, p: Vec3, wi: Vec3) -> f32 {
+    pub(in crate::render) fn light_density(
+        &self,
+        light: &Light,
+        p_select: f32,
+        p: Vec3,
+        wi: Vec3,
+    ) -> f32 {
         if light.is_delta() {
             0.0
         } else {
@@ -136,7 +142,7 @@ impl Mis {
     /// w_l of light sample `ls` of a light expecting `count` samples here ([`Mis::light_count`]), where the
     /// material draws its direction with density `pdf_m` (per sample).
     #[inline]
-    pub(super) fn light_weight(&self, ls: &LightSample, count: f32, pdf_m: f32) -> f32 {
+    pub(in crate::render) fn light_weight(&self, ls: &LightSample, count: f32, pdf_m: f32) -> f32 {
         if ls.delta || self.light_only() {
             return 1.0;
         }
@@ -150,7 +156,7 @@ impl Mis {
     /// w_m of a material sample of count-weighted density `p_material` ([`Mis::material_density`]) that reached a
     /// light whose count-weighted density for it is `p_light` ([`Mis::light_density`]).
     #[inline]
-    pub(super) fn material_weight(&self, p_material: f32, p_light: f32) -> f32 {
+    pub(in crate::render) fn material_weight(&self, p_material: f32, p_light: f32) -> f32 {
         if self.light_only() {
             return 0.0;
         }

@@ -11,7 +11,7 @@ use super::{Integrator, RayCounts, ShadowMode, Surface, TransmittanceMode, Verte
 
 /// What a ray found first.
 #[allow(clippy::large_enum_variant)] // a stack value for one path step, like `Surface`
-pub(super) enum Found<'a> {
+pub(in crate::render) enum Found<'a> {
     Surface(Vertex<'a>),
     /// An area light's radiance towards the ray origin, with the light's index.
     Emitter(Vec3, usize),
@@ -62,7 +62,7 @@ impl<'a> Integrator<'a> {
     /// The nearest of hair, shapes and area lights along `ray`. `stochastic` = Some((key, ignore_strand)) for
     /// light-carrying rays (strands present with probability = opacity), `None` for camera rays (all opaque).
     #[inline(always)]
-    pub(super) fn find(
+    pub(in crate::render) fn find(
         &self,
         ray: &Ray,
         stochastic: Option<(u64, Option<u32>)>,
@@ -71,10 +71,10 @@ impl<'a> Integrator<'a> {
         self.find_with(ray, stochastic, counts, true)
     }
 
-    /// [`Integrator::find`], a hair vertex with Chiang's view terms only if `view` (the lanes of
-    /// [`Integrator::sample_lanes`] take them eight at a time).
+    /// [`Integrator::find`], a hair vertex with its material prepared for ωo only if `view` (the wavefront
+    /// prepares eight at a time, [`crate::render::wavefront`]).
     #[inline(always)]
-    pub(super) fn find_with(
+    pub(in crate::render) fn find_with(
         &self,
         ray: &Ray,
         stochastic: Option<(u64, Option<u32>)>,
@@ -160,7 +160,7 @@ impl<'a> Integrator<'a> {
     }
 
     /// Visibility along a light sample's shadow ray, in [0, 1].
-    pub(super) fn visibility(
+    pub(in crate::render) fn visibility(
         &self,
         light: usize,
         v: &Vertex,
@@ -217,9 +217,11 @@ impl<'a> Integrator<'a> {
     }
 
     /// Traces a material sample leaving `v` along `wi`, drawn with density `pdf` (per sample) at a vertex weighted
-    /// by `mis`: (Σ_j w_m,j L_e,j of the lights it reaches, where the ray went).
+    /// by `mis`: (Σ_j w_m,j L_e,j of the lights it reaches, where the ray went; a hair vertex found there with its
+    /// view prepared only if `view`).
+    #[allow(clippy::too_many_arguments)]
     #[inline(always)]
-    pub(super) fn trace_material_sample(
+    pub(in crate::render) fn trace_material_sample(
         &self,
         v: &Vertex,
         mis: &Mis,
@@ -227,6 +229,7 @@ impl<'a> Integrator<'a> {
         pdf: f32,
         key: u64,
         counts: &mut RayCounts,
+        view: bool,
     ) -> (Vec3, Found<'a>) {
         let (origin, tnear, ignore) = self.spawn(v, wi);
         let ray = Ray::segment(origin, wi, tnear, f32::INFINITY);
@@ -237,9 +240,9 @@ impl<'a> Integrator<'a> {
             let lit = Reached::without_hair(self.nearest_non_hair(&ray, ray.tfar).1);
             let le = self.emitted_along(v, mis, &ray, lit, pdf);
             counts.material += 1;
-            return (le, self.find(&ray, Some((key, ignore)), counts));
+            return (le, self.find_with(&ray, Some((key, ignore)), counts, view));
         }
-        let found = self.find(&ray, Some((key, ignore)), counts);
+        let found = self.find_with(&ray, Some((key, ignore)), counts, view);
         (
             self.emitted_along(v, mis, &ray, found.reached(), pdf),
             found,
@@ -251,7 +254,7 @@ impl<'a> Integrator<'a> {
     /// nearest shape or emitter instead of a closest hit. The same answer — a strand present for `key` blocks it
     /// exactly when the closest present strand is nearer — for fewer traversal steps (an occlusion query stops at
     /// the first strand it finds, and most such rays start inside the fur).
-    pub(super) fn trace_material_light(
+    pub(in crate::render) fn trace_material_light(
         &self,
         v: &Vertex,
         mis: &Mis,

@@ -1,85 +1,108 @@
-//! The eight-lane path of the first vertex ([`Integrator::sample_lanes`], steps 1–2 of `docs/design/wavefront.md`):
-//! a batch of camera samples whose first vertices are shaded one f32×8 vector at a time through the material's
-//! lane form ([`crate::bsdf::PreparedLanes`]); apart from the scalar path it reproduces bit for bit.
+//! The first vertices of the lanes in one round: their fibres' views taken in lanes, light choice and direction
+//! drawn per lane as the scalar path draws them, f and the pdf at the light directions in lanes, the light samples
+//! finished per lane (MIS weight, roulette, shadow ray), the material samples drawn in lanes and finished per lane
+//! (their rays, the second vertex). A lane on another surface is shaded alone, as on the scalar path.
 
 use glam::Vec3;
 use wide::f32x8;
 
 use crate::bsdf::frame::HairFrame;
 use crate::bsdf::lanes::{directions, LANES};
-use crate::bsdf::PreparedLanes;
+use crate::bsdf::{LobeValues, PreparedLanes};
 use crate::light::LightSample;
-use crate::ray::Ray;
 
+use super::super::integrator::{fcos, BounceRecorder, Draw, Integrator, Surface, Vertex};
 use super::super::sampler::{dim, CameraSample};
 use super::super::settings::LightSelection;
-use super::trace::Found;
-use super::{fcos, Draw, Integrator, PathSample, RayCounts, Surface, Vertex};
+use super::{Lanes, Stage};
 
 /// A lane on a fibre: its vertex, hair frame and diffuse tint.
-type OnFibre<'v, 'a> = Option<(&'v Vertex<'a>, HairFrame, Vec3)>;
+pub(super) type OnFibre<'v, 'a> = Option<(&'v Vertex<'a>, HairFrame, Vec3)>;
+
+/// The lanes' fibre vertices among `vertices`, with the fibres' views prepared in lanes (empty lanes take h = 0
+/// and ωo across the fibre, their results unused); `None` if no lane is on a fibre.
+pub(super) fn fibres<'v, 'a>(
+    integrator: &Integrator<'a>,
+    vertices: [Option<&'v Vertex<'a>>; LANES],
+) -> Option<([OnFibre<'v, 'a>; LANES], PreparedLanes<'a>)> {
+    let lanes: [OnFibre; LANES] = vertices.map(|v| match v?.surface {
+        Surface::Hair { frame, tint, .. } => Some((v?, frame, tint)),
+        Surface::Lambert { .. } => None,
+    });
+    if lanes.iter().all(Option::is_none) {
+        return None;
+    }
+    let h = f32x8::new(vertices.map(|v| match v.map(|v| v.surface) {
+        Some(Surface::Hair { h, .. }) => h,
+        _ => 0.0,
+    }));
+    let wo_l: [Vec3; LANES] =
+        lanes.map(|l| l.map_or(Vec3::Y, |(v, frame, _)| frame.to_local(v.wo)));
+    let views = integrator.material.prepare_lanes(h, directions(&wo_l));
+    Some((lanes, views))
+}
+
+/// The first vertices' state shared by their steps: the lanes on fibres, their views, each lane's draws.
+struct Batch<'l, 's, 'a> {
+    lanes: [OnFibre<'l, 'a>; LANES],
+    views: PreparedLanes<'a>,
+    samplers: &'s [CameraSample<'s>; LANES],
+    indices: &'l [u32; LANES],
+}
+
+impl<'s> Batch<'_, 's, '_> {
+    /// Lane `k`'s draw of sample `s` of `n` per camera sample, with `salt`, as the scalar path numbers them.
+    #[inline]
+    fn draw(&self, k: usize, n: u32, s: u32, salt: u32) -> Draw<'s> {
+        Draw {
+            sampler: &self.samplers[k],
+            index: self.indices[k] * n + s,
+            salt,
+        }
+    }
+}
 
 impl<'a> Integrator<'a> {
-    /// [`Integrator::sample`] of eight camera samples (`rays[k]` with `samplers[k]`, sample `indices[k]`), their
-    /// first vertices shaded together where they are on fibres: the light samples' f and pdf by
-    /// [`PreparedLanes::eval`], the material samples by [`PreparedLanes::sample`], everything else (light choice,
-    /// rays, MIS, the deeper vertices) per sample as [`Integrator::sample`] does it, in the same order, so that each
-    /// lane's result is the scalar path's bit for bit.
-    pub fn sample_lanes(
-        &self,
-        rays: &[Ray; LANES],
-        samplers: &[CameraSample; LANES],
-        indices: &[u32; LANES],
-        counts: &mut RayCounts,
-    ) -> [PathSample; LANES] {
-        let found: [Found; LANES] = std::array::from_fn(|k| {
-            counts.camera += 1;
-            self.find_with(&rays[k], None, counts, false)
-        });
-        let mut outs: [PathSample; LANES] = std::array::from_fn(|k| match &found[k] {
-            Found::Surface(_) => PathSample {
-                alpha: 1.0,
-                ..PathSample::default()
-            },
-            other => self.seen_directly(&rays[k], other),
-        });
-        let on_fibre = |k: usize| match &found[k] {
-            Found::Surface(v) => match &v.surface {
-                Surface::Hair { frame, tint, .. } => Some((v, *frame, *tint)),
-                _ => None,
-            },
+    /// The lanes at their first vertex ([`Stage::First`]): shaded as [`Integrator::sample`]'s steps 2–3, each lane's
+    /// values and rays the scalar path's bit for bit, then on to the second vertex or done.
+    pub(super) fn first_vertices<R: BounceRecorder + Default>(&self, l: &mut Lanes<'_, 'a, R>) {
+        let vertices = l.stage.each_ref().map(|s| match s {
+            Stage::First(v) => Some(v),
             _ => None,
-        };
-        let lanes: [OnFibre; LANES] = std::array::from_fn(on_fibre);
-        if lanes.iter().any(Option::is_some) {
-            // The views in lanes (empty lanes take h = 0 and ωo across the fibre, their results unused).
-            let h = f32x8::new(std::array::from_fn(|k| match &found[k] {
-                Found::Surface(v) => match v.surface {
-                    Surface::Hair { h, .. } => h,
-                    _ => 0.0,
-                },
-                _ => 0.0,
-            }));
-            let wo_l: [Vec3; LANES] =
-                lanes.map(|l| l.map_or(Vec3::Y, |(v, frame, _)| frame.to_local(v.wo)));
-            let views = self.material.prepare_lanes(h, directions(&wo_l));
+        });
+        if vertices.iter().all(Option::is_none) {
+            return;
+        }
+        let mut next: [Option<(Vertex<'a>, LobeValues)>; LANES] = [None; LANES];
+        if let Some((lanes, views)) = fibres(self, vertices) {
             let batch = Batch {
-                lanes: &lanes,
-                views: &views,
-                samplers,
-                indices,
+                lanes,
+                views,
+                samplers: &l.sampler,
+                indices: &l.index,
             };
-            self.light_samples_lanes(&batch, &mut outs, counts);
-            self.material_samples_lanes(&batch, &mut outs, counts);
+            self.light_samples_lanes(&batch, &mut l.out, &mut l.counts);
+            self.material_samples_lanes(&batch, &mut l.out, &mut l.counts, &mut next);
         }
         // A lane on another surface: shaded alone, as `sample` does.
-        for (k, out) in outs.iter_mut().enumerate() {
-            if let (Found::Surface(v), None) = (&found[k], &lanes[k]) {
-                let before = *counts;
-                self.shade_first(v, (&samplers[k], indices[k]), out, counts, &mut (), &before);
+        for (k, v) in vertices.iter().enumerate() {
+            if let Some(
+                v @ Vertex {
+                    surface: Surface::Lambert { .. },
+                    ..
+                },
+            ) = v
+            {
+                let (sampler, index) = (&l.sampler[k], l.index[k]);
+                let (out, counts) = (&mut l.out[k], &mut l.counts[k]);
+                self.first_vertex_light_samples(v, sampler, index, out, counts);
+                next[k] = self.first_vertex_material_samples(v, sampler, index, out, counts);
             }
         }
-        outs
+        let at_first = vertices.map(|v| v.is_some());
+        for (k, _) in at_first.iter().enumerate().filter(|(_, &f)| f) {
+            l.first_done(k, next[k]);
+        }
     }
 
     /// The first vertices' light samples in the scalar path's order ([`Integrator::shade_first`]'s step 2): per
@@ -87,8 +110,8 @@ impl<'a> Integrator<'a> {
     fn light_samples_lanes(
         &self,
         batch: &Batch,
-        outs: &mut [PathSample; LANES],
-        counts: &mut RayCounts,
+        outs: &mut [super::PathSample; LANES],
+        counts: &mut [super::RayCounts; LANES],
     ) {
         let mis = &self.first;
         match mis.selection {
@@ -135,8 +158,8 @@ impl<'a> Integrator<'a> {
         &self,
         batch: &Batch<'_, 's, '_>,
         choose: impl Fn(usize) -> Option<(usize, f32, Draw<'s>)>,
-        outs: &mut [PathSample; LANES],
-        counts: &mut RayCounts,
+        outs: &mut [super::PathSample; LANES],
+        counts: &mut [super::RayCounts; LANES],
     ) {
         let light: [Option<(usize, f32, Draw, LightSample)>; LANES] = std::array::from_fn(|k| {
             let (v, ..) = batch.lanes[k]?;
@@ -165,23 +188,23 @@ impl<'a> Integrator<'a> {
                     fcos,
                     pdf,
                     &mut outs[k],
-                    counts,
+                    &mut counts[k],
                 );
             }
         }
     }
 
-    /// The first vertices' material samples, drawn in lanes, finished per lane, then each lane's path continued
-    /// ([`Integrator::shade_first`]'s steps 3 and on).
+    /// The first vertices' material samples, drawn in lanes and finished per lane; the second vertices (views not
+    /// prepared: the deeper lanes take them) into `next`.
     fn material_samples_lanes(
         &self,
         batch: &Batch,
-        outs: &mut [PathSample; LANES],
-        counts: &mut RayCounts,
+        outs: &mut [super::PathSample; LANES],
+        counts: &mut [super::RayCounts; LANES],
+        next: &mut [Option<(Vertex<'a>, LobeValues)>; LANES],
     ) {
         let n_m = self.first.material_samples;
         let d = dim::vertex(0, dim::MATERIAL);
-        let mut next: [_; LANES] = std::array::from_fn(|_| None);
         for s in 0..n_m {
             let u: [[f32; 3]; LANES] = std::array::from_fn(|k| match batch.lanes[k] {
                 Some(_) => batch.draw(k, n_m, s, 0).get_3(d),
@@ -209,38 +232,12 @@ impl<'a> Integrator<'a> {
                         draw,
                         sample,
                         &mut outs[k],
-                        counts,
+                        &mut counts[k],
                         &mut next[k],
+                        false,
                     );
                 }
             }
-        }
-        for (k, lane) in batch.lanes.iter().enumerate() {
-            if lane.is_some() {
-                let before = *counts;
-                let at = (&batch.samplers[k], batch.indices[k]);
-                self.finish_path(&mut outs[k], &next[k], at, counts, &mut (), &before);
-            }
-        }
-    }
-}
-
-/// The eight lanes' state shared by the first vertex's steps.
-struct Batch<'l, 's, 'a> {
-    lanes: &'l [OnFibre<'l, 'a>; LANES],
-    views: &'l PreparedLanes<'a>,
-    samplers: &'s [CameraSample<'s>; LANES],
-    indices: &'l [u32; LANES],
-}
-
-impl<'s> Batch<'_, 's, '_> {
-    /// Lane `k`'s draw of sample `s` of `n` per camera sample, with `salt`, as the scalar path numbers them.
-    #[inline]
-    fn draw(&self, k: usize, n: u32, s: u32, salt: u32) -> Draw<'s> {
-        Draw {
-            sampler: &self.samplers[k],
-            index: self.indices[k] * n + s,
-            salt,
         }
     }
 }
