@@ -149,13 +149,15 @@ impl Environment {
                 let wi = self.to_world * uv_to_direction(uv).0;
                 // pdf and radiance are looked up again from wi, not taken from uv: a uv on a texel edge may come
                 // back from the direction in the neighbouring texel, and MIS needs sample_li, pdf_li and le to
-                // agree exactly. (The density drawn differs from the one reported only on those edges, a set
-                // of relative measure ~1e-7.)
-                let pdf = self.pdf_li(wi);
+                // agree exactly (all three read the texel at the unit direction's uv; the density drawn differs
+                // from the one reported only on those edges, a set of relative measure ~1e-7).
+                let d = self.to_map * unit(wi)?;
+                let uv = direction_to_uv(d);
+                let pdf = map_pdf(m, d, uv);
                 if pdf <= 0.0 {
                     return None;
                 }
-                (wi, m.texel(direction_to_uv(self.to_map * wi)), pdf)
+                (wi, m.texel(uv), pdf)
             }
         };
         Some(LightSample {
@@ -181,18 +183,25 @@ impl Environment {
                     return 0.0;
                 }
                 let d = self.to_map * w;
-                let sin_theta = (d.x * d.x + d.z * d.z).sqrt();
-                if sin_theta <= 0.0 {
-                    return 0.0;
-                }
-                let pdf = m.distribution.pdf(direction_to_uv(d)) / (2.0 * PI * PI * sin_theta);
-                if pdf.is_finite() {
-                    pdf
-                } else {
-                    0.0
-                }
+                map_pdf(m, d, direction_to_uv(d))
             }
         }
+    }
+}
+
+/// The density per unit solid angle of map `m` at the unit map-frame direction `d` (whose uv is `uv`): p_uv / (2π²
+/// sin θ), 0 at the poles and wherever it is not finite.
+#[inline]
+fn map_pdf(m: &LatLong, d: Vec3, uv: [f32; 2]) -> f32 {
+    let sin_theta = (d.x * d.x + d.z * d.z).sqrt();
+    if sin_theta <= 0.0 {
+        return 0.0;
+    }
+    let pdf = m.distribution.pdf(uv) / (2.0 * PI * PI * sin_theta);
+    if pdf.is_finite() {
+        pdf
+    } else {
+        0.0
     }
 }
 
