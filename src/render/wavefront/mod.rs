@@ -117,18 +117,26 @@ pub fn run<R: BounceRecorder + Default>(
         integrator.first_vertices(&mut lanes);
         integrator.deeper_vertices(&mut lanes);
         for k in 0..LANES {
-            if matches!(lanes.stage[k], Stage::Done) {
-                lanes.stage[k] = Stage::Idle;
-                ring[lanes.index[k] as usize % RING] = Some(Finished {
+            if !matches!(lanes.stage[k], Stage::Done) {
+                continue;
+            }
+            lanes.stage[k] = Stage::Idle;
+            let index = lanes.index[k];
+            if index == handed {
+                // The next in order (most samples): handed on at once, without a stay in the ring.
+                sink(index, &lanes.out[k], &lanes.counts[k], &lanes.record[k]);
+                handed += 1;
+            } else {
+                ring[index as usize % RING] = Some(Finished {
                     out: lanes.out[k],
                     counts: lanes.counts[k],
                     record: std::mem::take(&mut lanes.record[k]),
                 });
             }
-        }
-        while let Some(f) = ring[handed as usize % RING].take() {
-            sink(handed, &f.out, &f.counts, &f.record);
-            handed += 1;
+            while let Some(f) = ring[handed as usize % RING].take() {
+                sink(handed, &f.out, &f.counts, &f.record);
+                handed += 1;
+            }
         }
     }
 }
