@@ -15,7 +15,7 @@ use crate::sys::embree::{
     CommittedScene, CurveBasis, CurveGeometry, Scene, StrandTable, Transmittance,
 };
 
-pub use crate::sys::embree::{BuildQuality, Cutoff, Device, EmbreeError, Layout};
+pub use crate::sys::embree::{BuildQuality, Cutoff, Device, EmbreeError, Layout, PACKET_WIDTHS};
 
 /// BVH quality for hair: Embree's SAH build. On furball.hair (455k segments, Embree 3.13.5, 2 threads) `High`
 /// built a BVH of the same size and traced camera and shadow rays no faster (differences within run-to-run
