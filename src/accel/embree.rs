@@ -15,7 +15,7 @@ use crate::sys::embree::{
     CommittedScene, CurveBasis, CurveGeometry, Scene, StrandTable, Transmittance,
 };
 
-pub use crate::sys::embree::{BuildQuality, Cutoff, Device, EmbreeError, Layout};
+pub use crate::sys::embree::{BuildQuality, Cutoff, Device, EmbreeError, Layout, PACKET_WIDTHS};
 
 /// BVH quality for hair: Embree's SAH build. On furball.hair (455k segments, Embree 3.13.5, 2 threads) `High`
 /// built a BVH of the same size and traced camera and shadow rays no faster (differences within run-to-run
@@ -167,6 +167,78 @@ impl Tracer for EmbreeTracer {
 
     fn transmittance(&self, ray: &Ray, ignore_strand: Option<u32>) -> Result<f32, InvalidRay> {
         Ok(self.scene.transmittance1(ray, ignore_strand)?.value)
+    }
+}
+
+/// Packet queries: [`Tracer::intersect`], [`Tracer::intersect_stochastic`] and [`Tracer::occluded_stochastic`] for
+/// `W` = 8 or 16 rays at once, through Embree's `rtcIntersect8/16` and `rtcOccluded8/16`, for `bench replay
+/// --packets`. Lane k traces `rays[k]` (none: the lane is masked off and its result left untouched) with
+/// `ignore_strand[k]` and `keys[k]`, and gets what the single-ray query would report for it; an invalid ray gets
+/// its error and never reaches Embree.
+impl EmbreeTracer {
+    /// [`Tracer::intersect`] of up to `W` rays.
+    pub fn intersect_packet<const W: usize>(
+        &self,
+        rays: &[Option<Ray>; W],
+        hits: &mut [Result<Option<Hit>, InvalidRay>; W],
+    ) {
+        let mut raw = [Ok(None); W];
+        self.scene.intersect_packet(rays, &mut raw);
+        self.hits_of(rays, &raw, hits);
+    }
+
+    /// [`Tracer::intersect_stochastic`] of up to `W` rays.
+    pub fn intersect_stochastic_packet<const W: usize>(
+        &self,
+        rays: &[Option<Ray>; W],
+        ignore_strand: &[Option<u32>; W],
+        keys: &[u64; W],
+        hits: &mut [Result<Option<Hit>, InvalidRay>; W],
+    ) {
+        let mut raw = [Ok(None); W];
+        if self.all_opaque && ignore_strand.iter().all(Option::is_none) {
+            self.scene.intersect_packet(rays, &mut raw);
+        } else {
+            self.scene.intersect_packet_stochastic(
+                rays,
+                ignore_strand,
+                |lane, strand, opacity| strand_present(keys[lane], strand, opacity),
+                &mut raw,
+            );
+        }
+        self.hits_of(rays, &raw, hits);
+    }
+
+    /// [`Tracer::occluded_stochastic`] of up to `W` rays.
+    pub fn occluded_stochastic_packet<const W: usize>(
+        &self,
+        rays: &[Option<Ray>; W],
+        ignore_strand: &[Option<u32>; W],
+        keys: &[u64; W],
+        occluded: &mut [Result<bool, InvalidRay>; W],
+    ) {
+        if self.all_opaque && ignore_strand.iter().all(Option::is_none) {
+            self.scene.occluded_packet(rays, occluded);
+        } else {
+            self.scene.occluded_packet_stochastic(
+                rays,
+                ignore_strand,
+                |lane, strand, opacity| strand_present(keys[lane], strand, opacity),
+                occluded,
+            );
+        }
+    }
+
+    /// The tracer hits of the lanes with a ray, from Embree's.
+    fn hits_of<const W: usize>(
+        &self,
+        rays: &[Option<Ray>; W],
+        raw: &[Result<Option<crate::sys::embree::RayHit>, InvalidRay>; W],
+        hits: &mut [Result<Option<Hit>, InvalidRay>; W],
+    ) {
+        for k in (0..W).filter(|&k| rays[k].is_some()) {
+            hits[k] = raw[k].map(|h| h.map(|h| self.hit(h)));
+        }
     }
 }
 

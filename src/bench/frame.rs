@@ -93,6 +93,9 @@ pub enum FrameBenchError {
     /// The worker threads could not be started.
     #[error(transparent)]
     ThreadPool(#[from] ThreadPoolError),
+    /// Embree could not build a benchmark's own tracer.
+    #[error(transparent)]
+    Embree(#[from] crate::accel::embree::EmbreeError),
 }
 
 /// Renders `scene` as described in the module docs.

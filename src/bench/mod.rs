@@ -1,10 +1,11 @@
 //! Benchmarks (`cuticle bench …`): each prints a human-readable report plus, where scripts need them, one line per
 //! measurement. `trace`: ray throughput of each backend per ray type; `frame`: a whole render; `replay`: a frame's rays
-//! traced again by the tracer alone; `shadows`: the cost
+//! traced again by the tracer alone (`packets`: and through Embree's packet queries); `shadows`: the cost
 //! of each self-shadowing mode; `build`: build time and memory of each backend on big procedural grooms.
 
 pub mod build;
 pub mod frame;
+pub mod packets;
 pub mod replay;
 pub mod shadows;
 pub mod trace;

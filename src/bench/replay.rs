@@ -52,6 +52,9 @@ pub struct TracedRay {
     pub key: u64,
     /// Which query.
     pub query: Query,
+    /// The rayon worker that issued it (0 outside a pool), so that each thread's queries can be taken in the
+    /// order that thread issued them.
+    pub thread: u16,
 }
 
 impl TracedRay {
@@ -91,11 +94,13 @@ impl Recorder {
         if !self.log.recording.load(Ordering::Relaxed) {
             return;
         }
+        let thread = rayon::current_thread_index().map_or(0, |i| i as u16);
         let traced = TracedRay {
             ray: *ray,
             ignore_strand,
             key,
             query,
+            thread,
         };
         self.log
             .rays

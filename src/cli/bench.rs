@@ -15,8 +15,9 @@ pub enum BenchCommand {
     /// Wall time of a whole frame (default: the built-in scene), rays/s and peak memory.
     Frame(TimedRenderArgs),
     /// The renderer's rays/s against its tracer alone on the same rays: records every tracer query of one frame,
-    /// traces them again without shading, prints both rates and their ratio.
-    Replay(TimedRenderArgs),
+    /// traces them again without shading, prints both rates and their ratio. With `--packets`, traces the recorded
+    /// queries one by one against Embree's packet queries instead.
+    Replay(ReplayArgs),
     /// Shadow cost of ray-traced shadows and of deep opacity maps on one scene (default: the built-in scene), and
     /// the difference between their images.
     Shadows(TimedRenderArgs),
@@ -87,6 +88,26 @@ pub struct TimedRenderArgs {
     spp: Option<u32>,
 }
 
+/// `bench replay`'s options.
+#[derive(clap::Args)]
+pub struct ReplayArgs {
+    #[command(flatten)]
+    timed: TimedRenderArgs,
+    /// Packet widths, e.g. `--packets 8,16`: trace the recorded camera, material and shadow queries one by one and
+    /// grouped as the renderer's batches issue them, in Embree packets of each width, and print rays/s, their ratio
+    /// and the agreement of the hits per query kind (Embree only).
+    #[arg(long, value_delimiter = ',', value_parser = parse_packet_width)]
+    packets: Vec<usize>,
+}
+
+/// A packet width `--packets` accepts: 8 or 16.
+fn parse_packet_width(text: &str) -> Result<usize, String> {
+    match text.trim().parse::<usize>() {
+        Ok(w) if cuticle::accel::embree::PACKET_WIDTHS.contains(&w) => Ok(w),
+        _ => Err(format!("packet width must be 8 or 16, got {text:?}")),
+    }
+}
+
 impl TimedRenderArgs {
     /// The scene with the overrides, and the thread count.
     fn scene(&self) -> Result<(Scene, usize)> {
@@ -111,10 +132,16 @@ pub fn bench_command(command: BenchCommand) -> Result<()> {
             let report = cuticle::bench::frame::frame(&scene, threads, args.repetitions)?;
             println!("{report}");
         }
-        BenchCommand::Replay(args) => {
-            let (scene, threads) = args.scene()?;
-            let report = cuticle::bench::replay::replay(&scene, threads, args.repetitions)?;
-            println!("{report}");
+        BenchCommand::Replay(ReplayArgs { timed, packets }) => {
+            let (scene, threads) = timed.scene()?;
+            if packets.is_empty() {
+                let report = cuticle::bench::replay::replay(&scene, threads, timed.repetitions)?;
+                println!("{report}");
+            } else {
+                let report =
+                    cuticle::bench::packets::packets(&scene, threads, timed.repetitions, &packets)?;
+                println!("{report}");
+            }
         }
         BenchCommand::Shadows(args) => {
             let (scene, threads) = args.scene()?;

@@ -325,6 +325,18 @@ impl Device {
             != 0
     }
 
+    /// Whether Embree traces packets of `width` rays (4, 8 or 16) with kernels of that width on this CPU; other widths
+    /// are still answered, by narrower kernels or one ray at a time.
+    pub fn native_packet(&self, width: usize) -> bool {
+        let property = match width {
+            4 => RTC_DEVICE_PROPERTY_NATIVE_RAY4_SUPPORTED,
+            8 => RTC_DEVICE_PROPERTY_NATIVE_RAY8_SUPPORTED,
+            16 => RTC_DEVICE_PROPERTY_NATIVE_RAY16_SUPPORTED,
+            _ => return false,
+        };
+        self.inner.property(property) != 0
+    }
+
     /// Bytes Embree currently has allocated on this device (BVHs and buffers), from its memory monitor.
     pub fn memory_bytes(&self) -> usize {
         usize::try_from(self.inner.state().bytes.load(Ordering::Relaxed)).unwrap_or(0)

@@ -135,6 +135,18 @@ pub(super) unsafe fn hit_n_prim_id(hit: *const RTCHitN, n: u32, i: u32) -> u32 {
     unsafe { *hit.cast::<u32>().add(index) }
 }
 
+/// Mirrors `RTCRayN_id` (`rtcore_ray.h`, Embree 3 and 4; a C++-only inline accessor): the ray packet of width `n`
+/// is stored as structure-of-arrays and `id` is its eleventh field (after origin, tnear, direction, time, tfar and
+/// mask).
+///
+/// # Safety
+/// `ray` must point at a ray packet of width `n` (as passed to a filter function), and `i < n`.
+pub(super) unsafe fn ray_n_id(ray: *const RTCRayN, n: u32, i: u32) -> u32 {
+    let index = 10 * n as usize + i as usize;
+    // SAFETY: the caller guarantees a packet of width `n`, whose eleventh row of `n` u32s holds id, and `i < n`.
+    unsafe { *ray.cast::<u32>().add(index) }
+}
+
 #[cfg(all(test, embree4))]
 mod tests {
     use super::*;

@@ -119,19 +119,19 @@ pub(super) unsafe extern "C" fn transmittance_filter(args: *const RTCFilterFunct
     // runs filters on the querying thread during the call, when nothing else touches the query.
     let query = unsafe { &mut *args.context.cast::<TransmittanceQuery>() };
     // SAFETY: `args` is the argument struct of this filter call, on cuticle's curve geometries.
-    unsafe { filter_hits(args, |strand| query.on_hit(strand) == Verdict::Stop) };
+    unsafe { filter_hits(args, |_, strand| query.on_hit(strand) == Verdict::Stop) };
 }
 
-/// The loop every filter function shares: for each valid lane of the hit packet, looks up the strand of its segment
-/// and passes it to `keep`; lanes for which `keep` returns `false` are rejected (`valid[i] = 0`), so traversal goes
-/// on past them.
+/// The loop every filter function shares: for each valid lane `i` of the hit packet, looks up the strand of its
+/// segment and passes both to `keep`; lanes for which `keep` returns `false` are rejected (`valid[i] = 0`), so
+/// traversal goes on past them.
 ///
 /// # Safety
 /// `args` must be the argument struct Embree passed to the calling filter function, for a geometry whose user data
 /// is null or `Arc::as_ptr` of its [`StrandTable`], kept alive by the committed scene.
 unsafe fn filter_hits(
     args: &RTCFilterFunctionNArguments,
-    mut keep: impl FnMut(Option<(u32, f32)>) -> bool,
+    mut keep: impl FnMut(u32, Option<(u32, f32)>) -> bool,
 ) {
     // SAFETY: the caller guarantees the user data is null or a live strand table.
     let table = unsafe {
@@ -148,7 +148,7 @@ unsafe fn filter_hits(
         }
         // SAFETY: `hit` is a packet of width `N` and `i < N`.
         let segment = unsafe { hit_n_prim_id(args.hit, args.N, i) };
-        if !keep(table.and_then(|t| t.lookup(segment))) {
+        if !keep(i, table.and_then(|t| t.lookup(segment))) {
             *valid = 0;
         }
     }
@@ -215,7 +215,81 @@ pub(super) unsafe extern "C" fn stochastic_filter<P: Fn(u32, f32) -> bool>(
     // filter only reads it.
     let query = unsafe { &*args.context.cast::<StochasticQuery<P>>() };
     // SAFETY: `args` is the argument struct of this filter call, on cuticle's curve geometries.
-    unsafe { filter_hits(args, |strand| query.accepts(strand)) };
+    unsafe { filter_hits(args, |_, strand| query.accepts(strand)) };
+}
+
+/// The payload of the stochastic packet queries ([`CommittedScene::intersect_packet_stochastic`],
+/// [`CommittedScene::occluded_packet_stochastic`]): Embree's context first, then per packet lane the strand to
+/// ignore, and the caller's presence test `present(lane, strand, opacity)`.
+///
+/// The filter finds a hit's packet lane from the ray's `id`, which the packet queries set to the lane index: Embree
+/// may hand the filter the whole packet or a part of it, so the position in the filter's packet is not enough.
+#[repr(C)]
+pub(super) struct StochasticPacket<P, const W: usize> {
+    context: QueryContext,
+    ignore_strand: [u32; W],
+    present: P,
+}
+
+// As for `StochasticQuery`: the context must sit at offset 0, whatever `P` and `W` are.
+const _: () =
+    assert!(std::mem::offset_of!(StochasticPacket<fn(usize, u32, f32) -> bool, 16>, context) == 0);
+
+impl<P: Fn(usize, u32, f32) -> bool, const W: usize> StochasticPacket<P, W> {
+    /// A payload whose context carries [`stochastic_packet_filter`] (Embree 3; Embree 4 takes the filter in the
+    /// query arguments).
+    pub(super) fn new(ignore_strand: &[Option<u32>; W], present: P) -> Self {
+        #[allow(unused_mut)]
+        let mut context = init_query_context();
+        #[cfg(not(embree4))]
+        {
+            context.filter = Some(stochastic_packet_filter::<P, W>);
+        }
+        StochasticPacket {
+            context,
+            ignore_strand: ignore_strand.map(|s| s.unwrap_or(NO_STRAND)),
+            present,
+        }
+    }
+
+    /// [`StochasticQuery::accepts`] for packet lane `lane`; a lane outside the packet (which no query of this
+    /// payload creates) keeps its hit.
+    #[inline]
+    fn accepts(&self, lane: u32, strand: Option<(u32, f32)>) -> bool {
+        let lane = lane as usize;
+        match (strand, self.ignore_strand.get(lane)) {
+            (Some((strand, opacity)), Some(&ignore)) => {
+                strand != ignore && (self.present)(lane, strand, opacity)
+            }
+            _ => true,
+        }
+    }
+}
+
+/// The filter of the stochastic packet queries: [`stochastic_filter`] with the presence test and the ignored strand
+/// of each hit's own packet lane (its ray's `id`).
+pub(super) unsafe extern "C" fn stochastic_packet_filter<
+    P: Fn(usize, u32, f32) -> bool,
+    const W: usize,
+>(
+    args: *const RTCFilterFunctionNArguments,
+) {
+    // SAFETY: Embree passes a valid argument struct for the duration of the call.
+    let Some(args) = (unsafe { args.as_ref() }) else {
+        return;
+    };
+    // SAFETY: only the stochastic packet queries install this filter, each with the `P` and `W` of its own payload,
+    // and their context pointer is the first field of a live `StochasticPacket<P, W>` (repr(C), offset 0 asserted
+    // above); the filter only reads it.
+    let query = unsafe { &*args.context.cast::<StochasticPacket<P, W>>() };
+    let (ray, n) = (args.ray.cast_const(), args.N);
+    let lane_of = |i: u32| {
+        debug_assert!(i < n);
+        // SAFETY: `ray` is this call's ray packet of width `n`, and `filter_hits` passes only lanes `i < n`.
+        unsafe { ray_n_id(ray, n, i) }
+    };
+    // SAFETY: `args` is the argument struct of this filter call, on cuticle's curve geometries.
+    unsafe { filter_hits(args, |i, strand| query.accepts(lane_of(i), strand)) };
 }
 
 #[cfg(test)]

@@ -25,6 +25,12 @@
 //! caller's presence test keeps for the ray (a closure `present(strand, opacity)`, called by their filter once per
 //! candidate hit).
 //!
+//! The packet queries ([`CommittedScene::intersect_packet`], [`CommittedScene::intersect_packet_stochastic`],
+//! [`CommittedScene::occluded_packet`], [`CommittedScene::occluded_packet_stochastic`]) trace 8 or 16 rays with one
+//! `rtcIntersect8/16` or `rtcOccluded8/16` call and report per lane what the single-ray query would; the
+//! stochastic ones take one presence test `present(lane, strand, opacity)` for the packet, and their filter finds
+//! each hit's lane from the ray's `id`.
+//!
 //! Every query first validates its ray with [`Ray::check`](crate::ray::Ray::check): Debian's libembree3 has
 //! assertions on and aborts the process on a NaN/Inf ray, a negative `tnear` or an origin beyond ~1.8e18.
 //!
@@ -47,6 +53,7 @@
 //! - `geometry.rs`: [`StrandTable`] and [`CurveGeometry`].
 //! - `scene.rs`: [`Scene`], [`BuildQuality`] and [`CommittedScene`].
 //! - `query.rs`: the queries of a [`CommittedScene`] and their results ([`RayHit`], [`Transmittance`]).
+//! - `packet.rs`: the packet queries of a [`CommittedScene`] (8 or 16 rays per call).
 //! - `filter.rs`: the filter functions Embree calls per candidate hit, and the per-query payloads they use.
 #![warn(unsafe_op_in_unsafe_fn)]
 
@@ -55,6 +62,7 @@ mod error;
 mod ffi;
 mod filter;
 mod geometry;
+mod packet;
 mod query;
 mod scene;
 
@@ -62,5 +70,6 @@ pub use device::Device;
 pub use error::{EmbreeError, ErrorCode};
 pub use filter::{Cutoff, SEEN_STRANDS, TRANSMITTANCE_CUTOFF};
 pub use geometry::{CurveBasis, CurveGeometry, StrandTable};
+pub use packet::PACKET_WIDTHS;
 pub use query::{RayHit, Transmittance};
 pub use scene::{BuildQuality, CommittedScene, Layout, Scene};

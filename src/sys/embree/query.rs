@@ -49,7 +49,7 @@ pub struct Transmittance {
 /// Embree's own validity test (`RayK::valid`, `kernels/common/ray.h`) also requires every direction component to be
 /// below ~1.8e18, which [`Ray::check`] does not ask: such a direction is scaled down, with the interval scaled up,
 /// so the same points are traced; hit distances are divided back by the returned factor.
-fn embree_ray(ray: &Ray) -> Result<(RTCRay, f32), InvalidRay> {
+pub(super) fn embree_ray(ray: &Ray) -> Result<(RTCRay, f32), InvalidRay> {
     ray.check()?;
     let longest = ray.dir.abs().max_element();
     let (dir, scale) = if longest >= MAX_ORIGIN {
