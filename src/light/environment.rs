@@ -133,6 +133,27 @@ impl Environment {
         }
     }
 
+    /// ([`Environment::le`], [`Environment::pdf_li`]) of `dir`: the same values, the map's uv computed once.
+    #[inline]
+    pub fn le_and_pdf(&self, dir: Vec3) -> (Vec3, f32) {
+        let Some(w) = unit(dir) else {
+            return (Vec3::ZERO, 0.0);
+        };
+        match &self.source {
+            Source::Constant(l) => (*l, UNIFORM_SPHERE_PDF),
+            Source::Map(m) => {
+                let d = self.to_map * w;
+                let uv = direction_to_uv(d);
+                let pdf = if m.distribution.integral() <= 0.0 {
+                    0.0
+                } else {
+                    map_pdf(m, d, uv)
+                };
+                (m.texel(uv), pdf)
+            }
+        }
+    }
+
     /// A direction drawn in proportion to luminance (a map) or uniformly (a constant). `None` for a black map.
     #[inline]
     pub fn sample_li(&self, u: [f32; 2]) -> Option<LightSample> {
@@ -459,6 +480,26 @@ mod tests {
             assert!(
                 (back[0] - uv[0]).abs() < 1e-5 && (back[1] - uv[1]).abs() < 1e-5,
                 "{uv:?} → {back:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn radiance_and_density_from_one_lookup_are_le_and_pdf_li() {
+        // Rotated and tilted, so that the map frame is not the world's; unnormalised directions, the poles, zero.
+        let env =
+            Environment::from_image(&synthetic(), 1.5, 37.0, Vec3::new(0.3, 1.0, -0.2)).unwrap();
+        let mut rng = Pcg32::new(9, 3);
+        let mut dirs: Vec<Vec3> = (0..5000)
+            .map(|_| uniform_sphere(rng.random(), rng.random()) * rng.random_range(0.1..10.0))
+            .collect();
+        dirs.extend([Vec3::ZERO, Vec3::Y, -Vec3::Y, Vec3::new(0.3, 1.0, -0.2)]);
+        for d in dirs {
+            let (le, pdf) = env.le_and_pdf(d);
+            assert_eq!(
+                (le, pdf.to_bits()),
+                (env.le(d), env.pdf_li(d).to_bits()),
+                "{d}"
             );
         }
     }

@@ -115,6 +115,17 @@ impl Light {
         }
     }
 
+    /// ([`Light::le`], [`Light::pdf_li`]) of an infinite light for direction `dir`, the same values from one
+    /// lookup of the direction (an environment map's texel and density share it).
+    #[inline]
+    pub fn le_and_pdf(&self, dir: Vec3) -> (Vec3, f32) {
+        match self {
+            Light::Environment(l) => l.le_and_pdf(dir),
+            Light::Distant(l) => (l.le(dir), l.pdf_li(dir)),
+            Light::Area(_) => (Vec3::ZERO, 0.0),
+        }
+    }
+
     /// [`Light::le`] when it is the same for every direction (a delta [`Distant`] light and an area light: 0; a
     /// constant environment: its radiance), else `None`. A camera ray that escapes a scene whose lights all have
     /// one sees their sum without a lookup per ray ([`crate::render::integrator::Integrator`]).

@@ -298,12 +298,18 @@ impl<'a> Integrator<'a> {
             mis.material_weight(p_material, p_light)
         };
         match reached {
+            // An infinite light's radiance and density from one lookup of the direction (a map's texel and its
+            // sampling density share the uv).
             Reached::Escaped => self
                 .lights
                 .iter()
                 .enumerate()
                 .filter(|(_, l)| l.is_infinite() && !l.is_delta())
-                .map(|(j, l)| l.le(ray.dir) * weight(j))
+                .map(|(j, l)| {
+                    let (le, pdf_li) = l.le_and_pdf(ray.dir);
+                    let p_light = mis.light_count(false, self.select.pmf(j)) * pdf_li;
+                    le * mis.material_weight(p_material, p_light)
+                })
                 .fold(Vec3::ZERO, |a, b| a + b),
             Reached::Emitter(radiance, j) => radiance * weight(j),
             Reached::Surface => Vec3::ZERO,
