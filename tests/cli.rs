@@ -88,6 +88,48 @@ fn renders_the_default_scene_with_flat_curves() {
 }
 
 #[test]
+fn the_scalar_integrator_is_one_option_away_and_gives_the_same_image() {
+    let dir = tempfile::tempdir().unwrap();
+    let render = |name: &str, extra: &[&str]| {
+        let exr = dir.path().join(name);
+        let mut args = vec!["render", "-q", "-o", exr.to_str().unwrap()];
+        args.extend_from_slice(&["--res", "48x36", "--spp", "8", "--path-length", "2"]);
+        args.extend_from_slice(extra);
+        let out = cuticle(&args);
+        assert!(out.status.success(), "{}", stderr(&out));
+        exr
+    };
+    // Every channel of every pixel the same (idiff, zero tolerance; the headers differ in their date and job).
+    let same = |a: &Path, b: &Path| {
+        let out = Command::new("idiff")
+            .args(["-q", "-a"])
+            .args([a, b])
+            .output()
+            .expect("idiff not found: install the Debian package openimageio-tools");
+        out.status.success()
+    };
+    let default = render("default.exr", &[]);
+    assert!(same(
+        &default,
+        &render("lanes.exr", &["--shading", "lanes"])
+    ));
+    assert!(same(
+        &default,
+        &render("scalar.exr", &["--shading", "scalar"])
+    ));
+    assert!(
+        !same(&default, &render("other.exr", &["--seed", "2"])),
+        "idiff tells images apart"
+    );
+    let out = cuticle(&["render", "--shading", "wide", "-o", "x.exr"]);
+    assert!(
+        !out.status.success() && stderr(&out).contains("wide"),
+        "{}",
+        stderr(&out)
+    );
+}
+
+#[test]
 fn renders_straight_hair() {
     let dir = tempfile::tempdir().unwrap();
     render_and_check(

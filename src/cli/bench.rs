@@ -6,7 +6,7 @@ use anyhow::Result;
 use clap::Subcommand;
 
 use cuticle::accel::{Backend, CurveKind};
-use cuticle::scene::{Overrides, Scene};
+use cuticle::scene::{Overrides, Scene, Shading};
 
 use super::{load_scene, parse_resolution, scene_name, threads};
 
@@ -86,6 +86,9 @@ pub struct TimedRenderArgs {
     /// Camera samples per pixel (overrides film.spp).
     #[arg(long)]
     spp: Option<u32>,
+    /// lanes (the wavefront integrator) or scalar (overrides integrator.shading).
+    #[arg(long, value_parser = scene_name::<Shading>)]
+    shading: Option<Shading>,
 }
 
 /// `bench replay`'s options.
@@ -118,6 +121,7 @@ impl TimedRenderArgs {
             backend: self.backend,
             resolution: self.res,
             spp: self.spp,
+            shading: self.shading,
             ..Overrides::default()
         };
         let scene = load_scene(self.scene.as_deref())?.apply(&overrides)?;

@@ -7,7 +7,7 @@ use anyhow::{bail, Result};
 use cuticle::accel::{Backend, CurveKind};
 use cuticle::job::{AutoPlan, Job, Part, Request};
 use cuticle::quality::{Fixed, QualityMode};
-use cuticle::render::{self, LightSelection, RenderStats, ShadowMode, TransmittanceMode};
+use cuticle::render::{self, LightSelection, RenderStats, Shading, ShadowMode, TransmittanceMode};
 use cuticle::scene::Overrides;
 
 use super::{load_scene, parse_resolution, scene_name};
@@ -60,6 +60,10 @@ pub struct RenderArgs {
     /// environment by its irradiance) (overrides integrator.lights).
     #[arg(long, value_parser = scene_name::<LightSelection>)]
     lights: Option<LightSelection>,
+    /// lanes: the wavefront integrator (eight paths at a time, shaded in f32x8 lanes); scalar: the scalar path
+    /// tracer, the reference; the same image either way (overrides integrator.shading).
+    #[arg(long, value_parser = scene_name::<Shading>)]
+    shading: Option<Shading>,
     /// Refuse the frame before building it when its estimated memory exceeds this size (e.g. 4G, 512M; default:
     /// 3/4 of physical memory).
     #[arg(long, value_name = "SIZE", value_parser = render::budget::parse_size)]
@@ -129,6 +133,7 @@ pub fn render_command(args: RenderArgs) -> Result<()> {
         material_samples: args.material_samples,
         path_length: args.path_length,
         lights: args.lights,
+        shading: args.shading,
         quality: args.quality,
         target: args.target,
     };

@@ -32,7 +32,7 @@ use crate::render::{FrameSpec, RenderSettings};
 
 pub use crate::render::camera::CameraConfig;
 pub use crate::render::settings::{
-    FilmConfig, IntegratorConfig, LightSelection, ShadowConfig, ShadowMode, Strategy,
+    FilmConfig, IntegratorConfig, LightSelection, Shading, ShadowConfig, ShadowMode, Strategy,
     TransmittanceMode,
 };
 
@@ -320,6 +320,9 @@ impl Scene {
         if let Some(l) = o.lights {
             self.integrator.lights = l;
         }
+        if let Some(s) = o.shading {
+            self.integrator.shading = s;
+        }
         if let Some(m) = o.quality {
             self.quality.mode = m;
         }
@@ -357,6 +360,8 @@ pub struct Overrides {
     pub path_length: Option<u32>,
     /// `integrator.lights`.
     pub lights: Option<LightSelection>,
+    /// `integrator.shading`.
+    pub shading: Option<Shading>,
     /// `quality.mode`.
     pub quality: Option<QualityMode>,
     /// `quality.target`.
