@@ -65,6 +65,27 @@ impl<'a> Integrator<'a> {
         out: &mut PathSample,
         counts: &mut RayCounts,
     ) {
+        self.first_light_slots(|n, k, salt, light| {
+            let draw = Draw {
+                sampler,
+                index: index * n + k,
+                salt,
+            };
+            if let Some((j, count)) = light.or_else(|| self.choose_first_light(draw)) {
+                self.first_vertex_light_sample(v, j, count, draw, out, counts);
+            }
+        });
+    }
+
+    /// The first vertex's light-sample slots in order, each as `slot(n, k, salt, light)`: sample k of n per camera
+    /// sample, drawn with `salt`, going to `light` = (j, n_j) — under `lights = "all"` each light's own samples
+    /// (a delta light one), under `lights = "one"` `None`, the light chosen from the draw
+    /// ([`Integrator::choose_first_light`]). Under material-only sampling only delta lights get slots.
+    #[inline]
+    pub(in crate::render) fn first_light_slots(
+        &self,
+        mut slot: impl FnMut(u32, u32, u32, Option<(usize, f32)>),
+    ) {
         let mis = &self.first;
         match mis.selection {
             LightSelection::All => {
@@ -74,37 +95,33 @@ impl<'a> Integrator<'a> {
                         continue;
                     }
                     let samples = mis.samples_per_light(delta);
+                    let count = mis.light_count(delta, 1.0);
                     for k in 0..samples {
-                        let draw = Draw {
-                            sampler,
-                            index: index * samples + k,
-                            salt: j as u32,
-                        };
-                        let count = mis.light_count(delta, 1.0);
-                        self.first_vertex_light_sample(v, j, count, draw, out, counts);
+                        slot(samples, k, j as u32, Some((j, count)));
                     }
                 }
             }
             LightSelection::One if !self.lights.is_empty() => {
-                let n_l = mis.light_samples;
-                for k in 0..n_l {
-                    let draw = Draw {
-                        sampler,
-                        index: index * n_l + k,
-                        salt: 0,
-                    };
-                    let u_select = draw.get(dim::vertex(0, dim::LIGHT_SELECT));
-                    let (j, p_select, _) = self.select.sample_discrete(u_select);
-                    let delta = self.lights[j].is_delta();
-                    if p_select <= 0.0 || !mis.samples_light(delta) {
-                        continue;
-                    }
-                    let count = mis.light_count(delta, p_select);
-                    self.first_vertex_light_sample(v, j, count, draw, out, counts);
+                for k in 0..mis.light_samples {
+                    slot(mis.light_samples, k, 0, None);
                 }
             }
             LightSelection::One => {}
         }
+    }
+
+    /// Under `lights = "one"`: the light a first-vertex light sample drawn with `draw` goes to, ∝ its selection
+    /// weight, and its expected sample count n_j; `None` if it has no probability or is not light-sampled.
+    #[inline]
+    pub(in crate::render) fn choose_first_light(&self, draw: Draw) -> Option<(usize, f32)> {
+        let mis = &self.first;
+        let u_select = draw.get(dim::vertex(0, dim::LIGHT_SELECT));
+        let (j, p_select, _) = self.select.sample_discrete(u_select);
+        let delta = self.lights[j].is_delta();
+        if p_select <= 0.0 || !mis.samples_light(delta) {
+            return None;
+        }
+        Some((j, mis.light_count(delta, p_select)))
     }
 
     /// One light sample of light `j` at the first vertex `v`, where the light expects `count` samples (n_j,

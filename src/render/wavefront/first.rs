@@ -13,7 +13,6 @@ use crate::light::LightSample;
 
 use super::super::integrator::{fcos, BounceRecorder, Draw, Integrator, Surface, Vertex};
 use super::super::sampler::{dim, CameraSample};
-use super::super::settings::LightSelection;
 use super::{Lanes, Stage};
 
 /// A lane on a fibre: its vertex, hair frame and diffuse tint.
@@ -113,43 +112,14 @@ impl<'a> Integrator<'a> {
         outs: &mut [super::PathSample; LANES],
         counts: &mut [super::RayCounts; LANES],
     ) {
-        let mis = &self.first;
-        match mis.selection {
-            LightSelection::All => {
-                for (j, light) in self.lights.iter().enumerate() {
-                    let delta = light.is_delta();
-                    if !mis.samples_light(delta) {
-                        continue;
-                    }
-                    let samples = mis.samples_per_light(delta);
-                    let count = mis.light_count(delta, 1.0);
-                    for s in 0..samples {
-                        let choose = |k: usize| {
-                            let draw = batch.draw(k, samples, s, j as u32);
-                            Some((j, count, draw))
-                        };
-                        self.light_slot_lanes(batch, choose, outs, counts);
-                    }
-                }
-            }
-            LightSelection::One if !self.lights.is_empty() => {
-                let n_l = mis.light_samples;
-                for s in 0..n_l {
-                    let choose = |k: usize| {
-                        let draw = batch.draw(k, n_l, s, 0);
-                        let u_select = draw.get(dim::vertex(0, dim::LIGHT_SELECT));
-                        let (j, p_select, _) = self.select.sample_discrete(u_select);
-                        let delta = self.lights[j].is_delta();
-                        if p_select <= 0.0 || !mis.samples_light(delta) {
-                            return None;
-                        }
-                        Some((j, mis.light_count(delta, p_select), draw))
-                    };
-                    self.light_slot_lanes(batch, choose, outs, counts);
-                }
-            }
-            LightSelection::One => {}
-        }
+        self.first_light_slots(|n, s, salt, light| {
+            let choose = |k: usize| {
+                let draw = batch.draw(k, n, s, salt);
+                let (j, count) = light.or_else(|| self.choose_first_light(draw))?;
+                Some((j, count, draw))
+            };
+            self.light_slot_lanes(batch, choose, outs, counts);
+        });
     }
 
     /// One light sample per lane on a fibre: `choose` gives lane k's light, its expected sample count and its
