@@ -365,8 +365,25 @@ fn auto_prints_short_decisions_and_warns_when_fixed_settings_miss_the_target() {
         fixed.contains("warning: --spp 4 cannot meet --target 0.01"),
         "{fixed}"
     );
+    // The last auto line: the error the frame estimates it delivered.
+    assert!(
+        auto_lines
+            .last()
+            .unwrap()
+            .starts_with("auto: estimated error "),
+        "{fixed}"
+    );
     let free = run(&["--target", "0.2"]);
     assert!(!free.contains("warning"), "{free}");
+    let last = free.lines().rfind(|l| l.starts_with("auto:")).unwrap();
+    assert!(
+        last.starts_with("auto: estimated error ") && last.contains("read from the frame"),
+        "{free}"
+    );
+    assert!(
+        last.chars().count() <= 120,
+        "line over 120 characters: {last}"
+    );
     let verbose = run(&["--target", "0.2", "--verbose"]);
     assert!(verbose.lines().count() > free.lines().count(), "{verbose}");
 }

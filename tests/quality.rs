@@ -6,6 +6,7 @@ use std::process::Command;
 
 use cuticle::accel::CurveKind;
 use cuticle::measure::metrics;
+use cuticle::quality::delivered::delivered;
 use cuticle::quality::{self, Fixed, QualityConfig};
 use cuticle::render::{thread_pool, Frame, Request};
 use cuticle::scene::{Scene, ShadowMode};
@@ -115,7 +116,10 @@ fn auto_meets_its_target_and_a_tighter_target_takes_more_samples() {
         pool.install(|| frame.render(Request::new(settings).maps(maps, 0.0)).image)
     };
     for planned in [&loose, &tight] {
-        let image = render(&planned.settings, planned.maps.as_ref());
+        let rendered = pool.install(|| {
+            frame.render(Request::new(&planned.settings).maps(planned.maps.as_ref(), 0.0))
+        });
+        let image = rendered.image;
         let mut reference = planned.settings.clone();
         reference.film.spp = 1024;
         reference.adaptive = None;
@@ -169,7 +173,39 @@ fn auto_meets_its_target_and_a_tighter_target_takes_more_samples() {
             rel_rmse < 2.0 * predicted && rel_rmse > 0.5 * predicted,
             "predicted noise {predicted}, measured {rel_rmse}"
         );
+        // What the render says it delivered (the stop's reading and the pilots' bias) is what was measured, within
+        // 20 % (the bound; the reference's own noise, 1024 spp, is ~1 % of the frame's).
+        let said = delivered(&planned.pilot, target, rendered.stats.noise.as_ref());
+        assert!(said.read_from_frame);
+        eprintln!(
+            "estimated {} measured {rel_rmse} ({})",
+            said.error,
+            said.line()
+        );
+        assert!(
+            (said.error / rel_rmse - 1.0).abs() <= 0.2,
+            "estimated {} against measured {rel_rmse}: {}",
+            said.error,
+            said.line()
+        );
+        assert!(said.shortfall().is_none(), "{:?}", said.shortfall());
     }
+    // Held at a cap too low for the target: the estimate is over it, and says why.
+    let q = QualityConfig {
+        target: TIGHT,
+        max_spp: 4,
+        min_spp: 2,
+        ..QualityConfig::default()
+    };
+    let capped =
+        pool.install(|| quality::plan_frame(&frame, &frame.settings, &q, Fixed::default()));
+    let rendered = pool
+        .install(|| frame.render(Request::new(&capped.settings).maps(capped.maps.as_ref(), 0.0)));
+    let said = delivered(&capped.pilot, TIGHT, rendered.stats.noise.as_ref());
+    let why = said
+        .shortfall()
+        .expect("a 4-spp cap cannot meet the tight target");
+    assert!(why.contains("stopped at the cap of 4 spp"), "{why}");
 }
 
 #[test]

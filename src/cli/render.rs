@@ -6,6 +6,7 @@ use anyhow::{bail, Result};
 
 use cuticle::accel::{Backend, CurveKind};
 use cuticle::job::{AutoPlan, Job, Part, Request};
+use cuticle::quality::delivered::delivered;
 use cuticle::quality::{Fixed, QualityMode};
 use cuticle::render::{self, LightSelection, RenderStats, Shading, ShadowMode, TransmittanceMode};
 use cuticle::scene::Overrides;
@@ -212,6 +213,11 @@ fn print_summary(job: &Job, stats: &RenderStats, dropped_before: u64) {
             100.0 * p / (p + stats.seconds).max(1e-9),
             p + stats.seconds
         );
+        let delivered = delivered(&auto.pilot, auto.target, stats.noise.as_ref());
+        eprintln!("{}", delivered.line());
+        if let Some(why) = delivered.shortfall() {
+            eprintln!("warning: {why}");
+        }
     }
     if job.uses_maps() {
         eprintln!(

@@ -42,6 +42,7 @@
 //! way on any machine and thread count. Not decided yet: stochastic simplification.
 
 pub mod cost;
+pub mod delivered;
 pub mod pilot;
 
 use serde::Deserialize;

@@ -159,6 +159,9 @@ pub struct PilotPlan {
     /// The noise the frame may have, relative RMSE: √(target² − bias²) with the bias the pilots measured for the
     /// bounces left out (half the target when the path length was fixed).
     pub noise_budget: f64,
+    /// The relative RMSE of the bounces left out, as the pilots measured it (`None` when the path length was
+    /// fixed: then half the target is set aside for it, unmeasured).
+    pub bias_left: Option<f64>,
     /// How much faster than independent samples the frame's error falls ([`sampler_gain`]; 1 when the spp was
     /// fixed): adaptive sampling's stop divides the noise it reads from the pixels' sample variances by it.
     pub sampler_gain: f64,
@@ -451,6 +454,7 @@ pub fn plan(
         predicted_seconds,
         predicted_noise: (mean * darkening * f64::from(PILOT_SPP) / f64::from(spp)).sqrt(),
         noise_budget: noise_budget.sqrt(),
+        bias_left: left,
         sampler_gain,
         darkening,
         pilot_seconds: start.elapsed().as_secs_f64(),

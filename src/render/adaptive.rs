@@ -81,7 +81,7 @@ mod tests;
 
 pub use convergence::Convergence;
 pub(crate) use schedule::neighbourhood;
-pub use schedule::{Schedule, BACKGROUND_MAX_ORDER};
+pub use schedule::{NoiseEstimate, Schedule, BACKGROUND_MAX_ORDER};
 
 use std::ops::Range;
 
@@ -161,7 +161,7 @@ pub(super) fn render_rounds(
     samples: &(impl Fn(u32, u32, Range<u32>, &mut RayCounts, Sink) + Sync),
     centre: &(impl Fn(u32, u32, &mut [f32], &mut RayCounts) + Sync),
     cancelled: &(impl Fn() -> bool + Sync),
-) -> Vec<(Tile, RayCounts)> {
+) -> (Vec<(Tile, RayCounts)>, Option<NoiseEstimate>) {
     let mut work: Vec<Work> = tiles
         .par_iter()
         .filter_map(|&(tx, ty)| {
@@ -184,6 +184,8 @@ pub(super) fn render_rounds(
     let index = move |x: u32, y: u32| (y - region.y0) as usize * width + (x - region.x0) as usize;
     let pixels = width * region.height() as usize;
     let mut round = 0;
+    // The stop's reading of the region after the last round (none if cancelled or a tile is missing).
+    let mut estimate = None;
     while work.len() == tiles.len() && !cancelled() {
         let mut taken = vec![0u32; pixels];
         let mut stats = vec![Convergence::default(); pixels];
@@ -199,6 +201,7 @@ pub(super) fn render_rounds(
             }
         }
         let Some(next) = schedule.next_round(round, width, &taken, &stats) else {
+            estimate = Some(schedule.noise_estimate(width, &taken, &stats));
             break;
         };
         round += 1;
@@ -209,7 +212,8 @@ pub(super) fn render_rounds(
             progress.inc(1);
         });
     }
-    work.into_par_iter()
+    let tiles = work
+        .into_par_iter()
         .map(|mut w| {
             let t = &mut w.tile;
             let mut k = 0;
@@ -225,5 +229,6 @@ pub(super) fn render_rounds(
             }
             (w.tile, w.counts)
         })
-        .collect()
+        .collect();
+    (tiles, estimate)
 }

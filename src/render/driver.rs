@@ -106,7 +106,7 @@ pub(super) fn render_tiles(
             .collect()
     };
     let rendered = match (sampling, settings.adaptive) {
-        (Some(strategy), _) => pixel_by_pixel(strategy),
+        (Some(strategy), _) => (pixel_by_pixel(strategy), None),
         (None, Some(schedule)) => {
             let sample = |x: u32, y: u32, samples, counts: &mut RayCounts, sink: adaptive::Sink| {
                 PixelSource::new(x, y, &context, counts).take(samples, sink)
@@ -115,9 +115,12 @@ pub(super) fn render_tiles(
                 &tiles, region, schedule, &bar, &new_tile, &sample, &centre, &cancelled,
             )
         }
-        (None, None) => pixel_by_pixel(&Fixed {
-            spp: settings.film.spp,
-        }),
+        (None, None) => (
+            pixel_by_pixel(&Fixed {
+                spp: settings.film.spp,
+            }),
+            None,
+        ),
     };
     bar.finish_and_clear();
     assemble(rendered, region, &layout, start, tiles_x * tiles_y)
@@ -170,7 +173,7 @@ fn write_centre(
 
 /// The rendered tiles as the region's image, with the render's counters.
 fn assemble(
-    rendered: Vec<(Tile, RayCounts)>,
+    (rendered, noise): (Vec<(Tile, RayCounts)>, Option<adaptive::NoiseEstimate>),
     region: Region,
     layout: &film::Layout,
     start: Instant,
@@ -202,6 +205,7 @@ fn assemble(
             rays,
             shadow_build_seconds: 0.0,
             shadow_map_bytes: 0,
+            noise,
         },
         tiles_done,
         tiles_total: tiles_total as usize,

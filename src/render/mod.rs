@@ -60,6 +60,8 @@ pub struct RenderStats {
     pub shadow_build_seconds: f64,
     /// Memory held by the shadow maps, bytes.
     pub shadow_map_bytes: usize,
+    /// Under adaptive sampling, the noise the region delivered as the stop read it after the last round.
+    pub noise: Option<adaptive::NoiseEstimate>,
 }
 
 /// What to render of a [`Frame`] ([`Frame::render`]): the settings, and optionally deep opacity maps built

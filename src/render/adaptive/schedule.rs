@@ -28,6 +28,38 @@ pub struct Schedule {
     pub sampler_gain: f64,
 }
 
+/// The noise an adaptive render delivered, as its stop read it after the last round: the image's relMSE (noise
+/// only, over the frame's own means) by the model and by the pixels' halves, the stop's target, and how many pixels
+/// ended at the schedule's cap.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NoiseEstimate {
+    /// relMSE from each pixel's own variance over its count and the sampler's gain.
+    pub model: f64,
+    /// relMSE from the pixels' halves.
+    pub split: f64,
+    /// Pixels that took the schedule's `max` samples.
+    pub capped: usize,
+    /// Pixels in the region.
+    pub pixels: usize,
+    /// The stop's target (relative RMSE, noise only).
+    pub target: f64,
+    /// The schedule's most samples per pixel.
+    pub max: u32,
+}
+
+impl NoiseEstimate {
+    /// The relative RMSE the stop reads: the larger of the two estimates.
+    pub fn rel_rmse(&self) -> f64 {
+        self.model.max(self.split).sqrt()
+    }
+
+    /// The two estimates' relative RMSEs, smaller first: how far apart the two ways of reading it are.
+    pub fn range(&self) -> (f64, f64) {
+        let (a, b) = (self.model.sqrt(), self.split.sqrt());
+        (a.min(b), a.max(b))
+    }
+}
+
 /// Each pixel's relative variance v, raised to the mean of its 3×3 neighbourhood (inside the region, `width`
 /// pixels wide, row-major) when that is larger. A pixel's v from a few samples is often far too low — at a hair's
 /// edge all of its first samples may miss the strand that covers part of it, so it looks constant — and the image
@@ -178,6 +210,25 @@ impl Schedule {
     pub fn image_rel_mse(&self, width: usize, taken: &[u32], pixels: &[Convergence]) -> f64 {
         let (_, model, split) = self.estimates(width, taken, pixels);
         model.max(split)
+    }
+
+    /// What a region that took `taken` samples with statistics `pixels` delivers, as the stop reads it
+    /// ([`NoiseEstimate`]).
+    pub fn noise_estimate(
+        &self,
+        width: usize,
+        taken: &[u32],
+        pixels: &[Convergence],
+    ) -> NoiseEstimate {
+        let (_, model, split) = self.estimates(width, taken, pixels);
+        NoiseEstimate {
+            model,
+            split,
+            capped: taken.iter().filter(|&&n| n >= self.max).count(),
+            pixels: taken.len(),
+            target: self.target,
+            max: self.max,
+        }
     }
 
     /// What the stop reads ([`Schedule::image_rel_mse`] is the larger of the last two): each pixel's own v over

@@ -1,0 +1,105 @@
+//! What an auto render delivered: the error it estimates for the frame once rendered, from the noise adaptive
+//! sampling's stop read in the frame itself and the bias of the bounces the pilots left out, √(noise² + bias²), and
+//! why it may miss the target (pixels held at the schedule's cap, a fixed spp, a cancelled render).
+//!
+//! The noise is the stop's own reading after the last round ([`NoiseEstimate`]): the larger of two estimates (the
+//! pixels' variances over their counts and the sampler's gain, and the pixels' halves), over the frame's own means,
+//! times √darkening to be over the converged image's as the target is ([`PilotPlan::darkening`]); the smaller of the
+//! two gives the low end of its range. The bias is the pilots' estimate of the bounces left out
+//! ([`PilotPlan::bias_left`]). Biases auto does not measure (deep opacity maps, ribbons, the light threshold) are
+//! not in it.
+
+use crate::render::adaptive::NoiseEstimate;
+
+use super::pilot::PilotPlan;
+
+/// An auto render's estimate of its own error, relative RMSE against the converged image.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Delivered {
+    /// √(noise² + bias²).
+    pub error: f64,
+    /// The noise: read from the frame under adaptive sampling, else the pilots' prediction at the fixed spp.
+    pub noise: f64,
+    /// The two estimates of the noise, smaller first (both the prediction when there was no adaptive stop).
+    pub noise_range: (f64, f64),
+    /// Whether the noise was read from the frame (adaptive sampling) rather than predicted by the pilots.
+    pub read_from_frame: bool,
+    /// The bias of the bounces left out, if the pilots measured it.
+    pub bias: Option<f64>,
+    /// The target.
+    pub target: f32,
+    /// Fraction of pixels held at the schedule's cap, and the cap (adaptive sampling only).
+    pub capped: Option<(f64, u32)>,
+}
+
+/// The estimate for a frame planned as `pilot` for `target`, whose render's stop read `noise` (`None` without
+/// adaptive sampling or when the render was cancelled).
+pub fn delivered(pilot: &PilotPlan, target: f32, noise: Option<&NoiseEstimate>) -> Delivered {
+    let scale = pilot.darkening.sqrt();
+    let (n, range, read, capped) = match noise {
+        Some(e) => {
+            let (lo, hi) = e.range();
+            let capped = e.capped as f64 / e.pixels.max(1) as f64;
+            (
+                e.rel_rmse() * scale,
+                (lo * scale, hi * scale),
+                true,
+                Some((capped, e.max)),
+            )
+        }
+        None => {
+            let p = pilot.predicted_noise;
+            (p, (p, p), false, None)
+        }
+    };
+    let bias = pilot.bias_left;
+    let b = bias.unwrap_or(0.0);
+    Delivered {
+        error: (n * n + b * b).sqrt(),
+        noise: n,
+        noise_range: range,
+        read_from_frame: read,
+        bias,
+        target,
+        capped,
+    }
+}
+
+impl Delivered {
+    /// One line (at most 120 characters) for the end of an auto render.
+    pub fn line(&self) -> String {
+        let noise = if self.read_from_frame {
+            let (lo, hi) = self.noise_range;
+            format!("noise {lo:.4}–{hi:.4} read from the frame")
+        } else {
+            format!("noise {:.4} predicted", self.noise)
+        };
+        let bias = match self.bias {
+            Some(b) => format!("bias {b:.4} of bounces left out"),
+            None => "bias not measured".to_owned(),
+        };
+        format!(
+            "auto: estimated error {:.4} for target {} ({noise}, {bias})",
+            self.error, self.target
+        )
+    }
+
+    /// Why the estimate is over the target, if it is: pixels held at the cap, or the fixed spp.
+    pub fn shortfall(&self) -> Option<String> {
+        if self.error <= f64::from(self.target) {
+            return None;
+        }
+        let why = match self.capped {
+            Some((fraction, max)) if fraction > 0.0 => format!(
+                "{:.0} % of the pixels stopped at the cap of {max} spp (quality.max_spp, or 8× the pilots' spp)",
+                100.0 * fraction
+            ),
+            Some(_) => "adaptive sampling ran out of rounds".to_owned(),
+            None => "the samples per pixel were fixed".to_owned(),
+        };
+        Some(format!(
+            "auto's estimated error {:.4} is over the target {}: {why}",
+            self.error, self.target
+        ))
+    }
+}
