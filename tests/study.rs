@@ -912,3 +912,69 @@ fn an_explicit_reference_spp_overrides_the_kinds_budget() {
     let report = run_kind(&file(&scene), &kind, &config).unwrap();
     assert_eq!((report.reference_spp, report.resolution), (4, [16, 16]));
 }
+
+#[test]
+fn the_generated_scenes_are_written_with_their_index_and_every_one_renders() {
+    // The held-out set of `--quality auto`: with the real models and maps of the data folder, the same files for
+    // the same seed, each one a scene the renderer takes (a small frame each).
+    let dir = tempfile::tempdir().unwrap();
+    let data = common::data::dir();
+    let write = |out: &Path| {
+        let (code, stdout, stderr) = run(&[
+            "study",
+            "scenes",
+            "--count",
+            "24",
+            "--seed",
+            "3",
+            "--data",
+            data.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        assert_eq!(code, Some(0), "{stderr}");
+        stdout
+    };
+    let (a, b) = (dir.path().join("a"), dir.path().join("b"));
+    write(&a);
+    write(&b);
+    let index = std::fs::read_to_string(a.join("scenes.md")).unwrap();
+    let mut scenes: Vec<_> = std::fs::read_dir(&a)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    scenes.sort();
+    assert_eq!(scenes.len(), 24, "{index}");
+    let mut real = 0;
+    for s in &scenes {
+        let text = std::fs::read_to_string(s).unwrap();
+        let name = s.file_stem().unwrap().to_str().unwrap();
+        assert!(index.contains(name), "{name} missing from the index");
+        assert_eq!(
+            text,
+            std::fs::read_to_string(b.join(s.file_name().unwrap())).unwrap()
+        );
+        real += usize::from(text.contains("file = "));
+        let exr = dir.path().join(format!("{name}.exr"));
+        let (code, _, stderr) = run(&[
+            "render",
+            s.to_str().unwrap(),
+            "-q",
+            "--res",
+            "24x24",
+            "--spp",
+            "1",
+            "--aovs",
+            "none",
+            "-o",
+            exr.to_str().unwrap(),
+        ]);
+        assert_eq!(code, Some(0), "{name}: {stderr}\n{text}");
+    }
+    assert!(
+        real > 0,
+        "no scene took a real model from {}",
+        data.display()
+    );
+}

@@ -35,6 +35,27 @@ pub enum StudyCommand {
     All(StudyKindArgs),
     /// `--quality auto` against every fixed configuration and the shipped settings, per error target.
     Auto(StudyAutoArgs),
+    /// Writes a seeded set of random test scenes (grooms, strand widths on screen, models, absorption, lights) on
+    /// which no constant is tuned: the held-out set `study auto` is judged on.
+    Scenes(StudyScenesArgs),
+}
+
+#[derive(clap::Args)]
+pub struct StudyScenesArgs {
+    /// How many scenes.
+    #[arg(long, default_value_t = 24)]
+    count: usize,
+    /// Seed of the set; scene k is the same for any count.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Data folder whose real models (hair/) and maps (envmaps/) the scenes may use (default: $CUTICLE_DATA, or
+    /// ../shared/data beside the working directory, when it exists; procedural grooms and constant skies only
+    /// without one).
+    #[arg(long)]
+    data: Option<PathBuf>,
+    /// Output directory: one TOML per scene and scenes.md, their index.
+    #[arg(short, long, default_value = "scenes-generated")]
+    out: PathBuf,
 }
 
 #[derive(clap::Args)]
@@ -268,6 +289,7 @@ pub fn study_command(command: StudyCommand) -> Result<()> {
         StudyCommand::Models(a) => study_kind("models", a)?,
         StudyCommand::Curves(a) => study_kind("curves", a)?,
         StudyCommand::All(a) => study_kind("all", a)?,
+        StudyCommand::Scenes(a) => write_scenes(&a)?,
         StudyCommand::Auto(a) => {
             let scenes = if a.scenes.is_empty() {
                 vec![SceneFile::default_scene()]
@@ -314,5 +336,35 @@ pub fn study_command(command: StudyCommand) -> Result<()> {
             })?;
         }
     }
+    Ok(())
+}
+
+/// `cuticle study scenes`: the generated set into `a.out`, with its index.
+fn write_scenes(a: &StudyScenesArgs) -> Result<()> {
+    use cuticle::study::cache::write_text;
+    use cuticle::study::generated::{generate, DataFiles};
+    let data_dir = a.data.clone().or_else(|| {
+        let dir = std::env::var_os("CUTICLE_DATA")
+            .map_or_else(|| PathBuf::from("../shared/data"), PathBuf::from);
+        dir.is_dir().then_some(dir)
+    });
+    let data = data_dir.as_deref().map(DataFiles::scan).unwrap_or_default();
+    std::fs::create_dir_all(&a.out)
+        .map_err(|e| anyhow::anyhow!("{}: cannot create the folder: {e}", a.out.display()))?;
+    let scenes = generate(a.seed, a.count, &data);
+    let mut index = format!(
+        "# Generated scenes, seed {}\n\n`cuticle study scenes --seed {} --count {}`: held out, no constant is tuned on \
+         them.\n\n| scene | what was drawn |\n|---|---|\n",
+        a.seed, a.seed, a.count
+    );
+    for s in &scenes {
+        let path = a.out.join(format!("{}.toml", s.name));
+        write_text(&path, &s.toml)?;
+        println!("wrote {}", path.display());
+        index.push_str(&format!("| {} | {} |\n", s.name, s.summary));
+    }
+    let path = a.out.join("scenes.md");
+    write_text(&path, &index)?;
+    println!("wrote {}", path.display());
     Ok(())
 }

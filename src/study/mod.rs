@@ -22,6 +22,7 @@ pub mod auto;
 pub mod cache;
 pub mod figures;
 pub mod framework;
+pub mod generated;
 pub mod kinds;
 pub mod report;
 pub mod stress;
