@@ -978,3 +978,55 @@ fn the_generated_scenes_are_written_with_their_index_and_every_one_renders() {
         data.display()
     );
 }
+
+#[test]
+fn study_auto_alone_writes_met_and_its_estimate_per_scene_and_target() {
+    // Two scenes of the generated set, tiny: the table has a row per scene and target with the measured error,
+    // auto's own estimate and whether it met the target, and a headline that counts them.
+    let dir = tempfile::tempdir().unwrap();
+    let scenes = dir.path().join("scenes");
+    let (code, _, stderr) = run(&[
+        "study",
+        "scenes",
+        "--count",
+        "2",
+        "--seed",
+        "5",
+        "--data",
+        "/nonexistent",
+        "-o",
+        scenes.to_str().unwrap(),
+    ]);
+    assert_eq!(code, Some(0), "{stderr}");
+    let out = dir.path().join("out");
+    let (code, stdout, stderr) = run(&[
+        "study",
+        "auto",
+        "--auto-only",
+        scenes.join("gen-5-00.toml").to_str().unwrap(),
+        scenes.join("gen-5-01.toml").to_str().unwrap(),
+        "--res",
+        "16x16",
+        "--reference-spp",
+        "16",
+        "--targets",
+        "0.2",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(stdout.contains("rows met the target"), "{stdout}");
+    let csv = std::fs::read_to_string(out.join("auto-held-out.csv")).unwrap();
+    let rows: Vec<&str> = csv.lines().skip(1).collect();
+    assert_eq!(rows.len(), 2, "{csv}");
+    for r in rows {
+        let f: Vec<&str> = r.split(',').collect();
+        let (measured, estimated): (f64, f64) = (f[2].parse().unwrap(), f[3].parse().unwrap());
+        assert!(measured > 0.0 && estimated > 0.0, "{r}");
+        assert_eq!(
+            f[5] == "true",
+            measured <= f[1].parse::<f64>().unwrap(),
+            "{r}"
+        );
+    }
+}

@@ -80,6 +80,11 @@ pub struct StudyAutoArgs {
     /// Worker threads (default: all cores).
     #[arg(long)]
     threads: Option<usize>,
+    /// Auto alone against the yardstick (no fixed configurations): met or not, and its estimate of the error it
+    /// delivered against the error measured; writes auto-held-out.md and .csv (for many scenes, such as the set
+    /// of `study scenes`).
+    #[arg(long)]
+    auto_only: bool,
 }
 
 #[derive(clap::Args)]
@@ -299,7 +304,7 @@ pub fn study_command(command: StudyCommand) -> Result<()> {
                     .map(|p| SceneFile::read(p))
                     .collect::<Result<_, _>>()?
             };
-            let report = cuticle::study::auto::run(&cuticle::study::auto::AutoStudyConfig {
+            let config = cuticle::study::auto::AutoStudyConfig {
                 scenes,
                 targets: a.targets,
                 resolution: a.res,
@@ -307,7 +312,12 @@ pub fn study_command(command: StudyCommand) -> Result<()> {
                 out: a.out,
                 cache_dir: a.cache_dir,
                 threads: threads(a.threads)?,
-            })?;
+            };
+            let report = if a.auto_only {
+                cuticle::study::auto::run_auto_only(&config)?
+            } else {
+                cuticle::study::auto::run(&config)?
+            };
             print!("{}", report.markdown);
             print_written(&report.files, "references and fits", &report.cache_dir);
         }

@@ -40,6 +40,7 @@
 //! [`TIMING_RUNS`](measure::TIMING_RUNS) times and its fastest wall and CPU times kept.
 
 mod fits;
+mod held_out;
 mod measure;
 mod scene;
 mod search;
@@ -51,6 +52,7 @@ use crate::render::thread_pool;
 
 use super::framework::CACHE_DIR;
 use super::{cache, create_dir, SceneFile, StudyError};
+pub use held_out::{headline, run_auto_only, HeldOutRow};
 use measure::Measured;
 use scene::{study_scene, Row};
 use search::Search;

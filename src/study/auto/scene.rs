@@ -68,32 +68,7 @@ pub(super) fn study_scene(
     progress.set_message("reference");
 
     // 1. The reference: two independent halves (their mean, and its noise from their difference).
-    let mut reference = base.clone();
-    reference.integrator.path_length = REFERENCE_PATH_LENGTH;
-    reference.shadows.mode = ShadowMode::Raytraced;
-    reference.shadows.transmittance = TransmittanceMode::Exact;
-    reference.film.spp = (config.reference_spp / 2).max(1);
-    let mut halves = Vec::with_capacity(2);
-    for (half, seed) in [0x7e7e, 0x7e7f].into_iter().enumerate() {
-        reference.film.seed = seed;
-        let key = cache::scene_key(
-            "auto-reference-2",
-            text,
-            file,
-            &[],
-            &format!(
-                "{:?} {} {} half {half}",
-                config.resolution, config.reference_spp, REFERENCE_PATH_LENGTH
-            ),
-        );
-        let (image, _, _) = cached_reference(
-            &cache_dir.join(format!("reference-{key:016x}.exr")),
-            config.resolution,
-            || render(frame_of(scene.hair.curves), &reference),
-        )?;
-        halves.push(image);
-    }
-    let reference = Yardstick::from_halves(&halves[0], &halves[1])?;
+    let reference = reference_of(file, config, cache_dir, frame_of(scene.hair.curves), &base)?;
     progress.inc(1);
 
     // 2. Every fixed configuration, fitted (cached like the reference: the fits only pick which configurations
@@ -292,4 +267,42 @@ pub(super) fn study_scene(
     }
     progress.finish_and_clear();
     Ok((rows, reference.noise(), fits_table))
+}
+
+/// The study's yardstick for `file` rendered by `frame` at `base`: the scene's own curves and materials, ray-traced
+/// shadows with exact transmittance, path length [`REFERENCE_PATH_LENGTH`], `reference_spp` samples in two
+/// independent halves (their own seeds), each cached by a hash of the scene and these settings.
+pub(super) fn reference_of(
+    file: &SceneFile,
+    config: &AutoStudyConfig,
+    cache_dir: &Path,
+    frame: &Frame,
+    base: &crate::render::RenderSettings,
+) -> Result<Yardstick, StudyError> {
+    let mut reference = base.clone();
+    reference.integrator.path_length = REFERENCE_PATH_LENGTH;
+    reference.shadows.mode = ShadowMode::Raytraced;
+    reference.shadows.transmittance = TransmittanceMode::Exact;
+    reference.film.spp = (config.reference_spp / 2).max(1);
+    let mut halves = Vec::with_capacity(2);
+    for (half, seed) in [0x7e7e, 0x7e7f].into_iter().enumerate() {
+        reference.film.seed = seed;
+        let key = cache::scene_key(
+            "auto-reference-2",
+            &file.text,
+            file,
+            &[],
+            &format!(
+                "{:?} {} {} half {half}",
+                config.resolution, config.reference_spp, REFERENCE_PATH_LENGTH
+            ),
+        );
+        let (image, _, _) = cached_reference(
+            &cache_dir.join(format!("reference-{key:016x}.exr")),
+            config.resolution,
+            || render(frame, &reference),
+        )?;
+        halves.push(image);
+    }
+    Yardstick::from_halves(&halves[0], &halves[1])
 }
