@@ -187,27 +187,23 @@ fn scene(seed: u64, k: usize, data: &DataFiles) -> GeneratedScene {
     };
     let kinds = if fur_ball { 4 } else { 3 };
     match rng.random_range(0..kinds) {
-        0 => {
-            let d = direction(&mut rng);
-            let e: f32 = rng.random_range(1.0..6.0);
+        arm @ (0 | 1) => {
+            // A sun from anywhere, or behind the hair: travelling towards the camera (against the view direction),
+            // a little off axis.
+            let (d, e, what) = if arm == 0 {
+                let d = direction(&mut rng);
+                (d, rng.random_range(1.0f32..6.0), "sun")
+            } else {
+                let j = direction(&mut rng);
+                let d: [f32; 3] = std::array::from_fn(|c| -view[c] + 0.3 * j[c]);
+                (d, rng.random_range(2.0f32..8.0), "back-lit sun")
+            };
             let _ = writeln!(
                 toml,
                 "[[light]]\nkind = \"distant\"\ndirection = {}\nirradiance = {e:.2}\n",
                 rgb(d)
             );
-            summary.push(format!("sun {e:.1}"));
-        }
-        1 => {
-            // Behind the hair: travelling towards the camera (against the view direction), a little off axis.
-            let j = direction(&mut rng);
-            let d: [f32; 3] = std::array::from_fn(|c| -view[c] + 0.3 * j[c]);
-            let e: f32 = rng.random_range(2.0..8.0);
-            let _ = writeln!(
-                toml,
-                "[[light]]\nkind = \"distant\"\ndirection = {}\nirradiance = {e:.2}\n",
-                rgb(d)
-            );
-            summary.push(format!("back-lit sun {e:.1}"));
+            summary.push(format!("{what} {e:.1}"));
         }
         2 => {
             if data.maps.is_empty() || rng.random_bool(0.25) {
