@@ -30,7 +30,7 @@ pub struct HeldOutRow {
     pub estimated: f64,
     /// Mean samples per pixel.
     pub spp: f64,
-    /// Wall time, pilots and maps included, seconds.
+    /// Wall time of auto's pilots, maps and render, seconds (the curve decision, made once per scene, not in it).
     pub seconds: f64,
     /// Curves, shadows, path length chosen.
     pub settings: String,
@@ -63,22 +63,24 @@ fn scene_rows(
     };
     let own = load(scene.hair.curves)?;
     let reference = reference_of(file, config, cache_dir, &own, &base)?;
+    // Auto's curve decision reads the strands and the camera, not the target: made once, and the frame it renders
+    // loaded once, before any timing (as `study_scene` loads its frames).
+    let (curves, _) = quality::plan_curves(
+        &own.strands,
+        &own.material,
+        &base.camera,
+        base.film.resolution,
+    );
+    let other;
+    let frame = if curves == scene.hair.curves {
+        &own
+    } else {
+        other = load(curves)?;
+        &other
+    };
     let mut rows = Vec::new();
     for &target in &config.targets {
         let start = Instant::now();
-        let (curves, _) = quality::plan_curves(
-            &own.strands,
-            &own.material,
-            &base.camera,
-            base.film.resolution,
-        );
-        let other;
-        let frame = if curves == scene.hair.curves {
-            &own
-        } else {
-            other = load(curves)?;
-            &other
-        };
         let q = QualityConfig {
             target,
             max_spp: MAX_SPP,
