@@ -193,7 +193,7 @@ impl Job {
         let quality = (scene.quality.mode == QualityMode::Auto).then_some(&scene.quality);
         let fixed = request.fixed;
         let mut decisions = Vec::new();
-        let frame = pool.install(|| {
+        let mut frame = pool.install(|| {
             // Auto samples adaptively unless --spp fixes the count: its memory is checked for that.
             Frame::load_adjusted(
                 spec,
@@ -223,7 +223,22 @@ impl Job {
             .map(|q| pool.install(|| quality::plan_frame(&frame, &frame.settings, q, fixed)));
         let (settings, planned_maps, auto) = match planned {
             Some(p) => {
-                decisions.extend(p.decisions);
+                if let Some(tubes) = p.frame {
+                    // Auto measured the ribbons too biased and built the tubes: they are what renders.
+                    frame = tubes;
+                }
+                // A measured curve decision replaces the rule's, and says what the rule read.
+                let mut measured = p.decisions;
+                if let Some(m) = measured.iter_mut().find(|d| d.key == "hair.curves") {
+                    if let Some(i) = decisions.iter().position(|d| d.key == "hair.curves") {
+                        let rule = decisions.remove(i);
+                        m.reason = format!(
+                            "{}; before measuring, by the rule: {}",
+                            m.reason, rule.reason
+                        );
+                    }
+                }
+                decisions.extend(measured);
                 let auto = AutoPlan {
                     decisions,
                     pilot: p.pilot,

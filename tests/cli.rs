@@ -377,7 +377,7 @@ fn auto_prints_short_decisions_and_warns_when_fixed_settings_miss_the_target() {
     assert!(!free.contains("warning"), "{free}");
     let last = free.lines().rfind(|l| l.starts_with("auto:")).unwrap();
     assert!(
-        last.starts_with("auto: estimated error ") && last.contains("read from the frame"),
+        last.starts_with("auto: estimated error ") && last.contains("from the frame"),
         "{free}"
     );
     assert!(

@@ -530,3 +530,180 @@ fn one_render_cut_after_each_vertex_equals_the_renders_at_each_path_length() {
         mean(2)
     );
 }
+
+/// The relMSE an approximation adds as bias, measured from two independent renders of each choice: the mean over
+/// pixels and RGB of (a₁ − e₁)(a₂ − e₂) / (ē² + 0.01), ē the exact renders' mean (unbiased whatever the noise).
+fn bias_product(approx: [&cuticle::image::Image; 2], exact: [&cuticle::image::Image; 2]) -> f64 {
+    let c = |img: &cuticle::image::Image, name: &str| img.channel_index(name).unwrap();
+    let stride = approx[0].channels.len();
+    let (mut sum, mut n) = (0.0f64, 0usize);
+    for p in 0..approx[0].width * approx[0].height {
+        for ch in ["R", "G", "B"] {
+            let v = |img: &cuticle::image::Image| f64::from(img.data[p * stride + c(img, ch)]);
+            let e = 0.5 * (v(exact[0]) + v(exact[1]));
+            sum += (v(approx[0]) - v(exact[0])) * (v(approx[1]) - v(exact[1])) / (e * e + 0.01);
+            n += 1;
+        }
+    }
+    sum / n as f64
+}
+
+/// Renders `settings` at a fixed `spp` with two seeds (with `maps` in deep-opacity mode).
+fn two_seeds(
+    frame: &Frame,
+    settings: &cuticle::render::RenderSettings,
+    maps: Option<&cuticle::shadow::ShadowMaps>,
+    spp: u32,
+) -> [cuticle::image::Image; 2] {
+    let pool = thread_pool(Some(2)).unwrap();
+    [71, 72].map(|seed| {
+        let mut s = settings.clone();
+        s.film.spp = spp;
+        s.film.seed = seed;
+        s.adaptive = None;
+        pool.install(|| frame.render(Request::new(&s).maps(maps, 0.0)).image)
+    })
+}
+
+fn flat_frame(s: &Scene) -> Frame {
+    let mut spec = s.resolve().unwrap();
+    spec.curves = CurveKind::Flat;
+    Frame::load(spec).unwrap()
+}
+
+/// A sparse wavy patch (3 000 strands 0.09 px wide at 64²) of Kajiya-Kay hair under a sun: every approximation
+/// auto may choose applies, with a bias the pilots can resolve.
+fn sparse_patch() -> Scene {
+    scene(&format!(
+        "[hair]\nprocedural = {{ kind = \"wavy-patch\", seed = 4242, strands = 3000, fiber_radius = 0.003, \
+         wave_amplitude = 0.1 }}\n[film]\nresolution = [64, 64]\n[material]\nmodel = \"kajiya-kay\"\n{SUN}"
+    ))
+}
+
+#[test]
+fn auto_keeps_an_approximation_only_with_its_measured_bias_and_drops_it_for_a_tight_target() {
+    let frame = flat_frame(&sparse_patch());
+    let pool = thread_pool(Some(2)).unwrap();
+    let plan = |target: f32| {
+        let q = QualityConfig {
+            target,
+            ..QualityConfig::default()
+        };
+        pool.install(|| quality::plan_frame(&frame, &frame.settings, &q, Fixed::default()))
+    };
+    // A loose target: ribbons and maps kept, each with its bias, and the noise budget pays for them.
+    let loose = plan(0.2);
+    let why: Vec<String> = loose.decisions.iter().map(ToString::to_string).collect();
+    assert!(loose.frame.is_none(), "{why:#?}");
+    assert_eq!(
+        loose.settings.shadows.mode,
+        ShadowMode::DeepOpacity,
+        "{why:#?}"
+    );
+    let approx = &loose.pilot.approximations;
+    assert_eq!(approx.len(), 2, "{approx:#?}");
+    assert!(
+        approx.iter().all(|a| a.bias > 0.0 && a.bias >= a.point),
+        "{approx:#?}"
+    );
+    let left = loose.pilot.bias_left.unwrap();
+    let spent: f64 = loose.pilot.noise_budget.powi(2)
+        + left * left
+        + approx.iter().map(|a| a.bias * a.bias).sum::<f64>();
+    let target2 = f64::from(0.2f32).powi(2);
+    assert!(
+        (spent - target2).abs() < 1e-9,
+        "noise² + bias² = {spent}, target² {target2}"
+    );
+    // The frame's estimate of its error carries the approximations' bias.
+    let said = delivered(&loose.pilot, 0.2, None);
+    assert!((said.bias.unwrap().powi(2) - (spent - loose.pilot.noise_budget.powi(2))).abs() < 1e-9);
+    assert!(said.line().contains("2 approx."), "{}", said.line());
+    // The maps' bias the pilots measured (point estimate) against two independent 64-spp renders of the whole
+    // film with the maps kept and with ray-traced shadows, at the pilots' path length.
+    let mut with_maps = loose.settings.clone();
+    with_maps.integrator.path_length = 3;
+    let mut rays = with_maps.clone();
+    rays.shadows.mode = ShadowMode::Raytraced;
+    let m = two_seeds(&frame, &with_maps, loose.maps.as_ref(), 64);
+    let r = two_seeds(&frame, &rays, None, 64);
+    let measured = bias_product([&m[0], &m[1]], [&r[0], &r[1]]).max(0.0).sqrt();
+    let maps = approx
+        .iter()
+        .find(|a| a.what.starts_with("deep opacity"))
+        .unwrap();
+    assert!(
+        (0.5..2.0).contains(&(maps.point / measured)),
+        "the pilots' maps bias {} against {measured} measured",
+        maps.point
+    );
+    // A tight target: neither approximation fits the bias budget; tubes and ray-traced shadows, nothing to pay.
+    let tight = plan(0.05);
+    let why: Vec<String> = tight.decisions.iter().map(ToString::to_string).collect();
+    assert_eq!(
+        tight.frame.as_ref().map(|f| f.curves),
+        Some(CurveKind::Round),
+        "{why:#?}"
+    );
+    assert_eq!(
+        tight.settings.shadows.mode,
+        ShadowMode::Raytraced,
+        "{why:#?}"
+    );
+    assert!(tight.maps.is_none() && tight.pilot.approximations.is_empty());
+    // What the user fixes is not measured.
+    let fixed = pool.install(|| {
+        quality::plan_frame(
+            &frame,
+            &frame.settings,
+            &QualityConfig {
+                target: 0.05,
+                ..QualityConfig::default()
+            },
+            Fixed {
+                curves: true,
+                ..Fixed::default()
+            },
+        )
+    });
+    assert!(fixed.frame.is_none());
+    assert!(!fixed.decisions.iter().any(|d| d.key == "hair.curves"));
+}
+
+#[test]
+fn ribbons_that_the_pilots_measure_too_biased_for_the_target_are_replaced_by_tubes() {
+    // A Chiang patch whose strands are 0.2 px wide: the rule takes ribbons (under a pixel a pixel averages all of
+    // h), but their image differs from the tubes' by far more than 0.1 relative RMSE.
+    let s = scene(&format!(
+        "[hair]\nprocedural = {{ kind = \"wavy-patch\", seed = 825510, strands = 4106, fiber_radius = 0.007, \
+         wave_amplitude = 0.101 }}\nopacity = 0.68\n[camera]\nmargin = 1.022\nview = [-0.808, 0.1394, -0.5725]\n\
+         [film]\nresolution = [64, 64]\n[material]\nmodel = \"chiang\"\ncolor = [0.371, 0.3251, 0.2641]\n\
+         [environment]\nradiance = [0.8, 0.8, 0.8]\n{SUN}"
+    ));
+    let (kind, why) = curves_for(&s);
+    assert_eq!(kind, CurveKind::Flat, "{why}");
+    let frame = flat_frame(&s);
+    let pool = thread_pool(Some(2)).unwrap();
+    let q = QualityConfig {
+        target: 0.1,
+        ..QualityConfig::default()
+    };
+    let planned =
+        pool.install(|| quality::plan_frame(&frame, &frame.settings, &q, Fixed::default()));
+    let why: Vec<String> = planned.decisions.iter().map(ToString::to_string).collect();
+    let tubes = planned.frame.as_ref().expect("tubes");
+    assert_eq!(tubes.curves, CurveKind::Round, "{why:#?}");
+    // The decision is right: two independent 64-spp renders of each geometry at path 3 put the ribbons' bias over
+    // the whole bias budget of the approximations (half of target²), and their noise alone does not.
+    let mut settings = planned.settings.clone();
+    settings.integrator.path_length = 3;
+    let f = two_seeds(&frame, &settings, None, 64);
+    let r = two_seeds(tubes, &settings, None, 64);
+    let bias2 = bias_product([&f[0], &f[1]], [&r[0], &r[1]]);
+    let null = bias_product([&f[0], &r[0]], [&f[1], &r[1]]);
+    assert!(bias2 > 0.5 * 0.01, "ribbons' bias² {bias2}");
+    assert!(
+        null.abs() < 0.5 * bias2,
+        "noise's product {null} against the bias² {bias2}"
+    );
+}

@@ -64,6 +64,7 @@ macro_rules! per_prepared {
 }
 
 /// A material ready to shade: the model and whether the strand colour tints its diffuse lobe.
+#[derive(Clone)]
 pub struct Material {
     /// The scattering model, in the local hair frame.
     pub scattering: Scattering,

@@ -31,6 +31,13 @@ pub const WEIGHTS: CostWeights = CostWeights {
     deep: 1.4e-6,
 };
 
+/// How many times a ribbon's the cost model's weights take a round tube's rays to cost: the weights were fitted
+/// on both kinds alike, and a tube's intersection costs more. One-thread render times of round over flat curves at
+/// 128², 16 spp, path 3, ray-traced shadows (the same rays within 0.5 %): 1.13 on `scenes/default.toml`, 1.69 on
+/// `scenes/furball.toml`, 1.40 on `scenes/thesis/straight-city-marschner.toml` (6 Dec 2026, commit cc24cb3); the
+/// middle one. Tuned on those three shipped scenes, judged on the generated set.
+pub const ROUND_CURVE_COST: f64 = 1.4;
+
 /// The inverse efficiency of a sampling configuration: the relative MSE of one estimate times its predicted cost
 /// (the cost of reaching a given noise, as the noise falls as 1 / cost). Smaller is better.
 pub fn inverse_efficiency(rel_mse: f64, rays: &RayCounts, weights: &CostWeights) -> f64 {

@@ -6,8 +6,9 @@
 //! pixels' variances over their counts and the sampler's gain, and the pixels' halves), over the frame's own means,
 //! times √darkening to be over the converged image's as the target is ([`PilotPlan::darkening`]); the smaller of the
 //! two gives the low end of its range. The bias is the pilots' estimate of the bounces left out
-//! ([`PilotPlan::bias_left`]). Biases auto does not measure (deep opacity maps, ribbons, the light threshold) are
-//! not in it.
+//! ([`PilotPlan::bias_left`]) and of the approximations kept ([`PilotPlan::approximations`]: ribbons, deep
+//! opacity maps), added in quadrature. The light threshold's bias is not measured yet, nor is that of an
+//! approximation the user fixed.
 
 use crate::render::adaptive::NoiseEstimate;
 
@@ -24,8 +25,10 @@ pub struct Delivered {
     pub noise_range: (f64, f64),
     /// Whether the noise was read from the frame (adaptive sampling) rather than predicted by the pilots.
     pub read_from_frame: bool,
-    /// The bias of the bounces left out, if the pilots measured it.
+    /// The bias of the bounces left out and the approximations kept together, if the pilots measured the bounces'.
     pub bias: Option<f64>,
+    /// How many approximations' biases `bias` holds beside the bounces'.
+    pub approximations: usize,
     /// The target.
     pub target: f32,
     /// Fraction of pixels held at the schedule's cap, and the cap (adaptive sampling only).
@@ -52,14 +55,16 @@ pub fn delivered(pilot: &PilotPlan, target: f32, noise: Option<&NoiseEstimate>) 
             (p, (p, p), false, None)
         }
     };
-    let bias = pilot.bias_left;
-    let b = bias.unwrap_or(0.0);
+    let approximated: f64 = pilot.approximations.iter().map(|a| a.bias * a.bias).sum();
+    let bias = pilot.bias_left.map(|b| (b * b + approximated).sqrt());
+    let b = bias.unwrap_or(approximated.sqrt());
     Delivered {
         error: (n * n + b * b).sqrt(),
         noise: n,
         noise_range: range,
         read_from_frame: read,
         bias,
+        approximations: pilot.approximations.len(),
         target,
         capped,
     }
@@ -70,13 +75,14 @@ impl Delivered {
     pub fn line(&self) -> String {
         let noise = if self.read_from_frame {
             let (lo, hi) = self.noise_range;
-            format!("noise {lo:.4}–{hi:.4} read from the frame")
+            format!("noise {lo:.4}–{hi:.4} from the frame")
         } else {
             format!("noise {:.4} predicted", self.noise)
         };
-        let bias = match self.bias {
-            Some(b) => format!("bias {b:.4} of bounces left out"),
-            None => "bias not measured".to_owned(),
+        let bias = match (self.bias, self.approximations) {
+            (Some(b), 0) => format!("bias {b:.4} of bounces left out"),
+            (Some(b), n) => format!("bias {b:.4} of bounces + {n} approx."),
+            (None, _) => "bias not measured".to_owned(),
         };
         format!(
             "auto: estimated error {:.4} for target {} ({noise}, {bias})",

@@ -8,6 +8,7 @@
 //! one render. Pilots are deterministic (fixed seeds, independent of the frame's seed and of the thread count), so
 //! the decisions are too.
 
+pub mod approximations;
 mod bounces;
 mod pair;
 #[cfg(test)]
@@ -27,6 +28,7 @@ use crate::render::{Frame, Region};
 use crate::shadow::ShadowMaps;
 
 use super::{Decision, QualityConfig};
+use approximations::Approximation;
 
 /// Side of a pilot window, pixels: small, so that the windows can be many and spread over the whole film, with
 /// each pixel keeping up to eight neighbours in its window for [`bounce_bias`]'s denominators.
@@ -162,6 +164,9 @@ pub struct PilotPlan {
     /// The relative RMSE of the bounces left out, as the pilots measured it (`None` when the path length was
     /// fixed: then half the target is set aside for it, unmeasured).
     pub bias_left: Option<f64>,
+    /// The approximations kept ([`approximations::choose`]) with their measured bias, which the noise budget pays
+    /// for.
+    pub approximations: Vec<Approximation>,
     /// How much faster than independent samples the frame's error falls ([`sampler_gain`]; 1 when the spp was
     /// fixed): adaptive sampling's stop divides the noise it reads from the pixels' sample variances by it.
     pub sampler_gain: f64,
@@ -186,7 +191,9 @@ pub struct PilotPlan {
 /// `fixed.samples`) and then the samples per pixel (unless `fixed.spp`), with the safety `margins` of
 /// [`super::Margins`], for
 /// `quality.target`, by pilot renders of `frame` under `settings` (its shadows already decided; `maps` built for
-/// them when they are deep-opacity).
+/// them when they are deep-opacity). `chosen` is what [`approximations::choose`] kept and measured: its
+/// approximations' bias comes off the noise budget, its pilots start the path-length search, and its pilots' cost
+/// counts in the pilots'.
 // One piece: each decision reads the pilots and the decisions before it, in this order.
 pub fn plan(
     frame: &Frame,
@@ -195,7 +202,14 @@ pub fn plan(
     quality: &QualityConfig,
     fixed: super::Fixed,
     margins: super::Margins,
+    chosen: approximations::Measured,
 ) -> PilotPlan {
+    let approximations::Measured {
+        pilots: first_pilots,
+        approximations,
+        predicted_seconds: spent_before,
+    } = chosen;
+    let approximation_bias2: f64 = approximations.iter().map(|a| a.bias * a.bias).sum();
     let bias_standard_errors = margins.bias_standard_errors;
     let start = std::time::Instant::now();
     let [width, height] = settings.film.resolution;
@@ -204,7 +218,7 @@ pub fn plan(
     let mut pilot = settings.clone();
     pilot.film.spp = PILOT_SPP;
     let mut decisions = Vec::new();
-    let spent = std::cell::Cell::new(0.0f64);
+    let spent = std::cell::Cell::new(spent_before);
     let render_pair = |settings: &RenderSettings, windows: &[Region]| {
         let pair = Pair::render(frame, settings, maps, windows);
         spent.set(spent.get() + 2.0 * pair.predicted_seconds());
@@ -220,19 +234,24 @@ pub fn plan(
     // added until the next one's bias is under a quarter of the target (half the target is the bias budget; the
     // other half leaves room for the bounces after it).
     // The pair rendered at the chosen path length with the scene's light and material samples, kept for reuse.
-    let mut kept: Option<Pair> = None;
+    let mut kept: Option<Pair>;
     // The relative RMSE of the bias the bounces left out (measured when the path length is decided here).
     let mut left: Option<f64> = None;
     // The chosen path's relMSE over the longest path's means, per its relMSE over its own ([`PilotPlan::darkening`]).
     let mut darkening = 1.0f64;
     let path_length = if fixed.path_length {
+        kept = first_pilots.and_then(|p| {
+            p.pairs
+                .into_iter()
+                .nth(settings.integrator.path_length as usize)
+        });
         settings.integrator.path_length
     } else {
         let mut biases = Vec::new();
         let mut measurements: Vec<Bounce> = Vec::new();
         // pairs[j]: the pilots at path length j, every one cut from a render at the longest ([`bounce_pairs`]),
         // rendered again longer when the last bounce is still over a quarter of the target.
-        let mut pairs: Vec<Pair> = Vec::new();
+        let mut pairs: Vec<Pair> = first_pilots.map(|p| p.pairs).unwrap_or_default();
         let mut pairs_spp = PILOT_SPP;
         for k in 1..=MAX_PATH_LENGTH {
             if k as usize >= pairs.len() {
@@ -393,12 +412,12 @@ pub fn plan(
     };
 
     // Noise: two independent pilot estimates give each pixel's variance at PILOT_SPP; relMSE falls as 1/spp. The
-    // noise budget is what the bias leaves of target²: T² − (bias left out)², or ¾ T² when the path length was
-    // fixed (half the target to bias). The spp is the mean frame's: adaptive sampling spends it where the noise is.
+    // noise budget is what the bias leaves of target²: T² − (bias left out)² − the approximations' bias², with half
+    // the target set aside for the bounces when the path length was fixed. The spp is the mean frame's: adaptive sampling spends it where the noise is.
     let (mean, standard_error) = pair.rel_mse_with_error();
     let [a, b] = &pair.0;
     let bias = left.unwrap_or(0.5 * target).min(0.5 * target);
-    let noise_budget = target * target - bias * bias;
+    let noise_budget = target * target - bias * bias - approximation_bias2;
     let spp = if fixed.spp {
         settings.film.spp
     } else {
@@ -455,6 +474,7 @@ pub fn plan(
         predicted_noise: (mean * darkening * f64::from(PILOT_SPP) / f64::from(spp)).sqrt(),
         noise_budget: noise_budget.sqrt(),
         bias_left: left,
+        approximations,
         sampler_gain,
         darkening,
         pilot_seconds: start.elapsed().as_secs_f64(),

@@ -7,6 +7,7 @@
 //! study's variants) without reloading anything.
 
 use glam::Vec3;
+use std::sync::Arc;
 use std::time::Instant;
 
 use crate::accel::bvh_tracer::BvhTracer;
@@ -55,11 +56,24 @@ pub enum FrameError {
     Budget(#[from] super::budget::BudgetError),
 }
 
+/// The tracer of `backend` over `strands` as `curves`.
+fn tracer_of(
+    strands: &Strands,
+    backend: Backend,
+    curves: CurveKind,
+) -> Result<Box<dyn Tracer + Send>, FrameError> {
+    Ok(match backend {
+        Backend::Embree => Box::new(EmbreeTracer::new(strands, curves)?),
+        Backend::Bvh => Box::new(BvhTracer::new(strands, curves)),
+    })
+}
+
 /// A frame ready to render.
 pub struct Frame {
     /// The strands, as every tracer and the shadow maps see them: the tracer was built from them and
-    /// [`Frame::hair_bounds`] measured them, so they are not to be changed once the frame is built.
-    pub strands: Strands,
+    /// [`Frame::hair_bounds`] measured them, so they are not to be changed once the frame is built. Shared with
+    /// the frames [`Frame::with_curves`] makes of them.
+    pub strands: Arc<Strands>,
     /// The hair's acceleration structure, built by [`Frame::backend`].
     pub tracer: Box<dyn Tracer + Send>,
     /// Round tubes or flat ribbons.
@@ -123,13 +137,10 @@ impl Frame {
 
     /// Builds the frame around strands already in memory (`spec.hair` is not read).
     pub fn build(strands: Strands, spec: FrameSpec) -> Result<Frame, FrameError> {
-        let tracer: Box<dyn Tracer + Send> = match spec.backend {
-            Backend::Embree => Box::new(EmbreeTracer::new(&strands, spec.curves)?),
-            Backend::Bvh => Box::new(BvhTracer::new(&strands, spec.curves)),
-        };
+        let tracer = tracer_of(&strands, spec.backend, spec.curves)?;
         let hair_bounds = strands.bounds();
         Ok(Frame {
-            strands,
+            strands: Arc::new(strands),
             hair_bounds,
             tracer,
             curves: spec.curves,
@@ -138,6 +149,23 @@ impl Frame {
             lights: spec.lights,
             shapes: spec.shapes,
             settings: spec.settings,
+            load_seconds: 0.0,
+        })
+    }
+
+    /// The same frame traced as `curves`: the strands are shared, only a tracer is built (`--quality auto`
+    /// measures ribbons against tubes on the same samples with it).
+    pub fn with_curves(&self, curves: CurveKind) -> Result<Frame, FrameError> {
+        Ok(Frame {
+            strands: Arc::clone(&self.strands),
+            hair_bounds: self.hair_bounds,
+            tracer: tracer_of(&self.strands, self.backend, curves)?,
+            curves,
+            backend: self.backend,
+            material: self.material.clone(),
+            lights: self.lights.clone(),
+            shapes: self.shapes.clone(),
+            settings: self.settings.clone(),
             load_seconds: 0.0,
         })
     }

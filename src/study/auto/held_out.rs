@@ -89,7 +89,8 @@ fn scene_rows(
         let planned = quality::plan_frame(frame, &base, &q, Fixed::default());
         let request =
             Request::new(&planned.settings).maps(planned.maps.as_ref(), planned.maps_seconds);
-        let rendered = frame.render(request);
+        let rendered_on = planned.frame_or(frame);
+        let rendered = rendered_on.render(request);
         let seconds = start.elapsed().as_secs_f64();
         let said = delivered(&planned.pilot, target, rendered.stats.noise.as_ref());
         let s = &planned.settings;
@@ -101,8 +102,8 @@ fn scene_rows(
             spp: mean_spp(&rendered.image),
             seconds,
             settings: format!(
-                "{curves:?} {:?} path {}",
-                s.shadows.mode, s.integrator.path_length
+                "{:?} {:?} path {}",
+                rendered_on.curves, s.shadows.mode, s.integrator.path_length
             ),
         });
     }

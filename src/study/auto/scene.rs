@@ -172,8 +172,12 @@ pub(super) fn study_scene(
             let planned = quality::plan_frame_with(frame, &base, &q, Fixed::default(), margins);
             let request =
                 Request::new(&planned.settings).maps(planned.maps.as_ref(), planned.maps_seconds);
-            let image = frame.render(request).image;
-            ((curves, planned, image), start.elapsed().as_secs_f64())
+            let rendered_on = planned.frame_or(frame);
+            let image = rendered_on.render(request).image;
+            (
+                (rendered_on.curves, planned, image),
+                start.elapsed().as_secs_f64(),
+            )
         };
         let auto_with =
             |margins: quality::Margins, target: f32, what: &str| -> Result<Measured, StudyError> {

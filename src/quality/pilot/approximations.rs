@@ -1,0 +1,309 @@
+//! The approximations auto may choose — flat ribbons for round tubes, deep opacity maps for ray-traced shadows —
+//! each kept only with the bias it measures against the more exact choice on the same pilot windows and seeds, and
+//! only where it is cheaper for the target once that bias is paid for.
+//!
+//! A rule cannot know a scene's bias: a texel per pixel of the hair left a sparse groom's maps 0.071 (relative
+//! RMSE) from ray-traced shadows, and on seed 1's generated scenes ribbons chosen by the sub-pixel rule measured
+//! 0.17 and 0.30 (Chiang at 0.47 and 0.42 px) and 0.136 (Kajiya-Kay, a white close-up) from their tubes, each
+//! from two independent 128- or 64-spp renders per geometry at path 3 (`docs/measured/auto.md`). So each approximation is rendered beside the exact choice: the
+//! pilots' two seeds give each pixel two independent differences d_a, d_b of the approximation against the exact
+//! choice, and the mean of d_a d_b / (m̃² + 0.01) estimates the relMSE the approximation adds as bias, unbiased
+//! whatever the noise ([`bounce_bias`], as a bounce's). Auto keeps the approximation when its bias (plus
+//! [`Margins::approximation_standard_errors`](crate::quality::Margins::approximation_standard_errors) standard
+//! errors) fits the bias budget and its
+//! predicted cost for the target, CPU s × relMSE / (noise budget left by that bias), is the lower; the bias then
+//! comes off the noise budget, and the frame's estimate of its error carries it.
+//!
+//! Both choices are rendered as the path-length search's first pilots ([`bounce_pairs`] at
+//! [`FIRST_PILOT_PATH_LENGTH`]), so the choice kept costs nothing more: the search starts from its pilots.
+
+use crate::accel::CurveKind;
+use crate::render::settings::{RenderSettings, ShadowMode};
+use crate::render::{Frame, Region};
+use crate::shadow::ShadowMaps;
+
+use super::super::cost::ROUND_CURVE_COST;
+use super::super::{Decision, Fixed, Margins, QualityConfig};
+use super::bounces::{bounce_bias, bounce_pairs, FIRST_PILOT_PATH_LENGTH};
+use super::pair::Pair;
+use super::{windows, PILOT_SPP};
+
+/// Share of target² the approximations auto keeps may take as bias, together: the bounces left out take up to a
+/// quarter (half the target), so the noise keeps at least a quarter of target².
+pub const APPROXIMATION_BIAS_SHARE: f64 = 0.5;
+
+/// The finest deep opacity maps auto builds, texels along a side, and how many doublings of the first resolution
+/// it tries: a 2048² map of 16 layers holds 302 MB per light.
+const MAX_MAP_RESOLUTION: u32 = 2048;
+const MAP_DOUBLINGS: u32 = 2;
+
+/// One approximation auto kept, with its measured bias.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Approximation {
+    /// What was approximated, e.g. "ribbons for tubes".
+    pub what: String,
+    /// The bias, relative RMSE, with the margin's standard errors: what the budget takes off the noise.
+    pub bias: f64,
+    /// The point estimate of the bias, relative RMSE (0 where the products' mean is negative).
+    pub point: f64,
+    /// The standard error of the products' mean (relMSE).
+    pub standard_error: f64,
+}
+
+/// The pilots of one choice: the pairs at every path length up to the pilots' (cut from one render per seed).
+pub(super) struct Pilots {
+    pub(super) pairs: Vec<Pair>,
+    /// Predicted CPU seconds of the two renders, without any curve factor.
+    pub(super) predicted: f64,
+    /// [`ROUND_CURVE_COST`] for round tubes, 1 for ribbons: the cost model counts rays alike on both.
+    curve_cost: f64,
+}
+
+impl Pilots {
+    fn render(
+        frame: &Frame,
+        settings: &RenderSettings,
+        maps: Option<&ShadowMaps>,
+        windows: &[Region],
+    ) -> Pilots {
+        let (pairs, predicted) = bounce_pairs(frame, settings, maps, windows);
+        let curve_cost = match frame.curves {
+            CurveKind::Round => ROUND_CURVE_COST,
+            CurveKind::Flat => 1.0,
+        };
+        Pilots {
+            pairs,
+            predicted,
+            curve_cost,
+        }
+    }
+
+    fn longest(&self) -> &Pair {
+        self.pairs.last().expect("path length 0 at least")
+    }
+
+    /// The predicted cost of reaching a noise budget `noise2` (relMSE): CPU s per estimate × relMSE / budget.
+    fn cost(&self, noise2: f64) -> f64 {
+        let p = self.longest();
+        if noise2 <= 0.0 {
+            return f64::INFINITY;
+        }
+        self.curve_cost * p.predicted_seconds() * p.rel_mse() / noise2
+    }
+}
+
+/// The bias of `approx` against `exact` (pilots of the same windows and seeds, at the same path length), with
+/// `standard_errors` standard errors added to the relMSE before the square root.
+fn bias_of(
+    what: String,
+    approx: &Pilots,
+    exact: &Pilots,
+    windows: &[Region],
+    standard_errors: f64,
+) -> Approximation {
+    let m = bounce_bias(approx.longest().rgb(), exact.longest().rgb(), windows);
+    Approximation {
+        what,
+        bias: (m.mean + standard_errors * m.standard_error)
+            .max(0.0)
+            .sqrt(),
+        point: m.mean.max(0.0).sqrt(),
+        standard_error: m.standard_error,
+    }
+}
+
+/// What [`choose`] decided and rendered.
+pub struct Chosen {
+    /// A frame traced as tubes, when auto measured ribbons as too biased for the target (render it, not the
+    /// caller's).
+    pub frame: Option<Frame>,
+    /// The deep opacity maps of the settings chosen, when they use maps.
+    pub maps: Option<ShadowMaps>,
+    /// Wall time of building every map tried, seconds.
+    pub maps_seconds: f64,
+    /// The decisions, for printing.
+    pub decisions: Vec<Decision>,
+    /// What the pilots measured, for [`super::plan`].
+    pub measured: Measured,
+}
+
+/// What [`choose`] measured, for [`super::plan`].
+pub struct Measured {
+    /// The approximations kept, with their bias.
+    pub approximations: Vec<Approximation>,
+    /// The pilots of the choice kept, for the path-length search to start from.
+    pub(super) pilots: Option<Pilots>,
+    /// Predicted CPU seconds of every pilot rendered here.
+    pub predicted_seconds: f64,
+}
+
+/// Measures each approximation the frame or the rules chose (ribbons for a model that reads the offset h, deep
+/// opacity maps) against the exact choice and keeps or replaces it; `settings` (its shadows decided by the rule
+/// [`crate::quality::decide_shadows`], `maps` built for them) is changed to what is kept. What `fixed` names is
+/// kept as it is, unmeasured.
+pub fn choose(
+    frame: &Frame,
+    settings: &mut RenderSettings,
+    maps: Option<ShadowMaps>,
+    maps_seconds: f64,
+    quality: &QualityConfig,
+    fixed: Fixed,
+    margins: Margins,
+) -> Chosen {
+    let [width, height] = settings.film.resolution;
+    let windows = windows(width, height);
+    let target2 = f64::from(quality.target).powi(2);
+    // The noise's budget for a choice whose approximations take `bias2` (relMSE) together, the bounces left out
+    // taking up to a quarter of target² (the path length is decided after).
+    let noise_left = |bias2: f64| 0.75 * target2 - bias2;
+    let mut pilot = settings.clone();
+    pilot.film.spp = PILOT_SPP;
+    if !fixed.path_length {
+        pilot.integrator.path_length = FIRST_PILOT_PATH_LENGTH;
+    }
+    let mut chosen = Chosen {
+        frame: None,
+        maps,
+        maps_seconds,
+        decisions: Vec::new(),
+        measured: Measured {
+            approximations: Vec::new(),
+            pilots: None,
+            predicted_seconds: 0.0,
+        },
+    };
+    let mut render = |frame: &Frame, s: &RenderSettings, maps: Option<&ShadowMaps>| {
+        let p = Pilots::render(frame, s, maps, &windows);
+        chosen.measured.predicted_seconds += p.predicted;
+        p
+    };
+    let mut current: Option<Pilots> = None;
+
+    // Ribbons for tubes, whenever the curve rule chose ribbons, for every model: a model that does not read h still
+    // sees the ribbons' geometry (a white Kajiya-Kay close-up of seed 1's generated set, 2 × 64 spp, path 3:
+    // ribbons' bias 0.136 relative RMSE against tubes).
+    if !fixed.curves && frame.curves == CurveKind::Flat {
+        if let Ok(round) = frame.with_curves(CurveKind::Round) {
+            let flat = render(frame, &pilot, chosen.maps.as_ref());
+            let tubes = render(&round, &pilot, chosen.maps.as_ref());
+            let a = bias_of(
+                "ribbons for tubes".into(),
+                &flat,
+                &tubes,
+                &windows,
+                margins.approximation_standard_errors,
+            );
+            let (c_flat, c_round) = (
+                flat.cost(noise_left(a.bias * a.bias)),
+                tubes.cost(noise_left(0.0)),
+            );
+            let keep = a.bias * a.bias <= APPROXIMATION_BIAS_SHARE * target2 && c_flat < c_round;
+            chosen.decisions.push(Decision {
+                key: "hair.curves",
+                value: if keep { "flat" } else { "round" }.into(),
+                reason: format!(
+                    "ribbons against tubes on the same pilots ({PILOT_SPP} spp, path {}): ribbons' bias {:.4} \
+                     (point {:.4}, {} standard error(s) added); predicted cost for the target, CPU s × relMSE / \
+                     noise budget, ribbons {c_flat:.3e} (tubes' rays taken as {ROUND_CURVE_COST}× a ribbon's), \
+                     tubes {c_round:.3e}",
+                    pilot.integrator.path_length, a.bias, a.point, margins.approximation_standard_errors
+                ),
+            });
+            if keep {
+                chosen.measured.approximations.push(a);
+                current = Some(flat);
+            } else {
+                chosen.frame = Some(round);
+                current = Some(tubes);
+            }
+        }
+    }
+
+    // Deep opacity maps for ray-traced shadows, finer maps while they are too biased.
+    if !fixed.shadows && settings.shadows.mode == ShadowMode::DeepOpacity {
+        let active = chosen.frame.as_ref().unwrap_or(frame);
+        let taken: f64 = chosen
+            .measured
+            .approximations
+            .iter()
+            .map(|a| a.bias * a.bias)
+            .sum();
+        let mut rays_settings = pilot.clone();
+        rays_settings.shadows.mode = ShadowMode::Raytraced;
+        let rays = render(active, &rays_settings, None);
+        let c_rays = rays.cost(noise_left(taken));
+        let first = settings.shadows.deep_opacity.resolution;
+        let mut listed = Vec::new();
+        let mut kept = None;
+        let mut resolution = first;
+        loop {
+            if resolution != settings.shadows.deep_opacity.resolution || chosen.maps.is_none() {
+                settings.shadows.deep_opacity.resolution = resolution;
+                let start = std::time::Instant::now();
+                chosen.maps = Some(active.shadow_maps(settings));
+                chosen.maps_seconds += start.elapsed().as_secs_f64();
+                current = None;
+            }
+            pilot.shadows.deep_opacity.resolution = resolution;
+            let with_maps = match current.take() {
+                Some(p) => p,
+                None => render(active, &pilot, chosen.maps.as_ref()),
+            };
+            let a = bias_of(
+                format!("deep opacity maps {resolution}² for ray-traced shadows"),
+                &with_maps,
+                &rays,
+                &windows,
+                margins.approximation_standard_errors,
+            );
+            let b2 = a.bias * a.bias;
+            let c_maps = with_maps.cost(noise_left(taken + b2));
+            listed.push(format!(
+                "{resolution}²: bias {:.4} (point {:.4}), cost {c_maps:.3e}",
+                a.bias, a.point
+            ));
+            if taken + b2 <= APPROXIMATION_BIAS_SHARE * target2 && c_maps < c_rays {
+                kept = Some((a, with_maps));
+                break;
+            }
+            if resolution * 2 > MAX_MAP_RESOLUTION.min(first << MAP_DOUBLINGS) {
+                break;
+            }
+            resolution *= 2;
+        }
+        let reason = format!(
+            "maps against ray-traced shadows on the same pilots ({PILOT_SPP} spp, path {}; bias with {} standard \
+             error(s) added, cost CPU s × relMSE / noise budget): {}; ray-traced {c_rays:.3e}",
+            pilot.integrator.path_length,
+            margins.approximation_standard_errors,
+            listed.join("; ")
+        );
+        match kept {
+            Some((a, p)) => {
+                chosen.decisions.push(Decision {
+                    key: "shadows.mode",
+                    value: format!(
+                        "deep-opacity, {}² texels, {} layers",
+                        resolution, settings.shadows.deep_opacity.layers
+                    ),
+                    reason,
+                });
+                chosen.measured.approximations.push(a);
+                current = Some(p);
+            }
+            None => {
+                settings.shadows.mode = ShadowMode::Raytraced;
+                settings.shadows.deep_opacity.resolution = first;
+                chosen.maps = None;
+                chosen.decisions.push(Decision {
+                    key: "shadows.mode",
+                    value: "raytraced".into(),
+                    reason,
+                });
+                current = Some(rays);
+            }
+        }
+    }
+    chosen.measured.pilots = current;
+    chosen
+}
