@@ -16,8 +16,13 @@
 //!    focal length in pixels times the strand diameter over its depth, over a subset of segments inside the view)
 //!    and whether the fibre model reads the offset h across the fibre ([`crate::bsdf::Material::uses_offset`]).
 //! 2. **Shadows** ([`decide_shadows`]): deep opacity maps where every light that matters is distant and small,
-//!    ray-traced shadows otherwise; the map resolution from the hair's size on screen.
-//! 3. **Path length**, **light and material samples** and **samples per pixel** ([`pilot`]): measured by pilot
+//!    ray-traced shadows otherwise; the maps' first resolution from the hair's size on screen.
+//! 3. **Approximations measured** ([`pilot::approximations`]): ribbons against tubes and maps against ray-traced
+//!    shadows, each rendered beside the exact choice on the same pilot windows and seeds; an approximation is kept
+//!    only when its measured bias (two standard errors added) fits half of target² with the others and it is the
+//!    cheaper for the target once its bias is paid for; the maps go finer (×2, ×4, at most 2048²) while they are
+//!    too biased, else the shadows are ray traced. The bias kept comes off the noise budget.
+//! 4. **Path length**, **light and material samples** and **samples per pixel** ([`pilot`]): measured by pilot
 //!    renders of many small windows spread over the frame at full resolution (so a pixel integrates what it will
 //!    in the frame, and the windows' mean stands for the film's, [`pilot::windows`]; every path length is cut from
 //!    one render per seed, [`crate::render::render_bounces`]): bounces are added until the
@@ -28,8 +33,8 @@
 //!    mean samples per pixel from the per-pixel variance of two independent pilot estimates; and how much faster
 //!    than independent samples the sampler's stratified samples converge (the pilot pixels' sample variances against
 //!    the variance of the two pilot estimates).
-//! 4. **Adaptive sampling** ([`adaptive_schedule`], [`crate::render::adaptive`]): the image-level rule, to the
-//!    noise budget target² − (bias left out)², the bias of all the bounces left out estimated from the pilots'
+//! 5. **Adaptive sampling** ([`adaptive_schedule`], [`crate::render::adaptive`]): the image-level rule, to the
+//!    noise budget target² − (bias left out)² − (approximations' bias)², the bias of all the bounces left out estimated from the pilots'
 //!    bounces as a geometric tail at their largest ratio ([`pilot::bias_left`], [`pilot::decay_ratio`]), its stop
 //!    the larger of the pixels' variances over
 //!    the sampler's gain and the pixels' own halves (the frame's convergence as measured); a quarter to 8× the
