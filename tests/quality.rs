@@ -591,8 +591,9 @@ fn auto_keeps_an_approximation_only_with_its_measured_bias_and_drops_it_for_a_ti
         };
         pool.install(|| quality::plan_frame(&frame, &frame.settings, &q, Fixed::default()))
     };
-    // A loose target: ribbons and maps kept, each with its bias, and the noise budget pays for them.
-    let loose = plan(0.2);
+    // A loose target: ribbons and maps kept, each with its bias, and the noise budget pays for them. (At 0.2 the
+    // 64² frame is too cheap for maps: rays cost less than the noise the maps' bias takes from the budget.)
+    let loose = plan(0.25);
     let why: Vec<String> = loose.decisions.iter().map(ToString::to_string).collect();
     assert!(loose.frame.is_none(), "{why:#?}");
     assert_eq!(
@@ -610,13 +611,13 @@ fn auto_keeps_an_approximation_only_with_its_measured_bias_and_drops_it_for_a_ti
     let spent: f64 = loose.pilot.noise_budget.powi(2)
         + left * left
         + approx.iter().map(|a| a.bias * a.bias).sum::<f64>();
-    let target2 = f64::from(0.2f32).powi(2);
+    let target2 = f64::from(0.25f32).powi(2);
     assert!(
         (spent - target2).abs() < 1e-9,
         "noise² + bias² = {spent}, target² {target2}"
     );
     // The frame's estimate of its error carries the approximations' bias.
-    let said = delivered(&loose.pilot, 0.2, None);
+    let said = delivered(&loose.pilot, 0.25, None);
     assert!((said.bias.unwrap().powi(2) - (spent - loose.pilot.noise_budget.powi(2))).abs() < 1e-9);
     assert!(said.line().contains("2 approx."), "{}", said.line());
     // The maps' bias the pilots measured (point estimate) against two independent 64-spp renders of the whole

@@ -97,7 +97,7 @@ impl Delivered {
         }
         let why = match self.capped {
             Some((fraction, max)) if fraction > 0.0 => format!(
-                "{:.0} % of the pixels stopped at the cap of {max} spp (quality.max_spp, or 8× the pilots' spp)",
+                "{:.0} % of the pixels stopped at the cap of {max} spp (quality.max_spp)",
                 100.0 * fraction
             ),
             Some(_) => "adaptive sampling ran out of rounds".to_owned(),

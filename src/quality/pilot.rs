@@ -180,7 +180,8 @@ pub struct PilotPlan {
     /// means (its noise 0.0870 over them, 0.0822 over the path-8 reference's). The longest pilot path is darker
     /// than the converged image too, so this reads less than the whole effect.
     pub darkening: f64,
-    /// Wall time the pilots took, seconds.
+    /// Wall time the pilots took, seconds, the comparisons of approximations included (with any maps they built,
+    /// which `maps_seconds` counts too).
     pub pilot_seconds: f64,
     /// CPU seconds of the pilots predicted from their rays ([`super::cost::WEIGHTS`]): their cost without the
     /// machine's load.
@@ -208,6 +209,7 @@ pub fn plan(
         pilots: first_pilots,
         approximations,
         predicted_seconds: spent_before,
+        seconds: compared_seconds,
     } = chosen;
     let approximation_bias2: f64 = approximations.iter().map(|a| a.bias * a.bias).sum();
     let bias_standard_errors = margins.bias_standard_errors;
@@ -477,7 +479,7 @@ pub fn plan(
         approximations,
         sampler_gain,
         darkening,
-        pilot_seconds: start.elapsed().as_secs_f64(),
+        pilot_seconds: compared_seconds + start.elapsed().as_secs_f64(),
         pilot_predicted_seconds: spent.get(),
     }
 }

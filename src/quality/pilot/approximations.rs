@@ -11,7 +11,8 @@
 //! whatever the noise ([`bounce_bias`], as a bounce's). Auto keeps the approximation when its bias (plus
 //! [`Margins::approximation_standard_errors`](crate::quality::Margins::approximation_standard_errors) standard
 //! errors) fits the bias budget and its
-//! predicted cost for the target, CPU s × relMSE / (noise budget left by that bias), is the lower; the bias then
+//! predicted CPU seconds for the target (the frame's at the noise budget that bias leaves, and any maps' build) are
+//! the fewer; the bias then
 //! comes off the noise budget, and the frame's estimate of its error carries it.
 //!
 //! Both choices are rendered as the path-length search's first pilots ([`bounce_pairs`] at
@@ -22,7 +23,7 @@ use crate::render::settings::{RenderSettings, ShadowMode};
 use crate::render::{Frame, Region};
 use crate::shadow::ShadowMaps;
 
-use super::super::cost::ROUND_CURVE_COST;
+use super::super::cost::{map_build_seconds, ROUND_CURVE_COST};
 use super::super::{Decision, Fixed, Margins, QualityConfig};
 use super::bounces::{bounce_bias, bounce_pairs, FIRST_PILOT_PATH_LENGTH};
 use super::pair::Pair;
@@ -82,18 +83,24 @@ impl Pilots {
         self.pairs.last().expect("path length 0 at least")
     }
 
-    /// The predicted cost of reaching a noise budget `noise2` (relMSE): CPU s per estimate × relMSE / budget.
-    fn cost(&self, noise2: f64) -> f64 {
+    /// The predicted CPU seconds of a `film_pixels` frame at the noise budget `noise2` (relMSE): the pilots' CPU s
+    /// per estimate, scaled from their pixels to the film's and by the samples the budget needs, relMSE / budget
+    /// times theirs.
+    fn frame_seconds(&self, film_pixels: f64, noise2: f64) -> f64 {
         let p = self.longest();
         if noise2 <= 0.0 {
             return f64::INFINITY;
         }
-        self.curve_cost * p.predicted_seconds() * p.rel_mse() / noise2
+        let pixels = p.0[0].rgb.len().max(1) as f64;
+        self.curve_cost * p.predicted_seconds() * film_pixels / pixels * p.rel_mse() / noise2
     }
 }
 
 /// The bias of `approx` against `exact` (pilots of the same windows and seeds, at the same path length), with
-/// `standard_errors` standard errors added to the relMSE before the square root.
+/// `standard_errors` standard errors added to the relMSE before the square root, and never under the magnitude of
+/// a negative mean: the products estimate a square without bias, so a mean of −x is noise that could as well
+/// have read +x (seed 1's scene 8 read −0.187 ± 0.099 for a true 0.029; its standard error reads low on
+/// heavy-tailed products).
 fn bias_of(
     what: String,
     approx: &Pilots,
@@ -105,6 +112,7 @@ fn bias_of(
     Approximation {
         what,
         bias: (m.mean + standard_errors * m.standard_error)
+            .max(-m.mean)
             .max(0.0)
             .sqrt(),
         point: m.mean.max(0.0).sqrt(),
@@ -135,6 +143,8 @@ pub struct Measured {
     pub(super) pilots: Option<Pilots>,
     /// Predicted CPU seconds of every pilot rendered here.
     pub predicted_seconds: f64,
+    /// Wall time of the comparisons (pilots and maps), seconds.
+    pub seconds: f64,
 }
 
 /// Measures each approximation the frame or the rules chose (ribbons for a model that reads the offset h, deep
@@ -152,6 +162,7 @@ pub fn choose(
 ) -> Chosen {
     let [width, height] = settings.film.resolution;
     let windows = windows(width, height);
+    let film_pixels = f64::from(width) * f64::from(height);
     let target2 = f64::from(quality.target).powi(2);
     // The noise's budget for a choice whose approximations take `bias2` (relMSE) together, the bounces left out
     // taking up to a quarter of target² (the path length is decided after).
@@ -170,8 +181,10 @@ pub fn choose(
             approximations: Vec::new(),
             pilots: None,
             predicted_seconds: 0.0,
+            seconds: 0.0,
         },
     };
+    let start = std::time::Instant::now();
     let mut render = |frame: &Frame, s: &RenderSettings, maps: Option<&ShadowMaps>| {
         let p = Pilots::render(frame, s, maps, &windows);
         chosen.measured.predicted_seconds += p.predicted;
@@ -194,8 +207,8 @@ pub fn choose(
                 margins.approximation_standard_errors,
             );
             let (c_flat, c_round) = (
-                flat.cost(noise_left(a.bias * a.bias)),
-                tubes.cost(noise_left(0.0)),
+                flat.frame_seconds(film_pixels, noise_left(a.bias * a.bias)),
+                tubes.frame_seconds(film_pixels, noise_left(0.0)),
             );
             let keep = a.bias * a.bias <= APPROXIMATION_BIAS_SHARE * target2 && c_flat < c_round;
             chosen.decisions.push(Decision {
@@ -203,9 +216,9 @@ pub fn choose(
                 value: if keep { "flat" } else { "round" }.into(),
                 reason: format!(
                     "ribbons against tubes on the same pilots ({PILOT_SPP} spp, path {}): ribbons' bias {:.4} \
-                     (point {:.4}, {} standard error(s) added); predicted cost for the target, CPU s × relMSE / \
-                     noise budget, ribbons {c_flat:.3e} (tubes' rays taken as {ROUND_CURVE_COST}× a ribbon's), \
-                     tubes {c_round:.3e}",
+                     (point {:.4}, {} standard error(s) added); predicted CPU s of the frame at the noise the \
+                     target leaves, ribbons {c_flat:.2} (tubes' rays taken as {ROUND_CURVE_COST}× a ribbon's), \
+                     tubes {c_round:.2}",
                     pilot.integrator.path_length, a.bias, a.point, margins.approximation_standard_errors
                 ),
             });
@@ -231,7 +244,8 @@ pub fn choose(
         let mut rays_settings = pilot.clone();
         rays_settings.shadows.mode = ShadowMode::Raytraced;
         let rays = render(active, &rays_settings, None);
-        let c_rays = rays.cost(noise_left(taken));
+        let c_rays = rays.frame_seconds(film_pixels, noise_left(taken));
+        let segments = active.strands.segment_count();
         let first = settings.shadows.deep_opacity.resolution;
         let mut listed = Vec::new();
         let mut kept = None;
@@ -257,23 +271,37 @@ pub fn choose(
                 margins.approximation_standard_errors,
             );
             let b2 = a.bias * a.bias;
-            let c_maps = with_maps.cost(noise_left(taken + b2));
+            // The maps of this resolution are built: their build is spent, whatever is chosen.
+            let c_maps = with_maps.frame_seconds(film_pixels, noise_left(taken + b2));
             listed.push(format!(
-                "{resolution}²: bias {:.4} (point {:.4}), cost {c_maps:.3e}",
+                "{resolution}²: bias {:.4} (point {:.4}), {c_maps:.2} s",
                 a.bias, a.point
             ));
             if taken + b2 <= APPROXIMATION_BIAS_SHARE * target2 && c_maps < c_rays {
                 kept = Some((a, with_maps));
                 break;
             }
-            if resolution * 2 > MAX_MAP_RESOLUTION.min(first << MAP_DOUBLINGS) {
+            let next = resolution * 2;
+            if next > MAX_MAP_RESOLUTION.min(first << MAP_DOUBLINGS) {
                 break;
             }
-            resolution *= 2;
+            // Finer maps are tried only if, even without bias, their frame and build would beat the rays.
+            let layers = settings.shadows.deep_opacity.layers;
+            let count = chosen.maps.as_ref().map_or(1, |m| m.maps().len()) as f64;
+            let build = count * map_build_seconds(next, layers, segments);
+            let at_best = with_maps.frame_seconds(film_pixels, noise_left(taken)) + build;
+            if at_best >= c_rays {
+                listed.push(format!(
+                    "{next}²: not built, at best {at_best:.2} s with its build {build:.2} s"
+                ));
+                break;
+            }
+            resolution = next;
         }
         let reason = format!(
             "maps against ray-traced shadows on the same pilots ({PILOT_SPP} spp, path {}; bias with {} standard \
-             error(s) added, cost CPU s × relMSE / noise budget): {}; ray-traced {c_rays:.3e}",
+             error(s) added; predicted CPU s of the frame at the noise the target leaves): {}; ray-traced \
+             {c_rays:.2} s",
             pilot.integrator.path_length,
             margins.approximation_standard_errors,
             listed.join("; ")
@@ -305,5 +333,6 @@ pub fn choose(
         }
     }
     chosen.measured.pilots = current;
+    chosen.measured.seconds = start.elapsed().as_secs_f64();
     chosen
 }
