@@ -1,5 +1,5 @@
-//! `cuticle study auto --auto-only SCENE...`: auto alone against the study's yardstick, for many scenes at a
-//! time (the held-out set of `cuticle study scenes`): per scene and target, does the frame meet the target, and
+//! `cuticle study auto --auto-only SCENE...`: auto alone against the study's yardstick (at path length
+//! [`HELD_OUT_REFERENCE_PATH_LENGTH`]), for many scenes at a time (the held-out set of `cuticle study scenes`): per scene and target, does the frame meet the target, and
 //! how close is the error it says it delivered (`quality::delivered`) to the error measured? No fixed
 //! configurations are rendered, so a scene costs its reference and auto's renders.
 
@@ -15,6 +15,12 @@ use crate::render::{thread_pool, Frame, Request};
 use super::super::{cache, create_dir, SceneFile, StudyError};
 use super::measure::mean_spp;
 use super::scene::reference_of;
+
+/// The held-out yardstick's path length: the longest path the renderer traces. The generated set's light-blond and
+/// white hair keeps much of its light past bounce 10 (the study's [`super::REFERENCE_PATH_LENGTH`], which the tuned
+/// scenes' darker hair does not need), and auto may choose paths past 10 there; Russian roulette keeps dark hair's
+/// deep bounces cheap.
+pub const HELD_OUT_REFERENCE_PATH_LENGTH: u32 = crate::render::integrator::MAX_PATH_LENGTH;
 use super::{AutoReport, AutoStudyConfig, MAX_SPP};
 
 /// One scene at one target.
@@ -62,7 +68,14 @@ fn scene_rows(
         Ok(Frame::load(spec)?)
     };
     let own = load(scene.hair.curves)?;
-    let reference = reference_of(file, config, cache_dir, &own, &base)?;
+    let reference = reference_of(
+        file,
+        config,
+        cache_dir,
+        &own,
+        &base,
+        HELD_OUT_REFERENCE_PATH_LENGTH,
+    )?;
     // Auto's curve decision reads the strands and the camera, not the target: made once, and the frame it renders
     // loaded once, before any timing (as `study_scene` loads its frames).
     let (curves, _) = quality::plan_curves(

@@ -68,7 +68,14 @@ pub(super) fn study_scene(
     progress.set_message("reference");
 
     // 1. The reference: two independent halves (their mean, and its noise from their difference).
-    let reference = reference_of(file, config, cache_dir, frame_of(scene.hair.curves), &base)?;
+    let reference = reference_of(
+        file,
+        config,
+        cache_dir,
+        frame_of(scene.hair.curves),
+        &base,
+        REFERENCE_PATH_LENGTH,
+    )?;
     progress.inc(1);
 
     // 2. Every fixed configuration, fitted (cached like the reference: the fits only pick which configurations
@@ -274,17 +281,19 @@ pub(super) fn study_scene(
 }
 
 /// The study's yardstick for `file` rendered by `frame` at `base`: the scene's own curves and materials, ray-traced
-/// shadows with exact transmittance, path length [`REFERENCE_PATH_LENGTH`], `reference_spp` samples in two
-/// independent halves (their own seeds), each cached by a hash of the scene and these settings.
+/// shadows with exact transmittance, path length `path_length` ([`REFERENCE_PATH_LENGTH`] for the study of the
+/// tuned scenes), `reference_spp` samples in two independent halves (their own seeds), each cached by a hash of the
+/// scene and these settings.
 pub(super) fn reference_of(
     file: &SceneFile,
     config: &AutoStudyConfig,
     cache_dir: &Path,
     frame: &Frame,
     base: &crate::render::RenderSettings,
+    path_length: u32,
 ) -> Result<Yardstick, StudyError> {
     let mut reference = base.clone();
-    reference.integrator.path_length = REFERENCE_PATH_LENGTH;
+    reference.integrator.path_length = path_length;
     reference.shadows.mode = ShadowMode::Raytraced;
     reference.shadows.transmittance = TransmittanceMode::Exact;
     reference.film.spp = (config.reference_spp / 2).max(1);
@@ -298,7 +307,7 @@ pub(super) fn reference_of(
             &[],
             &format!(
                 "{:?} {} {} half {half}",
-                config.resolution, config.reference_spp, REFERENCE_PATH_LENGTH
+                config.resolution, config.reference_spp, path_length
             ),
         );
         let (image, _, _) = cached_reference(
