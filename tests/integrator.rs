@@ -980,3 +980,48 @@ radiance = [0.3, 0.35, 0.4]
     assert_eq!(three.deep, traced(&three) - traced(&one));
     assert!(two.deep > 0 && three.deep > two.deep, "{two:?} {three:?}");
 }
+
+#[test]
+fn a_tail_past_the_path_length_keeps_the_long_paths_expectation_and_a_cut_does_not() {
+    // Dense light-blond Chiang hair under a sky: much of its light arrives after several bounces. Path length 1
+    // with a tail of 0.5 must have the expectation of path length 30 (the longest), and path length 1 without it
+    // must not: that difference is the bias the tail removes.
+    let fur = SMALL_FURBALL
+        .replace("strands = 1500 }", "strands = 6000 }\nradius_scale = 3.0")
+        .replace("opacity = 0.5", "opacity = 1.0");
+    let scene = parse(
+        &format!(
+            "{fur}
+[material]
+model = \"chiang\"
+color = [0.85, 0.8, 0.7]
+
+[environment]
+radiance = [0.6, 0.65, 0.7]
+visible = false
+"
+        ),
+        Path::new("."),
+    );
+    let run = |path_length: u32, tail: f32, seed: u32| {
+        let mut s = scene.clone();
+        s.integrator.path_length = path_length;
+        s.integrator.tail = tail;
+        s.film.seed = seed;
+        s.film.spp = 64;
+        render_scene_with_stats(&s, 2)
+    };
+    let (long, long_stats) = run(30, 0.0, 1);
+    let (tail, tail_stats) = run(1, 0.5, 2);
+    let (cut, cut_stats) = run(1, 0.0, 3);
+    assert_same_expectation("path 1 with a tail of 0.5 vs path 30", &long, &tail);
+    assert!(
+        image_mean(&long) > 1.2 * image_mean(&cut),
+        "the bounces past 1 carry too little light to test the tail: {} against {}",
+        image_mean(&long),
+        image_mean(&cut)
+    );
+    // The tail traces fewer rays than the long paths, more than the cut ones.
+    let rays = |s: &cuticle::render::RenderStats| s.rays.material;
+    assert!(rays(&cut_stats) < rays(&tail_stats) && rays(&tail_stats) < rays(&long_stats));
+}

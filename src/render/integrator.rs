@@ -72,6 +72,10 @@ pub struct Settings {
     pub material_samples: u32,
     /// Indirect bounces (0 = direct light only).
     pub path_length: u32,
+    /// (bounce b, probability p): after vertex b a path goes on only with probability p on top of Russian
+    /// roulette, weighted by 1 / p ([`crate::render::settings::IntegratorConfig::tail`]; `path_length` is then
+    /// [`MAX_PATH_LENGTH`]).
+    pub tail: Option<(u32, f32)>,
     /// Largest channel value of one indirect contribution; 0 = no clamping (the default: clamping is biased).
     pub clamp: f32,
     /// Self-shadowing.

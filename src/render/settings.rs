@@ -213,6 +213,12 @@ pub struct IntegratorConfig {
     pub light_threshold: f32,
     /// In lanes or one at a time ([`Shading`]); the same image either way.
     pub shading: Shading,
+    /// Past `path_length` bounces, the probability that a path goes on (times Russian roulette's own), its
+    /// throughput divided by it, up to the longest path the sampler allows
+    /// ([`MAX_PATH_LENGTH`](super::integrator::MAX_PATH_LENGTH)): the bounces past `path_length` are then estimated
+    /// without bias, at the cost of their noise, instead of left out. 0 = off (the default: paths end at
+    /// `path_length`); needs `path_length` ≥ 1.
+    pub tail: f32,
 }
 
 impl Default for IntegratorConfig {
@@ -226,6 +232,7 @@ impl Default for IntegratorConfig {
             lights: LightSelection::All,
             light_threshold: 0.0,
             shading: Shading::Lanes,
+            tail: 0.0,
         }
     }
 }
@@ -260,6 +267,15 @@ impl IntegratorConfig {
                 return Err(format!("integrator.{key} must be >= 0 (0 = off), got {v}"));
             }
         }
+        if !(0.0..=1.0).contains(&self.tail) {
+            return Err(format!(
+                "integrator.tail must be in [0, 1] (0 = off), got {}",
+                self.tail
+            ));
+        }
+        if self.tail > 0.0 && self.path_length == 0 {
+            return Err("integrator.tail needs integrator.path_length >= 1".into());
+        }
         Ok(())
     }
 }
@@ -287,10 +303,18 @@ impl RenderSettings {
     /// The light-transport settings of the integrator.
     pub fn transport(&self) -> Settings {
         let i = &self.integrator;
+        // A tail: paths go on to the longest length, thinned once at `path_length` (the integrator's roulette).
+        let tail = (i.tail > 0.0 && i.path_length >= 1 && i.path_length < MAX_PATH_LENGTH)
+            .then_some((i.path_length, i.tail));
         Settings {
             light_samples: i.light_samples,
             material_samples: i.material_samples,
-            path_length: i.path_length,
+            path_length: if tail.is_some() {
+                MAX_PATH_LENGTH
+            } else {
+                i.path_length
+            },
+            tail,
             clamp: i.clamp,
             shadows: self.shadows.mode,
             transmittance: self.shadows.transmittance,

@@ -114,7 +114,11 @@ impl<'a> Integrator<'a> {
         }
         let (next, weight) = step.1?;
         let u = sampler.get(index, dim::vertex(b, dim::ROULETTE));
-        walk.rest = roulette(&walk.first_weights, walk.rest * weight, u)?;
+        let thin = match self.settings.tail {
+            Some((from, p)) if b == from => p,
+            _ => 1.0,
+        };
+        walk.rest = roulette(&walk.first_weights, walk.rest * weight, u, thin)?;
         walk.b += 1;
         Some(next)
     }
@@ -288,12 +292,13 @@ impl<'a> Integrator<'a> {
 }
 
 /// Russian roulette (Arvo & Kirk 1990; pbrt-v4 §2.2.4) before a further path vertex: the path goes on with
-/// probability q = clamp(luminance of its whole throughput, 0.05, 1), decided by `u`, and its throughput after the
+/// probability q = clamp(luminance of its whole throughput, 0.05, 1) × `thin` (the tail's thinning past
+/// `path_length`, [`Settings::tail`](super::Settings::tail), else 1), decided by `u`, and its throughput after the
 /// first vertex, `rest`, is divided by q so the estimate stays unbiased (hair albedos of 0.3–0.7 end most paths
 /// early). Returns the new `rest`, or `None` if the path ends (also when `rest` is no longer finite and positive).
 #[inline]
-fn roulette(first_weights: &LobeValues, rest: Vec3, u: f32) -> Option<Vec3> {
-    let q = luminance(first_weights.sum() * rest).clamp(0.05, 1.0);
+fn roulette(first_weights: &LobeValues, rest: Vec3, u: f32, thin: f32) -> Option<Vec3> {
+    let q = luminance(first_weights.sum() * rest).clamp(0.05, 1.0) * thin;
     if u >= q {
         return None;
     }
