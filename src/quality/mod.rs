@@ -33,6 +33,8 @@
 //!    mean samples per pixel from the per-pixel variance of two independent pilot estimates; and how much faster
 //!    than independent samples the sampler's stratified samples converge (the pilot pixels' sample variances against
 //!    the variance of the two pilot estimates).
+//!    Then a **tail** ([`plan_tail`]): past that path length paths go on with probability [`AUTO_TAIL`], so the
+//!    bounces after it are estimated by the frame's own samples instead of left out as bias.
 //! 5. **Adaptive sampling** ([`adaptive_schedule`], [`crate::render::adaptive`]): the image-level rule, to the
 //!    noise budget target² − (bias left out)² − (approximations' bias)², the bias of all the bounces left out estimated from the pilots'
 //!    bounces as a geometric tail at their largest ratio ([`pilot::bias_left`], [`pilot::decay_ratio`]), its stop

@@ -215,7 +215,7 @@ pub struct IntegratorConfig {
     pub shading: Shading,
     /// Past `path_length` bounces, the probability that a path goes on (times Russian roulette's own), its
     /// throughput divided by it, up to the longest path the sampler allows
-    /// ([`MAX_PATH_LENGTH`](super::integrator::MAX_PATH_LENGTH)): the bounces past `path_length` are then estimated
+    /// ([`MAX_PATH_LENGTH`]): the bounces past `path_length` are then estimated
     /// without bias, at the cost of their noise, instead of left out. 0 = off (the default: paths end at
     /// `path_length`); needs `path_length` ≥ 1.
     pub tail: f32,
