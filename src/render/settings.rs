@@ -337,6 +337,48 @@ mod tests {
     use super::*;
 
     #[test]
+    fn a_tail_outside_zero_to_one_or_without_a_bounce_is_refused_by_name_and_runs_to_the_longest_path(
+    ) {
+        for (tail, path_length, ok) in [
+            (0.0, 0, true),
+            (0.5, 1, true),
+            (1.0, 3, true),
+            (-0.1, 1, false),
+            (1.5, 1, false),
+            (f32::NAN, 1, false),
+            (0.5, 0, false),
+        ] {
+            let c = IntegratorConfig {
+                tail,
+                path_length,
+                ..IntegratorConfig::default()
+            };
+            let r = c.validate();
+            assert_eq!(r.is_ok(), ok, "tail {tail}, path {path_length}: {r:?}");
+            if let Err(m) = r {
+                assert!(m.contains("integrator.tail"), "{m}");
+            }
+        }
+        let mut s = RenderSettings {
+            camera: CameraConfig::default(),
+            film: FilmConfig::default(),
+            integrator: IntegratorConfig {
+                tail: 0.5,
+                path_length: 2,
+                ..IntegratorConfig::default()
+            },
+            shadows: ShadowConfig::default(),
+            adaptive: None,
+            background_visible: true,
+        };
+        let t = s.transport();
+        assert_eq!((t.path_length, t.tail), (MAX_PATH_LENGTH, Some((2, 0.5))));
+        s.integrator.tail = 0.0;
+        let t = s.transport();
+        assert_eq!((t.path_length, t.tail), (2, None));
+    }
+
+    #[test]
     fn a_negative_or_nan_light_threshold_is_refused_by_name() {
         for (t, ok) in [(0.0, true), (0.01, true), (-0.01, false), (f32::NAN, false)] {
             let c = IntegratorConfig {
