@@ -55,7 +55,7 @@ pub fn delivered(pilot: &PilotPlan, target: f32, noise: Option<&NoiseEstimate>) 
             (p, (p, p), false, None)
         }
     };
-    let approximated: f64 = pilot.approximations.iter().map(|a| a.bias * a.bias).sum();
+    let approximated = super::pilot::approximations::bias2_of(&pilot.approximations);
     let bias = pilot.bias_left.map(|b| (b * b + approximated).sqrt());
     let b = bias.unwrap_or(approximated.sqrt());
     Delivered {

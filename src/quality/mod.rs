@@ -559,7 +559,7 @@ fn plan_tail(
     settings.integrator.path_length = path_length;
     settings.integrator.tail = AUTO_TAIL;
     let target2 = f64::from(quality.target).powi(2);
-    let approximated: f64 = p.approximations.iter().map(|a| a.bias * a.bias).sum();
+    let approximated = pilot::approximations::bias2_of(&p.approximations);
     let before = p.noise_budget;
     let read = p.bias_left;
     p.path_length = path_length;
@@ -624,7 +624,7 @@ pub fn plan_frame_with(
     }
     decisions.append(&mut chosen.decisions);
     let active = chosen.frame.as_ref().unwrap_or(frame);
-    let p = pilot::plan(
+    let mut p = pilot::plan(
         active,
         &settings,
         chosen.maps.as_ref(),
@@ -634,7 +634,6 @@ pub fn plan_frame_with(
         chosen.measured,
     );
     let (maps, maps_seconds) = (chosen.maps, chosen.maps_seconds);
-    let mut p = p;
     settings.integrator.path_length = p.path_length;
     settings.integrator.light_samples = p.light_samples;
     settings.integrator.material_samples = p.material_samples;

@@ -211,7 +211,7 @@ pub fn plan(
         predicted_seconds: spent_before,
         seconds: compared_seconds,
     } = chosen;
-    let approximation_bias2: f64 = approximations.iter().map(|a| a.bias * a.bias).sum();
+    let approximation_bias2 = approximations::bias2_of(&approximations);
     let bias_standard_errors = margins.bias_standard_errors;
     let start = std::time::Instant::now();
     let [width, height] = settings.film.resolution;

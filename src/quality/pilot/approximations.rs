@@ -51,6 +51,18 @@ pub struct Approximation {
     pub standard_error: f64,
 }
 
+impl Approximation {
+    /// The bias as relMSE (with its margin): what it takes from the noise budget.
+    pub fn bias2(&self) -> f64 {
+        self.bias * self.bias
+    }
+}
+
+/// The relMSE the approximations in `kept` take together as bias (their biases add in quadrature).
+pub fn bias2_of(kept: &[Approximation]) -> f64 {
+    kept.iter().map(Approximation::bias2).sum()
+}
+
 /// The pilots of one choice: the pairs at every path length up to the pilots' (cut from one render per seed).
 pub(super) struct Pilots {
     pub(super) pairs: Vec<Pair>,
@@ -207,10 +219,10 @@ pub fn choose(
                 margins.approximation_standard_errors,
             );
             let (c_flat, c_round) = (
-                flat.frame_seconds(film_pixels, noise_left(a.bias * a.bias)),
+                flat.frame_seconds(film_pixels, noise_left(a.bias2())),
                 tubes.frame_seconds(film_pixels, noise_left(0.0)),
             );
-            let keep = a.bias * a.bias <= APPROXIMATION_BIAS_SHARE * target2 && c_flat < c_round;
+            let keep = a.bias2() <= APPROXIMATION_BIAS_SHARE * target2 && c_flat < c_round;
             chosen.decisions.push(Decision {
                 key: "hair.curves",
                 value: if keep { "flat" } else { "round" }.into(),
@@ -235,12 +247,7 @@ pub fn choose(
     // Deep opacity maps for ray-traced shadows, finer maps while they are too biased.
     if !fixed.shadows && settings.shadows.mode == ShadowMode::DeepOpacity {
         let active = chosen.frame.as_ref().unwrap_or(frame);
-        let taken: f64 = chosen
-            .measured
-            .approximations
-            .iter()
-            .map(|a| a.bias * a.bias)
-            .sum();
+        let taken = bias2_of(&chosen.measured.approximations);
         let mut rays_settings = pilot.clone();
         rays_settings.shadows.mode = ShadowMode::Raytraced;
         let rays = render(active, &rays_settings, None);
@@ -270,7 +277,7 @@ pub fn choose(
                 &windows,
                 margins.approximation_standard_errors,
             );
-            let b2 = a.bias * a.bias;
+            let b2 = a.bias2();
             // The maps of this resolution are built: their build is spent, whatever is chosen.
             let c_maps = with_maps.frame_seconds(film_pixels, noise_left(taken + b2));
             listed.push(format!(
