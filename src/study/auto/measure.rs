@@ -166,6 +166,19 @@ pub(super) fn rel_rmse(image: &Image, reference: &Image) -> Result<f64, StudyErr
 pub(super) struct Yardstick {
     pub(super) image: Image,
     pub(super) noise2: f64,
+    /// Each pixel's share of `noise2`: mean over RGB of ((a − b) / 2)² / (m² + 0.01) (0 where not finite).
+    noise_per_pixel: Vec<f64>,
+}
+
+/// An error measured against the [`Yardstick`], with its standard error.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct Measurement {
+    /// Relative RMSE, the reference's noise taken off.
+    pub(super) error: f64,
+    /// The standard error of `error` over the pixels: the spread of the pixels' terms (x − m)² / (m² + 0.01) less
+    /// their halves' noise, over √pixels, through the square root (δe = δ(e²) / 2e). A weak reference (its noise
+    /// near the target) makes it large.
+    pub(super) standard_error: f64,
 }
 
 impl Yardstick {
@@ -183,24 +196,30 @@ impl Yardstick {
         let channels = ["R", "G", "B"].map(|c| image.channel_index(c));
         let nc = image.channels.len();
         let (mut sum, mut count) = (0.0f64, 0usize);
+        let mut noise_per_pixel = Vec::with_capacity(a.width * a.height);
         for ((pa, pb), pm) in a
             .data
             .chunks_exact(nc)
             .zip(b.data.chunks_exact(nc))
             .zip(image.data.chunks_exact(nc))
         {
+            let mut pixel = 0.0;
             for c in channels.iter().flatten() {
                 let d = 0.5 * (f64::from(pa[*c]) - f64::from(pb[*c]));
                 let m = f64::from(pm[*c]);
                 if (d * d + m).is_finite() {
-                    sum += d * d / (m * m + metrics::REL_EPSILON);
+                    let term = d * d / (m * m + metrics::REL_EPSILON);
+                    sum += term;
+                    pixel += term / 3.0;
                     count += 1;
                 }
             }
+            noise_per_pixel.push(pixel);
         }
         Ok(Yardstick {
             image,
             noise2: sum / count.max(1) as f64,
+            noise_per_pixel,
         })
     }
 
@@ -209,6 +228,42 @@ impl Yardstick {
     pub(super) fn rel_rmse(&self, image: &Image) -> Result<f64, StudyError> {
         let e = rel_rmse(image, &self.image)?;
         Ok((e * e - self.noise2).max(0.0).sqrt())
+    }
+
+    /// The relative RMSE of `image` against the truth ([`Yardstick::rel_rmse`]) with its standard error over the
+    /// pixels ([`Measurement`]).
+    pub(super) fn measure(&self, image: &Image) -> Result<Measurement, StudyError> {
+        let error = self.rel_rmse(image)?;
+        let rgb = |im: &Image| ["R", "G", "B"].map(|c| im.channel_index(c));
+        let (ci, cr) = (rgb(image), rgb(&self.image));
+        let (ni, nr) = (image.channels.len(), self.image.channels.len());
+        let (mut sum, mut sum2, mut count) = (0.0f64, 0.0f64, 0usize);
+        for ((p, q), noise) in image
+            .data
+            .chunks_exact(ni)
+            .zip(self.image.data.chunks_exact(nr))
+            .zip(&self.noise_per_pixel)
+        {
+            let mut term = -noise;
+            for (a, b) in ci.iter().zip(&cr) {
+                if let (Some(a), Some(b)) = (a, b) {
+                    let (x, r) = (f64::from(p[*a]), f64::from(q[*b]));
+                    term += (x - r) * (x - r) / (r * r + metrics::REL_EPSILON) / 3.0;
+                }
+            }
+            if term.is_finite() {
+                sum += term;
+                sum2 += term * term;
+                count += 1;
+            }
+        }
+        let n = count.max(1) as f64;
+        let mean = sum / n;
+        let se2 = ((sum2 / n - mean * mean).max(0.0) / n).sqrt();
+        Ok(Measurement {
+            error,
+            standard_error: se2 / (2.0 * error.max(1e-12)),
+        })
     }
 
     /// The reference's own noise, relative RMSE.
@@ -233,4 +288,52 @@ pub(super) fn render(frame: &Frame, settings: &RenderSettings) -> (Image, f64) {
     let r = frame.render(Request::new(settings));
     let (image, stats) = (r.image, r.stats);
     (image, stats.seconds + stats.shadow_build_seconds)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    /// `width²` pixels of truth 1 in R, G and B, each value 1 + `sigma` × a standard normal draw.
+    fn noisy(width: usize, sigma: f64, rng: &mut rand_pcg::Pcg64) -> Image {
+        let mut image = Image::new(width, width, ["R", "G", "B"].map(String::from).to_vec());
+        for v in &mut image.data {
+            // Box–Muller.
+            let (u1, u2): (f64, f64) = (rng.random::<f64>().max(1e-300), rng.random());
+            let z = (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos();
+            *v = (1.0 + sigma * z) as f32;
+        }
+        image
+    }
+
+    /// The yardstick takes the reference's own noise off and says how well it reads the rest: an image of noise
+    /// 0.05 against a reference of noise 0.05 (each half 0.0707), 64² pixels, measures 0.05 / √1.01 within 3 of
+    /// its stated standard errors, and that standard error is the spread of 20 such measurements within a factor
+    /// 1.5.
+    #[test]
+    fn the_yardstick_reads_the_error_with_the_spread_it_states() {
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(3);
+        let truth = 0.05 / 1.01f64.sqrt();
+        let (mut errors, mut stated) = (Vec::new(), Vec::new());
+        for _ in 0..20 {
+            let a = noisy(64, 0.05 * 2f64.sqrt(), &mut rng);
+            let b = noisy(64, 0.05 * 2f64.sqrt(), &mut rng);
+            let yardstick = Yardstick::from_halves(&a, &b).unwrap();
+            let m = yardstick.measure(&noisy(64, 0.05, &mut rng)).unwrap();
+            assert!(
+                (m.error - truth).abs() < 3.0 * m.standard_error,
+                "{m:?} for {truth}"
+            );
+            errors.push(m.error);
+            stated.push(m.standard_error);
+        }
+        let mean = errors.iter().sum::<f64>() / 20.0;
+        let spread = (errors.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / 19.0).sqrt();
+        let said = stated.iter().sum::<f64>() / 20.0;
+        assert!(
+            spread / said < 1.5 && said / spread < 1.5,
+            "spread {spread:.5}, stated {said:.5}"
+        );
+    }
 }
