@@ -186,6 +186,20 @@ impl Job {
             .map_err(JobError::Invalid)?;
         let pool = thread_pool(threads)?;
         let spec = scene.resolve()?;
+        // The region is checked against the film before anything is loaded or built (auto never changes the
+        // resolution): a crop outside the frame was refused only after a 27 s build at 3·10⁵ strands.
+        let [width, height] = spec.settings.film.resolution;
+        let region = match request.part {
+            Part::Crop(crop) => {
+                crop.check_inside(width, height)
+                    .map_err(JobError::Invalid)?;
+                crop
+            }
+            Part::Tile { index, count } => {
+                Region::band(index, count, width, height).map_err(JobError::Invalid)?
+            }
+            Part::Full => Region::full(width, height),
+        };
         let (limit, limit_source) = match request.max_memory {
             Some(bytes) => (bytes, "--max-memory".to_owned()),
             None => budget::default_limit(),
@@ -254,17 +268,11 @@ impl Job {
             .camera
             .camera(frame.hair_bounds(), width, height)
             .map_err(|m| JobError::Invalid(format!("{}: {m}", scene.source.display())))?;
-        let region = match request.part {
-            Part::Crop(crop) => {
-                crop.check_inside(width, height)
-                    .map_err(JobError::Invalid)?;
-                crop
-            }
-            Part::Tile { index, count } => {
-                Region::band(index, count, width, height).map_err(JobError::Invalid)?
-            }
-            Part::Full => Region::full(width, height),
-        };
+        debug_assert_eq!(
+            [width, height],
+            settings.film.resolution,
+            "auto changed the film"
+        );
         // Deep opacity maps are built once: for the render (in deep-opacity mode) and for dumping alike.
         let start = Instant::now();
         let (maps, maps_seconds) = match planned_maps {

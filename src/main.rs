@@ -90,7 +90,7 @@ fn main() -> ExitCode {
         Err(e) => {
             eprintln!(
                 "cuticle: error: {}",
-                cuticle::util::report::chain(e.as_ref())
+                cuticle::util::report::capped(&cuticle::util::report::chain(e.as_ref()))
             );
             // A render stopped by a signal exits as the signal's convention says (130, 143); any other error 2.
             use cuticle::farm::FarmError;

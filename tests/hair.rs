@@ -432,6 +432,23 @@ fn tfx_non_finite_point() {
     assert_contains(&load_error("nan.tfx", &b), &["point 40 is not finite"]);
 }
 
+/// A `.tfx` stores no thickness (its radius follows the points' spacing), so points too far out are blamed as
+/// points, not as an infinite "thickness" (what a 10³⁰-scaled mohawk reported).
+#[test]
+fn tfx_points_too_far_out_are_blamed_as_points_not_as_a_thickness() {
+    let mut b = bytes(MOHAWK);
+    let h = cuticle::hair::tfx::Header::parse(Path::new("m.tfx"), &b).unwrap();
+    let n = h.strand_count as usize * h.vertices_per_strand as usize;
+    for k in 0..n * 4 {
+        let at = 160 + 4 * k;
+        let v = f32::from_le_bytes(b[at..at + 4].try_into().unwrap());
+        put_f32(&mut b, at, v * 1e30);
+    }
+    let e = load_error("far.tfx", &b);
+    assert_contains(&e, &["reaches farther than", "scale the model down"]);
+    assert!(!e.contains("thickness") && !e.contains("radius"), "{e}");
+}
+
 // ---------------------------------------------------------------------------------------------------------------
 // Round trips
 

@@ -65,7 +65,8 @@ pub const MAX_COLOR: f32 = 1.0;
 
 /// Checks that every point, inflated by its radius × `radius_scale`, lies within [`crate::ray::MAX_SCENE_COORD`] of
 /// the origin, so every ray that starts on a strand passes [`crate::ray::Ray::check`]. `what` is appended to the
-/// message (e.g. " with hair.radius_scale = 1e30").
+/// message (e.g. " with hair.radius_scale = 1e30"). An empty `radius` checks the points alone (a format whose radius
+/// is derived from the points, checked before deriving it).
 pub(crate) fn check_extent(
     path: &Path,
     points: &[Vec3],
@@ -74,18 +75,23 @@ pub(crate) fn check_extent(
     what: &str,
 ) -> Result<(), HairError> {
     let max = crate::ray::MAX_SCENE_COORD;
-    let far = points.iter().zip(radius).position(|(p, r)| {
-        let reach = p.abs().max_element() + r * radius_scale;
+    let r = |i: usize| radius.get(i).map_or(0.0, |r| r * radius_scale);
+    let far = points.iter().enumerate().position(|(i, p)| {
+        let reach = p.abs().max_element() + r(i);
         !(..=max).contains(&reach)
     });
     if let Some(i) = far {
+        let with = if radius.is_empty() {
+            String::new()
+        } else {
+            format!(" with radius {:e}", r(i))
+        };
         return Err(HairError::invalid(
             path,
             format!(
-                "point {i} at {:?} with radius {:e} reaches farther than {max:e} from the origin{what}: rays from \
-                 it could not be traced in single precision (scale the model down)",
+                "point {i} at {:?}{with} reaches farther than {max:e} from the origin{what}: rays from it could not \
+                 be traced in single precision (scale the model down)",
                 points[i].to_array(),
-                radius[i] * radius_scale
             ),
         ));
     }

@@ -258,6 +258,9 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<HairModel, HairError> {
             format!("point {i} is not finite: {:?}", points[i]),
         ));
     }
+    // The radius is derived from the points' spacing: points too far out would make it infinite and the error
+    // blame a thickness the file does not have, so the points are checked first.
+    super::check_extent(path, &points, &[], 1.0, "")?;
     let per_strand = header.vertices_per_strand as usize;
     let median = median_segment_length(&points, per_strand);
     if median <= 0.0 {

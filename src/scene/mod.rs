@@ -183,9 +183,10 @@ impl Scene {
             path: source.into(),
             message,
         };
-        // toml's messages carry the line, column and key ("unknown field `fov2`, expected one of ...").
-        let mut scene: Scene =
-            toml::from_str(text).map_err(|e| invalid(e.to_string().trim_end().to_owned()))?;
+        // toml's messages carry the line, column and key ("unknown field `fov2`, expected one of ...") and quote
+        // the offending line, which may be megabytes long: cut to its head and tail.
+        let mut scene: Scene = toml::from_str(text)
+            .map_err(|e| invalid(crate::util::report::capped(e.to_string().trim_end())))?;
         scene.base_dir = base_dir.to_path_buf();
         scene.source = source.to_path_buf();
         scene.validate().map_err(invalid)?;
