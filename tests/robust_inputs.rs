@@ -357,6 +357,9 @@ fn parameters_at_their_bounds_give_finite_pixels_and_beyond_are_refused() {
     for material in [
         "[material]\nmodel = \"kajiya-kay\"\nexponent = 1e4\n",
         "[material]\nmodel = \"ishair\"\nglint = 100\n",
+        "[material]\nmodel = \"ishair\"\ncolor = [1, 1, 1]\ncolor_r = [1, 1, 1]\ncolor_tt = [1, 1, 1]\ncolor_trt = [1, 1, 1]\n",
+        "[material]\nmodel = \"marschner\"\ncolor = [1, 1, 1]\nk_s1 = [1, 1, 1]\nk_s2 = [1, 1, 1]\n",
+        "[material]\nmodel = \"kajiya-kay\"\ncolor = [1, 1, 1]\n",
     ] {
         assert_finite(&format!("{furball}{small}{lit}{material}"), dir.path());
     }
@@ -368,6 +371,22 @@ fn parameters_at_their_bounds_give_finite_pixels_and_beyond_are_refused() {
         (
             "[material]\nmodel = \"ishair\"\nglint = 1e30",
             "material.glint must be in [0, 100]",
+        ),
+        (
+            "[material]\nmodel = \"ishair\"\ncolor_tt = [3e38, 1, 1]",
+            "material.color_tt must be in [0, 1] per channel",
+        ),
+        (
+            "[material]\nmodel = \"marschner\"\ncolor = [2, 2, 2]",
+            "material.color must be in [0, 1] per channel",
+        ),
+        (
+            "[material]\nmodel = \"marschner\"\nk_s1 = [0.5, -1, 0.5]",
+            "material.k_s1 must be in [0, 1] per channel",
+        ),
+        (
+            "[material]\nmodel = \"kajiya-kay\"\ncolor = [1, 1, 1.5]",
+            "material.color must be in [0, 1] per channel",
         ),
         (
             "[environment]\nradiance = [1e30, 1, 1]",
@@ -526,4 +545,53 @@ fn crops_and_tiles_outside_the_frame_are_refused_before_loading() {
     // And without the bad region, the missing file is what is blamed.
     let e = error_of(&cuticle(&["render", s, "-o", o]));
     assert!(e.contains("nothere.hair"), "{e}");
+}
+
+/// An environment map with NaN or infinite texels is refused as damaged, naming the file; one whose negative texels
+/// hold a visible share of its magnitude renders with those read as 0 and a warning with the count (the shipped
+/// maps' compression negatives, at most 3e-7 of the magnitude, pass silently).
+#[test]
+fn environment_maps_with_non_finite_texels_are_refused_and_large_negatives_reported() {
+    let dir = tempfile::tempdir().unwrap();
+    let map = |name: &str, bad: f32| {
+        let mut m = cuticle::image::Image::new(8, 4, ["R", "G", "B"].map(String::from).to_vec());
+        m.data.fill(0.5);
+        m.data[3 * 9 + 1] = bad;
+        m.data[3 * 10] = bad;
+        let path = dir.path().join(name);
+        cuticle::image::write(&path, &m).unwrap();
+        path
+    };
+    let scene = |map: &Path| {
+        put(
+            dir.path(),
+            "env.toml",
+            format!(
+                "[hair]\nprocedural = {{ kind = \"fur-ball\", strands = 50 }}\n[film]\nresolution = [8, 8]\nspp = 1\n\
+                 [environment]\nmap = \"{}\"\n",
+                map.display()
+            )
+            .as_bytes(),
+        )
+    };
+    let out = dir.path().join("x.exr");
+    let o = out.to_str().unwrap();
+    for bad in [f32::NAN, f32::INFINITY] {
+        let s = scene(&map("bad.exr", bad));
+        let e = error_of(&cuticle(&["render", s.to_str().unwrap(), "-q", "-o", o]));
+        assert!(
+            e.contains("bad.exr")
+                && e.contains("2 texels are NaN or infinite (the first at column 1, row 1)"),
+            "{e}"
+        );
+        assert!(!out.exists());
+    }
+    let s = scene(&map("negative.exr", -5.0));
+    let run = cuticle(&["render", s.to_str().unwrap(), "-o", o]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("warning: the environment map had 2 negative texel values, read as 0"),
+        "{stderr}"
+    );
 }

@@ -106,7 +106,7 @@ use longitudinal::{m_p_of, sample_sin_theta, Longitudinal};
 
 use super::frame::COS_THETA_MIN;
 use super::lanes::{At, EvalOf, Fibre, LobesOf, SampleOf};
-use super::{check, check_color, BsdfError, Sampling};
+use super::{check, check_coefficient, BsdfError, Sampling};
 use crate::util::real::{Kernel, Real};
 use crate::util::sampling::UNIFORM_SPHERE_PDF;
 use glam::Vec3;
@@ -253,7 +253,7 @@ impl Chiang {
     /// A checked model (ranges in the module docs' table).
     pub fn new(params: ChiangParams) -> Result<Chiang, BsdfError> {
         let p = params;
-        check_color(MODEL, "sigma_a", p.sigma_a)?;
+        check_coefficient(MODEL, "sigma_a", p.sigma_a)?;
         check_beta("beta_m", p.beta_m)?;
         check_beta("beta_n", p.beta_n)?;
         check(

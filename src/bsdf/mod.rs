@@ -343,8 +343,25 @@ pub(crate) fn check(
     }
 }
 
-/// Checks an RGB colour is finite and ≥ 0 per channel.
+/// Checks an albedo-like RGB colour is in [0, 1] per channel (a fibre scatters at most the light that reaches it);
+/// the value reported is the channel out of range.
 pub(crate) fn check_color(
+    model: &'static str,
+    key: &'static str,
+    c: Vec3,
+) -> Result<(), BsdfError> {
+    let bad = c.to_array().into_iter().find(|v| !(0.0..=1.0).contains(v));
+    check(
+        model,
+        key,
+        bad.unwrap_or(0.0),
+        "in [0, 1] per channel",
+        bad.is_none(),
+    )
+}
+
+/// Checks an RGB coefficient (an absorption σa) is finite and ≥ 0 per channel.
+pub(crate) fn check_coefficient(
     model: &'static str,
     key: &'static str,
     c: Vec3,

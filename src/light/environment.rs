@@ -19,9 +19,9 @@
 //!
 //! [`Environment::le`] is a **nearest-texel** lookup (no filtering), so the radiance a sample carries and the
 //! value an escaping ray sees at that direction are the same texel, and the importance density below is exactly
-//! proportional to it within each texel (up to the sin θ of the texel centre). Texel values that are negative,
-//! NaN or infinite (DWAB compression leaves tiny negatives) are replaced by 0 and counted
-//! ([`Environment::clamped_texels`]). `intensity` scales the whole map.
+//! proportional to it within each texel (up to the sin θ of the texel centre). Negative texel values (DWAB
+//! compression leaves tiny negatives) are replaced by 0 and counted ([`Environment::clamped_texels`], which a render
+//! reports); a NaN or infinite texel refuses the map as damaged. `intensity` scales the whole map.
 //!
 //! Directions are importance sampled with a [`Distribution2D`](super::distribution::Distribution2D) over the texel
 //! weights luminance(texel) · sin θ_c (θ_c at the texel's centre: the sin θ of the lat-long Jacobian, so rows near
@@ -85,11 +85,19 @@ impl Environment {
         }
     }
 
-    /// How many texel channel values were negative, NaN or infinite in the image and read as 0.
+    /// How many texel channel values were negative in the image and read as 0.
     pub fn clamped_texels(&self) -> usize {
         match &self.source {
             Source::Constant(_) => 0,
             Source::Map(m) => m.clamped,
+        }
+    }
+
+    /// The negative values' magnitude over all values' (0 to 1): how much of the map reading them as 0 left out.
+    pub fn negative_share(&self) -> f64 {
+        match &self.source {
+            Source::Constant(_) => 0.0,
+            Source::Map(m) => m.negative_share,
         }
     }
 
@@ -601,13 +609,22 @@ mod tests {
     fn clamps_bad_texels_reads_grey_and_rejects_bad_input() {
         let mut img = synthetic();
         img.pixel_mut(3, 3)[1] = -1e-4;
-        img.pixel_mut(4, 4)[0] = f32::NAN;
-        img.pixel_mut(5, 5)[2] = f32::INFINITY;
+        img.pixel_mut(4, 4)[0] = -2.0;
         let env = Environment::from_image(&img, 1.0, 0.0, Vec3::Y).unwrap();
-        assert_eq!(env.clamped_texels(), 3);
+        assert_eq!(env.clamped_texels(), 2);
         assert_eq!(env.le(texel_direction(3, 3, 16, 8)).y, 0.0);
         assert_eq!(env.le(texel_direction(4, 4, 16, 8)).x, 0.0);
         assert!(env.average_radiance().is_finite());
+        // NaN or infinite texels: the map is damaged, refused with the count and the first one's place.
+        img.pixel_mut(5, 5)[2] = f32::INFINITY;
+        img.pixel_mut(6, 6)[0] = f32::NAN;
+        let e = Environment::from_image(&img, 1.0, 0.0, Vec3::Y)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("2 texels are NaN or infinite (the first at column 5, row 5)"),
+            "{e}"
+        );
 
         let mut grey = Image::new(4, 2, vec!["Y".to_owned()]);
         grey.data.fill(0.5);

@@ -395,6 +395,22 @@ fn check_widths(widths: &[(&str, f32)]) -> Result<(), String> {
     Ok(())
 }
 
+/// Checks albedo-like colours (each entry: key, value) are in [0, 1] per channel: a fibre cannot scatter more light
+/// than reaches it, and a colour of 2 doubled the image's energy per bounce while 3e38 put infinities in the film.
+fn check_colors(colors: &[(&str, Option<[f32; 3]>)]) -> Result<(), String> {
+    for &(key, value) in colors {
+        if let Some(c) = value {
+            if !c.iter().all(|v| (0.0..=1.0).contains(v)) {
+                return Err(format!(
+                    "material.{key} must be in [0, 1] per channel (a fibre reflects at most the light that reaches \
+                     it), got {c:?}"
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Checks degree-valued keys against the models' own ranges, converted to degrees, so a bad value is reported
 /// in the unit the user wrote (the models' checks speak radians): each entry is (key, value, low, high).
 fn check_degrees(keys: &[(&str, f32, f32, f32)]) -> Result<(), String> {
@@ -449,6 +465,7 @@ impl MaterialConfig {
                         c.exponent
                     ));
                 }
+                check_colors(&[("color", c.color)])?;
                 if c.diffuse < 0.0 || c.specular < 0.0 || c.diffuse + c.specular > 1.0 {
                     return Err(format!(
                         "material.diffuse and material.specular must be >= 0 with a sum <= 1, got {} and {}",
@@ -466,6 +483,11 @@ impl MaterialConfig {
                 (Scattering::KajiyaKay(model), c.color.is_none())
             }
             MaterialConfig::Marschner(c) => {
+                check_colors(&[
+                    ("color", c.color),
+                    ("k_s1", Some(c.k_s1)),
+                    ("k_s2", Some(c.k_s2)),
+                ])?;
                 check_widths(&[("beta_1", c.beta_1), ("beta_2", c.beta_2)])?;
                 check_degrees(&[
                     ("alpha_1", c.alpha_1, -45.0, 45.0),
@@ -488,6 +510,12 @@ impl MaterialConfig {
                 (Scattering::Marschner(model), c.color.is_none())
             }
             MaterialConfig::Ishair(c) => {
+                check_colors(&[
+                    ("color", c.color),
+                    ("color_r", Some(c.color_r)),
+                    ("color_tt", Some(c.color_tt)),
+                    ("color_trt", Some(c.color_trt)),
+                ])?;
                 if !(..=MAX_GLINT).contains(&c.glint) {
                     return Err(format!(
                         "material.glint must be in [0, {MAX_GLINT}], got {}",

@@ -457,7 +457,19 @@ fn validation_names_the_parameter() {
         ..Default::default()
     })
     .unwrap_err();
-    assert!(e.to_string().starts_with("marschner: k_s2 must be >= 0"));
+    assert_eq!(
+        e.to_string(),
+        "marschner: k_s2 must be in [0, 1] per channel, got -0.2"
+    );
+    let e = Marschner::new(MarschnerParams {
+        k_d: Vec3::new(0.5, 2.0, 0.5),
+        ..Default::default()
+    })
+    .unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "marschner: k_d must be in [0, 1] per channel, got 2"
+    );
     let e = Marschner::new(MarschnerParams {
         alpha_1: 1.0,
         ..Default::default()

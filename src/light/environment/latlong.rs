@@ -18,8 +18,10 @@ pub(super) struct LatLong {
     pub(super) distribution: Distribution2D,
     /// Mean radiance over the sphere (solid-angle weighted).
     pub(super) average: Vec3,
-    /// Texels replaced by 0 (negative, NaN or infinite in the file).
+    /// Texel channel values replaced by 0 (negative in the file).
     pub(super) clamped: usize,
+    /// The magnitude of those values over the magnitude of all values.
+    pub(super) negative_share: f64,
 }
 
 impl LatLong {

@@ -125,22 +125,47 @@ impl Environment {
                 )))
             }
         };
-        let mut clamped = 0usize;
+        // A NaN or infinite texel is a damaged file: refused, with where the first one is. A negative one is what
+        // lossy compression (DWAB) leaves of a black texel: read as 0 and counted, for the render to report.
+        if let Some(i) = image
+            .data
+            .chunks_exact(nc)
+            .position(|px| rgb.iter().any(|&c| !px[c].is_finite()))
+        {
+            let count = image
+                .data
+                .chunks_exact(nc)
+                .filter(|px| rgb.iter().any(|&c| !px[c].is_finite()))
+                .count();
+            return Err(content(format!(
+                "{count} texels are NaN or infinite (the first at column {}, row {}): the map is damaged",
+                i % width,
+                i / width
+            )));
+        }
+        let (mut clamped, mut negative, mut positive) = (0usize, 0.0f64, 0.0f64);
         let texels: Vec<Vec3> = image
             .data
             .chunks_exact(nc)
             .map(|px| {
                 Vec3::from_array(rgb.map(|c| {
                     let x = px[c];
-                    if x.is_finite() && x >= 0.0 {
+                    if x >= 0.0 {
+                        positive += f64::from(x);
                         x
                     } else {
                         clamped += 1;
+                        negative -= f64::from(x);
                         0.0
                     }
                 })) * intensity
             })
             .collect();
+        let negative_share = if negative > 0.0 {
+            negative / (negative + positive)
+        } else {
+            0.0
+        };
         let brightest = texels.iter().fold(0.0f32, |m, t| m.max(t.max_element()));
         if !(..=super::super::MAX_RADIANCE).contains(&brightest) {
             return Err(content(format!(
@@ -177,6 +202,7 @@ impl Environment {
                 texels,
                 average,
                 clamped,
+                negative_share,
             }),
             to_world,
             to_map: to_world.transpose(),
