@@ -110,7 +110,11 @@ pub fn job_hash(description: &str, frame: i32) -> String {
     format!("{h:016x}")
 }
 
-/// Parses `A..B` (inclusive, e.g. `1..24`; `7` alone is `7..7`).
+/// The most frames one `--frames` range may hold: an hour at 24 frames per second is 86,400. Every frame's output
+/// paths are checked before anything renders, and `0..2147483647` grew 3 GB listing them.
+pub const MAX_FRAMES: u64 = 100_000;
+
+/// Parses `A..B` (inclusive, e.g. `1..24`; `7` alone is `7..7`), at most [`MAX_FRAMES`] frames.
 pub fn parse_frames(s: &str) -> Result<RangeInclusive<i32>, String> {
     let err = || format!("expected A..B (inclusive frame numbers, e.g. 1..24), got `{s}`");
     let (a, b) = s.split_once("..").unwrap_or((s, s));
@@ -118,6 +122,12 @@ pub fn parse_frames(s: &str) -> Result<RangeInclusive<i32>, String> {
     let b = b.trim().parse::<i32>().map_err(|_| err())?;
     if a > b {
         return Err(format!("frames `{s}`: the first frame is after the last"));
+    }
+    let count = (i64::from(b) - i64::from(a) + 1) as u64;
+    if count > MAX_FRAMES {
+        return Err(format!(
+            "frames `{s}`: {count} frames, more than the {MAX_FRAMES} one job may render (split the range)"
+        ));
     }
     Ok(a..=b)
 }
@@ -135,12 +145,15 @@ pub fn partial_path(path: &Path) -> PathBuf {
     insert_before_extension(&path.with_extension("exr"), "partial")
 }
 
+/// `path` with `.part` before its extension, byte for byte (a name that is not UTF-8 keeps its bytes).
 fn insert_before_extension(path: &Path, part: &str) -> PathBuf {
-    let stem = path.file_stem().unwrap_or_default().to_string_lossy();
-    let name = match path.extension() {
-        Some(ext) => format!("{stem}.{part}.{}", ext.to_string_lossy()),
-        None => format!("{stem}.{part}"),
-    };
+    let mut name = path.file_stem().unwrap_or_default().to_os_string();
+    name.push(".");
+    name.push(part);
+    if let Some(ext) = path.extension() {
+        name.push(".");
+        name.push(ext);
+    }
     path.with_file_name(name)
 }
 
@@ -313,12 +326,34 @@ mod tests {
         );
     }
 
+    /// Frame and partial names keep a name's bytes: one that is not UTF-8 was mangled to U+FFFD by a lossy
+    /// conversion.
+    #[cfg(unix)]
+    #[test]
+    fn names_that_are_not_utf8_keep_their_bytes() {
+        use std::ffi::OsStr;
+        use std::os::unix::ffi::OsStrExt;
+        let p = Path::new(OsStr::from_bytes(b"out/sh\xffot.exr"));
+        assert_eq!(
+            frame_path(p, Some(7)).as_os_str().as_bytes(),
+            b"out/sh\xffot.0007.exr"
+        );
+        assert_eq!(
+            partial_path(p).as_os_str().as_bytes(),
+            b"out/sh\xffot.partial.exr"
+        );
+    }
+
     #[test]
     fn frame_ranges() {
         assert_eq!(parse_frames("1..24"), Ok(1..=24));
         assert_eq!(parse_frames("7"), Ok(7..=7));
         assert!(parse_frames("5..2").unwrap_err().contains("after the last"));
         assert!(parse_frames("a..b").is_err());
+        assert_eq!(parse_frames("1..100000"), Ok(1..=100_000));
+        let e = parse_frames("0..2147483647").unwrap_err();
+        assert!(e.contains("2147483648 frames, more than the 100000"), "{e}");
+        assert!(parse_frames("-2147483648..2147483647").is_err());
     }
 
     #[test]

@@ -29,6 +29,27 @@ fn fail(context: &'static str) -> impl FnOnce(io::Error) -> WriteError {
     move |source| WriteError { context, source }
 }
 
+/// The longest file name (bytes) of the file systems cuticle writes to (ext4, XFS, Btrfs, tmpfs).
+const MAX_NAME_BYTES: usize = 255;
+
+/// tempfile's random characters in a name (its default).
+const RANDOM_CHARS: usize = 6;
+
+/// `name`'s first `room` bytes (all of it if it fits).
+fn cut_name(name: &std::ffi::OsStr, room: usize) -> OsString {
+    #[cfg(unix)]
+    {
+        use std::os::unix::ffi::OsStrExt;
+        let bytes = name.as_bytes();
+        std::ffi::OsStr::from_bytes(&bytes[..bytes.len().min(room)]).to_os_string()
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = room;
+        name.to_os_string()
+    }
+}
+
 /// A new, empty temporary file beside `path` (see the [module docs](self)), removed when dropped unless
 /// [`persist`]ed.
 pub fn temp_beside(path: &Path) -> Result<NamedTempFile, WriteError> {
@@ -37,16 +58,22 @@ pub fn temp_beside(path: &Path) -> Result<NamedTempFile, WriteError> {
         source: io::Error::from(io::ErrorKind::InvalidInput),
     })?;
     let dir = parent(path);
-    let mut prefix = OsString::from(".");
-    prefix.push(name);
-    prefix.push(".tmp-");
     let mut suffix = OsString::new();
     if let Some(extension) = path.extension() {
         suffix.push(".");
         suffix.push(extension);
     }
+    // The temporary name must fit the file system's 255 bytes where the target's does: the target's name is cut
+    // (byte for byte) to leave room for the dot, ".tmp-", tempfile's 6 random characters and the suffix.
+    let room = MAX_NAME_BYTES.saturating_sub(1 + 5 + RANDOM_CHARS + suffix.len());
+    let mut prefix = OsString::from(".");
+    prefix.push(cut_name(name, room));
+    prefix.push(".tmp-");
     let mut builder = Builder::new();
-    builder.prefix(&prefix).suffix(&suffix);
+    builder
+        .prefix(&prefix)
+        .suffix(&suffix)
+        .rand_bytes(RANDOM_CHARS);
     // tempfile creates owner-only files (0600); the target gets the permissions of a plain new file (0666 less
     // the umask), as before the rename.
     #[cfg(unix)]
@@ -141,6 +168,22 @@ mod tests {
         assert_eq!(temp.path().parent(), Some(dir.path()));
         drop(temp);
         assert!(listing(dir.path()).is_empty(), "removed when dropped");
+    }
+
+    /// A target whose name is as long as the file system allows (255 bytes) still gets a temporary file, its name
+    /// cut to fit: a 249-byte name failed ("File name too long") with the temporary name at 265 bytes.
+    #[test]
+    fn the_longest_legal_names_get_a_temporary_file_that_fits() {
+        let dir = tempfile::tempdir().unwrap();
+        for len in [200, 249, 255] {
+            let name = format!("{}.exr", "n".repeat(len - 4));
+            let target = dir.path().join(&name);
+            write(&target, b"x").unwrap_or_else(|e| panic!("{len}: {e}"));
+            assert_eq!(std::fs::read(&target).unwrap(), b"x");
+            let temp = temp_beside(&target).unwrap();
+            let temp_name = temp.path().file_name().unwrap().len();
+            assert!(temp_name <= 255, "{len}: {temp_name}");
+        }
     }
 
     #[test]
