@@ -180,6 +180,19 @@ pub fn render_command(args: RenderArgs) -> Result<()> {
         last = Some(rendered.stats);
     }
     print_summary(&job, &last.unwrap_or_default(), dropped_before);
+    if args.verbose {
+        if let (Some(e), Some(peak)) = (
+            job.frame.memory_estimate,
+            cuticle::measure::peak_rss_bytes(),
+        ) {
+            eprintln!(
+                "memory: estimated {} ({}), peak {}",
+                cuticle::util::input_file::human_bytes(e.total()),
+                e.parts(),
+                cuticle::util::input_file::human_bytes(peak)
+            );
+        }
+    }
     Ok(())
 }
 

@@ -92,6 +92,13 @@ enum MaterialName {
 }
 
 pub fn info_command(file: &Path) -> Result<()> {
+    // The header says how much the model needs: checked against the memory limit before reading it (a large
+    // sparse file whose header matches its apparent size aborted in the allocator).
+    let counts = hair::declared_counts(file)?;
+    let (limit, source) = cuticle::render::budget::default_limit();
+    cuticle::render::budget::estimate_model(counts)
+        .check(limit, &source)
+        .with_context(|| format!("{}: cannot describe it", file.display()))?;
     let model = hair::load(file)?;
     println!("file:         {}", file.display());
     println!("{}", model.summary());

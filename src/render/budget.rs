@@ -164,15 +164,15 @@ impl MemoryEstimate {
 }
 
 /// The estimate for a frame of `strands` strands holding `points` points in all, traced by `backend` as
-/// `curves`, rendered with `settings` on `threads` workers, with `lights` lights (each gets a deep opacity map in
-/// deep-opacity mode); `adaptive`: whether it samples adaptively (`settings.adaptive`, or `--quality auto`, which
+/// `curves`, rendered with `settings` on `threads` workers, with `maps` deep opacity maps in deep-opacity mode (one
+/// per light, `environment_directions` for an environment: [`map_count`]); `adaptive`: whether it samples adaptively (`settings.adaptive`, or `--quality auto`, which
 /// sets that after the frame is loaded). Saturating arithmetic throughout: inputs come from files and users.
 pub fn estimate(
     (strands, points): (u64, u64),
     backend: Backend,
     curves: CurveKind,
     settings: &RenderSettings,
-    lights: usize,
+    maps: usize,
     threads: usize,
     adaptive: bool,
 ) -> MemoryEstimate {
@@ -195,7 +195,7 @@ pub fn estimate(
         // Per texel: the cumulative layers, z0 and the layer bounds (shadow::deep_opacity::map), f32 each.
         texels
             .saturating_mul((u64::from(d.layers) + 2) * 4)
-            .saturating_mul(lights.max(1) as u64)
+            .saturating_mul(maps.max(1) as u64)
     } else {
         0
     };
@@ -229,10 +229,40 @@ pub fn estimate_frame(
         spec.backend,
         spec.curves,
         &spec.settings,
-        spec.lights.len(),
+        map_count(&spec.lights, &spec.settings),
         threads,
         adaptive,
     ))
+}
+
+/// How many deep opacity maps `lights` get under `settings`: one per light, and one per direction of the
+/// environment's partition (`shadows.deep_opacity.environment_directions`, up to 256) for an environment light. A
+/// 64² frame counted one map for an environment that built 16–256, and grew past 9 GB after it was admitted.
+pub fn map_count(lights: &[crate::light::Light], settings: &RenderSettings) -> usize {
+    let directions = settings.shadows.deep_opacity.environment_directions as usize;
+    lights
+        .iter()
+        .map(|l| match l {
+            crate::light::Light::Environment(_) => directions,
+            _ => 1,
+        })
+        .sum()
+}
+
+/// The estimate for reading a hair file or model of `strands` strands and `points` points alone (`cuticle info`):
+/// the model and its strands, and the program.
+pub fn estimate_model((strands, points): (u64, u64)) -> MemoryEstimate {
+    MemoryEstimate {
+        strands: points
+            .saturating_mul(STRAND_BYTES_PER_POINT)
+            .saturating_add(strands.saturating_mul(STRAND_BYTES_PER_STRAND)),
+        accel: 0,
+        film: 0,
+        shadow_maps: 0,
+        adaptive: 0,
+        threads: 0,
+        base: BASE_BYTES,
+    }
 }
 
 /// Fraction of physical memory a frame may use by default: 3/4, leaving room for the system and the other

@@ -90,6 +90,8 @@ pub struct Frame {
     pub settings: RenderSettings,
     /// Wall time of reading or generating the hair and converting it to strands, seconds.
     pub load_seconds: f64,
+    /// The memory estimate the frame was admitted by ([`Frame::load_adjusted`]; `None` when built otherwise).
+    pub memory_estimate: Option<super::budget::MemoryEstimate>,
     /// The strands' bounding box, measured once: every render needs it (camera framing, scene radius), and on the
     /// fur ball each pass over the control points was ~3 % of a 64², 4-spp render's instructions.
     hair_bounds: (Vec3, Vec3),
@@ -124,14 +126,16 @@ impl Frame {
         adaptive: bool,
         adjust: impl FnOnce(&Strands, &mut FrameSpec),
     ) -> Result<Frame, FrameError> {
-        super::budget::estimate_frame(&spec, rayon::current_num_threads(), adaptive)?
-            .check(limit, limit_source)?;
+        let estimate =
+            super::budget::estimate_frame(&spec, rayon::current_num_threads(), adaptive)?;
+        estimate.check(limit, limit_source)?;
         let start = Instant::now();
         let strands = spec.hair.load()?;
         let load_seconds = start.elapsed().as_secs_f64();
         adjust(&strands, &mut spec);
         let mut frame = Frame::build(strands, spec)?;
         frame.load_seconds = load_seconds;
+        frame.memory_estimate = Some(estimate);
         Ok(frame)
     }
 
@@ -150,6 +154,7 @@ impl Frame {
             shapes: spec.shapes,
             settings: spec.settings,
             load_seconds: 0.0,
+            memory_estimate: None,
         })
     }
 
@@ -167,6 +172,7 @@ impl Frame {
             shapes: self.shapes.clone(),
             settings: self.settings.clone(),
             load_seconds: 0.0,
+            memory_estimate: None,
         })
     }
 
