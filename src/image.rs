@@ -407,6 +407,11 @@ impl Outputs {
         image: &Image,
         info: &ExrInfo,
     ) -> Result<(), ImageError> {
+        self.check_not_staged(path)?;
+        self.check_not_staged(preview)?;
+        if same_target(path, preview) {
+            return Err(ImageError::invalid(path, "is written twice in one run"));
+        }
         let (mut exr, mut png) = (Outputs::new(), Outputs::new());
         let (exr_result, png_result) = std::thread::scope(|s| {
             let png_thread = s.spawn(|| png.png_preview(preview, image));
@@ -436,9 +441,7 @@ impl Outputs {
         if path.is_dir() {
             return Err(ImageError::invalid(path, "is a directory"));
         }
-        if self.staged.iter().any(|(_, p)| p == path) {
-            return Err(ImageError::invalid(path, "is written twice in one run"));
-        }
+        self.check_not_staged(path)?;
         let temp = atomic_file::temp_beside(path)
             .map_err(|e| ImageError::io(path, e.context, e.source))?;
         let written = write_to(temp.path()).map_err(|source| ImageError::Oiio {
@@ -463,21 +466,78 @@ impl Outputs {
         Ok(())
     }
 
+    /// An error if `path` is a target already staged, however spelled (a dumped shadow map named like the frame
+    /// was lost to it).
+    fn check_not_staged(&self, path: &Path) -> Result<(), ImageError> {
+        if self.staged.iter().any(|(_, p)| same_target(p, path)) {
+            return Err(ImageError::invalid(path, "is written twice in one run"));
+        }
+        Ok(())
+    }
+
     /// The targets staged so far.
     pub fn paths(&self) -> Vec<&Path> {
         self.staged.iter().map(|(_, p)| p.as_path()).collect()
     }
 
-    /// Renames every staged file into place (and syncs their directories); returns their paths.
+    /// Renames every staged file into place (and syncs their directories) as a unit; returns their paths. The
+    /// targets that exist are first moved aside; if any rename fails, those already made are undone and the old
+    /// files put back, so a frame's EXR and its preview are replaced both or neither (a failed PNG rename left the
+    /// new EXR beside the old PNG).
     pub fn commit(self) -> Result<Vec<PathBuf>, ImageError> {
+        let mut aside: Vec<(PathBuf, Option<tempfile::TempPath>)> = Vec::new();
+        for (_, path) in &self.staged {
+            let backup = if path.exists() {
+                let slot = atomic_file::temp_beside(path)
+                    .map_err(|e| ImageError::io(path, e.context, e.source))?
+                    .into_temp_path();
+                if let Err(e) = std::fs::rename(path, &slot) {
+                    restore(&mut aside);
+                    return Err(ImageError::io(path, "cannot move the old file aside", e));
+                }
+                Some(slot)
+            } else {
+                None
+            };
+            aside.push((path.clone(), backup));
+        }
         let mut done = Vec::with_capacity(self.staged.len());
         for (temp, path) in self.staged {
-            atomic_file::persist(temp, &path)
-                .map_err(|e| ImageError::io(&path, e.context, e.source))?;
+            if let Err(e) = atomic_file::persist(temp, &path) {
+                for made in &done {
+                    let _ = std::fs::remove_file(made);
+                }
+                restore(&mut aside);
+                return Err(ImageError::io(&path, e.context, e.source));
+            }
             done.push(path);
         }
+        // The old files, moved aside, are removed as their temporary paths drop.
+        drop(aside);
         Ok(done)
     }
+}
+
+/// Puts the files moved aside by [`Outputs::commit`] back in place.
+fn restore(aside: &mut Vec<(PathBuf, Option<tempfile::TempPath>)>) {
+    for (path, backup) in aside.drain(..) {
+        if let Some(slot) = backup {
+            // Keeping the temporary path from deleting the file it names once it is back in place.
+            let _ = std::fs::rename(&slot, &path);
+            let _ = slot.keep();
+        }
+    }
+}
+
+/// Whether two output paths name the same target, however spelled: the same existing file, or the same absolute
+/// path with `.` components gone.
+fn same_target(a: &Path, b: &Path) -> bool {
+    a == b
+        || crate::util::input_file::same_file(a, b)
+        || matches!(
+            (std::path::absolute(a), std::path::absolute(b)),
+            (Ok(x), Ok(y)) if x == y
+        )
 }
 
 /// Why the EXR at `temp` does not hold `image` (every channel by name, bit for bit) at `window`, or `Ok`.

@@ -452,12 +452,28 @@ fn check_outputs(request: &Request) -> Result<bool, JobError> {
                     )))
                 }
             };
-            // Every output path is checked before anything is loaded or rendered.
+            // Every output path is checked before anything is loaded or rendered: writable, and neither a file
+            // the scene reads (an output named like the environment map overwrote it) nor another output of the
+            // run (`x.png` as the output is also the EXR's preview name only for an EXR output).
+            let inputs = request.scene.input_files();
             for f in frame_numbers(&request.frames) {
                 let path = farm::frame_path(output, f);
-                image::check_output(&path)?;
+                let mut outputs = vec![path.clone()];
                 if exr {
-                    image::check_output(&path.with_extension("png"))?;
+                    outputs.push(path.with_extension("png"));
+                }
+                for out in &outputs {
+                    image::check_output(out)?;
+                    if let Some(input) = inputs
+                        .iter()
+                        .find(|i| *i == out || crate::util::input_file::same_file(i, out))
+                    {
+                        return Err(JobError::Invalid(format!(
+                            "{}: the output would overwrite {}, which the scene reads",
+                            out.display(),
+                            input.display()
+                        )));
+                    }
                 }
             }
             exr

@@ -398,3 +398,32 @@ fn oiiotool_sees_straight_srgb_colour_in_the_png_preview() {
         .collect();
     assert_eq!(stored, STORED_RGB, "oiiotool --dumpdata:\n{dump}");
 }
+
+/// A frame's EXR and its preview are replaced as a unit: when the preview cannot be put in place (its name is now
+/// a directory), the old EXR stays, byte for byte, and no temporary file is left (the EXR was replaced alone).
+#[test]
+fn an_exr_and_its_preview_are_replaced_both_or_neither() {
+    let dir = tempfile::tempdir().unwrap();
+    let (exr, png) = (dir.path().join("f.exr"), dir.path().join("f.png"));
+    image::write(&exr, &row(&["R", "G", "B"], &[1.0, 2.0, 3.0])).unwrap();
+    let old = fs::read(&exr).unwrap();
+    let mut outputs = image::Outputs::new();
+    outputs
+        .exr_with_preview(
+            &exr,
+            &png,
+            &row(&["R", "G", "B"], &[4.0, 5.0, 6.0]),
+            &Default::default(),
+        )
+        .unwrap();
+    fs::create_dir(&png).unwrap();
+    fs::write(png.join("keep"), b"x").unwrap();
+    assert!(outputs.commit().is_err());
+    assert_eq!(fs::read(&exr).unwrap(), old);
+    let mut left: Vec<String> = fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    left.sort();
+    assert_eq!(left, ["f.exr", "f.png"]);
+}

@@ -211,3 +211,53 @@ trait TakeBytes: std::io::Read + Sized {
     }
 }
 impl<R: std::io::Read> TakeBytes for R {}
+
+/// No output of a run may be a file the scene reads, or another output of the same run, however the path is
+/// spelled: an output named like the environment map overwrote it, one named like a dumped shadow map lost the map.
+#[test]
+fn an_output_that_is_an_input_or_another_output_is_refused_and_nothing_changes() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mut map = cuticle::image::Image::new(8, 4, ["R", "G", "B"].map(String::from).to_vec());
+    map.data.fill(0.5);
+    cuticle::image::write(d.join("sky.exr"), &map).unwrap();
+    let before = std::fs::read(d.join("sky.exr")).unwrap();
+    let scene = d.join("s.toml");
+    std::fs::write(
+        &scene,
+        "[hair]\nprocedural = { kind = \"fur-ball\", strands = 50 }\n[film]\nresolution = [8, 8]\nspp = 1\n\
+         [environment]\nmap = \"sky.exr\"\n[shadows]\nmode = \"deep-opacity\"\n\
+         deep_opacity = { environment_directions = 2, resolution = 16, layers = 4 }\n",
+    )
+    .unwrap();
+    let s = scene.to_str().unwrap();
+    // The map, spelled another way.
+    let sky = d.join(".").join("sky.exr");
+    let o = cuticle(&["render", s, "-q", "-o", sky.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("which the scene reads"),
+        "{}",
+        stderr(&o)
+    );
+    assert_eq!(std::fs::read(d.join("sky.exr")).unwrap(), before);
+    // A PNG output named like the scene's map's preview is fine; one that is the scene file is not.
+    let o = cuticle(&["render", s, "-q", "-o", d.join("s.png").to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // The frame named like a dumped map: refused, and neither the map nor the frame is written.
+    let maps = d.join("maps");
+    std::fs::create_dir(&maps).unwrap();
+    let o = cuticle(&[
+        "render",
+        s,
+        "-q",
+        "--dump-shadow-maps",
+        maps.to_str().unwrap(),
+        "-o",
+        maps.join("light0.cell1.exr").to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("written twice"), "{}", stderr(&o));
+    assert!(!maps.join("light0.cell1.exr").exists());
+    assert!(!maps.join("light0.cell0.exr").exists());
+}

@@ -231,6 +231,21 @@ impl Scene {
         Ok(())
     }
 
+    /// The files the scene reads: the scene file itself (unless built in), the hair file, the environment map.
+    pub fn input_files(&self) -> Vec<PathBuf> {
+        let mut files = Vec::new();
+        if self.source.is_file() {
+            files.push(self.source.clone());
+        }
+        if let HairSource::File(path) = self.hair_source() {
+            files.push(path);
+        }
+        if let Some(map) = &self.environment.map {
+            files.push(self.base_dir.join(map));
+        }
+        files
+    }
+
     /// The hair source with file paths resolved against the scene directory.
     pub fn hair_source(&self) -> HairSource {
         match (&self.hair.file, &self.hair.procedural) {

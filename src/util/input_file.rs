@@ -144,6 +144,26 @@ fn too_big(len: u64, max_bytes: u64) -> io::Error {
     )
 }
 
+/// Whether `a` and `b` name the same existing file, however spelled (`sc.toml`, `./sc.toml`, a link): the same
+/// device and inode on Unix, the same canonical path elsewhere. False when either does not exist.
+pub fn same_file(a: &Path, b: &Path) -> bool {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        match (std::fs::metadata(a), std::fs::metadata(b)) {
+            (Ok(x), Ok(y)) => x.dev() == y.dev() && x.ino() == y.ino(),
+            _ => false,
+        }
+    }
+    #[cfg(not(unix))]
+    {
+        match (std::fs::canonicalize(a), std::fs::canonicalize(b)) {
+            (Ok(x), Ok(y)) => x == y,
+            _ => false,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
