@@ -606,6 +606,16 @@ pub fn read_with_info(
     path: &Path,
     names: &[&str],
 ) -> Result<(Image, DataWindow, Vec<Option<String>>), ImageError> {
+    read_with_info_at_most(path, names, u64::MAX)
+}
+
+/// [`read_with_info`], refusing before decoding an image whose pixels or whose full frame (display window) would
+/// take more than `max_bytes` as f32 (a forged tile declaring a 100 000² frame aborted `merge` in the allocator).
+pub fn read_with_info_at_most(
+    path: &Path,
+    names: &[&str],
+    max_bytes: u64,
+) -> Result<(Image, DataWindow, Vec<Option<String>>), ImageError> {
     let file = open(path)?;
     let attributes = file.attributes(names).map_err(|source| ImageError::Oiio {
         path: path.to_path_buf(),
@@ -613,6 +623,30 @@ pub fn read_with_info(
         source,
     })?;
     let w = file.window();
+    let bytes = |width: u64, height: u64| {
+        [width, height, file.channels.len() as u64, 4]
+            .into_iter()
+            .try_fold(1u64, |acc, n| acc.checked_mul(n))
+    };
+    let sizes = [
+        (file.width as u64, file.height as u64),
+        (
+            u64::try_from(w.full_width).unwrap_or(0),
+            u64::try_from(w.full_height).unwrap_or(0),
+        ),
+    ];
+    for (width, height) in sizes {
+        if bytes(width, height).is_none_or(|b| b > max_bytes) {
+            return Err(ImageError::invalid(
+                path,
+                format!(
+                    "a {width} x {height} image of {} channels would take more than the {} allowed",
+                    file.channels.len(),
+                    crate::util::input_file::human_bytes(max_bytes)
+                ),
+            ));
+        }
+    }
     let image = decode(path, file)?;
     let int =
         |v: i32| usize::try_from(v).map_err(|_| ImageError::invalid(path, "negative data window"));
@@ -721,6 +755,9 @@ fn open(path: &Path) -> Result<oiio::OpenImage, ImageError> {
     if metadata.is_dir() {
         return Err(ImageError::invalid(path, "is a directory, not an image"));
     }
+    // A regular file only: OpenImageIO would block forever opening a FIFO and never end reading `/dev/zero`.
+    crate::util::input_file::open_regular(path)
+        .map_err(|e| ImageError::io(path, "cannot read", e))?;
     oiio::open_image(path).map_err(|source| ImageError::Oiio {
         path: path.to_path_buf(),
         context: "openimageio cannot read it".to_owned(),

@@ -177,7 +177,7 @@ impl Job {
     /// auto's plan and builds the deep opacity maps the frames need. Nothing is written.
     pub fn prepare(request: Request) -> Result<Job, JobError> {
         let scene = &request.scene;
-        let description = format!("{scene:?}");
+        let description = job_identity(scene)?;
         let exr_output = check_outputs(&request)?;
         let threads = request
             .threads
@@ -489,6 +489,31 @@ fn check_outputs(request: &Request) -> Result<bool, JobError> {
         image::check_output(&dir.join("map.exr"))?;
     }
     Ok(exr_output)
+}
+
+/// What ties a job's tiles together: the scene as rendered (after overrides) without the way its paths were
+/// spelled (`sc.toml` and `./sc.toml` are one job), and the content of every file it reads (a hair file replaced
+/// between two tiles, under the same path, is another job).
+fn job_identity(scene: &Scene) -> Result<String, JobError> {
+    let mut bare = scene.clone();
+    bare.source = PathBuf::new();
+    bare.base_dir = PathBuf::new();
+    if bare.hair.file.is_some() {
+        bare.hair.file = Some(PathBuf::new());
+    }
+    if bare.environment.map.is_some() {
+        bare.environment.map = Some(PathBuf::new());
+    }
+    let mut text = format!("{bare:?}");
+    for path in scene.input_files() {
+        let hash = crate::util::hash::file_hash(&path).map_err(|source| JobError::Io {
+            path: path.clone(),
+            message: "cannot read it to identify the job",
+            source,
+        })?;
+        text.push_str(&format!("\n{hash:016x}"));
+    }
+    Ok(text)
 }
 
 fn frame_numbers(frames: &Option<RangeInclusive<i32>>) -> Vec<Option<i32>> {

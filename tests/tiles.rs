@@ -173,3 +173,111 @@ fn frames_of_a_turntable_and_their_tiles() {
     ]));
     same_bits(&f2, &image::read(&merged).unwrap());
 }
+
+/// `merge` trusts nothing it is given: a tile spelled `./s.toml` is the same job as one from `s.toml`; a tile
+/// rendered after the hair file was replaced (same path) is another job; a FIFO as a tile is refused at once; a
+/// tile whose header declares a 100 000² frame is refused before the frame is allocated.
+#[test]
+fn merge_identifies_jobs_by_content_and_refuses_what_it_cannot_trust() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let write_hair = |seed_colour: f32| {
+        let mut m = cuticle::hair::HairModel {
+            strand_offsets: vec![0],
+            format: cuticle::hair::yuksel::FORMAT.to_owned(),
+            ..Default::default()
+        };
+        for s in 0..20 {
+            for k in 0..4 {
+                m.points
+                    .push(glam::Vec3::new(s as f32 * 0.05, k as f32 * 0.1, 0.0));
+                m.radius.push(0.01);
+                m.transparency.push(0.0);
+                m.color.push([seed_colour; 3]);
+            }
+            m.strand_offsets.push(m.points.len() as u32);
+        }
+        cuticle::hair::yuksel::write(&d.join("h.hair"), &m).unwrap();
+    };
+    write_hair(0.5);
+    std::fs::write(
+        d.join("s.toml"),
+        "[hair]\nfile = \"h.hair\"\n[film]\nresolution = [16, 16]\nspp = 1\n",
+    )
+    .unwrap();
+    let tile = |scene: &str, i: usize, out: &str| {
+        let o = Command::new(EXE)
+            .current_dir(d)
+            .args([
+                "render",
+                scene,
+                "-q",
+                "--tile",
+                &format!("{i}/2"),
+                "-o",
+                out,
+            ])
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    };
+    let merge = |tiles: &[&str]| {
+        Command::new(EXE)
+            .current_dir(d)
+            .args(["merge", "-o", "m.exr"])
+            .args(tiles)
+            .output()
+            .unwrap()
+    };
+    tile("s.toml", 0, "t0.exr");
+    tile("./s.toml", 1, "t1.exr");
+    let o = merge(&["t0.exr", "t1.exr"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    write_hair(0.9);
+    tile("s.toml", 1, "t1.exr");
+    let o = merge(&["t0.exr", "t1.exr"]);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert!(e.contains("belongs to another job"), "{e}");
+    // A FIFO: refused without waiting for a writer.
+    let fifo = d.join("f.exr");
+    assert!(Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .unwrap()
+        .success());
+    let start = std::time::Instant::now();
+    let o = merge(&["f.exr"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(start.elapsed() < std::time::Duration::from_secs(5));
+    // A forged header: a 1×1 tile of a 100 000² frame.
+    let mut forged = image::Image::new(1, 1, vec!["R".to_owned(), "G".to_owned(), "B".to_owned()]);
+    forged.data.fill(1.0);
+    let mut outputs = image::Outputs::new();
+    outputs
+        .exr(
+            &d.join("forged.exr"),
+            &forged,
+            &image::ExrInfo {
+                window: Some(image::DataWindow {
+                    x: 0,
+                    y: 0,
+                    full_width: 100_000,
+                    full_height: 100_000,
+                }),
+                attributes: vec![
+                    ("cuticle:job".to_owned(), "x".to_owned()),
+                    ("cuticle:complete".to_owned(), "1".to_owned()),
+                ],
+            },
+        )
+        .unwrap();
+    outputs.commit().unwrap();
+    let o = merge(&["forged.exr"]);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert!(
+        e.contains("100000 x 100000") && e.contains("allowed"),
+        "{e}"
+    );
+}

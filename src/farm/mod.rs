@@ -207,9 +207,12 @@ pub fn merge(tiles: &[PathBuf]) -> Result<Merged, FarmError> {
     let mut frame: Option<(Image, String, String, DataWindow)> = None;
     // Which tile wrote each pixel (index + 1; 0: none yet).
     let mut owner: Vec<u32> = Vec::new();
+    // The frame, its tiles and the owner map must fit the memory limit: a tile's header declares the frame's size,
+    // and a forged one must not make the frame's allocation abort the process.
+    let (limit, _) = crate::render::budget::default_limit();
     for (t, path) in tiles.iter().enumerate() {
         let (tile, window, attrs) =
-            image::read_with_info(path, &[KEY_JOB, KEY_COMPLETE, KEY_FRAME])?;
+            image::read_with_info_at_most(path, &[KEY_JOB, KEY_COMPLETE, KEY_FRAME], limit / 3)?;
         let [job, complete, frame_no] = [0, 1, 2].map(|i| attrs[i].clone());
         let Some(job) = job else {
             return Err(fail(

@@ -60,6 +60,34 @@ impl SplitMix64 {
     }
 }
 
+/// A 64-bit hash of a file's bytes ([`mix64`] folded over 8-byte words, streamed in 1 MiB chunks, the length mixed
+/// in): what identifies an input's content (`crate::job`'s job identity), not a cryptographic digest.
+pub fn file_hash(path: &std::path::Path) -> std::io::Result<u64> {
+    use std::io::Read;
+    let (mut file, len) = crate::util::input_file::open_regular(path)?;
+    let mut h = mix64(len);
+    let mut buf = vec![0u8; 1 << 20];
+    loop {
+        // The buffer is filled whole before it is hashed, so the words do not depend on how reads split the file.
+        let mut n = 0;
+        while n < buf.len() {
+            match file.read(&mut buf[n..])? {
+                0 => break,
+                k => n += k,
+            }
+        }
+        if n == 0 {
+            break;
+        }
+        for chunk in buf[..n].chunks(8) {
+            let mut word = [0u8; 8];
+            word[..chunk.len()].copy_from_slice(chunk);
+            h = mix64(h ^ u64::from_le_bytes(word));
+        }
+    }
+    Ok(h)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
