@@ -177,7 +177,6 @@ impl Job {
     /// auto's plan and builds the deep opacity maps the frames need. Nothing is written.
     pub fn prepare(request: Request) -> Result<Job, JobError> {
         let scene = &request.scene;
-        let description = job_identity(scene)?;
         let exr_output = check_outputs(&request)?;
         let threads = request
             .threads
@@ -229,6 +228,8 @@ impl Job {
                 },
             )
         })?;
+        // Identified after loading, so a missing or unreadable input is reported by the reader that needs it.
+        let description = job_identity(scene)?;
         // The frame is built: load OpenImageIO in the background while it renders. Not earlier: `dlopen` holds the
         // loader's lock for the whole load (OpenImageIO pulls in some sixty libraries, ~0.1 s), and creating
         // threads needs that lock, so Embree's device and build (TBB starting its workers) would wait for it.

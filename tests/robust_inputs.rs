@@ -373,6 +373,10 @@ fn parameters_at_their_bounds_give_finite_pixels_and_beyond_are_refused() {
             "material.glint must be in [0, 100]",
         ),
         (
+            "[shadows]\ndeep_opacity = { min_width = 1000 }",
+            "shadows.deep_opacity.min_width must be in [0, 16] texels",
+        ),
+        (
             "[material]\nmodel = \"ishair\"\ncolor_tt = [3e38, 1, 1]",
             "material.color_tt must be in [0, 1] per channel",
         ),
