@@ -308,9 +308,29 @@ pub fn merge_command(args: &MergeArgs) -> Result<()> {
     let preview = args.output.with_extension("png");
     cuticle::image::check_output(&args.output)?;
     cuticle::image::check_output(&preview)?;
+    // SIGINT/SIGTERM set a flag, read after the tiles are read and before the frame is put in place: an
+    // interrupted merge leaves no temporary file (the staged ones are removed as `outputs` drops) and the old frame
+    // as it was. A second signal ends the process at once.
+    let cancel = cuticle::farm::catch_signals()
+        .map_err(|e| anyhow::anyhow!("cannot catch sigint/sigterm: {e}"))?;
+    let interrupted = || {
+        let signal = cancel.load(std::sync::atomic::Ordering::Relaxed) as i32;
+        (signal != 0).then(|| {
+            cuticle::farm::FarmError::Interrupted(cuticle::farm::Interrupted {
+                signal,
+                partial: None,
+            })
+        })
+    };
     let merged = cuticle::farm::merge(&args.tiles)?;
+    if let Some(e) = interrupted() {
+        return Err(e.into());
+    }
     let mut outputs = cuticle::image::Outputs::new();
     outputs.exr_with_preview(&args.output, &preview, &merged.image, &merged.info)?;
+    if let Some(e) = interrupted() {
+        return Err(e.into());
+    }
     for p in outputs.commit()? {
         eprintln!("wrote {}", p.display());
     }

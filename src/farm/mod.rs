@@ -67,7 +67,7 @@ impl std::fmt::Display for Interrupted {
                 "interrupted by {name}: the tiles finished so far are in {} (marked incomplete)",
                 p.display()
             ),
-            None => write!(f, "interrupted by {name} before any tile was finished"),
+            None => write!(f, "interrupted by {name}: nothing was written"),
         }
     }
 }
