@@ -315,12 +315,12 @@ pub fn merge_command(args: &MergeArgs) -> Result<()> {
         .map_err(|e| anyhow::anyhow!("cannot catch sigint/sigterm: {e}"))?;
     let interrupted = || {
         let signal = cancel.load(std::sync::atomic::Ordering::Relaxed) as i32;
-        (signal != 0).then(|| {
-            cuticle::farm::FarmError::Interrupted(cuticle::farm::Interrupted {
+        (signal != 0).then_some(cuticle::farm::FarmError::Interrupted(
+            cuticle::farm::Interrupted {
                 signal,
                 partial: None,
-            })
-        })
+            },
+        ))
     };
     let merged = cuticle::farm::merge(&args.tiles)?;
     if let Some(e) = interrupted() {
