@@ -20,7 +20,7 @@
 //! estimate meets the budget or no pixel may grow.
 //!
 //! Allocation and stop read different variances. Who gets the samples reads each pixel's neighbours' v, never its
-//! own ([`neighbour_variances`](schedule::neighbour_variances)): a count that follows the pixel's own samples
+//! own ([`neighbour_shape`](schedule::neighbour_shape)): a count that follows the pixel's own samples
 //! biases its mean low where rare bright paths carry the light (11 % dark on a generated wavy patch whose light is
 //! mostly in deep bounces), and its neighbours' v is also the best prior a hair-edge pixel whose first samples
 //! missed the strand has. The stop, and how many samples a round hands out in that shape, read the pixels' **own**

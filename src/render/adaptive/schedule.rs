@@ -230,7 +230,7 @@ impl Schedule {
     /// statistics `pixels` (both in row-major order): the larger of the model's and the halves' estimates (module
     /// docs). The model's is the mean of v / (n g(n)) with each pixel's **own** v, an unbiased estimate of the mean
     /// relMSE of the pixels' means for independent samples (g = 1), and with the sampler's gain g
-    /// ([`Schedule::gain`]) for its stratified ones (the neighbours' v of [`neighbour_variances`] only decides where
+    /// ([`Schedule::gain`]) for its stratified ones (the neighbours' v of [`neighbour_shape`] only decides where
     /// the samples go: as a stop it overstated the noise, and the rule delivered 1.36–2.1× less than it aimed at);
     /// the halves' is the mean of [`Convergence::split_rel_mse`].
     pub fn image_rel_mse(&self, width: usize, taken: &[u32], pixels: &[Convergence]) -> f64 {
