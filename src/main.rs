@@ -82,6 +82,14 @@ fn main() -> ExitCode {
         );
         return ExitCode::from(2);
     }
+    // A file-size limit (`ulimit -f`) sends SIGXFSZ, whose default action ends the process with no message and may
+    // leave a temporary file; with a handler the write fails with EFBIG instead, and the error path reports it and
+    // removes what it staged.
+    #[cfg(unix)]
+    let _ = signal_hook::flag::register(
+        signal_hook::consts::SIGXFSZ,
+        std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false)),
+    );
     let result = run();
     // No exit while OpenImageIO is still being loaded in the background (image::finish_preload says why).
     cuticle::image::finish_preload();

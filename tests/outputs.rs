@@ -261,3 +261,23 @@ fn an_output_that_is_an_input_or_another_output_is_refused_and_nothing_changes()
     assert!(!maps.join("light0.cell1.exr").exists());
     assert!(!maps.join("light0.cell0.exr").exists());
 }
+
+/// A file-size limit (`ulimit -f`) is an error with a message, and leaves nothing behind: SIGXFSZ ended the
+/// process with no message (status 153).
+#[cfg(unix)]
+#[test]
+fn a_file_size_limit_is_reported_and_leaves_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("x.exr");
+    let o = Command::new("sh")
+        .arg("-c")
+        .arg(format!(
+            "ulimit -f 1; exec '{EXE}' render --res 64x64 --spp 1 -q -o '{}'",
+            out.display()
+        ))
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("File too large"), "{}", stderr(&o));
+    assert!(listing(dir.path()).is_empty(), "{:?}", listing(dir.path()));
+}
