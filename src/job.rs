@@ -351,7 +351,7 @@ impl Job {
             let partial = self
                 .output_path(frame)
                 .filter(|_| r.tiles_done > 0)
-                .map(|p| farm::partial_path(&p));
+                .map(|p| farm::free_partial_path(&p));
             if let Some(p) = &partial {
                 let mut outputs = Outputs::new();
                 outputs.exr(p, &r.image, &info)?;

@@ -145,6 +145,20 @@ pub fn partial_path(path: &Path) -> PathBuf {
     insert_before_extension(&path.with_extension("exr"), "partial")
 }
 
+/// Where an interrupted render of `path` puts its finished tiles without replacing the partial EXR of an earlier
+/// interrupted run (which may hold more tiles): [`partial_path`] if free, else `name.partial.2.exr`, `.3`, … (the
+/// first free one).
+pub fn free_partial_path(path: &Path) -> PathBuf {
+    let first = partial_path(path);
+    if !first.exists() {
+        return first;
+    }
+    (2u32..)
+        .map(|n| insert_before_extension(&path.with_extension("exr"), &format!("partial.{n}")))
+        .find(|p| !p.exists())
+        .expect("some name of 2^32 is free")
+}
+
 /// `path` with `.part` before its extension, byte for byte (a name that is not UTF-8 keeps its bytes).
 fn insert_before_extension(path: &Path, part: &str) -> PathBuf {
     let mut name = path.file_stem().unwrap_or_default().to_os_string();
@@ -344,6 +358,27 @@ mod tests {
         assert_eq!(
             partial_path(p).as_os_str().as_bytes(),
             b"out/sh\xffot.partial.exr"
+        );
+    }
+
+    /// An interrupted render never replaces the partial EXR of an earlier one: the next free name.
+    #[test]
+    fn partial_names_never_replace_an_earlier_partial() {
+        let dir = tempfile::tempdir().unwrap();
+        let frame = dir.path().join("shot.exr");
+        assert_eq!(
+            free_partial_path(&frame),
+            dir.path().join("shot.partial.exr")
+        );
+        std::fs::write(dir.path().join("shot.partial.exr"), b"x").unwrap();
+        assert_eq!(
+            free_partial_path(&frame),
+            dir.path().join("shot.partial.2.exr")
+        );
+        std::fs::write(dir.path().join("shot.partial.2.exr"), b"x").unwrap();
+        assert_eq!(
+            free_partial_path(&frame),
+            dir.path().join("shot.partial.3.exr")
         );
     }
 
