@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::{bail, Result};
+use anyhow::{bail, Context, Result};
 
 use cuticle::accel::{Backend, CurveKind};
 use cuticle::job::{AutoPlan, Job, Part, Request};
@@ -151,7 +151,7 @@ pub fn render_command(args: RenderArgs) -> Result<()> {
     };
     let cancel = cuticle::farm::catch_signals()
         .map_err(|e| anyhow::anyhow!("cannot catch sigint/sigterm: {e}"))?;
-    let job = Job::prepare(Request {
+    let request = Request {
         scene,
         fixed: Fixed::from_overrides(&overrides),
         threads: args.threads,
@@ -161,7 +161,8 @@ pub fn render_command(args: RenderArgs) -> Result<()> {
         output: Some(args.output),
         dump_shadow_maps: args.dump_shadow_maps,
         progress: !args.quiet,
-    })?;
+    };
+    let job = prepare_answering_signals(request, &cancel)?;
     if let Some(auto) = &job.auto {
         print_plan(auto, args.verbose);
     }
@@ -194,6 +195,43 @@ pub fn render_command(args: RenderArgs) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// [`Job::prepare`] on a thread of its own, while this one answers SIGINT/SIGTERM within 50 ms: loading, the
+/// tracer's build and the maps' builds take seconds to minutes on large grooms (20 s for 6·10⁵ strands) and read
+/// no cancel flag, so the first Ctrl-C was answered only after them. Nothing is written before the job is
+/// prepared, so stopping then leaves nothing behind; the process ends with the build still running on its thread.
+fn prepare_answering_signals(
+    request: Request,
+    cancel: &std::sync::atomic::AtomicUsize,
+) -> Result<Job> {
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::Builder::new()
+        .name("prepare".to_owned())
+        .spawn(move || {
+            let _ = tx.send(Job::prepare(request));
+        })
+        .context("cannot start the thread that prepares the job")?;
+    loop {
+        match rx.recv_timeout(std::time::Duration::from_millis(50)) {
+            Ok(job) => return Ok(job?),
+            Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {
+                let signal = cancel.load(std::sync::atomic::Ordering::Relaxed) as i32;
+                if signal != 0 {
+                    return Err(cuticle::farm::FarmError::Interrupted(
+                        cuticle::farm::Interrupted {
+                            signal,
+                            partial: None,
+                        },
+                    )
+                    .into());
+                }
+            }
+            Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => {
+                bail!("the thread that prepares the job ended without a result")
+            }
+        }
+    }
 }
 
 /// Auto's decisions, one line each (with `verbose`, the reasons under them), its prediction, and a warning when
