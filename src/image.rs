@@ -409,7 +409,7 @@ impl Outputs {
     ) -> Result<(), ImageError> {
         self.check_not_staged(path)?;
         self.check_not_staged(preview)?;
-        if same_target(path, preview) {
+        if crate::util::input_file::same_target(path, preview) {
             return Err(ImageError::invalid(path, "is written twice in one run"));
         }
         let (mut exr, mut png) = (Outputs::new(), Outputs::new());
@@ -469,7 +469,11 @@ impl Outputs {
     /// An error if `path` is a target already staged, however spelled (a dumped shadow map named like the frame
     /// was lost to it).
     fn check_not_staged(&self, path: &Path) -> Result<(), ImageError> {
-        if self.staged.iter().any(|(_, p)| same_target(p, path)) {
+        if self
+            .staged
+            .iter()
+            .any(|(_, p)| crate::util::input_file::same_target(p, path))
+        {
             return Err(ImageError::invalid(path, "is written twice in one run"));
         }
         Ok(())
@@ -527,17 +531,6 @@ fn restore(aside: &mut Vec<(PathBuf, Option<tempfile::TempPath>)>) {
             let _ = slot.keep();
         }
     }
-}
-
-/// Whether two output paths name the same target, however spelled: the same existing file, or the same absolute
-/// path with `.` components gone.
-fn same_target(a: &Path, b: &Path) -> bool {
-    a == b
-        || crate::util::input_file::same_file(a, b)
-        || matches!(
-            (std::path::absolute(a), std::path::absolute(b)),
-            (Ok(x), Ok(y)) if x == y
-        )
 }
 
 /// Why the EXR at `temp` does not hold `image` (every channel by name, bit for bit) at `window`, or `Ok`.

@@ -467,7 +467,7 @@ fn check_outputs(request: &Request) -> Result<bool, JobError> {
                     image::check_output(out)?;
                     if let Some(input) = inputs
                         .iter()
-                        .find(|i| *i == out || crate::util::input_file::same_file(i, out))
+                        .find(|i| crate::util::input_file::same_target(i, out))
                     {
                         return Err(JobError::Invalid(format!(
                             "{}: the output would overwrite {}, which the scene reads",

@@ -30,6 +30,17 @@ fn render_small(out: &Path, res: &str) -> Output {
     ])
 }
 
+/// Sends SIGINT to `child` through the shell's built-in `kill`: a minimal Debian (CI) has no /bin/kill (procps).
+#[cfg(unix)]
+fn sigint(child: &std::process::Child) {
+    let kill = format!("kill -INT {}", child.id());
+    assert!(Command::new("sh")
+        .args(["-c", &kill])
+        .status()
+        .unwrap()
+        .success());
+}
+
 fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
@@ -96,13 +107,7 @@ fn sigint_writes_a_partial_exr_and_keeps_the_previous_frame() {
         }
     }
     std::thread::sleep(Duration::from_millis(500));
-    // The shell's built-in `kill`: a minimal Debian (CI) has no /bin/kill (procps).
-    let kill = format!("kill -INT {}", child.id());
-    assert!(Command::new("sh")
-        .args(["-c", &kill])
-        .status()
-        .unwrap()
-        .success());
+    sigint(&child);
     let rest: Vec<String> = lines.map(|l| l.unwrap()).collect();
     let status = child.wait().unwrap();
     assert_eq!(status.code(), Some(130), "{rest:?}");
@@ -304,12 +309,7 @@ fn sigint_during_the_build_is_answered_at_once_and_writes_nothing() {
         .unwrap();
     std::thread::sleep(Duration::from_millis(1500));
     let sent = std::time::Instant::now();
-    let kill = format!("kill -INT {}", child.id());
-    assert!(Command::new("sh")
-        .args(["-c", &kill])
-        .status()
-        .unwrap()
-        .success());
+    sigint(&child);
     let status = child.wait().unwrap();
     let waited = sent.elapsed();
     assert_eq!(status.code(), Some(130));

@@ -5,6 +5,7 @@ use std::path::PathBuf;
 use anyhow::{bail, Context, Result};
 
 use cuticle::accel::{Backend, CurveKind};
+use cuticle::farm::{FarmError, Interrupted};
 use cuticle::job::{AutoPlan, Job, Part, Request};
 use cuticle::quality::delivered::delivered;
 use cuticle::quality::{Fixed, QualityMode};
@@ -216,15 +217,8 @@ fn prepare_answering_signals(
         match rx.recv_timeout(std::time::Duration::from_millis(50)) {
             Ok(job) => return Ok(job?),
             Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {
-                let signal = cancel.load(std::sync::atomic::Ordering::Relaxed) as i32;
-                if signal != 0 {
-                    return Err(cuticle::farm::FarmError::Interrupted(
-                        cuticle::farm::Interrupted {
-                            signal,
-                            partial: None,
-                        },
-                    )
-                    .into());
+                if let Some(i) = Interrupted::caught(cancel) {
+                    return Err(FarmError::Interrupted(i).into());
                 }
             }
             Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => {
@@ -351,23 +345,14 @@ pub fn merge_command(args: &MergeArgs) -> Result<()> {
     // as it was. A second signal ends the process at once.
     let cancel = cuticle::farm::catch_signals()
         .map_err(|e| anyhow::anyhow!("cannot catch sigint/sigterm: {e}"))?;
-    let interrupted = || {
-        let signal = cancel.load(std::sync::atomic::Ordering::Relaxed) as i32;
-        (signal != 0).then_some(cuticle::farm::FarmError::Interrupted(
-            cuticle::farm::Interrupted {
-                signal,
-                partial: None,
-            },
-        ))
-    };
     let merged = cuticle::farm::merge(&args.tiles)?;
-    if let Some(e) = interrupted() {
-        return Err(e.into());
+    if let Some(i) = Interrupted::caught(&cancel) {
+        return Err(FarmError::Interrupted(i).into());
     }
     let mut outputs = cuticle::image::Outputs::new();
     outputs.exr_with_preview(&args.output, &preview, &merged.image, &merged.info)?;
-    if let Some(e) = interrupted() {
-        return Err(e.into());
+    if let Some(i) = Interrupted::caught(&cancel) {
+        return Err(FarmError::Interrupted(i).into());
     }
     for p in outputs.commit()? {
         eprintln!("wrote {}", p.display());

@@ -20,7 +20,7 @@ use std::sync::Arc;
 
 use crate::image::{self, DataWindow, ExrInfo, Image, ImageError};
 use crate::render::Region;
-use crate::util::hash::mix64;
+use crate::util::hash::{fold_words, mix64};
 
 /// Header attribute: the job hash ([`job_hash`]).
 pub const KEY_JOB: &str = "cuticle:job";
@@ -73,6 +73,15 @@ impl std::fmt::Display for Interrupted {
 }
 
 impl Interrupted {
+    /// The signal `cancel` (a flag of [`catch_signals`]) has caught, if any, as an interruption that wrote nothing.
+    pub fn caught(cancel: &AtomicUsize) -> Option<Interrupted> {
+        let signal = cancel.load(std::sync::atomic::Ordering::Relaxed) as i32;
+        (signal != 0).then_some(Interrupted {
+            signal,
+            partial: None,
+        })
+    }
+
     /// The conventional exit status of a process ended by this signal (130 for SIGINT, 143 for SIGTERM).
     pub fn exit_code(&self) -> u8 {
         (128 + self.signal).clamp(0, 255) as u8
@@ -101,12 +110,7 @@ pub fn job_hash(description: &str, frame: i32) -> String {
         "{description}\nframe {frame}\ncuticle {}",
         env!("CARGO_PKG_VERSION")
     );
-    let mut h = mix64(text.len() as u64);
-    for chunk in text.as_bytes().chunks(8) {
-        let mut word = [0u8; 8];
-        word[..chunk.len()].copy_from_slice(chunk);
-        h = mix64(h ^ u64::from_le_bytes(word));
-    }
+    let h = fold_words(mix64(text.len() as u64), text.as_bytes());
     format!("{h:016x}")
 }
 

@@ -60,6 +60,17 @@ impl SplitMix64 {
     }
 }
 
+/// `h` with `bytes` folded in: [`mix64`] of `h` xor each little-endian 8-byte word, the last zero-padded. What
+/// [`file_hash`] and the farm's job hash (`crate::farm::job_hash`) are built from.
+pub fn fold_words(mut h: u64, bytes: &[u8]) -> u64 {
+    for chunk in bytes.chunks(8) {
+        let mut word = [0u8; 8];
+        word[..chunk.len()].copy_from_slice(chunk);
+        h = mix64(h ^ u64::from_le_bytes(word));
+    }
+    h
+}
+
 /// A 64-bit hash of a file's bytes ([`mix64`] folded over 8-byte words, streamed in 1 MiB chunks, the length mixed
 /// in): what identifies an input's content (`crate::job`'s job identity), not a cryptographic digest.
 pub fn file_hash(path: &std::path::Path) -> std::io::Result<u64> {
@@ -79,11 +90,7 @@ pub fn file_hash(path: &std::path::Path) -> std::io::Result<u64> {
         if n == 0 {
             break;
         }
-        for chunk in buf[..n].chunks(8) {
-            let mut word = [0u8; 8];
-            word[..chunk.len()].copy_from_slice(chunk);
-            h = mix64(h ^ u64::from_le_bytes(word));
-        }
+        h = fold_words(h, &buf[..n]);
     }
     Ok(h)
 }

@@ -144,6 +144,17 @@ fn too_big(len: u64, max_bytes: u64) -> io::Error {
     )
 }
 
+/// Whether two paths name the same target, however spelled: equal, the same existing file ([`same_file`]), or the
+/// same absolute path with `.` components gone (for files not written yet).
+pub fn same_target(a: &Path, b: &Path) -> bool {
+    a == b
+        || same_file(a, b)
+        || matches!(
+            (std::path::absolute(a), std::path::absolute(b)),
+            (Ok(x), Ok(y)) if x == y
+        )
+}
+
 /// Whether `a` and `b` name the same existing file, however spelled (`sc.toml`, `./sc.toml`, a link): the same
 /// device and inode on Unix, the same canonical path elsewhere. False when either does not exist.
 pub fn same_file(a: &Path, b: &Path) -> bool {
