@@ -77,9 +77,35 @@ fn scene_corpus_replays_and_shipped_scenes_validate() {
     }
 }
 
+/// The tiles `render --tile` writes merge; tiles of another job, a forged 100 000² frame, overlapping tiles and a
+/// gap do not.
+#[test]
+fn merge_corpus_replays_and_real_tiles_merge() {
+    let ok = replay("merge", cuticle::scene::fuzz::merge);
+    for seed in [
+        "two-tiles.bin",
+        "four-tiles.bin",
+        "aov-tiles.bin",
+        "whole-frame.exr",
+    ] {
+        assert!(
+            ok.iter().any(|n| n == seed),
+            "{seed} rejected; accepted: {ok:?}"
+        );
+    }
+    for seed in [
+        "another-job.bin",
+        "forged-100000-frame.bin",
+        "overlap.bin",
+        "gap.bin",
+    ] {
+        assert!(!ok.iter().any(|n| n == seed), "{seed} accepted");
+    }
+}
+
 #[test]
 fn corpora_stay_small() {
-    let total: u64 = ["hair", "tfx", "scene"]
+    let total: u64 = ["hair", "tfx", "scene", "merge"]
         .iter()
         .flat_map(|t| corpus(t))
         .map(|p| std::fs::metadata(p).unwrap().len())

@@ -316,3 +316,46 @@ fn sigint_during_the_build_is_answered_at_once_and_writes_nothing() {
     assert!(waited < Duration::from_secs(2), "{waited:?}");
     assert_eq!(listing(dir.path()), ["big.toml"]);
 }
+
+/// A second Ctrl-C while the outputs are being written ends the process at once and leaves no temporary file:
+/// the signal handler's own exit left `.frame.exr.tmp-*` beside the frame. Either both new outputs are in place
+/// (the commit had begun, and the exit waited for it) or neither.
+#[cfg(unix)]
+#[test]
+fn a_second_sigint_while_writing_leaves_no_temporary_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("s.toml");
+    // Cheap to render (100 strands, 1 spp), about 2 s to write and verify (1200² pixels of every AOV).
+    std::fs::write(
+        &scene,
+        "[hair]\nprocedural = { kind = \"fur-ball\", strands = 100 }\n[film]\nresolution = [1200, 1200]\nspp = 1\n",
+    )
+    .unwrap();
+    let exr = dir.path().join("frame.exr");
+    let mut child = Command::new(EXE)
+        .args(["render", scene.to_str().unwrap(), "-q", "-o"])
+        .arg(&exr)
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let started = std::time::Instant::now();
+    let writing = || listing(dir.path()).iter().any(|n| n.contains(".tmp-"));
+    while !writing() {
+        assert!(
+            started.elapsed() < Duration::from_secs(60),
+            "no temporary file appeared"
+        );
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    sigint(&child);
+    std::thread::sleep(Duration::from_millis(50));
+    sigint(&child);
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(130));
+    let names = listing(dir.path());
+    assert!(names.iter().all(|n| !n.contains(".tmp-")), "{names:?}");
+    assert!(
+        names == ["s.toml"] || names == ["frame.exr", "frame.png", "s.toml"],
+        "{names:?}"
+    );
+}

@@ -708,3 +708,47 @@ fn ribbons_that_the_pilots_measure_too_biased_for_the_target_are_replaced_by_tub
         "noise's product {null} against the bias² {bias2}"
     );
 }
+
+/// Auto builds no maps and no second tracer that the memory limit cannot hold beside the frame: with no room left
+/// past the frame's own estimate, the rule's maps give way to ray-traced shadows and the ribbons stand unmeasured,
+/// each decision saying why. (Finer maps and the tubes' tracer were outside the estimate the frame was admitted
+/// by.)
+#[test]
+fn auto_builds_nothing_the_memory_limit_cannot_hold() {
+    let pool = thread_pool(Some(2)).unwrap();
+    let q = QualityConfig {
+        target: 0.25,
+        ..QualityConfig::default()
+    };
+    let planned = |room: u64| {
+        pool.install(|| {
+            let mut spec = sparse_patch().resolve().unwrap();
+            spec.curves = CurveKind::Flat;
+            let estimate =
+                cuticle::render::budget::estimate_frame(&spec, rayon::current_num_threads(), true)
+                    .unwrap();
+            let frame =
+                Frame::load_adjusted(spec, estimate.total() + room, "test", true, |_, _| {})
+                    .unwrap();
+            let p = quality::plan_frame(&frame, &frame.settings, &q, Fixed::default());
+            let why: Vec<String> = p.decisions.iter().map(ToString::to_string).collect();
+            (p.settings.shadows.mode, p.frame.is_some(), why.join("\n"))
+        })
+    };
+    // Room for everything: the loose target keeps the ribbons (measured against tubes) and maps.
+    let (mode, tubes, why) = planned(1 << 30);
+    assert_eq!(mode, ShadowMode::DeepOpacity, "{why}");
+    assert!(!tubes && why.contains("ribbons against tubes"), "{why}");
+    // No room: nothing is built.
+    let (mode, tubes, why) = planned(0);
+    assert_eq!(mode, ShadowMode::Raytraced, "{why}");
+    assert!(!tubes, "{why}");
+    assert!(
+        why.contains("do not fit the memory limit beside the frame (0 bytes left)"),
+        "{why}"
+    );
+    assert!(
+        why.contains("tubes not measured against the ribbons: their tracer"),
+        "{why}"
+    );
+}

@@ -254,6 +254,12 @@ const NEGATIVE_SHARE_REPORTED: f64 = 1e-4;
 /// The summary line of the last frame, auto's and the maps' shares, and warnings of samples or rays refused.
 fn print_summary(job: &Job, stats: &RenderStats, dropped_before: u64) {
     eprintln!("{}", job.summary(stats));
+    if job.frame.zero_length_strands > 0 {
+        eprintln!(
+            "warning: {} strands of zero length (every point at one place) were left out",
+            job.frame.zero_length_strands
+        );
+    }
     for light in &job.frame.lights {
         if let cuticle::light::Light::Environment(env) = light {
             // Lossy compression leaves tiny negatives (the shipped maps: 3 to 8,980 values, at most 3e-7 of the

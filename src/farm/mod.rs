@@ -20,6 +20,7 @@ use std::sync::Arc;
 
 use crate::image::{self, DataWindow, ExrInfo, Image, ImageError};
 use crate::render::Region;
+use crate::util::atomic_file;
 use crate::util::hash::{fold_words, mix64};
 
 /// Header attribute: the job hash ([`job_hash`]).
@@ -89,18 +90,35 @@ impl Interrupted {
 }
 
 /// Routes SIGINT and SIGTERM into a flag (the signal's number; 0 while none came), which the render loop polls
-/// ([`crate::render::Request::cancel`]). A second SIGINT or SIGTERM ends the process at once (status 130).
+/// ([`crate::render::Request::cancel`]). A second SIGINT or SIGTERM ends the process at once (status 130) from a
+/// thread of its own, which first removes every temporary file and waits for a commit of outputs in progress
+/// ([`atomic_file::remove_temporaries_and_exit`]); the handler's own exit left `.tmp-*` files. Two signals that
+/// come before the thread wakes count as one.
+///
+/// Once per process: later calls return the first flag.
 pub fn catch_signals() -> std::io::Result<Arc<AtomicUsize>> {
+    static FLAG: std::sync::OnceLock<Arc<AtomicUsize>> = std::sync::OnceLock::new();
+    if let Some(flag) = FLAG.get() {
+        return Ok(Arc::clone(flag));
+    }
     use signal_hook::consts::{SIGINT, SIGTERM};
     let flag = Arc::new(AtomicUsize::new(0));
-    let set = Arc::new(std::sync::atomic::AtomicBool::new(false));
     for signal in [SIGINT, SIGTERM] {
-        // Registered first, so it sees the flag as it was before this signal: only a second signal exits.
-        signal_hook::flag::register_conditional_shutdown(signal, 130, Arc::clone(&set))?;
-        signal_hook::flag::register(signal, Arc::clone(&set))?;
         signal_hook::flag::register_usize(signal, Arc::clone(&flag), signal as usize)?;
     }
-    Ok(flag)
+    let mut signals = signal_hook::iterator::Signals::new([SIGINT, SIGTERM])?;
+    std::thread::Builder::new()
+        .name("signals".to_owned())
+        .spawn(move || {
+            let mut seen = 0usize;
+            for _ in signals.forever() {
+                seen += 1;
+                if seen >= 2 {
+                    atomic_file::remove_temporaries_and_exit(130);
+                }
+            }
+        })?;
+    Ok(Arc::clone(FLAG.get_or_init(|| flag)))
 }
 
 /// The hash that ties a frame's tiles together: `description` (the scene after overrides, as text), the animation
@@ -217,6 +235,15 @@ pub struct Merged {
 /// settings, frame or version: [`KEY_JOB`]), of another frame size or channel list, tiles that overlap, and gaps;
 /// every pixel of the result comes from exactly one tile.
 pub fn merge(tiles: &[PathBuf]) -> Result<Merged, FarmError> {
+    // The frame, its tiles and the owner map must fit the memory limit: a tile's header declares the frame's size,
+    // and a forged one must not make the frame's allocation abort the process.
+    let (limit, _) = crate::render::budget::default_limit();
+    merge_within(tiles, limit / 3)
+}
+
+/// [`merge`], with the frame and each tile refused before they are allocated when their decoded `f32` pixels would
+/// take more than `max_bytes` each (the fuzz target runs with a small bound).
+pub fn merge_within(tiles: &[PathBuf], max_bytes: u64) -> Result<Merged, FarmError> {
     // One piece: each tile is checked against the first and the coverage so far as it is read.
     let fail = |path: &Path, m: String| FarmError::Merge(format!("{}: {m}", path.display()));
     let Some(first) = tiles.first() else {
@@ -225,12 +252,9 @@ pub fn merge(tiles: &[PathBuf]) -> Result<Merged, FarmError> {
     let mut frame: Option<(Image, String, String, DataWindow)> = None;
     // Which tile wrote each pixel (index + 1; 0: none yet).
     let mut owner: Vec<u32> = Vec::new();
-    // The frame, its tiles and the owner map must fit the memory limit: a tile's header declares the frame's size,
-    // and a forged one must not make the frame's allocation abort the process.
-    let (limit, _) = crate::render::budget::default_limit();
     for (t, path) in tiles.iter().enumerate() {
         let (tile, window, attrs) =
-            image::read_with_info_at_most(path, &[KEY_JOB, KEY_COMPLETE, KEY_FRAME], limit / 3)?;
+            image::read_with_info_at_most(path, &[KEY_JOB, KEY_COMPLETE, KEY_FRAME], max_bytes)?;
         let [job, complete, frame_no] = [0, 1, 2].map(|i| attrs[i].clone());
         let Some(job) = job else {
             return Err(fail(

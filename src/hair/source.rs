@@ -47,7 +47,22 @@ pub struct HairSpec {
 impl HairSpec {
     /// Loads the model and converts it to B-spline strands with the radius scale and opacity applied.
     pub fn load(&self) -> Result<Strands, HairError> {
-        let model = self.source.model()?;
+        self.load_counting().map(|(strands, _)| strands)
+    }
+
+    /// [`HairSpec::load`], leaving out the strands of zero length ([`HairModel::drop_zero_length`]), and how many
+    /// there were. A model of nothing else is an error.
+    pub fn load_counting(&self) -> Result<(Strands, usize), HairError> {
+        let mut model = self.source.model()?;
+        let zero_length = model.drop_zero_length();
+        if model.strand_count() == 0 {
+            return Err(HairError::invalid(
+                &self.source.name(),
+                format!(
+                    "all {zero_length} strands have zero length (every point of each at one place)"
+                ),
+            ));
+        }
         if self.radius_scale != 1.0 {
             super::check_extent(
                 &self.source.name(),
@@ -67,6 +82,6 @@ impl HairSpec {
         if let Some(o) = self.opacity {
             strands.set_opacity(o);
         }
-        Ok(strands)
+        Ok((strands, zero_length))
     }
 }

@@ -4,18 +4,16 @@
 
 use std::path::{Path, PathBuf};
 
-use tempfile::NamedTempFile;
-
 use super::{check_before_writing, preview_bytes, ExrInfo, Image, ImageError};
 use crate::sys::oiio::{self, FileFormat, OiioError, Pixels, Window, WriteOptions};
-use crate::util::atomic_file;
+use crate::util::atomic_file::{self, TempFile};
 
 /// A run's output files, written to temporary files beside their targets and verified, then renamed into place
 /// together by [`Outputs::commit`]. Dropped without a commit, it removes every temporary file and leaves the
 /// targets as they were.
 #[derive(Debug, Default)]
 pub struct Outputs {
-    staged: Vec<(NamedTempFile, PathBuf)>,
+    staged: Vec<(TempFile, PathBuf)>,
 }
 
 impl Outputs {
@@ -177,8 +175,9 @@ impl Outputs {
     /// Renames every staged file into place (and syncs their directories) as a unit; returns their paths. The
     /// targets that exist are first moved aside; if any rename fails, those already made are undone and the old
     /// files put back, so a frame's EXR and its preview are replaced both or neither (a failed PNG rename left the
-    /// new EXR beside the old PNG).
+    /// new EXR beside the old PNG). A second signal's exit waits for it to end ([`atomic_file::commit_lock`]).
     pub fn commit(self) -> Result<Vec<PathBuf>, ImageError> {
+        let _together = atomic_file::commit_lock();
         let mut aside: Vec<(PathBuf, Option<tempfile::TempPath>)> = Vec::new();
         for (_, path) in &self.staged {
             let backup = if path.exists() {

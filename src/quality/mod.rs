@@ -602,7 +602,26 @@ pub fn plan_frame_with(
 ) -> Planned {
     let mut settings = settings.clone();
     let mut decisions = Vec::new();
-    let rule = (!fixed.shadows).then(|| plan_shadows(frame, &mut settings, quality));
+    let mut rule = (!fixed.shadows).then(|| plan_shadows(frame, &mut settings, quality));
+    if let Some(rule) = rule.as_mut() {
+        // The maps the rule asks for must fit beside the frame, or the shadows are ray traced (which needs nothing).
+        let bytes = frame.map_bytes(&settings);
+        if settings.shadows.mode == ShadowMode::DeepOpacity && !frame.fits(bytes) {
+            settings.shadows.mode = ShadowMode::Raytraced;
+            *rule = Decision {
+                key: rule.key,
+                value: "raytraced".into(),
+                reason: format!(
+                    "the rule chose {} ({}), but those maps ({}) do not fit the memory limit beside the frame \
+                     ({} left)",
+                    rule.value,
+                    rule.reason,
+                    crate::util::input_file::human_bytes(bytes),
+                    crate::util::input_file::human_bytes(frame.memory_headroom().unwrap_or(0)),
+                ),
+            };
+        }
+    }
     let start = std::time::Instant::now();
     let maps =
         (settings.shadows.mode == ShadowMode::DeepOpacity).then(|| frame.shadow_maps(&settings));

@@ -178,10 +178,6 @@ pub fn estimate(
 ) -> MemoryEstimate {
     // Segments: control points (points + 2 phantoms per strand) − 3 per strand = points − strands.
     let segments = points.saturating_sub(strands);
-    let per_segment = ACCEL_BYTES_PER_SEGMENT
-        .iter()
-        .find(|(b, c, _)| *b == backend && *c == curves)
-        .map_or(200, |e| e.2);
     let [w, h] = settings.film.resolution;
     let pixels = u64::from(w) * u64::from(h);
     // The tiles and the image hold the channels the film keeps ([`super::film::Layout`]), not all of CHANNELS.
@@ -191,11 +187,7 @@ pub fn estimate(
         .saturating_mul(FILM_COPIES);
     let shadow_maps = if settings.shadows.mode == ShadowMode::DeepOpacity {
         let d = &settings.shadows.deep_opacity;
-        let texels = u64::from(d.resolution) * u64::from(d.resolution);
-        // Per texel: the cumulative layers, z0 and the layer bounds (shadow::deep_opacity::map), f32 each.
-        texels
-            .saturating_mul((u64::from(d.layers) + 2) * 4)
-            .saturating_mul(maps.max(1) as u64)
+        map_bytes(d.resolution, d.layers, maps.max(1))
     } else {
         0
     };
@@ -203,7 +195,7 @@ pub fn estimate(
         strands: points
             .saturating_mul(STRAND_BYTES_PER_POINT)
             .saturating_add(strands.saturating_mul(STRAND_BYTES_PER_STRAND)),
-        accel: segments.saturating_mul(per_segment),
+        accel: accel_bytes(segments, backend, curves),
         film,
         shadow_maps,
         adaptive: if adaptive || settings.adaptive.is_some() {
@@ -214,6 +206,25 @@ pub fn estimate(
         threads: (threads as u64).saturating_mul(BYTES_PER_THREAD),
         base: BASE_BYTES,
     }
+}
+
+/// Bytes of `backend`'s acceleration structure over `segments` curve segments as `curves`, at its build peak
+/// ([`ACCEL_BYTES_PER_SEGMENT`]).
+pub fn accel_bytes(segments: u64, backend: Backend, curves: CurveKind) -> u64 {
+    let per_segment = ACCEL_BYTES_PER_SEGMENT
+        .iter()
+        .find(|(b, c, _)| *b == backend && *c == curves)
+        .map_or(200, |e| e.2);
+    segments.saturating_mul(per_segment)
+}
+
+/// Bytes of `count` deep opacity maps of `resolution`² texels and `layers` layers: per texel the cumulative layers,
+/// z0 and the layer bounds ([`crate::shadow::deep_opacity`]), f32 each.
+pub fn map_bytes(resolution: u32, layers: u32, count: usize) -> u64 {
+    let texels = u64::from(resolution) * u64::from(resolution);
+    texels
+        .saturating_mul((u64::from(layers) + 2) * 4)
+        .saturating_mul(count as u64)
 }
 
 /// The estimate for the frame `spec` describes, rendered with its own settings on `threads` workers (`adaptive` as

@@ -92,6 +92,11 @@ pub struct Frame {
     pub load_seconds: f64,
     /// The memory estimate the frame was admitted by ([`Frame::load_adjusted`]; `None` when built otherwise).
     pub memory_estimate: Option<super::budget::MemoryEstimate>,
+    /// The memory limit the frame was admitted under, bytes (`None` when built otherwise): what `--quality auto`
+    /// may add to [`Frame::memory_estimate`] for its comparisons ([`Frame::room_for`]).
+    pub memory_limit: Option<u64>,
+    /// Strands of the model left out for zero length ([`crate::hair::HairModel::drop_zero_length`]).
+    pub zero_length_strands: usize,
     /// The strands' bounding box, measured once: every render needs it (camera framing, scene radius), and on the
     /// fur ball each pass over the control points was ~3 % of a 64², 4-spp render's instructions.
     hair_bounds: (Vec3, Vec3),
@@ -130,12 +135,14 @@ impl Frame {
             super::budget::estimate_frame(&spec, rayon::current_num_threads(), adaptive)?;
         estimate.check(limit, limit_source)?;
         let start = Instant::now();
-        let strands = spec.hair.load()?;
+        let (strands, zero_length_strands) = spec.hair.load_counting()?;
         let load_seconds = start.elapsed().as_secs_f64();
         adjust(&strands, &mut spec);
         let mut frame = Frame::build(strands, spec)?;
         frame.load_seconds = load_seconds;
         frame.memory_estimate = Some(estimate);
+        frame.memory_limit = Some(limit);
+        frame.zero_length_strands = zero_length_strands;
         Ok(frame)
     }
 
@@ -155,6 +162,8 @@ impl Frame {
             settings: spec.settings,
             load_seconds: 0.0,
             memory_estimate: None,
+            memory_limit: None,
+            zero_length_strands: 0,
         })
     }
 
@@ -172,7 +181,9 @@ impl Frame {
             shapes: self.shapes.clone(),
             settings: self.settings.clone(),
             load_seconds: 0.0,
-            memory_estimate: None,
+            memory_estimate: self.memory_estimate,
+            memory_limit: self.memory_limit,
+            zero_length_strands: self.zero_length_strands,
         })
     }
 
@@ -206,6 +217,34 @@ impl Frame {
     /// Wall time of building the acceleration structure, seconds.
     pub fn build_seconds(&self) -> f64 {
         self.tracer.build_seconds()
+    }
+
+    /// Bytes `--quality auto` may hold beside what the frame was admitted with (the maps it builds, a second
+    /// tracer for a comparison): the memory limit less the admitted estimate without its maps, which auto decides
+    /// itself. `None` when the frame was built without an estimate (tests, benchmarks).
+    pub fn memory_headroom(&self) -> Option<u64> {
+        let (estimate, limit) = (self.memory_estimate?, self.memory_limit?);
+        Some(limit.saturating_sub(estimate.total() - estimate.shadow_maps))
+    }
+
+    /// Whether `bytes` more fit [`Frame::memory_headroom`] (always, when it is unknown).
+    pub fn fits(&self, bytes: u64) -> bool {
+        self.memory_headroom().is_none_or(|room| bytes <= room)
+    }
+
+    /// Bytes of the deep opacity maps `settings` build for this frame's lights ([`super::budget::map_bytes`]).
+    pub fn map_bytes(&self, settings: &RenderSettings) -> u64 {
+        let d = &settings.shadows.deep_opacity;
+        super::budget::map_bytes(
+            d.resolution,
+            d.layers,
+            super::budget::map_count(&self.lights, settings),
+        )
+    }
+
+    /// Bytes of a tracer over this frame's strands as `curves`, at its build peak.
+    pub fn tracer_bytes(&self, curves: CurveKind) -> u64 {
+        super::budget::accel_bytes(self.strands.segment_count() as u64, self.backend, curves)
     }
 
     /// Builds the deep opacity maps of every light with `settings.shadows.deep_opacity`, on the current rayon pool.

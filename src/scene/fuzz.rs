@@ -1,7 +1,8 @@
 //! Entry points of the fuzz targets (`fuzz/`, cargo-fuzz) and of the corpus replay test (`tests/fuzz_corpus.rs`):
-//! each takes arbitrary bytes, runs a reader or the scene parser and validation on them in memory (no files), and
+//! each takes arbitrary bytes, runs a reader or the scene parser and validation on them in memory (no files; the
+//! tile reader of `merge` goes through OpenImageIO, which reads files, so its bytes go to temporary ones), and
 //! returns whether they were accepted. Any input may be rejected; none may panic, hang, or allocate much more
-//! than its own size.
+//! than its own size (or, for `merge`, than [`MERGE_MAX_BYTES`]).
 
 use std::path::Path;
 
@@ -29,4 +30,45 @@ pub fn scene(data: &[u8]) -> bool {
     Scene::parse_bytes(data, Path::new("fuzz.toml"), Path::new("."))
         .map(|s| s.render_settings())
         .is_ok()
+}
+
+/// What separates the tiles of one `merge` input: the bytes between are one tile file each (at most
+/// [`MERGE_MAX_TILES`]).
+pub const MERGE_SEPARATOR: &[u8] = b"\0cuticle-fuzz-tile\0";
+
+/// The most tiles one `merge` input is split into.
+pub const MERGE_MAX_TILES: usize = 4;
+
+/// The bound on one decoded tile or frame in the `merge` target (the renderer's is a third of the memory limit).
+pub const MERGE_MAX_BYTES: u64 = 64 << 20;
+
+/// `cuticle merge`'s tile reader and checks: `data` split at [`MERGE_SEPARATOR`] into tile files (EXRs written by
+/// `render --tile`, or anything else), merged in order as [`crate::farm::merge_within`] does.
+pub fn merge(data: &[u8]) -> bool {
+    let Ok(dir) = tempfile::tempdir() else {
+        return false;
+    };
+    let mut tiles = Vec::new();
+    let mut rest = data;
+    while tiles.len() < MERGE_MAX_TILES {
+        let (tile, next) = match find(rest, MERGE_SEPARATOR) {
+            Some(at) => (&rest[..at], Some(&rest[at + MERGE_SEPARATOR.len()..])),
+            None => (rest, None),
+        };
+        let path = dir.path().join(format!("tile{}.exr", tiles.len()));
+        if std::fs::write(&path, tile).is_err() {
+            return false;
+        }
+        tiles.push(path);
+        match next {
+            Some(next) => rest = next,
+            None => break,
+        }
+    }
+    crate::farm::merge_within(&tiles, MERGE_MAX_BYTES).is_ok()
+}
+
+/// Where `needle` first occurs in `haystack`.
+fn find(haystack: &[u8], needle: &[u8]) -> Option<usize> {
+    haystack.windows(needle.len()).position(|w| w == needle)
 }

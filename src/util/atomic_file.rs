@@ -6,13 +6,125 @@
 //! Temporary names are hidden and keep the target's extension, `.<name>.tmp-<random>.<ext>`: OpenImageIO picks the
 //! format of a file it writes from the extension. Used by [`crate::image`] (images), [`crate::plot`] (SVG charts)
 //! and [`crate::study::cache`] (CSV tables).
+//!
+//! **Signals.** Every temporary file of the process is listed while it exists ([`TempFile`]), so that a second
+//! SIGINT/SIGTERM, which ends the process at once ([`crate::farm::catch_signals`]), removes them first
+//! ([`remove_temporaries_and_exit`]): ending in the signal handler itself left `.tmp-*` files beside the outputs.
+//! A set of renames that must happen all or none (a frame's EXR and its preview) runs under [`commit_lock`], which
+//! the exit waits for.
 
 use std::ffi::OsString;
 use std::fs::File;
 use std::io::{self, Write};
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use std::sync::{Mutex, MutexGuard};
 
-use tempfile::{Builder, NamedTempFile};
+use tempfile::{Builder, NamedTempFile, TempPath};
+
+/// The temporary files of this process that exist now (created, not yet renamed into place or removed).
+static LIVE: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+/// Held while renames that must happen together run, and by the exit of [`remove_temporaries_and_exit`].
+static COMMIT: Mutex<()> = Mutex::new(());
+
+/// `mutex` locked, whether or not a thread panicked while holding it (the lists stay valid: every change is one
+/// push or one removal).
+fn lock<T>(mutex: &'static Mutex<T>) -> MutexGuard<'static, T> {
+    mutex
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+/// Renames that must happen all or none run while the guard lives: a second signal's exit waits for them
+/// ([`remove_temporaries_and_exit`]), so it never falls between a frame's EXR and its preview.
+pub fn commit_lock() -> MutexGuard<'static, ()> {
+    lock(&COMMIT)
+}
+
+/// Removes every temporary file of the process and ends it at once with `status`, without running exit handlers
+/// (other threads may still be rendering). Waits for a commit in progress ([`commit_lock`]) first. This is the
+/// second SIGINT/SIGTERM's action.
+pub fn remove_temporaries_and_exit(status: i32) -> ! {
+    let _commit = lock(&COMMIT);
+    let live = lock(&LIVE);
+    for path in live.iter() {
+        let _ = std::fs::remove_file(path);
+    }
+    signal_hook::low_level::exit(status)
+}
+
+/// A temporary file listed in the process's live temporaries while it exists: removed when dropped unless
+/// [`persist`]ed, and by [`remove_temporaries_and_exit`].
+#[derive(Debug)]
+pub struct TempFile {
+    // `Some` until the file is renamed into place, handed on as a [`TempPath`], or dropped.
+    file: Option<NamedTempFile>,
+}
+
+impl TempFile {
+    /// Creates the file with `builder` in `dir` and lists it (one step under the list's lock, so a second signal
+    /// never sees the file exist unlisted).
+    fn create(builder: &Builder<'_, '_>, dir: &Path) -> io::Result<TempFile> {
+        let mut live = lock(&LIVE);
+        let file = builder.tempfile_in(dir)?;
+        live.push(file.path().to_path_buf());
+        Ok(TempFile { file: Some(file) })
+    }
+
+    fn file(&self) -> &NamedTempFile {
+        self.file.as_ref().expect("present until consumed")
+    }
+
+    /// The file's path.
+    pub fn path(&self) -> &Path {
+        self.file().path()
+    }
+
+    /// The open file.
+    pub fn as_file(&self) -> &File {
+        self.file().as_file()
+    }
+
+    /// The file as a [`TempPath`] (removed when dropped), no longer listed: for a slot used only under
+    /// [`commit_lock`], which a second signal's exit waits for.
+    pub fn into_temp_path(mut self) -> TempPath {
+        let file = self.file.take().expect("present until consumed");
+        unlist(file.path());
+        file.into_temp_path()
+    }
+}
+
+impl Write for TempFile {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        self.file
+            .as_mut()
+            .expect("present until consumed")
+            .write(buf)
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        self.file.as_mut().expect("present until consumed").flush()
+    }
+}
+
+impl Drop for TempFile {
+    fn drop(&mut self) {
+        if let Some(file) = self.file.take() {
+            let path = file.path().to_path_buf();
+            // Removed first, then unlisted: a second signal between the two finds the path gone, no harm.
+            drop(file);
+            unlist(&path);
+        }
+    }
+}
+
+/// Takes `path` off the live list.
+fn unlist(path: &Path) {
+    let mut live = lock(&LIVE);
+    if let Some(i) = live.iter().rposition(|p| p == path) {
+        live.swap_remove(i);
+    }
+}
 
 /// A step of an atomic write failed. The caller names the target file (see [`crate::image::ImageError`]).
 #[derive(Debug, thiserror::Error)]
@@ -52,7 +164,7 @@ fn cut_name(name: &std::ffi::OsStr, room: usize) -> OsString {
 
 /// A new, empty temporary file beside `path` (see the [module docs](self)), removed when dropped unless
 /// [`persist`]ed.
-pub fn temp_beside(path: &Path) -> Result<NamedTempFile, WriteError> {
+pub fn temp_beside(path: &Path) -> Result<TempFile, WriteError> {
     let name = path.file_name().ok_or_else(|| WriteError {
         context: "not a file name",
         source: io::Error::from(io::ErrorKind::InvalidInput),
@@ -78,17 +190,22 @@ pub fn temp_beside(path: &Path) -> Result<NamedTempFile, WriteError> {
     // the umask), as before the rename.
     #[cfg(unix)]
     builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
-    builder
-        .tempfile_in(dir)
-        .map_err(fail("cannot create a temporary file in its directory"))
+    TempFile::create(&builder, dir).map_err(fail("cannot create a temporary file in its directory"))
 }
 
 /// Flushes what was written to `temp` (through its path: a writer may have replaced the file) to disk, renames
 /// it over `path`, and syncs the directory so the rename itself survives a crash. On failure `temp` is removed.
-pub fn persist(temp: NamedTempFile, path: &Path) -> Result<(), WriteError> {
+pub fn persist(mut temp: TempFile, path: &Path) -> Result<(), WriteError> {
     sync(temp.path())?;
-    temp.persist(path)
-        .map_err(|e| fail("cannot rename the temporary file over it")(e.error))?;
+    let file = temp.file.take().expect("present until consumed");
+    let name = file.path().to_path_buf();
+    // On failure the file comes back in the error and is removed as it drops, before it is unlisted.
+    let renamed = file
+        .persist(path)
+        .map(drop)
+        .map_err(|e| fail("cannot rename the temporary file over it")(e.error));
+    unlist(&name);
+    renamed?;
     sync_dir(parent(path))
 }
 
@@ -121,9 +238,7 @@ const PROBE_BYTES: usize = 64 * 1024;
 /// Whether a small file (64 KiB) can still be written and flushed beside `path`: the operating system's error
 /// (e.g. "No space left on device") when not. Used to explain a writer that failed, or lost the error.
 pub fn probe_space(path: &Path) -> io::Result<()> {
-    let mut probe = Builder::new()
-        .prefix(".cuticle-probe.tmp-")
-        .tempfile_in(parent(path))?;
+    let mut probe = TempFile::create(Builder::new().prefix(".cuticle-probe.tmp-"), parent(path))?;
     probe.write_all(&[0u8; PROBE_BYTES])?;
     probe.as_file().sync_all()
 }

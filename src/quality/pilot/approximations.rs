@@ -207,8 +207,31 @@ pub fn choose(
     // Ribbons for tubes, whenever the curve rule chose ribbons, for every model: a model that does not read h still
     // sees the ribbons' geometry (a white Kajiya-Kay close-up of seed 1's generated set, 2 × 64 spp, path 3:
     // ribbons' bias 0.136 relative RMSE against tubes).
+    let human = crate::util::input_file::human_bytes;
+    let held_maps = |settings: &RenderSettings, maps: &Option<ShadowMaps>| {
+        maps.as_ref().map_or(0, |_| frame.map_bytes(settings))
+    };
+    // The second tracer, while the ribbons' stays alive (the frame the job holds).
+    let mut second_tracer = 0;
     if !fixed.curves && frame.curves == CurveKind::Flat {
-        if let Ok(round) = frame.with_curves(CurveKind::Round) {
+        let tubes_bytes = frame.tracer_bytes(CurveKind::Round);
+        let fits = frame.fits(tubes_bytes + held_maps(settings, &chosen.maps));
+        if !fits {
+            chosen.decisions.push(Decision {
+                key: "hair.curves",
+                value: "flat".into(),
+                reason: format!(
+                    "tubes not measured against the ribbons: their tracer ({}) beside the ribbons' and the maps \
+                     does not fit the memory limit ({} left)",
+                    human(tubes_bytes),
+                    human(frame.memory_headroom().unwrap_or(0))
+                ),
+            });
+        }
+        if let Some(round) = fits
+            .then(|| frame.with_curves(CurveKind::Round).ok())
+            .flatten()
+        {
             let flat = render(frame, &pilot, chosen.maps.as_ref());
             let tubes = render(&round, &pilot, chosen.maps.as_ref());
             let a = bias_of(
@@ -240,6 +263,7 @@ pub fn choose(
             } else {
                 chosen.frame = Some(round);
                 current = Some(tubes);
+                second_tracer = tubes_bytes;
             }
         }
     }
@@ -290,6 +314,19 @@ pub fn choose(
             }
             let next = resolution * 2;
             if next > MAX_MAP_RESOLUTION.min(first << MAP_DOUBLINGS) {
+                break;
+            }
+            // Finer maps are built while the current ones are alive: both must fit beside the frame.
+            let mut finer = settings.clone();
+            finer.shadows.deep_opacity.resolution = next;
+            let bytes = second_tracer + held_maps(settings, &chosen.maps) + frame.map_bytes(&finer);
+            if !frame.fits(bytes) {
+                listed.push(format!(
+                    "{next}²: not built, its maps beside the current ones ({}) do not fit the memory limit ({} \
+                     left)",
+                    human(bytes - second_tracer),
+                    human(frame.memory_headroom().unwrap_or(0).saturating_sub(second_tracer))
+                ));
                 break;
             }
             // Finer maps are tried only if, even without bias, their frame and build would beat the rays.
