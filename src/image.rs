@@ -37,6 +37,7 @@ use std::path::{Path, PathBuf};
 use crate::sys::oiio::{self, OiioError};
 use crate::util::atomic_file;
 
+mod exr_header;
 mod outputs;
 pub use outputs::Outputs;
 
@@ -337,7 +338,7 @@ pub fn read_with_info_at_most(
     names: &[&str],
     max_bytes: u64,
 ) -> Result<(Image, DataWindow, Vec<Option<String>>), ImageError> {
-    let file = open(path)?;
+    let file = open_as(path, true)?;
     let attributes = file.attributes(names).map_err(|source| ImageError::Oiio {
         path: path.to_path_buf(),
         context: "openimageio cannot read its header".to_owned(),
@@ -472,13 +473,22 @@ pub fn read_at_most(path: impl AsRef<Path>, max_bytes: u64) -> Result<Image, Ima
 
 /// Opens the image at `path` for reading (its header only; see [`oiio::OpenImage`]).
 fn open(path: &Path) -> Result<oiio::OpenImage, ImageError> {
+    open_as(path, false)
+}
+
+/// [`open`]; `exr_only`: refuse any file but OpenEXR before OpenImageIO sees it (a tile is an EXR, and each other
+/// format OpenImageIO would try is one more reader a forged tile reaches).
+fn open_as(path: &Path, exr_only: bool) -> Result<oiio::OpenImage, ImageError> {
     let metadata = fs::metadata(path).map_err(|e| ImageError::io(path, "cannot read", e))?;
     if metadata.is_dir() {
         return Err(ImageError::invalid(path, "is a directory, not an image"));
     }
     // A regular file only: OpenImageIO would block forever opening a FIFO and never end reading `/dev/zero`.
-    crate::util::input_file::open_regular(path)
+    let (file, len) = crate::util::input_file::open_regular(path)
         .map_err(|e| ImageError::io(path, "cannot read", e))?;
+    // An OpenEXR header's declared sizes must fit the file before OpenEXR allocates them.
+    exr_header::check(file, len, exr_only)
+        .map_err(|m| ImageError::invalid(path, format!("not a valid OpenEXR file: {m}")))?;
     oiio::open_image(path).map_err(|source| ImageError::Oiio {
         path: path.to_path_buf(),
         context: "openimageio cannot read it".to_owned(),

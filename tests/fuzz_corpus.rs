@@ -77,8 +77,8 @@ fn scene_corpus_replays_and_shipped_scenes_validate() {
     }
 }
 
-/// The tiles `render --tile` writes merge; tiles of another job, a forged 100 000² frame, overlapping tiles and a
-/// gap do not.
+/// The tiles `render --tile` writes merge; tiles of another job, a forged 100 000² frame, overlapping tiles, a
+/// gap, and a tile whose header declares a 1.8 GB attribute (OpenEXR allocated it) do not.
 #[test]
 fn merge_corpus_replays_and_real_tiles_merge() {
     let ok = replay("merge", cuticle::scene::fuzz::merge);
@@ -98,6 +98,7 @@ fn merge_corpus_replays_and_real_tiles_merge() {
         "forged-100000-frame.bin",
         "overlap.bin",
         "gap.bin",
+        "oom-1.8-GB-attribute.bin",
     ] {
         assert!(!ok.iter().any(|n| n == seed), "{seed} accepted");
     }
