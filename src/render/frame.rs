@@ -93,7 +93,7 @@ pub struct Frame {
     /// The memory estimate the frame was admitted by ([`Frame::load_adjusted`]; `None` when built otherwise).
     pub memory_estimate: Option<super::budget::MemoryEstimate>,
     /// The memory limit the frame was admitted under, bytes (`None` when built otherwise): what `--quality auto`
-    /// may add to [`Frame::memory_estimate`] for its comparisons ([`Frame::room_for`]).
+    /// may add to [`Frame::memory_estimate`] for its comparisons ([`Frame::memory_headroom`]).
     pub memory_limit: Option<u64>,
     /// Strands of the model left out for zero length ([`crate::hair::HairModel::drop_zero_length`]).
     pub zero_length_strands: usize,
