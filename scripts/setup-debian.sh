@@ -4,7 +4,9 @@
 #     compiler, openimageio-tools (oiiotool/idiff, used by the tests) and unzip (scripts/embree4.sh, CI's Embree 4
 #     step);
 #   - a Rust toolchain >= the crate's rust-version (1.85) through rustup, unless one is already on PATH or in
-#     ~/.cargo/bin (Debian 12's own rustc is 1.63, too old).
+#     ~/.cargo/bin (Debian 12's own rustc is 1.63, too old);
+#   - Intel Open Image Denoise 2.5.1 for `render --denoise`, in ${XDG_DATA_HOME:-~/.local/share}/cuticle/oidn
+#     (scripts/oidn.sh: Debian 12 has no package; cuticle loads it only when asked to denoise).
 # Works as root without sudo (a container) or as a user with sudo. Safe to run again.
 set -eu
 
@@ -30,4 +32,5 @@ else
     rm -f "$installer"
 fi
 cargo --version >/dev/null 2>&1 || { echo "setup: no cargo on PATH or in ~/.cargo/bin" >&2; exit 1; }
+sh "$(dirname "$0")/oidn.sh" "${XDG_DATA_HOME:-$HOME/.local/share}/cuticle/oidn"
 echo "setup: done ($(cargo --version); rustup installs into ~/.cargo/bin)"

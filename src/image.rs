@@ -37,6 +37,7 @@ use std::path::{Path, PathBuf};
 use crate::sys::oiio::{self, OiioError};
 use crate::util::atomic_file;
 
+pub mod denoise;
 mod exr_header;
 mod outputs;
 pub use outputs::Outputs;
@@ -413,6 +414,13 @@ pub fn write_png_preview(path: impl AsRef<Path>, image: &Image) -> Result<(), Im
 
 /// The sRGB-encoded 8-bit `R,G,B` of every pixel of `image`, interleaved.
 fn preview_bytes(path: &Path, image: &Image) -> Result<Vec<u8>, ImageError> {
+    // The denoised frame where the image holds one ([`denoise`]): the preview is what a user looks at first.
+    if image.channel_index(denoise::CHANNELS[0]).is_some() {
+        let find = |name: &str| image.channel_index(name);
+        if let [Some(r), Some(g), Some(b)] = denoise::CHANNELS.map(find) {
+            return Ok(rgb_bytes(image, [r, g, b]));
+        }
+    }
     let find = |name: &str| {
         image.channel_index(name).ok_or_else(|| {
             ImageError::invalid(
@@ -426,12 +434,17 @@ fn preview_bytes(path: &Path, image: &Image) -> Result<Vec<u8>, ImageError> {
         })
     };
     let rgb = [find("R")?, find("G")?, find("B")?];
+    Ok(rgb_bytes(image, rgb))
+}
+
+/// The sRGB-encoded 8-bit values of channels `rgb` of every pixel of `image`, interleaved.
+fn rgb_bytes(image: &Image, rgb: [usize; 3]) -> Vec<u8> {
     let n = image.channels.len();
     let mut bytes = Vec::with_capacity(image.width * image.height * 3);
     for pixel in image.data.chunks_exact(n) {
         bytes.extend(rgb.map(|c| linear_to_srgb8(pixel[c])));
     }
-    Ok(bytes)
+    bytes
 }
 
 /// Reads the image at `path` (first subimage; any format OpenImageIO reads) as `f32`.

@@ -61,6 +61,9 @@ pub struct Request {
     pub output: Option<PathBuf>,
     /// Also write every deep opacity map into this directory.
     pub dump_shadow_maps: Option<PathBuf>,
+    /// Denoise each frame ([`crate::image::denoise`]): `denoised.R/G/B` beside the beauty, and the preview made from
+    /// them. Whole frames only.
+    pub denoise: bool,
     /// Show a progress bar.
     pub progress: bool,
 }
@@ -178,6 +181,18 @@ impl Job {
     pub fn prepare(request: Request) -> Result<Job, JobError> {
         let scene = &request.scene;
         let exr_output = check_outputs(&request)?;
+        if request.denoise {
+            // Both checked before anything is loaded: a whole-frame step, and a library that may be missing.
+            if request.part != Part::Full {
+                return Err(JobError::Invalid(
+                    "--denoise denoises whole frames: render the tiles or crop without it, and denoise the merged \
+                     frame (`cuticle merge --denoise`)"
+                        .to_owned(),
+                ));
+            }
+            crate::image::denoise::available()
+                .map_err(|e| JobError::Invalid(format!("--denoise: {e}")))?;
+        }
         let threads = request
             .threads
             .map(budget::check_threads)
@@ -359,9 +374,14 @@ impl Job {
             }
             return Err(FarmError::Interrupted(Interrupted { signal, partial }).into());
         }
+        let mut image = r.image;
+        if self.request.denoise {
+            crate::image::denoise::add_denoised(&mut image, self.threads())
+                .map_err(|e| JobError::Invalid(format!("--denoise: {e}")))?;
+        }
         Ok(Rendered {
             frame,
-            image: r.image,
+            image,
             info,
             stats: r.stats,
         })
@@ -540,6 +560,7 @@ pub fn render_scene(
         frames: None,
         output: None,
         dump_shadow_maps: None,
+        denoise: false,
         progress: false,
     })?;
     let rendered = job.render(None, None)?;

@@ -73,6 +73,10 @@ pub struct RenderArgs {
     /// Also write every deep opacity map (z0 and per-layer transmittance) as an EXR into this directory.
     #[arg(long, value_name = "DIR")]
     dump_shadow_maps: Option<PathBuf>,
+    /// Denoise the frame with Intel Open Image Denoise (guided by the albedo AOV): `denoised.R/G/B` beside the
+    /// beauty in the EXR, and the PNG preview made from them. Whole frames only (`cuticle merge --denoise` for tiles).
+    #[arg(long)]
+    denoise: bool,
     /// No progress bar.
     #[arg(short, long)]
     quiet: bool,
@@ -161,6 +165,7 @@ pub fn render_command(args: RenderArgs) -> Result<()> {
         frames: args.frames,
         output: Some(args.output),
         dump_shadow_maps: args.dump_shadow_maps,
+        denoise: args.denoise,
         progress: !args.quiet,
     };
     let job = prepare_answering_signals(request, &cancel)?;
@@ -330,6 +335,9 @@ pub struct MergeArgs {
     /// The tile EXRs of `cuticle render --tile` or `--crop`, covering the frame exactly once.
     #[arg(required = true)]
     tiles: Vec<PathBuf>,
+    /// Denoise the merged frame (as `render --denoise` does a whole frame).
+    #[arg(long)]
+    denoise: bool,
 }
 
 pub fn merge_command(args: &MergeArgs) -> Result<()> {
@@ -351,7 +359,15 @@ pub fn merge_command(args: &MergeArgs) -> Result<()> {
     // as it was. A second signal ends the process at once.
     let cancel = cuticle::farm::catch_signals()
         .map_err(|e| anyhow::anyhow!("cannot catch sigint/sigterm: {e}"))?;
-    let merged = cuticle::farm::merge(&args.tiles)?;
+    if args.denoise {
+        cuticle::image::denoise::available().map_err(|e| anyhow::anyhow!("--denoise: {e}"))?;
+    }
+    let mut merged = cuticle::farm::merge(&args.tiles)?;
+    if args.denoise {
+        let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+        cuticle::image::denoise::add_denoised(&mut merged.image, threads)
+            .map_err(|e| anyhow::anyhow!("--denoise: {e}"))?;
+    }
     if let Some(i) = Interrupted::caught(&cancel) {
         return Err(FarmError::Interrupted(i).into());
     }

@@ -1,5 +1,5 @@
-//! The only module with `unsafe` code: the Embree bindings, the OpenImageIO shim, a cache prefetch hint and the
-//! process's CPU clock, each wrapped in a safe API.
+//! The only module with `unsafe` code: the Embree bindings, the OpenImageIO shim, Open Image Denoise, a cache
+//! prefetch hint and the process's CPU clock, each wrapped in a safe API.
 //! Everything above this module is safe Rust (`#![deny(unsafe_code)]` at the crate root).
 //!
 //! From the crate, `sys` imports only `crate::ray` (the plain ray the Embree queries take and validate). Decisions
@@ -8,5 +8,6 @@
 
 pub mod clock;
 pub mod embree;
+pub mod oidn;
 pub mod oiio;
 pub mod prefetch;
