@@ -2,7 +2,6 @@
 //
 // Every entry point catches every exception: unwinding into Rust is undefined behaviour.
 
-#include <algorithm>
 #include "oiio_shim.h"
 
 #include <OpenImageIO/imageio.h>
@@ -298,19 +297,9 @@ extern "C" int cuticle_oiio_read_float(CuticleOiioInput *input, float *out, size
             set_error(err, err_cap, "output buffer has the wrong size");
             return 1;
         }
-        // In bands of 16 rows, not read_image: OpenImageIO 2.4's read_image converts through a buffer of 256 rows
-        // whatever the image's height, so a 458 753 x 4 tile (29 MB as floats) made it allocate 1.9 GB (the merge
-        // fuzz target). A band's buffer is its own rows.
-        const size_t row = static_cast<size_t>(spec.width) * static_cast<size_t>(spec.nchannels);
-        const int band = 16;
-        for (int y = 0; y < spec.height; y += band) {
-            const int end = std::min(spec.height, y + band);
-            float *dst = out + static_cast<size_t>(y) * row;
-            if (!input->input->read_scanlines(0, 0, spec.y + y, spec.y + end, spec.z, 0, spec.nchannels,
-                                              TypeDesc::FLOAT, dst)) {
-                set_error(err, err_cap, or_fallback(input->input->geterror(), "could not read pixels"));
-                return 1;
-            }
+        if (!input->input->read_image(0, 0, 0, spec.nchannels, TypeDesc::FLOAT, out)) {
+            set_error(err, err_cap, or_fallback(input->input->geterror(), "could not read pixels"));
+            return 1;
         }
         return 0;
     } catch (...) {
