@@ -61,9 +61,9 @@ pub struct Request {
     pub output: Option<PathBuf>,
     /// Also write every deep opacity map into this directory.
     pub dump_shadow_maps: Option<PathBuf>,
-    /// Denoise each frame ([`crate::image::denoise`]): `denoised.R/G/B` beside the beauty, and the preview made from
-    /// them. Whole frames only.
-    pub denoise: bool,
+    /// Denoise each frame with this guide ([`crate::image::denoise`]): `denoised.R/G/B` beside the beauty, and the
+    /// preview made from them. Whole frames only.
+    pub denoise: Option<crate::image::denoise::Guide>,
     /// Show a progress bar.
     pub progress: bool,
 }
@@ -181,7 +181,7 @@ impl Job {
     pub fn prepare(request: Request) -> Result<Job, JobError> {
         let scene = &request.scene;
         let exr_output = check_outputs(&request)?;
-        if request.denoise {
+        if request.denoise.is_some() {
             // Both checked before anything is loaded: a whole-frame step, and a library that may be missing.
             if request.part != Part::Full {
                 return Err(JobError::Invalid(
@@ -375,8 +375,8 @@ impl Job {
             return Err(FarmError::Interrupted(Interrupted { signal, partial }).into());
         }
         let mut image = r.image;
-        if self.request.denoise {
-            crate::image::denoise::add_denoised(&mut image, self.threads())
+        if let Some(guide) = self.request.denoise {
+            crate::image::denoise::add_denoised(&mut image, guide, self.threads())
                 .map_err(|e| JobError::Invalid(format!("--denoise: {e}")))?;
         }
         Ok(Rendered {
@@ -560,7 +560,7 @@ pub fn render_scene(
         frames: None,
         output: None,
         dump_shadow_maps: None,
-        denoise: false,
+        denoise: None,
         progress: false,
     })?;
     let rendered = job.render(None, None)?;

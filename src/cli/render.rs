@@ -73,10 +73,12 @@ pub struct RenderArgs {
     /// Also write every deep opacity map (z0 and per-layer transmittance) as an EXR into this directory.
     #[arg(long, value_name = "DIR")]
     dump_shadow_maps: Option<PathBuf>,
-    /// Denoise the frame with Intel Open Image Denoise (guided by the albedo AOV): `denoised.R/G/B` beside the
-    /// beauty in the EXR, and the PNG preview made from them. Whole frames only (`cuticle merge --denoise` for tiles).
-    #[arg(long)]
-    denoise: bool,
+    /// Denoise the frame with Intel Open Image Denoise: `denoised.R/G/B` beside the beauty in the EXR, and the PNG
+    /// preview made from them. Guide: color (the default: the colour alone), albedo or albedo-prefiltered (the
+    /// albedo AOV). Whole frames only (`cuticle merge --denoise` for tiles).
+    #[arg(long, value_name = "GUIDE", num_args = 0..=1, default_missing_value = "color",
+          value_parser = scene_name::<cuticle::image::denoise::Guide>)]
+    denoise: Option<cuticle::image::denoise::Guide>,
     /// No progress bar.
     #[arg(short, long)]
     quiet: bool,
@@ -335,9 +337,10 @@ pub struct MergeArgs {
     /// The tile EXRs of `cuticle render --tile` or `--crop`, covering the frame exactly once.
     #[arg(required = true)]
     tiles: Vec<PathBuf>,
-    /// Denoise the merged frame (as `render --denoise` does a whole frame).
-    #[arg(long)]
-    denoise: bool,
+    /// Denoise the merged frame (as `render --denoise[=GUIDE]` does a whole frame).
+    #[arg(long, value_name = "GUIDE", num_args = 0..=1, default_missing_value = "color",
+          value_parser = scene_name::<cuticle::image::denoise::Guide>)]
+    denoise: Option<cuticle::image::denoise::Guide>,
 }
 
 pub fn merge_command(args: &MergeArgs) -> Result<()> {
@@ -359,13 +362,13 @@ pub fn merge_command(args: &MergeArgs) -> Result<()> {
     // as it was. A second signal ends the process at once.
     let cancel = cuticle::farm::catch_signals()
         .map_err(|e| anyhow::anyhow!("cannot catch sigint/sigterm: {e}"))?;
-    if args.denoise {
+    if args.denoise.is_some() {
         cuticle::image::denoise::available().map_err(|e| anyhow::anyhow!("--denoise: {e}"))?;
     }
     let mut merged = cuticle::farm::merge(&args.tiles)?;
-    if args.denoise {
+    if let Some(guide) = args.denoise {
         let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
-        cuticle::image::denoise::add_denoised(&mut merged.image, threads)
+        cuticle::image::denoise::add_denoised(&mut merged.image, guide, threads)
             .map_err(|e| anyhow::anyhow!("--denoise: {e}"))?;
     }
     if let Some(i) = Interrupted::caught(&cancel) {

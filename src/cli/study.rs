@@ -35,9 +35,36 @@ pub enum StudyCommand {
     All(StudyKindArgs),
     /// `--quality auto` against every fixed configuration and the shipped settings, per error target.
     Auto(StudyAutoArgs),
+    /// Error against a converged reference versus time with and without the denoiser (RMSE, SSIM, detail kept
+    /// around the hair), over samples per pixel: denoise.csv, denoise.md.
+    Denoise(StudyDenoiseArgs),
     /// Writes a seeded set of random test scenes (grooms, strand widths on screen, models, absorption, lights) on
     /// which no constant is tuned: the held-out set `study auto` is judged on.
     Scenes(StudyScenesArgs),
+}
+
+#[derive(clap::Args)]
+pub struct StudyDenoiseArgs {
+    /// Scene files (TOML). Without any, the built-in default scene (a procedural fur ball).
+    scenes: Vec<PathBuf>,
+    /// Output directory: denoise.csv, denoise.md; references cached in OUT/cache.
+    #[arg(short, long, default_value = "study")]
+    out: PathBuf,
+    /// Film resolution WxH.
+    #[arg(long, value_parser = parse_resolution, default_value = "128x96")]
+    res: [u32; 2],
+    /// Samples per pixel swept (default: 1,2,4,...,128; with --quick 1,4,16).
+    #[arg(long, value_delimiter = ',')]
+    spp: Option<Vec<u32>>,
+    /// Samples per pixel of the references.
+    #[arg(long, default_value_t = 1024)]
+    reference_spp: u32,
+    /// Three spp points.
+    #[arg(long)]
+    quick: bool,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    threads: Option<usize>,
 }
 
 #[derive(clap::Args)]
@@ -295,6 +322,29 @@ pub fn study_command(command: StudyCommand) -> Result<()> {
         StudyCommand::Curves(a) => study_kind("curves", a)?,
         StudyCommand::All(a) => study_kind("all", a)?,
         StudyCommand::Scenes(a) => write_scenes(&a)?,
+        StudyCommand::Denoise(a) => {
+            let scenes = if a.scenes.is_empty() {
+                vec![SceneFile::default_scene()]
+            } else {
+                a.scenes
+                    .iter()
+                    .map(|p| SceneFile::read(p))
+                    .collect::<Result<_, _>>()?
+            };
+            let config = cuticle::study::denoise::DenoiseStudyConfig {
+                scenes,
+                resolution: a.res,
+                spp: a
+                    .spp
+                    .unwrap_or_else(|| cuticle::study::denoise::default_spp(a.quick)),
+                reference_spp: a.reference_spp,
+                threads: threads(a.threads)?,
+                out: a.out,
+            };
+            let report = cuticle::study::denoise::run(&config)?;
+            print!("{}", report.markdown);
+            print_written(&report.files, "references", &config.out.join("cache"));
+        }
         StudyCommand::Auto(a) => {
             let scenes = if a.scenes.is_empty() {
                 vec![SceneFile::default_scene()]

@@ -20,6 +20,7 @@
 
 pub mod auto;
 pub mod cache;
+pub mod denoise;
 pub mod figures;
 pub mod framework;
 pub mod generated;

@@ -150,6 +150,10 @@ pub struct Guides<'a> {
     pub albedo: Option<&'a [f32]>,
     /// The normal guide, in [−1, 1], or `None` (OIDN reads it only with an albedo).
     pub normal: Option<&'a [f32]>,
+    /// `color` is high dynamic range (radiance; a guide being prefiltered is not).
+    pub hdr: bool,
+    /// The guides are free of noise (prefiltered), so the filter may follow them exactly.
+    pub clean_aux: bool,
 }
 
 /// Denoises `guides.color` with OIDN's `RT` filter (HDR, the guides as given, `cleanAux` off: the guides carry the
@@ -250,7 +254,8 @@ pub fn denoise(
                 0,
                 0,
             );
-            (api.set_filter_bool)(filter, c"hdr".as_ptr(), true);
+            (api.set_filter_bool)(filter, c"hdr".as_ptr(), guides.hdr);
+            (api.set_filter_bool)(filter, c"cleanAux".as_ptr(), guides.clean_aux);
             (api.commit_filter)(filter);
             (api.execute_filter)(filter);
             let failed = error(device);
@@ -275,6 +280,8 @@ mod tests {
             color: &color,
             albedo: Some(&color[..9]),
             normal: None,
+            hdr: true,
+            clean_aux: false,
         };
         let e = denoise(&g, 2, 2, 1).unwrap_err();
         assert!(e.0.contains("albedo image has 9 values"), "{e}");
@@ -282,6 +289,8 @@ mod tests {
             color: &color,
             albedo: None,
             normal: None,
+            hdr: true,
+            clean_aux: false,
         };
         assert!(denoise(&g, 0, 4, 1).is_err());
         assert!(denoise(&g, usize::MAX, 2, 1).is_err());

@@ -1,0 +1,355 @@
+//! `cuticle study denoise [SCENE...]`: error against a converged reference versus time, with and without the
+//! denoiser ([`crate::image::denoise`]), over samples per pixel.
+//!
+//! Per scene: the frame is set up once; the reference is rendered at the study's reference spp as two halves with
+//! seeds no sweep point uses (cached as `cache/denoise-<scene>-<hash>-{0,1}.exr`, the hash covering the scene text,
+//! the film and the reference spp), their mean the reference. Then per spp, one render (its seconds) and one denoise of it (its seconds), and for both the
+//! noisy beauty and the beauty denoised with each guide ([`denoise::Guide`]):
+//!
+//! - **RMSE** of R, G, B against the reference, and **relative RMSE** (√ of the mean of (x − r)² / (r² + 0.01));
+//! - **SSIM** ([`crate::measure::pixels::ssim`]);
+//! - **detail kept** ([`crate::measure::pixels::detail_kept`]) over the 64² window centred on the hair
+//!   ([`super::figures::hair_window`]): the reference's fine structure that survives. A denoiser that smears strands
+//!   scores low here even where its RMSE is small.
+//!
+//! Written: `denoise.csv` (one row per scene, spp and method) and `denoise.md` (the table, and per scene and guide
+//! the read-out: at which spp the denoised frame reaches the noisy frame's error at the largest spp, in how much
+//! less time, and how much detail it keeps there).
+
+use std::fmt::Write as _;
+use std::path::PathBuf;
+use std::time::Instant;
+
+use super::cache::{scene_key, write_text};
+use super::{cached_reference, create_dir, SceneFile, StudyError};
+use crate::image::{denoise, Image};
+use crate::measure::{metrics::REL_EPSILON, pixels};
+use crate::render::{Frame, Request};
+
+/// Side of the window centred on the hair over which detail is measured, pixels.
+pub const DETAIL_WINDOW: usize = 64;
+/// Added to the scene's seed for the reference, so no sweep point shares its samples.
+const REFERENCE_SEED_OFFSET: u32 = 0x0002_0003;
+
+/// What `study denoise` renders.
+#[derive(Debug, Clone)]
+pub struct DenoiseStudyConfig {
+    /// The scenes.
+    pub scenes: Vec<SceneFile>,
+    /// Film resolution.
+    pub resolution: [u32; 2],
+    /// The samples per pixel swept.
+    pub spp: Vec<u32>,
+    /// Samples per pixel of the references.
+    pub reference_spp: u32,
+    /// Output directory.
+    pub out: PathBuf,
+    /// Worker threads (the denoiser gets as many).
+    pub threads: usize,
+}
+
+/// One measured image.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Row {
+    /// The scene's name.
+    pub scene: String,
+    /// Samples per pixel of the render.
+    pub spp: u32,
+    /// `noisy`, or the denoiser's guide ([`denoise::Guide::name`]).
+    pub method: &'static str,
+    /// Render seconds (the pixel loop and any maps).
+    pub render_seconds: f64,
+    /// Denoising seconds (0 for the noisy image).
+    pub denoise_seconds: f64,
+    /// RMSE of R, G, B against the reference.
+    pub rmse: f64,
+    /// Relative RMSE against the reference.
+    pub rel_rmse: f64,
+    /// Mean SSIM against the reference.
+    pub ssim: f64,
+    /// The reference's detail kept over the hair window.
+    pub detail: f64,
+}
+
+impl Row {
+    /// Render plus denoising seconds.
+    pub fn seconds(&self) -> f64 {
+        self.render_seconds + self.denoise_seconds
+    }
+}
+
+/// What the study wrote.
+#[derive(Debug)]
+pub struct DenoiseReport {
+    /// Every row.
+    pub rows: Vec<Row>,
+    /// The Markdown report.
+    pub markdown: String,
+    /// The files written.
+    pub files: Vec<PathBuf>,
+}
+
+/// The image's R, G, B as an image of those three channels, from channels `names`.
+fn rgb_of(image: &Image, names: [&str; 3]) -> Result<Image, StudyError> {
+    let index = names.map(|n| image.channel_index(n));
+    let [Some(r), Some(g), Some(b)] = index else {
+        return Err(StudyError::Config(format!(
+            "the image lacks one of {names:?}"
+        )));
+    };
+    let mut out = Image::new(
+        image.width,
+        image.height,
+        ["R", "G", "B"].map(String::from).to_vec(),
+    );
+    let n = image.channels.len();
+    out.data = image
+        .data
+        .chunks_exact(n)
+        .flat_map(|p| [p[r], p[g], p[b]])
+        .collect();
+    Ok(out)
+}
+
+/// RMSE and relative RMSE of `image` against `reference` (both R, G, B only).
+fn errors(image: &Image, reference: &Image) -> (f64, f64) {
+    let (mut se, mut rel, mut n) = (0.0, 0.0, 0.0);
+    for (x, r) in image.data.iter().zip(&reference.data) {
+        let (x, r) = (f64::from(*x), f64::from(*r));
+        se += (x - r).powi(2);
+        rel += (x - r).powi(2) / (r * r + REL_EPSILON);
+        n += 1.0;
+    }
+    ((se / n).sqrt(), (rel / n).sqrt())
+}
+
+/// The row of image `x` (R, G, B) against `truth` and the reference's `halves`.
+#[allow(clippy::too_many_arguments)]
+fn measured(
+    file: &SceneFile,
+    spp: u32,
+    method: &'static str,
+    render_seconds: f64,
+    denoise_seconds: f64,
+    x: &Image,
+    truth: &Image,
+    halves: &[Image],
+    window: (usize, usize, usize),
+) -> Result<Row, StudyError> {
+    let (rmse, rel_rmse) = errors(x, truth);
+    let measure = |r: Result<f64, String>| r.map_err(StudyError::Config);
+    Ok(Row {
+        scene: file.name(),
+        spp,
+        method,
+        render_seconds,
+        denoise_seconds,
+        rmse,
+        rel_rmse,
+        ssim: measure(pixels::ssim(x, truth))?,
+        detail: measure(pixels::detail_kept(x, [&halves[0], &halves[1]], window))?,
+    })
+}
+
+/// Runs the study (see the module docs).
+pub fn run(config: &DenoiseStudyConfig) -> Result<DenoiseReport, StudyError> {
+    if config.spp.is_empty() || config.spp.contains(&0) || config.reference_spp == 0 {
+        return Err(StudyError::Config(
+            "study denoise: spp and the reference's spp must be positive".to_owned(),
+        ));
+    }
+    denoise::available().map_err(|e| StudyError::Config(format!("study denoise: {e}")))?;
+    create_dir(&config.out)?;
+    let cache = config.out.join("cache");
+    create_dir(&cache)?;
+    let pool = crate::render::thread_pool(Some(config.threads))?;
+    let mut rows = Vec::new();
+    for file in &config.scenes {
+        let scene = file.scene(Some(config.resolution))?;
+        let frame = pool.install(|| Frame::load(scene.resolve()?).map_err(StudyError::from))?;
+        let mut settings = scene.render_settings();
+        // The guide must be in the film.
+        settings.film.aovs = vec![crate::render::settings::ALL_AOVS.to_owned()];
+        let key = scene_key(
+            "cuticle study denoise reference v1",
+            &file.text,
+            file,
+            &[],
+            &format!(
+                "{}x{} {} spp",
+                config.resolution[0], config.resolution[1], config.reference_spp
+            ),
+        );
+        // Two halves of the reference's samples with seeds of their own: their mean is the reference, and their
+        // detail, correlated only where it is the scene's, measures what a render keeps of it.
+        let (mut halves, mut window) = (Vec::new(), (0, 0, DETAIL_WINDOW));
+        for half in 0..2u32 {
+            let path = cache.join(format!("denoise-{}-{key:016x}-{half}.exr", file.name()));
+            let (image, _, _) = cached_reference(&path, config.resolution, || {
+                let mut s = settings.clone();
+                s.film.spp = config.reference_spp.div_ceil(2);
+                s.film.seed = s.film.seed.wrapping_add(REFERENCE_SEED_OFFSET + half);
+                s.adaptive = None;
+                let start = Instant::now();
+                let image = pool.install(|| frame.render(Request::new(&s)).image);
+                (image, start.elapsed().as_secs_f64())
+            })?;
+            if half == 0 {
+                window = super::figures::hair_window(&image, DETAIL_WINDOW);
+            }
+            halves.push(rgb_of(&image, ["R", "G", "B"])?);
+        }
+        let mut truth = halves[0].clone();
+        for (t, b) in truth.data.iter_mut().zip(&halves[1].data) {
+            *t = 0.5 * (*t + b);
+        }
+        for &spp in &config.spp {
+            let mut s = settings.clone();
+            s.film.spp = spp;
+            s.adaptive = None;
+            let start = Instant::now();
+            let mut image = pool.install(|| frame.render(Request::new(&s)).image);
+            let render_seconds = start.elapsed().as_secs_f64();
+            let x = rgb_of(&image, ["R", "G", "B"])?;
+            rows.push(measured(
+                file,
+                spp,
+                "noisy",
+                render_seconds,
+                0.0,
+                &x,
+                &truth,
+                &halves,
+                window,
+            )?);
+            for guide in denoise::Guide::ALL {
+                let start = Instant::now();
+                denoise::add_denoised(&mut image, guide, config.threads)
+                    .map_err(|e| StudyError::Config(format!("study denoise: {e}")))?;
+                let seconds = start.elapsed().as_secs_f64();
+                let x = rgb_of(&image, denoise::CHANNELS)?;
+                rows.push(measured(
+                    file,
+                    spp,
+                    guide.name(),
+                    render_seconds,
+                    seconds,
+                    &x,
+                    &truth,
+                    &halves,
+                    window,
+                )?);
+            }
+        }
+    }
+    let csv = csv_of(&rows);
+    let md = markdown(&rows, config);
+    let (csv_path, md_path) = (
+        config.out.join("denoise.csv"),
+        config.out.join("denoise.md"),
+    );
+    write_text(&csv_path, &csv)?;
+    write_text(&md_path, &md)?;
+    Ok(DenoiseReport {
+        rows,
+        markdown: md,
+        files: vec![csv_path, md_path],
+    })
+}
+
+fn csv_of(rows: &[Row]) -> String {
+    let mut out =
+        String::from("scene,spp,method,render_s,denoise_s,rmse,rel_rmse,ssim,detail_kept\n");
+    for r in rows {
+        let _ = writeln!(
+            out,
+            "{},{},{},{:.4},{:.4},{:.6},{:.6},{:.5},{:.4}",
+            r.scene,
+            r.spp,
+            r.method,
+            r.render_seconds,
+            r.denoise_seconds,
+            r.rmse,
+            r.rel_rmse,
+            r.ssim,
+            r.detail
+        );
+    }
+    out
+}
+
+/// The table and, per scene, the read-out: the fewest spp at which the denoised frame's RMSE is at most the noisy
+/// frame's at the largest spp, the time ratio, and the detail kept there.
+fn markdown(rows: &[Row], config: &DenoiseStudyConfig) -> String {
+    let mut md = format!(
+        "# study denoise\n\n{}x{}, reference {} spp, {} threads. Time: render + denoise, seconds.\n\n\
+         | scene | spp | method | s | RMSE | rel. RMSE | SSIM | detail kept |\n|---|---:|---|---:|---:|---:|---:|---:|\n",
+        config.resolution[0], config.resolution[1], config.reference_spp, config.threads
+    );
+    for r in rows {
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} | {:.2} | {:.4} | {:.4} | {:.4} | {:.3} |",
+            r.scene,
+            r.spp,
+            r.method,
+            r.seconds(),
+            r.rmse,
+            r.rel_rmse,
+            r.ssim,
+            r.detail
+        );
+    }
+    md.push('\n');
+    let mut scenes: Vec<&str> = rows.iter().map(|r| r.scene.as_str()).collect();
+    scenes.dedup();
+    for scene in scenes {
+        let of = |m: &str| -> Vec<&Row> {
+            rows.iter()
+                .filter(|r| r.scene == scene && r.method == m)
+                .collect()
+        };
+        let noisy = of("noisy");
+        let Some(best) = noisy.iter().max_by_key(|r| r.spp) else {
+            continue;
+        };
+        for guide in denoise::Guide::ALL {
+            let name = guide.name();
+            match of(name).into_iter().find(|r| r.rmse <= best.rmse) {
+                Some(d) => {
+                    let _ = writeln!(
+                        md,
+                        "- {scene}, {name}: denoised at {} spp reaches the noisy frame's RMSE at {} spp ({:.4}) in \
+                         {:.1}x less time ({:.2} s against {:.2} s), keeping {:.2} of the reference's detail (noisy: \
+                         {:.2}).",
+                        d.spp,
+                        best.spp,
+                        best.rmse,
+                        best.seconds() / d.seconds().max(1e-9),
+                        d.seconds(),
+                        best.seconds(),
+                        d.detail,
+                        best.detail
+                    );
+                }
+                None => {
+                    let _ = writeln!(
+                        md,
+                        "- {scene}, {name}: never reaches the noisy frame's RMSE at {} spp ({:.4}) in the spp swept.",
+                        best.spp, best.rmse
+                    );
+                }
+            }
+        }
+    }
+    md
+}
+
+/// The default spp sweep (`quick`: three points).
+pub fn default_spp(quick: bool) -> Vec<u32> {
+    if quick {
+        vec![1, 4, 16]
+    } else {
+        vec![1, 2, 4, 8, 16, 32, 64, 128]
+    }
+}
