@@ -164,7 +164,17 @@ pub fn run(config: &DenoiseStudyConfig) -> Result<DenoiseReport, StudyError> {
     create_dir(&cache)?;
     let pool = crate::render::thread_pool(Some(config.threads))?;
     let mut rows = Vec::new();
+    // Per scene: its reference's two halves, then each spp.
+    let steps = (config.scenes.len() * (2 + config.spp.len())) as u64;
+    let progress = indicatif::ProgressBar::new(steps);
+    progress.set_style(
+        indicatif::ProgressStyle::with_template("{prefix} [{bar:30}] {pos}/{len} {msg} ({elapsed})")
+            .expect("valid template")
+            .progress_chars("=> "),
+    );
+    progress.set_prefix("study denoise");
     for file in &config.scenes {
+        progress.set_message(file.name());
         let scene = file.scene(Some(config.resolution))?;
         let frame = pool.install(|| Frame::load(scene.resolve()?).map_err(StudyError::from))?;
         let mut settings = scene.render_settings();
@@ -194,6 +204,7 @@ pub fn run(config: &DenoiseStudyConfig) -> Result<DenoiseReport, StudyError> {
                 let image = pool.install(|| frame.render(Request::new(&s)).image);
                 (image, start.elapsed().as_secs_f64())
             })?;
+            progress.inc(1);
             if half == 0 {
                 window = super::figures::hair_window(&image, DETAIL_WINDOW);
             }
@@ -240,8 +251,10 @@ pub fn run(config: &DenoiseStudyConfig) -> Result<DenoiseReport, StudyError> {
                     window,
                 )?);
             }
+            progress.inc(1);
         }
     }
+    progress.finish_and_clear();
     let csv = csv_of(&rows);
     let md = markdown(&rows, config);
     let (csv_path, md_path) = (
