@@ -141,6 +141,8 @@ pub struct Rendered {
     pub info: ExrInfo,
     /// Counters of the render.
     pub stats: RenderStats,
+    /// Wall seconds of denoising the frame (0 without `--denoise`).
+    pub denoise_seconds: f64,
 }
 
 /// A prepared render job ([`Job::prepare`]).
@@ -375,6 +377,7 @@ impl Job {
             return Err(FarmError::Interrupted(Interrupted { signal, partial }).into());
         }
         let mut image = r.image;
+        let start = std::time::Instant::now();
         if let Some(guide) = self.request.denoise {
             crate::image::denoise::add_denoised(&mut image, guide, self.threads())
                 .map_err(|e| JobError::Invalid(format!("--denoise: {e}")))?;
@@ -384,6 +387,7 @@ impl Job {
             image,
             info,
             stats: r.stats,
+            denoise_seconds: start.elapsed().as_secs_f64(),
         })
     }
 

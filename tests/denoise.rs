@@ -179,3 +179,31 @@ fn a_tile_or_crop_is_not_denoised_alone_and_a_missing_library_is_named() {
     assert!(!e.contains("strands"), "refused before loading: {e}");
     assert!(listing(dir.path()).is_empty());
 }
+
+/// On the peer scene (Chiang, a sun and a sky) the denoised frame has no NaN or infinite value and keeps the
+/// beauty's mean within 1 %: the filter moves noise, not energy.
+#[test]
+fn the_denoised_peer_frame_is_finite_and_keeps_the_mean() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("peer.exr");
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/furball-peer.toml");
+    ok(cuticle(&[
+        "render",
+        scene.to_str().unwrap(),
+        "-q",
+        "-o",
+        out.to_str().unwrap(),
+        "--res",
+        "128x128",
+        "--spp",
+        "4",
+        "--denoise",
+    ]));
+    let image = image::read(&out).unwrap();
+    let (beauty, denoised) = (rgb(&image, BEAUTY), rgb(&image, DENOISED));
+    assert!(denoised.iter().all(|v| v.is_finite()));
+    let mean = |v: &[f32]| v.iter().map(|&x| f64::from(x)).sum::<f64>() / v.len() as f64;
+    let (a, b) = (mean(&beauty), mean(&denoised));
+    eprintln!("peer frame mean: beauty {a:.5}, denoised {b:.5}");
+    assert!((b / a - 1.0).abs() < 0.01, "beauty {a}, denoised {b}");
+}

@@ -186,6 +186,13 @@ pub fn render_command(args: RenderArgs) -> Result<()> {
         for p in job.write(&rendered)? {
             eprintln!("wrote {}", p.display());
         }
+        if let Some(guide) = args.denoise {
+            eprintln!(
+                "denoised ({} guide) in {:.2} s",
+                guide.name(),
+                rendered.denoise_seconds
+            );
+        }
         last = Some(rendered.stats);
     }
     print_summary(&job, &last.unwrap_or_default(), dropped_before);

@@ -168,9 +168,11 @@ pub fn run(config: &DenoiseStudyConfig) -> Result<DenoiseReport, StudyError> {
     let steps = (config.scenes.len() * (2 + config.spp.len())) as u64;
     let progress = indicatif::ProgressBar::new(steps);
     progress.set_style(
-        indicatif::ProgressStyle::with_template("{prefix} [{bar:30}] {pos}/{len} {msg} ({elapsed})")
-            .expect("valid template")
-            .progress_chars("=> "),
+        indicatif::ProgressStyle::with_template(
+            "{prefix} [{bar:30}] {pos}/{len} {msg} ({elapsed})",
+        )
+        .expect("valid template")
+        .progress_chars("=> "),
     );
     progress.set_prefix("study denoise");
     for file in &config.scenes {
