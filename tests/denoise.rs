@@ -95,7 +95,9 @@ fn the_denoised_frame_is_closer_to_the_reference_and_the_same_for_any_threads_an
         im
     };
     let kept = |x: &Image| {
-        cuticle::measure::pixels::detail_kept(x, [&halves[0], &halves[1]], window).unwrap()
+        cuticle::measure::pixels::detail(x, [&halves[0], &halves[1]], window)
+            .unwrap()
+            .kept
     };
     let (kept_noisy, kept_denoised) = (kept(&as_rgb(BEAUTY)), kept(&as_rgb(DENOISED)));
     eprintln!("detail kept: noisy {kept_noisy:.3}, denoised {kept_denoised:.3}");

@@ -20,12 +20,13 @@
 //!   its thin silhouette pixels as fireflies, more of them at higher spp).
 //! - **Non-finite**: pixels with a NaN or infinite value in `R`, `G` or `B`.
 //! - **Detail kept** (the strand-structure measure of `study denoise`): how much of the reference's fine structure an
-//!   image keeps. Each luminance map less its Gaussian blur (σ = [`DETAIL_SIGMA`] pixel, clipped and renormalised at
-//!   the border) is its detail d; over a window, with the reference in two independent halves a and b,
-//!   kept = ⟨d_x, (d_a + d_b)/2⟩ / ⟨d_a, d_b⟩, the image's detail projected on the reference's. Noise, the image's
-//!   or either half's, is uncorrelated with the rest, so a noisy render keeps about 1 in expectation however noisy
-//!   it is, while a filter that blurs strands together scores what it leaves of them (0:
-//!   all of it smoothed away; one-pixel stripes blurred by σ = 1 px keep 0.02, tested).
+//!   image keeps ([`detail`]). Each luminance map less its Gaussian blur (σ = [`DETAIL_SIGMA`] pixel, clipped and
+//!   renormalised at the border) is its detail d; over a window, with the reference in two independent halves a and
+//!   b, kept = ⟨d_x, (d_a + d_b)/2⟩ / ⟨d_a, d_b⟩, the image's detail projected on the reference's. Noise, the
+//!   image's or either half's, is uncorrelated with the rest, so a noisy render keeps about 1 in expectation however
+//!   noisy it is, while a filter that blurs strands together scores what it leaves of them (0:
+//!   all of it smoothed away; one-pixel stripes blurred by σ = 1 px keep 0.02, tested). Its companion, the detail
+//!   error, counts noise and smoothing together (0 for a converged image).
 
 use crate::image::Image;
 
@@ -243,16 +244,27 @@ fn blur(values: &[f64], width: usize, height: usize) -> Vec<f64> {
     pass(&pass(values, true), false)
 }
 
-/// The fraction of the reference's detail that `image` keeps over the window `(x0, y0, size)` (see the module
-/// docs), the reference given as two independent halves `reference` (`[a, b]`, e.g. two seeds): the detail energy
-/// is ⟨d_a, d_b⟩ and the image's share ⟨d_x, (d_a + d_b)/2⟩, so the reference's own noise, uncorrelated between the
-/// halves, adds nothing to either (with one reference, a 256-spp default scene put a 16-spp render at 0.59). NaN
-/// where the halves share no detail there.
-pub fn detail_kept(
+/// What an image keeps of the reference's detail over a window ([`detail`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Detail {
+    /// The fraction of the reference's detail the image keeps: ⟨d_x, (d_a + d_b)/2⟩ / ⟨d_a, d_b⟩. Noise leaves it
+    /// at 1 in expectation; smoothing lowers it.
+    pub kept: f64,
+    /// The image's error in the detail band relative to the reference's detail energy: (‖d_x − (d_a + d_b)/2‖² −
+    /// ¼‖d_a − d_b‖²) / ⟨d_a, d_b⟩, the reference halves' own noise taken out. Noise and smoothing both raise it; a
+    /// converged image scores 0.
+    pub error: f64,
+}
+
+/// What `image` keeps of the reference's detail over the window `(x0, y0, size)` (see the module docs), the
+/// reference given as two independent halves `reference` (`[a, b]`, e.g. two seeds): the detail energy is
+/// ⟨d_a, d_b⟩, so the reference's own noise, uncorrelated between the halves, adds nothing to it (with one
+/// reference, a 256-spp default scene put a 16-spp render at 0.59). NaN where the halves share no detail there.
+pub fn detail(
     image: &Image,
     reference: [&Image; 2],
     window: (usize, usize, usize),
-) -> Result<f64, String> {
+) -> Result<Detail, String> {
     same_size(image, reference[0])?;
     same_size(image, reference[1])?;
     let (x0, y0, size) = window;
@@ -260,7 +272,7 @@ pub fn detail_kept(
         size.min(image.width - x0.min(image.width)),
         size.min(image.height - y0.min(image.height)),
     );
-    let detail = |im: &Image| -> Result<Vec<f64>, String> {
+    let band = |im: &Image| -> Result<Vec<f64>, String> {
         let y = luminance(im)?;
         let crop: Vec<f64> = (y0..y0 + h)
             .flat_map(|row| {
@@ -272,16 +284,25 @@ pub fn detail_kept(
         let blurred = blur(&crop, w, h);
         Ok(crop.iter().zip(&blurred).map(|(v, b)| v - b).collect())
     };
-    let (dx, da, db) = (detail(image)?, detail(reference[0])?, detail(reference[1])?);
-    let (mut cross, mut energy) = (0.0, 0.0);
+    let (dx, da, db) = (band(image)?, band(reference[0])?, band(reference[1])?);
+    let (mut cross, mut energy, mut error, mut halves) = (0.0, 0.0, 0.0, 0.0);
     for k in 0..dx.len() {
-        cross += dx[k] * 0.5 * (da[k] + db[k]);
+        let mean = 0.5 * (da[k] + db[k]);
+        cross += dx[k] * mean;
         energy += da[k] * db[k];
+        error += (dx[k] - mean).powi(2);
+        halves += (da[k] - db[k]).powi(2);
     }
     Ok(if energy > 0.0 {
-        cross / energy
+        Detail {
+            kept: cross / energy,
+            error: (error - 0.25 * halves) / energy,
+        }
     } else {
-        f64::NAN
+        Detail {
+            kept: f64::NAN,
+            error: f64::NAN,
+        }
     })
 }
 
@@ -293,7 +314,7 @@ mod tests {
     /// amplitude, and a fraction for a blurred copy (one-pixel stripes blurred by σ = 1 px keep 0.02: the blur
     /// removes nearly all of what a σ = 1 residual holds).
     #[test]
-    fn detail_kept_ignores_noise_and_counts_blur() {
+    fn detail_ignores_noise_in_what_is_kept_and_counts_blur() {
         let (w, h) = (64usize, 64usize);
         let stripes: Vec<f32> = (0..w * h)
             .map(|k| if (k % w) % 2 == 0 { 0.8 } else { 0.2 })
@@ -301,7 +322,7 @@ mod tests {
         let reference = rgb(w, h, &stripes);
         let window = (0, 0, 64);
         let same = [&reference, &reference];
-        assert!((detail_kept(&reference, same, window).unwrap() - 1.0).abs() < 1e-12);
+        assert!((detail(&reference, same, window).unwrap().kept - 1.0).abs() < 1e-12);
         let mut rng = 0x2545_f491_4f6c_dd1du64;
         let mut noisy = |amplitude: f32| -> Image {
             let values: Vec<f32> = stripes
@@ -317,12 +338,20 @@ mod tests {
         };
         // Noisy reference halves (as noisy as the detail itself) and a noisier image: still about 1.
         let (a, b, x) = (noisy(0.3), noisy(0.3), noisy(0.6));
-        let kept = detail_kept(&x, [&a, &b], window).unwrap();
-        assert!((kept - 1.0).abs() < 0.06, "noisy keeps {kept}");
+        let d = detail(&x, [&a, &b], window).unwrap();
+        assert!((d.kept - 1.0).abs() < 0.06, "noisy keeps {}", d.kept);
+        // Its error in the band is its own noise: (0.6² + 0.3²/2) / 3 per value over the detail's energy, about
+        // 0.24 / 0.09 of it; the reference's halves' noise is taken out.
+        let quiet = detail(&noisy(0.15), [&a, &b], window).unwrap();
+        assert!(
+            d.error > 2.0 * quiet.error && quiet.error > 0.0,
+            "{d:?} {quiet:?}"
+        );
         let y: Vec<f64> = stripes.iter().map(|&v| f64::from(v)).collect();
         let blurred: Vec<f32> = blur(&y, w, h).iter().map(|&v| v as f32).collect();
-        let kept = detail_kept(&rgb(w, h, &blurred), [&a, &b], window).unwrap();
-        assert!((0.0..0.05).contains(&kept), "blurred keeps {kept}");
+        let d = detail(&rgb(w, h, &blurred), [&a, &b], window).unwrap();
+        assert!((0.0..0.05).contains(&d.kept), "blurred keeps {}", d.kept);
+        assert!(d.error > 0.9, "blurred: {d:?}");
     }
 
     fn rgb(width: usize, height: usize, values: &[f32]) -> Image {
