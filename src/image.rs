@@ -347,7 +347,7 @@ pub fn read_with_info_at_most(
     names: &[&str],
     max_bytes: u64,
 ) -> Result<(Image, DataWindow, Vec<Option<String>>), ImageError> {
-    let file = open_as(path, true)?;
+    let file = open_as(path, true, max_bytes)?;
     let attributes = file.attributes(names).map_err(|source| ImageError::Oiio {
         path: path.to_path_buf(),
         context: "openimageio cannot read its header".to_owned(),
@@ -470,7 +470,7 @@ pub fn read(path: impl AsRef<Path>) -> Result<Image, ImageError> {
 /// file can declare a huge image.
 pub fn read_at_most(path: impl AsRef<Path>, max_bytes: u64) -> Result<Image, ImageError> {
     let path = path.as_ref();
-    let file = open(path)?;
+    let file = open_as(path, false, max_bytes)?;
     let bytes = [
         file.width as u64,
         decoded_rows(file.height),
@@ -500,12 +500,13 @@ pub fn read_at_most(path: impl AsRef<Path>, max_bytes: u64) -> Result<Image, Ima
 
 /// Opens the image at `path` for reading (its header only; see [`oiio::OpenImage`]).
 fn open(path: &Path) -> Result<oiio::OpenImage, ImageError> {
-    open_as(path, false)
+    open_as(path, false, u64::MAX)
 }
 
 /// [`open`]; `exr_only`: refuse any file but OpenEXR before OpenImageIO sees it (a tile is an EXR, and each other
-/// format OpenImageIO would try is one more reader a forged tile reaches).
-fn open_as(path: &Path, exr_only: bool) -> Result<oiio::OpenImage, ImageError> {
+/// format OpenImageIO would try is one more reader a forged tile reaches); `max_bytes`: refuse an OpenEXR file whose
+/// data window's pixels would take more, before OpenEXR sizes its buffers from it.
+fn open_as(path: &Path, exr_only: bool, max_bytes: u64) -> Result<oiio::OpenImage, ImageError> {
     let metadata = fs::metadata(path).map_err(|e| ImageError::io(path, "cannot read", e))?;
     if metadata.is_dir() {
         return Err(ImageError::invalid(path, "is a directory, not an image"));
@@ -514,7 +515,7 @@ fn open_as(path: &Path, exr_only: bool) -> Result<oiio::OpenImage, ImageError> {
     let (file, len) = crate::util::input_file::open_regular(path)
         .map_err(|e| ImageError::io(path, "cannot read", e))?;
     // An OpenEXR header's declared sizes must fit the file before OpenEXR allocates them.
-    exr_header::check(file, len, exr_only)
+    exr_header::check(file, len, exr_only, max_bytes)
         .map_err(|m| ImageError::invalid(path, format!("not a valid OpenEXR file: {m}")))?;
     oiio::open_image(path).map_err(|source| ImageError::Oiio {
         path: path.to_path_buf(),

@@ -24,8 +24,16 @@ const FLAG_MULTI_PART: u32 = 1 << 12;
 const MAX_PARTS: usize = 1024;
 
 /// Why `file` (of `len` bytes) is not an OpenEXR file whose header fits it, or `Ok`. A file that is not OpenEXR
-/// at all is left to OpenImageIO, unless `exr_only`.
-pub(super) fn check(file: impl Read, len: u64, exr_only: bool) -> Result<(), String> {
+/// at all is left to OpenImageIO, unless `exr_only`. `max_bytes` bounds each part's pixels as OpenEXR holds them
+/// once opened (its data window's channels as 4-byte values, over the rows plus a block of 256, [`super::decoded_rows`]):
+/// OpenEXR sizes its decompression buffer from the data window as it opens the file, before the caller can check
+/// the image (a forged width made it allocate 1.4 GB).
+pub(super) fn check(
+    file: impl Read,
+    len: u64,
+    exr_only: bool,
+    max_bytes: u64,
+) -> Result<(), String> {
     let mut r = BufReader::new(file.take(len));
     let mut start = [0u8; 8];
     let is_exr = match r.read_exact(&mut start) {
@@ -57,7 +65,21 @@ pub(super) fn check(file: impl Read, len: u64, exr_only: bool) -> Result<(), Str
         if part == MAX_PARTS {
             return Err(format!("more than {MAX_PARTS} parts"));
         }
-        chunks = chunks.saturating_add(walker.header(flags & FLAG_TILED != 0)?);
+        let part = walker.header(flags & FLAG_TILED != 0)?;
+        // The data window, and a tile (OpenEXR sizes a tile's buffer from the tile description alone).
+        for (w, h) in part.size.into_iter().chain(part.tile) {
+            let bytes = [w, super::decoded_rows(h as usize), part.channels.max(1), 4]
+                .into_iter()
+                .try_fold(1u64, |acc, n| acc.checked_mul(n));
+            if bytes.is_none_or(|b| b > max_bytes) {
+                return Err(format!(
+                    "its data window or tile of {w} x {h} pixels and {} channels would take more than the {} allowed",
+                    part.channels,
+                    crate::util::input_file::human_bytes(max_bytes)
+                ));
+            }
+        }
+        chunks = chunks.saturating_add(part.chunks);
         // One header unless multi-part, whose list ends with an empty name.
         if !multi_part || walker.at_end_of_list()? {
             break;
@@ -215,8 +237,9 @@ impl<R: BufRead> Walker<R> {
     }
 
     /// Walks one header; returns the chunks its data window and tiling declare (at least).
-    fn header(&mut self, tiled_file: bool) -> Result<u64, String> {
+    fn header(&mut self, tiled_file: bool) -> Result<Part, String> {
         let mut window = None;
+        let mut channels = 0u64;
         let mut tiles = None;
         let mut chunk_count = None;
         let mut compression = None;
@@ -255,6 +278,20 @@ impl<R: BufRead> Walker<R> {
                 }
                 (b"tiles", b"tiledesc") => tiles = Some([0, 1].map(|i| int(i).unwrap_or(0))),
                 (b"chunkCount", b"int") => chunk_count = int(0),
+                // Whole entries (checked above): a name and 16 bytes each, then the closing empty name.
+                (b"channels", b"chlist") => {
+                    let (mut at, mut n) = (0usize, 0u64);
+                    while let Some(end) =
+                        value.get(at..).and_then(|v| v.iter().position(|&b| b == 0))
+                    {
+                        if end == 0 {
+                            break;
+                        }
+                        at += end + 1 + 16;
+                        n += 1;
+                    }
+                    channels = n;
+                }
                 (b"compression", b"compression") => compression = value.first().copied(),
                 (b"type", b"string") => tiled |= value.starts_with(b"tiled"),
                 _ => {}
@@ -276,8 +313,28 @@ impl<R: BufRead> Walker<R> {
                 _ => h.div_ceil(lines),
             }
         });
-        Ok(chunk_count.map_or(from_window, |c| c.max(0) as u64))
+        Ok(Part {
+            chunks: chunk_count.map_or(from_window, |c| c.max(0) as u64),
+            size: window
+                .map(|[x0, y0, x1, y1]| ((x1 - x0 + 1).max(0) as u64, (y1 - y0 + 1).max(0) as u64)),
+            channels,
+            tile: tiles
+                .filter(|_| tiled)
+                .map(|[tw, th]| (tw.max(0) as u64, th.max(0) as u64)),
+        })
     }
+}
+
+/// What one header declares that the checks read.
+struct Part {
+    /// Chunks its offset table holds.
+    chunks: u64,
+    /// The data window's width and height.
+    size: Option<(u64, u64)>,
+    /// Channels in its channel list.
+    channels: u64,
+    /// A tile's width and height, for a tiled part.
+    tile: Option<(u64, u64)>,
 }
 
 #[cfg(test)]
@@ -312,11 +369,14 @@ mod tests {
     fn a_header_that_fits_its_file_passes_and_other_formats_are_left_alone() {
         let mut file = exr(&[window(7, 7)], None);
         file.extend([0u8; 8]);
-        assert_eq!(check(file.as_slice(), file.len() as u64, true), Ok(()));
+        assert_eq!(
+            check(file.as_slice(), file.len() as u64, true, u64::MAX),
+            Ok(())
+        );
         let png = b"\x89PNG\r\n\x1a\n....";
-        assert_eq!(check(&png[..], png.len() as u64, false), Ok(()));
-        assert_eq!(check(&b"ab"[..], 2, false), Ok(()));
-        assert!(check(&png[..], png.len() as u64, true).is_err());
+        assert_eq!(check(&png[..], png.len() as u64, false, u64::MAX), Ok(()));
+        assert_eq!(check(&b"ab"[..], 2, false, u64::MAX), Ok(()));
+        assert!(check(&png[..], png.len() as u64, true, u64::MAX).is_err());
     }
 
     #[test]
@@ -325,17 +385,17 @@ mod tests {
             &[("comments", "string", b"x".to_vec())],
             Some(1_879_048_192),
         );
-        let e = check(file.as_slice(), file.len() as u64, true).unwrap_err();
+        let e = check(file.as_slice(), file.len() as u64, true, u64::MAX).unwrap_err();
         assert!(e.contains("\"comments\" declares 1879048192 bytes"), "{e}");
         let file = exr(&[("comments", "string", b"x".to_vec())], Some(-5));
-        assert!(check(file.as_slice(), file.len() as u64, true).is_err());
+        assert!(check(file.as_slice(), file.len() as u64, true, u64::MAX).is_err());
     }
 
     #[test]
     fn a_data_window_whose_offset_table_the_file_cannot_hold_is_refused() {
         let mut file = exr(&[window(7, 1 << 30)], None);
         file.extend([0u8; 64]);
-        let e = check(file.as_slice(), file.len() as u64, true).unwrap_err();
+        let e = check(file.as_slice(), file.len() as u64, true, u64::MAX).unwrap_err();
         assert!(e.contains("chunks, whose offset table alone"), "{e}");
     }
 
@@ -346,7 +406,7 @@ mod tests {
         let mut long_box = window(7, 7);
         long_box.2.extend([0u8; 4]);
         let file = exr(&[long_box], None);
-        let e = check(file.as_slice(), file.len() as u64, true).unwrap_err();
+        let e = check(file.as_slice(), file.len() as u64, true, u64::MAX).unwrap_err();
         assert!(e.contains("declares 20 bytes for a 16-byte value"), "{e}");
         let channel = |name: &str| {
             let mut v = name.as_bytes().to_vec();
@@ -361,16 +421,35 @@ mod tests {
         list.push(0);
         let mut file = exr(&[("channels", "chlist", list.clone()), window(7, 7)], None);
         file.extend([0u8; 8]);
-        assert_eq!(check(file.as_slice(), file.len() as u64, true), Ok(()));
+        assert_eq!(
+            check(file.as_slice(), file.len() as u64, true, u64::MAX),
+            Ok(())
+        );
         list.remove(3);
         let file = exr(&[("channels", "chlist", list), window(7, 7)], None);
-        assert!(check(file.as_slice(), file.len() as u64, true).is_err());
+        assert!(check(file.as_slice(), file.len() as u64, true, u64::MAX).is_err());
         let mut strings = 3i32.to_le_bytes().to_vec();
         strings.extend(b"abc");
         strings.extend(1_000_000i32.to_le_bytes());
         let file = exr(&[("names", "stringvector", strings)], None);
-        let e = check(file.as_slice(), file.len() as u64, true).unwrap_err();
+        let e = check(file.as_slice(), file.len() as u64, true, u64::MAX).unwrap_err();
         assert!(e.contains("a string of 1000000 bytes past"), "{e}");
+    }
+
+    /// A data window whose pixels would pass the bound is refused before OpenEXR sizes its buffers from it.
+    #[test]
+    fn a_data_window_larger_than_the_bound_is_refused() {
+        let mut file = exr(&[window((1 << 28) - 1, 0)], None);
+        file.extend([0u8; 64]);
+        let e = check(file.as_slice(), file.len() as u64, true, 64 << 20).unwrap_err();
+        assert!(
+            e.contains("data window or tile of 268435456 x 1 pixels"),
+            "{e}"
+        );
+        assert_eq!(
+            check(file.as_slice(), file.len() as u64, true, u64::MAX),
+            Ok(())
+        );
     }
 
     #[test]
@@ -378,9 +457,9 @@ mod tests {
         let mut file = MAGIC.to_vec();
         file.extend(2u32.to_le_bytes());
         file.extend([b'a'; 40]);
-        assert!(check(file.as_slice(), file.len() as u64, true).is_err());
+        assert!(check(file.as_slice(), file.len() as u64, true, u64::MAX).is_err());
         let file = exr(&[window(7, 7)], None);
         let cut = &file[..file.len() - 6];
-        assert!(check(cut, cut.len() as u64, true).is_err());
+        assert!(check(cut, cut.len() as u64, true, u64::MAX).is_err());
     }
 }
