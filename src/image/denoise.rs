@@ -14,10 +14,12 @@
 //! prefiltered (denoised alone first, as OIDN's documentation advises for noisy guides), it is called clean. The
 //! normal guide OIDN also reads is left out: a fibre's normal turns all the way round its axis within a strand's
 //! width, so a pixel's mean normal says little, and the tangent AOV in its place measured no better than the
-//! albedo (docs/measured/denoise.md). Measured with `study denoise` on the default fur ball (128x96) and straight
-//! hair under the city map (160x120), 1-16 spp: the colour alone keeps as much of the strands' detail as either
-//! albedo guide or more (0.18-0.31 against 0.16-0.24 on the fur ball) at an RMSE within 15 % of theirs, so the
-//! colour alone is the default and the guides are options.
+//! albedo (docs/measured/denoise.md). Measured with `study denoise` over the eight straight-hair scenes of the
+//! thesis and the peer fur ball at 160x120, 1-128 spp (72 points): neither guide is better in general. Against the
+//! colour alone the albedo guides' RMSE is 1.05-1.06 times as large at the median (smaller on 20-22 of the 72
+//! points), their detail kept 0.03 and 0.004 lower; under the studio map at 32-128 spp they halve the error
+//! (0.40-0.57), under the sunset map at 64-128 spp they raise it by 36-52 %. So the colour alone is the default and
+//! the guides are options.
 
 use super::{Image, ImageError};
 use crate::sys::oidn::{self, Guides, OidnError};
