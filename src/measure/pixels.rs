@@ -213,7 +213,7 @@ pub fn fireflies(image: &Image, thresholds: &[f64]) -> Result<usize, String> {
         .count())
 }
 
-/// The σ of the blur whose residual is an image's detail ([`detail_kept`]): a strand a pixel or two wide is detail,
+/// The σ of the blur whose residual is an image's detail ([`detail`]): a strand a pixel or two wide is detail,
 /// the shading across a lock is not.
 pub const DETAIL_SIGMA: f64 = 1.0;
 
