@@ -41,6 +41,16 @@ fn sigint(child: &std::process::Child) {
         .success());
 }
 
+/// `cuticle render SCENE -q -o OUT`, started with its stderr piped.
+fn spawn_render(scene: &Path, out: &Path) -> std::process::Child {
+    Command::new(EXE)
+        .args(["render", scene.to_str().unwrap(), "-q", "-o"])
+        .arg(out)
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap()
+}
+
 fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
@@ -300,13 +310,7 @@ fn sigint_during_the_build_is_answered_at_once_and_writes_nothing() {
         "[hair]\nprocedural = { kind = \"fur-ball\", strands = 600000 }\n[film]\nresolution = [16, 16]\nspp = 1\n",
     )
     .unwrap();
-    let exr = dir.path().join("frame.exr");
-    let mut child = Command::new(EXE)
-        .args(["render", scene.to_str().unwrap(), "-q", "-o"])
-        .arg(&exr)
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let mut child = spawn_render(&scene, &dir.path().join("frame.exr"));
     std::thread::sleep(Duration::from_millis(1500));
     let sent = std::time::Instant::now();
     sigint(&child);
@@ -331,13 +335,7 @@ fn a_second_sigint_while_writing_leaves_no_temporary_file() {
         "[hair]\nprocedural = { kind = \"fur-ball\", strands = 100 }\n[film]\nresolution = [1200, 1200]\nspp = 1\n",
     )
     .unwrap();
-    let exr = dir.path().join("frame.exr");
-    let mut child = Command::new(EXE)
-        .args(["render", scene.to_str().unwrap(), "-q", "-o"])
-        .arg(&exr)
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let mut child = spawn_render(&scene, &dir.path().join("frame.exr"));
     let started = std::time::Instant::now();
     let writing = || listing(dir.path()).iter().any(|n| n.contains(".tmp-"));
     while !writing() {

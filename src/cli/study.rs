@@ -156,6 +156,17 @@ fn print_written(files: &[PathBuf], cached: &str, cache: &Path) {
     println!("{cached} cached in {}", cache.display());
 }
 
+/// The scene files named, or the built-in default scene without any.
+fn scene_files(paths: &[PathBuf]) -> Result<Vec<SceneFile>> {
+    if paths.is_empty() {
+        return Ok(vec![SceneFile::default_scene()]);
+    }
+    Ok(paths
+        .iter()
+        .map(|p| SceneFile::read(p))
+        .collect::<Result<_, _>>()?)
+}
+
 /// Runs `cuticle study <name>` for a framework kind (or `all`) and prints the read-outs.
 fn study_kind(name: &str, a: StudyKindArgs) -> Result<()> {
     use cuticle::study::framework::{run_kind, StudyConfig};
@@ -323,14 +334,7 @@ pub fn study_command(command: StudyCommand) -> Result<()> {
         StudyCommand::All(a) => study_kind("all", a)?,
         StudyCommand::Scenes(a) => write_scenes(&a)?,
         StudyCommand::Denoise(a) => {
-            let scenes = if a.scenes.is_empty() {
-                vec![SceneFile::default_scene()]
-            } else {
-                a.scenes
-                    .iter()
-                    .map(|p| SceneFile::read(p))
-                    .collect::<Result<_, _>>()?
-            };
+            let scenes = scene_files(&a.scenes)?;
             let config = cuticle::study::denoise::DenoiseStudyConfig {
                 scenes,
                 resolution: a.res,
@@ -346,14 +350,7 @@ pub fn study_command(command: StudyCommand) -> Result<()> {
             print_written(&report.files, "references", &config.out.join("cache"));
         }
         StudyCommand::Auto(a) => {
-            let scenes = if a.scenes.is_empty() {
-                vec![SceneFile::default_scene()]
-            } else {
-                a.scenes
-                    .iter()
-                    .map(|p| SceneFile::read(p))
-                    .collect::<Result<_, _>>()?
-            };
+            let scenes = scene_files(&a.scenes)?;
             let config = cuticle::study::auto::AutoStudyConfig {
                 scenes,
                 targets: a.targets,

@@ -170,15 +170,7 @@ pub fn run(config: &DenoiseStudyConfig) -> Result<DenoiseReport, StudyError> {
     let mut rows = Vec::new();
     // Per scene: its reference's two halves, then each spp.
     let steps = (config.scenes.len() * (2 + config.spp.len())) as u64;
-    let progress = indicatif::ProgressBar::new(steps);
-    progress.set_style(
-        indicatif::ProgressStyle::with_template(
-            "{prefix} [{bar:30}] {pos}/{len} {msg} ({elapsed})",
-        )
-        .expect("valid template")
-        .progress_chars("=> "),
-    );
-    progress.set_prefix("study denoise");
+    let progress = super::steps_bar(steps, "study denoise");
     for file in &config.scenes {
         progress.set_message(file.name());
         let scene = file.scene(Some(config.resolution))?;

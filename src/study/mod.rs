@@ -141,6 +141,21 @@ pub fn create_dir(dir: &Path) -> Result<(), StudyError> {
     })
 }
 
+/// A progress bar of `len` steps named `prefix`, the step's name as its message: one per scene of `study auto` and
+/// one for `study denoise`.
+pub fn steps_bar(len: u64, prefix: impl Into<String>) -> indicatif::ProgressBar {
+    let bar = indicatif::ProgressBar::new(len);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{prefix} [{bar:30}] {pos}/{len} {msg} ({elapsed})",
+        )
+        .expect("valid template")
+        .progress_chars("=> "),
+    );
+    bar.set_prefix(prefix.into());
+    bar
+}
+
 /// A converged reference: read from `path` if it is there (checked to be `width × height`), else rendered by
 /// `render` (returning the image and its render seconds) and written there. Returns the image, whether it was
 /// cached, and the render time if it was rendered now.

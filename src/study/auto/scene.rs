@@ -56,15 +56,7 @@ pub(super) fn study_scene(
     let stem = file.name();
     // Reference, every configuration × 2 fits, then per target four renders.
     let steps = 1 + 2 * FIXED_CONFIGS as u64 + 4 * config.targets.len() as u64;
-    let progress = indicatif::ProgressBar::new(steps);
-    progress.set_style(
-        indicatif::ProgressStyle::with_template(
-            "{prefix} [{bar:30}] {pos}/{len} {msg} ({elapsed})",
-        )
-        .expect("valid template")
-        .progress_chars("=> "),
-    );
-    progress.set_prefix(format!("study auto {stem}"));
+    let progress = crate::study::steps_bar(steps, format!("study auto {stem}"));
     progress.set_message("reference");
 
     // 1. The reference: two independent halves (their mean, and its noise from their difference).
