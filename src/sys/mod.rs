@@ -11,3 +11,15 @@ pub mod embree;
 pub mod oidn;
 pub mod oiio;
 pub mod prefetch;
+
+/// The symbol `name` (NUL-terminated) of a library loaded at run time, copied out as `T`; the loader's message when it
+/// is missing.
+///
+/// # Safety
+/// `T` is the declared type of the symbol `name`, and the value is used only while `library` stays loaded.
+unsafe fn symbol<T: Copy>(library: &libloading::Library, name: &[u8]) -> Result<T, String> {
+    // SAFETY: the caller guarantees `T` is the symbol's declared type and keeps the library loaded.
+    unsafe { library.get::<T>(name) }
+        .map(|symbol| *symbol)
+        .map_err(|e| e.to_string())
+}

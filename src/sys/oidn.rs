@@ -103,11 +103,10 @@ fn load() -> Result<Api, String> {
 
 fn symbols(library: libloading::Library) -> Result<Api, String> {
     /// # Safety
-    /// `T` is the declared type of the symbol `name`.
+    /// As [`super::symbol`]'s.
     unsafe fn get<T: Copy>(library: &libloading::Library, name: &[u8]) -> Result<T, String> {
-        // SAFETY: the caller guarantees `T` is the symbol's declared function type.
-        unsafe { library.get::<T>(name) }
-            .map(|symbol| *symbol)
+        // SAFETY: passed on to the caller.
+        unsafe { super::symbol(library, name) }
             .map_err(|e| format!("Open Image Denoise lacks a 2.x function: {e}"))
     }
     // SAFETY: each field has exactly the parameter and return types `oidn.h` (2.x) declares for its symbol; the

@@ -153,14 +153,7 @@ mod ffi {
 
     /// The shim's entry points in `library`.
     pub(super) fn symbols(library: libloading::Library) -> Result<Api, String> {
-        /// # Safety
-        /// `T` is the declared type of the symbol `name`.
-        unsafe fn get<T: Copy>(library: &libloading::Library, name: &[u8]) -> Result<T, String> {
-            // SAFETY: the caller guarantees `T` is the symbol's declared function type.
-            unsafe { library.get::<T>(name) }
-                .map(|symbol| *symbol)
-                .map_err(|e| e.to_string())
-        }
+        use super::super::symbol as get;
         // SAFETY: each symbol is one of the shim's `extern "C"` functions, and the field it fills has exactly
         // the parameter and return types `ffi/oiio_shim.h` declares for it (mirrored by hand, as before); the
         // pointers stay valid because `_library` is kept with them and never unloaded.
