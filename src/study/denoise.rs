@@ -275,12 +275,13 @@ fn csv_of(rows: &[Row]) -> String {
     for r in rows {
         let _ = writeln!(
             out,
-            "{},{},{},{:.4},{:.4},{:.6},{:.6},{:.5},{:.4},{:.4}",
+            "{},{},{},{:.4},{:.4},{:.4},{:.6},{:.6},{:.5},{:.4},{:.4}",
             r.scene,
             r.spp,
             r.method,
             r.render_seconds,
             r.denoise_seconds,
+            r.seconds(),
             r.rmse,
             r.rel_rmse,
             r.ssim,
