@@ -270,7 +270,7 @@ pub fn run(config: &DenoiseStudyConfig) -> Result<DenoiseReport, StudyError> {
 
 fn csv_of(rows: &[Row]) -> String {
     let mut out = String::from(
-        "scene,spp,method,render_s,denoise_s,rmse,rel_rmse,ssim,detail_kept,detail_error\n",
+        "scene,spp,method,render_s,denoise_s,seconds,rmse,rel_rmse,ssim,detail_kept,detail_error\n",
     );
     for r in rows {
         let _ = writeln!(
