@@ -174,6 +174,21 @@ impl Image {
         self.channels.iter().position(|c| c == name)
     }
 
+    /// The values of the three channels `names` of every pixel, interleaved pixel by pixel (e.g. `["R", "G", "B"]`
+    /// as RGB triples), or `None` when one is missing.
+    pub fn triples(&self, names: [&str; 3]) -> Option<Vec<f32>> {
+        let [Some(a), Some(b), Some(c)] = names.map(|n| self.channel_index(n)) else {
+            return None;
+        };
+        let n = self.channels.len();
+        Some(
+            self.data
+                .chunks_exact(n)
+                .flat_map(|p| [p[a], p[b], p[c]])
+                .collect(),
+        )
+    }
+
     fn pixel_start(&self, x: usize, y: usize) -> usize {
         assert!(
             x < self.width && y < self.height,
@@ -423,11 +438,8 @@ pub fn write_png_preview(path: impl AsRef<Path>, image: &Image) -> Result<(), Im
 /// The sRGB-encoded 8-bit `R,G,B` of every pixel of `image`, interleaved.
 fn preview_bytes(path: &Path, image: &Image) -> Result<Vec<u8>, ImageError> {
     // The denoised frame where the image holds one ([`denoise`]): the preview is what a user looks at first.
-    if image.channel_index(denoise::CHANNELS[0]).is_some() {
-        let find = |name: &str| image.channel_index(name);
-        if let [Some(r), Some(g), Some(b)] = denoise::CHANNELS.map(find) {
-            return Ok(rgb_bytes(image, [r, g, b]));
-        }
+    if let [Some(r), Some(g), Some(b)] = denoise::CHANNELS.map(|name| image.channel_index(name)) {
+        return Ok(rgb_bytes(image, [r, g, b]));
     }
     let find = |name: &str| {
         image.channel_index(name).ok_or_else(|| {

@@ -42,11 +42,9 @@ fn render(out: &Path, spp: u32, extra: &[&str]) -> Image {
 
 /// The RGB of channels `names` of every pixel.
 fn rgb(image: &Image, names: [&str; 3]) -> Vec<f32> {
-    let index = names.map(|n| image.channel_index(n).unwrap_or_else(|| panic!("no {n}")));
-    (0..image.height)
-        .flat_map(|y| (0..image.width).map(move |x| (x, y)))
-        .flat_map(|(x, y)| index.map(|i| image.pixel(x, y)[i]))
-        .collect()
+    image
+        .triples(names)
+        .unwrap_or_else(|| panic!("no {names:?} in {:?}", image.channels))
 }
 
 fn rmse(a: &[f32], b: &[f32]) -> f64 {

@@ -59,31 +59,17 @@ pub fn available() -> Result<(), OidnError> {
     oidn::available()
 }
 
-/// The RGB triples of channels `names` of every pixel of `image`, or `None` when one is missing.
-fn triples(image: &Image, names: [&str; 3]) -> Option<Vec<f32>> {
-    let index = names.map(|n| image.channel_index(n));
-    let [Some(r), Some(g), Some(b)] = index else {
-        return None;
-    };
-    let n = image.channels.len();
-    Some(
-        image
-            .data
-            .chunks_exact(n)
-            .flat_map(|p| [p[r], p[g], p[b]])
-            .collect(),
-    )
-}
-
 /// Denoises `image`'s beauty (R, G, B) with `guide` (the albedo guides need the `albedo` AOV) on `threads` threads,
 /// and adds the result as [`CHANNELS`] (replacing any earlier ones). The beauty is left as rendered.
 pub fn add_denoised(image: &mut Image, guide: Guide, threads: usize) -> Result<(), OidnError> {
-    let color = triples(image, ["R", "G", "B"])
+    let color = image
+        .triples(["R", "G", "B"])
         .ok_or_else(|| OidnError("the image has no R, G, B channels to denoise".to_owned()))?;
     let albedo = match guide {
         Guide::Color => None,
         Guide::Albedo | Guide::AlbedoPrefiltered => Some(
-            triples(image, ["albedo.R", "albedo.G", "albedo.B"])
+            image
+                .triples(["albedo.R", "albedo.G", "albedo.B"])
                 .ok_or_else(|| {
                     OidnError(format!(
                         "the {} guide needs the albedo AOV (--aovs leaves it out)",

@@ -93,23 +93,15 @@ pub struct DenoiseReport {
 
 /// The image's R, G, B as an image of those three channels, from channels `names`.
 fn rgb_of(image: &Image, names: [&str; 3]) -> Result<Image, StudyError> {
-    let index = names.map(|n| image.channel_index(n));
-    let [Some(r), Some(g), Some(b)] = index else {
-        return Err(StudyError::Config(format!(
-            "the image lacks one of {names:?}"
-        )));
-    };
+    let data = image
+        .triples(names)
+        .ok_or_else(|| StudyError::Config(format!("the image lacks one of {names:?}")))?;
     let mut out = Image::new(
         image.width,
         image.height,
         ["R", "G", "B"].map(String::from).to_vec(),
     );
-    let n = image.channels.len();
-    out.data = image
-        .data
-        .chunks_exact(n)
-        .flat_map(|p| [p[r], p[g], p[b]])
-        .collect();
+    out.data = data;
     Ok(out)
 }
 
@@ -253,7 +245,7 @@ pub fn run(config: &DenoiseStudyConfig) -> Result<DenoiseReport, StudyError> {
         }
     }
     progress.finish_and_clear();
-    let csv = csv_of(&rows);
+    let csv = csv_of(&rows)?;
     let md = markdown(&rows, config);
     let (csv_path, md_path) = (
         config.out.join("denoise.csv"),
@@ -268,32 +260,42 @@ pub fn run(config: &DenoiseStudyConfig) -> Result<DenoiseReport, StudyError> {
     })
 }
 
-fn csv_of(rows: &[Row]) -> String {
-    let mut out = String::from(
-        "scene,spp,method,render_s,denoise_s,seconds,rmse,rel_rmse,ssim,detail_kept,detail_error\n",
-    );
+/// `denoise.csv`: one record per row (the csv crate quotes a scene name that needs it).
+fn csv_of(rows: &[Row]) -> Result<String, csv::Error> {
+    let mut w = csv::Writer::from_writer(Vec::new());
+    w.write_record([
+        "scene",
+        "spp",
+        "method",
+        "render_s",
+        "denoise_s",
+        "seconds",
+        "rmse",
+        "rel_rmse",
+        "ssim",
+        "detail_kept",
+        "detail_error",
+    ])?;
     for r in rows {
-        let _ = writeln!(
-            out,
-            "{},{},{},{:.4},{:.4},{:.4},{:.6},{:.6},{:.5},{:.4},{:.4}",
-            r.scene,
-            r.spp,
-            r.method,
-            r.render_seconds,
-            r.denoise_seconds,
-            r.seconds(),
-            r.rmse,
-            r.rel_rmse,
-            r.ssim,
-            r.detail,
-            r.detail_error
-        );
+        w.write_record([
+            r.scene.clone(),
+            r.spp.to_string(),
+            r.method.to_owned(),
+            format!("{:.4}", r.render_seconds),
+            format!("{:.4}", r.denoise_seconds),
+            format!("{:.4}", r.seconds()),
+            format!("{:.6}", r.rmse),
+            format!("{:.6}", r.rel_rmse),
+            format!("{:.5}", r.ssim),
+            format!("{:.4}", r.detail),
+            format!("{:.4}", r.detail_error),
+        ])?;
     }
-    out
+    super::framework::finish_csv(w)
 }
 
-/// The table and, per scene, the read-out: the fewest spp at which the denoised frame's RMSE is at most the noisy
-/// frame's at the largest spp, the time ratio, and the detail kept there.
+/// The table and, per scene and guide, the read-out: the fewest spp at which the denoised frame reaches both the SSIM
+/// and the detail error of the noisy frame at the largest spp, the time ratio, and the detail kept there.
 fn markdown(rows: &[Row], config: &DenoiseStudyConfig) -> String {
     let mut md = format!(
         "# study denoise\n\n{}x{}, reference {} spp, {} threads. Time: render + denoise, seconds.\n\n\

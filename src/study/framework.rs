@@ -99,6 +99,7 @@ mod tables;
 pub use differences::{differences_csv, DIFFERENCE_HEADER};
 pub use readouts::{error_at, readouts, summarise, time_to_reach};
 pub use run::{crop_overrides, run_kind};
+pub(crate) use tables::finish_csv;
 pub use tables::{points_csv, summary_csv, POINT_HEADER, SUMMARY_HEADER};
 
 use std::path::PathBuf;

@@ -72,7 +72,8 @@ pub(super) fn mb(b: Option<u64>) -> Option<String> {
     b.map(|b| format!("{:.1}", b as f64 / 1e6))
 }
 
-pub(super) fn finish_csv(writer: csv::Writer<Vec<u8>>) -> Result<String, csv::Error> {
+/// The CSV text `writer` holds.
+pub(crate) fn finish_csv(writer: csv::Writer<Vec<u8>>) -> Result<String, csv::Error> {
     let bytes = writer.into_inner().map_err(|e| e.into_error())?;
     String::from_utf8(bytes)
         .map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidData, e).into())
