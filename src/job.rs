@@ -15,6 +15,7 @@ use std::time::Instant;
 
 use crate::farm::{self, FarmError, Interrupted};
 use crate::image::{self, ExrInfo, Image, ImageError, Outputs};
+use crate::quality::denoised::DenoisedSchedule;
 use crate::quality::{self, pilot::PilotPlan, Decision, Fixed, QualityMode};
 use crate::render::Request as RenderRequest;
 use crate::render::{
@@ -141,8 +142,10 @@ pub struct Rendered {
     pub info: ExrInfo,
     /// Counters of the render.
     pub stats: RenderStats,
-    /// Wall seconds of denoising the frame (0 without `--denoise`).
+    /// Wall seconds of denoising the frame (0 without `--denoise`), with the rounds' halves under auto.
     pub denoise_seconds: f64,
+    /// Under `--quality auto --denoise`, what the frame's denoised rounds measured.
+    pub rounds: Option<quality::denoised::Rounds>,
 }
 
 /// A prepared render job ([`Job::prepare`]).
@@ -157,6 +160,8 @@ pub struct Job {
     maps_seconds: f64,
     /// What auto decided (`None` under fixed quality).
     pub auto: Option<AutoPlan>,
+    /// Under `--quality auto --denoise` (the spp not fixed): the denoised frame's rounds.
+    pub denoised: Option<quality::denoised::DenoisedSchedule>,
     /// The pixels rendered.
     pub region: Region,
     /// The scene as rendered, for the job hash that tiles are matched by.
@@ -253,6 +258,7 @@ impl Job {
         image::preload();
         let planned = quality
             .map(|q| pool.install(|| quality::plan_frame(&frame, &frame.settings, q, fixed)));
+        let mut denoised = None;
         let (settings, planned_maps, auto) = match planned {
             Some(p) => {
                 if let Some(tubes) = p.frame {
@@ -271,6 +277,13 @@ impl Job {
                     }
                 }
                 decisions.extend(measured);
+                if let (Some(guide), false) = (request.denoise, fixed.spp) {
+                    let s = DenoisedSchedule::new(&p.pilot, &scene.quality, guide);
+                    denoised = Some(s);
+                    // The rounds replace the adaptive rule: the target applies to the denoised frame.
+                    decisions.retain(|d| d.key != "adaptive sampling" && d.key != "film.spp");
+                    decisions.push(s.decision());
+                }
                 let auto = AutoPlan {
                     decisions,
                     pilot: p.pilot,
@@ -310,6 +323,7 @@ impl Job {
             maps,
             maps_seconds,
             auto,
+            denoised,
             region,
             description,
             exr_output,
@@ -351,7 +365,18 @@ impl Job {
         if let Some(c) = cancel {
             request = request.cancel(c);
         }
-        let r = self.pool.install(|| self.frame.render(request));
+        let (r, rounds, mut denoise_seconds) = match &self.denoised {
+            Some(schedule) => {
+                let d = self
+                    .pool
+                    .install(|| {
+                        quality::denoised::render(&self.frame, request, schedule, self.threads())
+                    })
+                    .map_err(|e| JobError::Invalid(format!("--denoise: {e}")))?;
+                (d.render, Some(d.rounds), d.denoise_seconds)
+            }
+            None => (self.pool.install(|| self.frame.render(request)), None, 0.0),
+        };
         let [width, height] = settings.film.resolution;
         let job = farm::job_hash(&self.description, settings.camera.frame);
         let info = farm::render_info(
@@ -378,16 +403,18 @@ impl Job {
         }
         let mut image = r.image;
         let start = std::time::Instant::now();
-        if let Some(guide) = self.request.denoise {
+        if let (Some(guide), None) = (self.request.denoise, &rounds) {
             crate::image::denoise::add_denoised(&mut image, guide, self.threads())
                 .map_err(|e| JobError::Invalid(format!("--denoise: {e}")))?;
+            denoise_seconds = start.elapsed().as_secs_f64();
         }
         Ok(Rendered {
             frame,
             image,
             info,
             stats: r.stats,
-            denoise_seconds: start.elapsed().as_secs_f64(),
+            denoise_seconds,
+            rounds,
         })
     }
 
@@ -425,9 +452,10 @@ impl Job {
     pub fn summary(&self, stats: &RenderStats) -> String {
         let s = &self.settings;
         let [width, height] = s.film.resolution;
-        let samples = match s.adaptive {
+        let samples = match (s.adaptive, &self.denoised) {
+            (_, Some(d)) => format!("denoised rounds from {} to at most {} spp", d.first, d.max),
             // Each pixel traces its samples' camera rays and, for the centre AOVs, one centre ray.
-            Some(a) => {
+            (Some(a), None) => {
                 let pixels = u64::from(self.region.width()) * u64::from(self.region.height());
                 let centre = if s.film.traces_centre_ray() {
                     pixels
@@ -437,7 +465,7 @@ impl Job {
                 let mean = stats.rays.camera.saturating_sub(centre) as f64 / pixels.max(1) as f64;
                 format!("adaptive {}..{} spp (mean {mean:.1})", a.min, a.max)
             }
-            None => format!("{} spp", s.film.spp),
+            (None, None) => format!("{} spp", s.film.spp),
         };
         format!(
             "{} strands ({} curves, {} backend), {width}x{height}, {samples}, {} threads: load {:.2} s, build {:.2} \

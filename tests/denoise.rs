@@ -207,3 +207,123 @@ fn the_denoised_peer_frame_is_finite_and_keeps_the_mean() {
     eprintln!("peer frame mean: beauty {a:.5}, denoised {b:.5}");
     assert!((b / a - 1.0).abs() < 0.01, "beauty {a}, denoised {b}");
 }
+
+/// `--quality auto --denoise`: the samples per pixel are found in doubling rounds on the frame itself
+/// (`quality::denoised`). The frame after the rounds holds samples 0 .. N of every pixel (a fixed render at N spp
+/// within rounding), is the same for 1 and 2 threads, and its denoised beauty meets the target against a
+/// converged reference, with the rounds' estimate of its error within a factor of 1.5 of the measurement.
+#[test]
+fn auto_with_the_denoiser_meets_its_target_on_the_denoised_frame() {
+    use cuticle::image::denoise::Guide;
+    use cuticle::measure::metrics;
+    use cuticle::quality::delivered::delivered_denoised;
+    use cuticle::quality::denoised::{self, DenoisedSchedule};
+    use cuticle::quality::{self, Fixed, QualityConfig};
+    use cuticle::render::{thread_pool, Frame, Request};
+    use cuticle::scene::Scene;
+
+    const TARGET: f32 = 0.05;
+    let scene = Scene::parse(
+        "[hair]\nprocedural = { kind = \"fur-ball\", strands = 1500 }\nopacity = 0.5\n\
+         [material]\nmodel = \"marschner\"\n[film]\nresolution = [96, 72]\n\
+         [[light]]\nkind = \"distant\"\ndirection = [-1.0, -1.0, -0.6]\nirradiance = 3.0\n\
+         [environment]\nradiance = [0.6, 0.7, 0.9]\n",
+        Path::new("<test>"),
+        Path::new("."),
+    )
+    .unwrap();
+    let frame = Frame::load(scene.resolve().unwrap()).unwrap();
+    let q = QualityConfig {
+        target: TARGET,
+        ..QualityConfig::default()
+    };
+    let run = |threads: usize| {
+        let pool = thread_pool(Some(threads)).unwrap();
+        pool.install(|| {
+            let planned = quality::plan_frame(&frame, &frame.settings, &q, Fixed::default());
+            let schedule = DenoisedSchedule::new(&planned.pilot, &q, Guide::Color);
+            let request =
+                Request::new(&planned.settings).maps(planned.maps.as_ref(), planned.maps_seconds);
+            let d = denoised::render(&frame, request, &schedule, 2).unwrap();
+            (planned, d)
+        })
+    };
+    let (planned, d) = run(2);
+    let (_, one) = run(1);
+    assert_eq!(
+        common::bit_differences(&d.render.image.data, &one.render.image.data),
+        0,
+        "1 and 2 threads differ"
+    );
+    let rounds = &d.rounds.rounds;
+    let n = rounds.last().expect("a round").spp;
+    for (i, r) in rounds.iter().enumerate() {
+        assert_eq!(r.spp, rounds[0].spp << i, "rounds double: {rounds:?}");
+    }
+    // The mixed blocks are the fixed render at N spp, up to rounding.
+    let pool = thread_pool(Some(2)).unwrap();
+    let mut fixed = planned.settings.clone();
+    fixed.adaptive = None;
+    fixed.film.spp = n;
+    let whole =
+        pool.install(|| frame.render(Request::new(&fixed).maps(planned.maps.as_ref(), 0.0)));
+    let (mixed, whole_rgb) = (rgb(&d.render.image, BEAUTY), rgb(&whole.image, BEAUTY));
+    let worst = mixed
+        .iter()
+        .zip(&whole_rgb)
+        .map(|(a, b)| (a - b).abs() / b.abs().max(1e-3))
+        .fold(0.0f32, f32::max);
+    assert!(
+        worst < 1e-4,
+        "mixed blocks differ from the {n}-spp render by {worst}"
+    );
+    let spp = d.render.image.channel_index("spp").unwrap();
+    assert!(d
+        .render
+        .image
+        .data
+        .chunks_exact(d.render.image.channels.len())
+        .all(|p| p[spp] == n as f32));
+
+    // Against a converged reference (the bounces auto left out count against it).
+    let mut reference = planned.settings.clone();
+    reference.adaptive = None;
+    reference.film.spp = 1024;
+    reference.film.seed = 991;
+    reference.integrator.path_length = 4;
+    let reference =
+        pool.install(|| frame.render(Request::new(&reference).maps(planned.maps.as_ref(), 0.0)));
+    let mut denoised_frame = d.render.image.clone();
+    for (p, v) in denoised_frame
+        .data
+        .chunks_exact_mut(d.render.image.channels.len())
+        .zip(rgb(&d.render.image, DENOISED).chunks_exact(3))
+    {
+        p[..3].copy_from_slice(v);
+    }
+    let mask = vec![false; denoised_frame.width * denoised_frame.height];
+    let measured = metrics::errors(&denoised_frame, &reference.image, &mask)
+        .unwrap()
+        .relmse
+        .sqrt();
+    let noisy = metrics::errors(&d.render.image, &reference.image, &mask)
+        .unwrap()
+        .relmse
+        .sqrt();
+    let said = delivered_denoised(&planned.pilot, TARGET, &d.rounds);
+    eprintln!(
+        "rounds {} spp (pilots' undenoised {}): denoised {measured:.4}, noisy {noisy:.4}; {}",
+        d.rounds.path(),
+        planned.pilot.spp,
+        said.line()
+    );
+    assert!(
+        measured <= f64::from(TARGET),
+        "denoised frame's error {measured} over {TARGET}"
+    );
+    assert!(
+        said.error < 1.5 * measured && said.error > measured / 1.5,
+        "estimated {} against measured {measured}",
+        said.error
+    );
+}

@@ -7,7 +7,7 @@ use anyhow::{bail, Context, Result};
 use cuticle::accel::{Backend, CurveKind};
 use cuticle::farm::{FarmError, Interrupted};
 use cuticle::job::{AutoPlan, Job, Part, Request};
-use cuticle::quality::delivered::delivered;
+use cuticle::quality::delivered::{delivered, delivered_denoised};
 use cuticle::quality::{Fixed, QualityMode};
 use cuticle::render::{self, LightSelection, RenderStats, Shading, ShadowMode, TransmittanceMode};
 use cuticle::scene::Overrides;
@@ -172,7 +172,7 @@ pub fn render_command(args: RenderArgs) -> Result<()> {
     };
     let job = prepare_answering_signals(request, &cancel)?;
     if let Some(auto) = &job.auto {
-        print_plan(auto, args.verbose);
+        print_plan(auto, job.denoised.is_some(), args.verbose);
     }
     let dropped_before = render::film::dropped_samples();
     let mut last = None;
@@ -193,9 +193,16 @@ pub fn render_command(args: RenderArgs) -> Result<()> {
                 rendered.denoise_seconds
             );
         }
-        last = Some(rendered.stats);
+        if let Some(r) = &rendered.rounds {
+            eprintln!("auto: denoised rounds {} spp", r.path());
+            if let Some(w) = r.denoiser_warning() {
+                eprintln!("warning: {w}");
+            }
+        }
+        last = Some((rendered.stats, rendered.rounds));
     }
-    print_summary(&job, &last.unwrap_or_default(), dropped_before);
+    let (stats, rounds) = last.unwrap_or_default();
+    print_summary(&job, &stats, rounds.as_ref(), dropped_before);
     if args.verbose {
         if let (Some(e), Some(peak)) = (
             job.frame.memory_estimate,
@@ -244,7 +251,7 @@ fn prepare_answering_signals(
 
 /// Auto's decisions, one line each (with `verbose`, the reasons under them), its prediction, and a warning when
 /// the settings the user fixed cannot meet the target.
-fn print_plan(auto: &AutoPlan, verbose: bool) {
+fn print_plan(auto: &AutoPlan, denoised: bool, verbose: bool) {
     for d in &auto.decisions {
         let line = format!("auto: {} = {}", d.key, d.value);
         eprintln!("{}", shorten(&line, LINE));
@@ -253,10 +260,17 @@ fn print_plan(auto: &AutoPlan, verbose: bool) {
         }
     }
     let p = &auto.pilot;
-    eprintln!(
-        "auto: pilots {:.2} s; predicted render {:.1} s, noise {:.4} for target {}",
-        p.pilot_seconds, p.predicted_seconds, p.predicted_noise, auto.target
-    );
+    if denoised {
+        eprintln!(
+            "auto: pilots {:.2} s; undenoised, about {} spp and {:.1} s would meet target {}",
+            p.pilot_seconds, p.spp, p.predicted_seconds, auto.target
+        );
+    } else {
+        eprintln!(
+            "auto: pilots {:.2} s; predicted render {:.1} s, noise {:.4} for target {}",
+            p.pilot_seconds, p.predicted_seconds, p.predicted_noise, auto.target
+        );
+    }
     if let Some(why) = auto.shortfall() {
         eprintln!("warning: {why}");
     }
@@ -266,7 +280,12 @@ fn print_plan(auto: &AutoPlan, verbose: bool) {
 const NEGATIVE_SHARE_REPORTED: f64 = 1e-4;
 
 /// The summary line of the last frame, auto's and the maps' shares, and warnings of samples or rays refused.
-fn print_summary(job: &Job, stats: &RenderStats, dropped_before: u64) {
+fn print_summary(
+    job: &Job,
+    stats: &RenderStats,
+    rounds: Option<&cuticle::quality::denoised::Rounds>,
+    dropped_before: u64,
+) {
     eprintln!("{}", job.summary(stats));
     if job.frame.zero_length_strands > 0 {
         eprintln!(
@@ -296,7 +315,10 @@ fn print_summary(job: &Job, stats: &RenderStats, dropped_before: u64) {
             100.0 * p / (p + stats.seconds).max(1e-9),
             p + stats.seconds
         );
-        let delivered = delivered(&auto.pilot, auto.target, stats.noise.as_ref());
+        let delivered = match rounds {
+            Some(r) => delivered_denoised(&auto.pilot, auto.target, r),
+            None => delivered(&auto.pilot, auto.target, stats.noise.as_ref()),
+        };
         eprintln!("{}", delivered.line());
         if let Some(why) = delivered.shortfall() {
             eprintln!("warning: {why}");

@@ -112,6 +112,11 @@ pub struct StudyAutoArgs {
     /// of `study scenes`).
     #[arg(long)]
     auto_only: bool,
+    /// With --auto-only: auto renders each frame denoised (`render --quality auto --denoise[=GUIDE]`), the target
+    /// and the measurement applying to the denoised frame.
+    #[arg(long, num_args = 0..=1, default_missing_value = "color", require_equals = true,
+          value_parser = scene_name::<cuticle::image::denoise::Guide>)]
+    denoise: Option<cuticle::image::denoise::Guide>,
 }
 
 #[derive(clap::Args)]
@@ -359,7 +364,11 @@ pub fn study_command(command: StudyCommand) -> Result<()> {
                 out: a.out,
                 cache_dir: a.cache_dir,
                 threads: threads(a.threads)?,
+                denoise: a.denoise,
             };
+            if a.denoise.is_some() && !a.auto_only {
+                anyhow::bail!("study auto --denoise measures auto alone: add --auto-only");
+            }
             let report = if a.auto_only {
                 cuticle::study::auto::run_auto_only(&config)?
             } else {

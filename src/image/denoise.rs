@@ -62,6 +62,14 @@ pub fn available() -> Result<(), OidnError> {
 /// Denoises `image`'s beauty (R, G, B) with `guide` (the albedo guides need the `albedo` AOV) on `threads` threads,
 /// and adds the result as [`CHANNELS`] (replacing any earlier ones). The beauty is left as rendered.
 pub fn add_denoised(image: &mut Image, guide: Guide, threads: usize) -> Result<(), OidnError> {
+    let denoised = denoised(image, guide, threads)?;
+    set_channels(image, &CHANNELS, &denoised);
+    Ok(())
+}
+
+/// `image`'s beauty denoised with `guide` on `threads` threads, as RGB triples pixel by pixel ([`add_denoised`]
+/// without writing them).
+pub fn denoised(image: &Image, guide: Guide, threads: usize) -> Result<Vec<f32>, OidnError> {
     let color = image
         .triples(["R", "G", "B"])
         .ok_or_else(|| OidnError("the image has no R, G, B channels to denoise".to_owned()))?;
@@ -96,7 +104,7 @@ pub fn add_denoised(image: &mut Image, guide: Guide, threads: usize) -> Result<(
         )?),
         (_, a) => a,
     };
-    let denoised = oidn::denoise(
+    oidn::denoise(
         &Guides {
             color: &color,
             albedo: albedo.as_deref(),
@@ -107,9 +115,7 @@ pub fn add_denoised(image: &mut Image, guide: Guide, threads: usize) -> Result<(
         image.width,
         image.height,
         threads,
-    )?;
-    set_channels(image, &CHANNELS, &denoised);
-    Ok(())
+    )
 }
 
 /// Writes `values` (triples, pixel by pixel) into channels `names` of `image`, appending the channels it lacks.

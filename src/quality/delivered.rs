@@ -12,6 +12,7 @@
 
 use crate::render::adaptive::NoiseEstimate;
 
+use super::denoised::Rounds;
 use super::pilot::PilotPlan;
 
 /// An auto render's estimate of its own error, relative RMSE against the converged image.
@@ -33,6 +34,9 @@ pub struct Delivered {
     pub target: f32,
     /// Fraction of pixels held at the schedule's cap, and the cap (adaptive sampling only).
     pub capped: Option<(f64, u32)>,
+    /// Whether `noise` is the denoised frame's error (the filter's smoothing with its leftover noise) as its rounds
+    /// measured it ([`super::denoised`]).
+    pub denoised: bool,
 }
 
 /// The estimate for a frame planned as `pilot` for `target`, whose render's stop read `noise` (`None` without
@@ -67,13 +71,34 @@ pub fn delivered(pilot: &PilotPlan, target: f32, noise: Option<&NoiseEstimate>) 
         approximations: pilot.approximations.len(),
         target,
         capped,
+        denoised: false,
     }
+}
+
+/// The estimate for a frame planned as `pilot` for `target` and rendered in denoised rounds ([`super::denoised`]):
+/// the last round's predicted denoised error (point and upper bound) in place of the noise.
+pub fn delivered_denoised(pilot: &PilotPlan, target: f32, rounds: &Rounds) -> Delivered {
+    let mut d = delivered(pilot, target, None);
+    let (point, upper) = rounds
+        .last()
+        .map_or((d.noise, d.noise), |r| (r.predicted, r.predicted_upper));
+    let b2 = d.error * d.error - d.noise * d.noise;
+    d.noise = upper;
+    d.noise_range = (point, upper);
+    d.error = (upper * upper + b2.max(0.0)).sqrt();
+    d.read_from_frame = true;
+    d.capped = Some((if rounds.capped { 1.0 } else { 0.0 }, rounds.max));
+    d.denoised = true;
+    d
 }
 
 impl Delivered {
     /// One line (at most 120 characters) for the end of an auto render.
     pub fn line(&self) -> String {
-        let noise = if self.read_from_frame {
+        let noise = if self.denoised {
+            let (lo, hi) = self.noise_range;
+            format!("denoised {lo:.4}–{hi:.4} from the frame's halves")
+        } else if self.read_from_frame {
             let (lo, hi) = self.noise_range;
             format!("noise {lo:.4}–{hi:.4} from the frame")
         } else {
@@ -96,6 +121,9 @@ impl Delivered {
             return None;
         }
         let why = match self.capped {
+            Some((_, max)) if self.denoised => {
+                format!("the denoised rounds stopped at the cap of {max} spp (quality.max_spp)")
+            }
             Some((fraction, max)) if fraction > 0.0 => format!(
                 "{:.0} % of the pixels stopped at the cap of {max} spp (quality.max_spp)",
                 100.0 * fraction

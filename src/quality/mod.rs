@@ -53,6 +53,7 @@
 
 pub mod cost;
 pub mod delivered;
+pub mod denoised;
 pub mod pilot;
 
 use serde::Deserialize;

@@ -8,7 +8,9 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use crate::accel::CurveKind;
-use crate::quality::delivered::delivered;
+use crate::image::Image;
+use crate::quality::delivered::{delivered, delivered_denoised};
+use crate::quality::denoised::{self, DenoisedSchedule};
 use crate::quality::{self, Fixed, QualityConfig};
 use crate::render::{thread_pool, Frame, Request};
 
@@ -42,8 +44,10 @@ pub struct HeldOutRow {
     pub spp: f64,
     /// Wall time of auto's pilots, maps and render, seconds (the curve decision, made once per scene, not in it).
     pub seconds: f64,
-    /// Curves, shadows, path length chosen.
+    /// Curves, shadows, path length chosen (and the denoised rounds' spp).
     pub settings: String,
+    /// Under `--denoise`, the same frame's error before denoising.
+    pub noisy: Option<f64>,
 }
 
 impl HeldOutRow {
@@ -112,11 +116,30 @@ fn scene_rows(
         let request =
             Request::new(&planned.settings).maps(planned.maps.as_ref(), planned.maps_seconds);
         let rendered_on = planned.frame_or(frame);
-        let rendered = rendered_on.render(request);
-        let seconds = start.elapsed().as_secs_f64();
-        let said = delivered(&planned.pilot, target, rendered.stats.noise.as_ref());
         let s = &planned.settings;
-        let measured = reference.measure(&rendered.image)?;
+        let (image, said, rounds) = match config.denoise {
+            Some(guide) => {
+                let schedule = DenoisedSchedule::new(&planned.pilot, &q, guide);
+                let threads = rayon::current_num_threads();
+                let d = denoised::render(rendered_on, request, &schedule, threads)
+                    .map_err(|e| StudyError::Config(format!("--denoise: {e}")))?;
+                let said = delivered_denoised(&planned.pilot, target, &d.rounds);
+                (d.render.image, said, Some(d.rounds))
+            }
+            None => {
+                let rendered = rendered_on.render(request);
+                let said = delivered(&planned.pilot, target, rendered.stats.noise.as_ref());
+                (rendered.image, said, None)
+            }
+        };
+        let seconds = start.elapsed().as_secs_f64();
+        let (measured, noisy) = match &rounds {
+            Some(_) => (
+                reference.measure(&denoised_as_beauty(&image)?)?,
+                Some(reference.measure(&image)?.error),
+            ),
+            None => (reference.measure(&image)?, None),
+        };
         rows.push(HeldOutRow {
             scene: file.name(),
             target,
@@ -124,15 +147,35 @@ fn scene_rows(
             measured_se: measured.standard_error,
             reference_noise: reference.noise(),
             estimated: said.error,
-            spp: mean_spp(&rendered.image),
+            spp: mean_spp(&image),
             seconds,
             settings: format!(
-                "{:?} {:?} path {}",
-                rendered_on.curves, s.shadows.mode, s.integrator.path_length
+                "{:?} {:?} path {}{}",
+                rendered_on.curves,
+                s.shadows.mode,
+                s.integrator.path_length,
+                rounds
+                    .map(|r| format!(", denoised rounds {} spp", r.path()))
+                    .unwrap_or_default()
             ),
+            noisy,
         });
     }
     Ok(rows)
+}
+
+/// `image` with its `denoised.R/G/B` as its beauty, for the yardstick, which reads R, G, B.
+fn denoised_as_beauty(image: &Image) -> Result<Image, StudyError> {
+    let values = image
+        .triples(crate::image::denoise::CHANNELS)
+        .ok_or_else(|| StudyError::Config("the denoised frame has no denoised.R/G/B".into()))?;
+    let mut out = Image::new(
+        image.width,
+        image.height,
+        vec!["R".into(), "G".into(), "B".into()],
+    );
+    out.data = values;
+    Ok(out)
 }
 
 /// The headline of `rows`: how many met the target, how many were more than 5 % over, how many estimates were
@@ -177,7 +220,7 @@ pub fn run_auto_only(config: &AutoStudyConfig) -> Result<AutoReport, StudyError>
         progress.inc(1);
         // Rewritten after each scene, so an interrupted run keeps what it measured.
         let mut csv = String::from(
-            "scene,target,measured,measured_se,reference_noise,estimated,estimate_ratio,met,mean_spp,seconds,settings\n",
+            "scene,target,measured,measured_se,reference_noise,estimated,estimate_ratio,met,mean_spp,seconds,settings,noisy_measured\n",
         );
         let mut md = format!(
             "# `--quality auto` alone against the study's yardstick\n\n{}\n\n| scene | target | measured ± \
@@ -188,7 +231,7 @@ pub fn run_auto_only(config: &AutoStudyConfig) -> Result<AutoReport, StudyError>
         for r in &rows {
             let _ = writeln!(
                 csv,
-                "{},{},{:.5},{:.5},{:.5},{:.5},{:.3},{},{:.1},{:.2},{}",
+                "{},{},{:.5},{:.5},{:.5},{:.5},{:.3},{},{:.1},{:.2},\"{}\",{}",
                 r.scene,
                 r.target,
                 r.measured,
@@ -199,7 +242,8 @@ pub fn run_auto_only(config: &AutoStudyConfig) -> Result<AutoReport, StudyError>
                 r.met(),
                 r.spp,
                 r.seconds,
-                r.settings
+                r.settings,
+                r.noisy.map(|e| format!("{e:.5}")).unwrap_or_default()
             );
             let _ = writeln!(
                 md,

@@ -90,6 +90,9 @@ pub struct AutoStudyConfig {
     pub cache_dir: Option<PathBuf>,
     /// Worker threads.
     pub threads: usize,
+    /// With `--auto-only`: render auto's frames denoised with this guide, the target applying to the denoised frame
+    /// ([`crate::quality::denoised`]).
+    pub denoise: Option<crate::image::denoise::Guide>,
 }
 
 impl AutoStudyConfig {
