@@ -327,3 +327,76 @@ fn auto_with_the_denoiser_meets_its_target_on_the_denoised_frame() {
         said.error
     );
 }
+
+/// `study temporal` on a tiny film: a fixed seed on a still camera renders the same frame every time (flicker
+/// exactly 0), a seed per frame flickers, more samples lower both the still error and the flicker, and the denoiser
+/// lowers the flicker at equal spp.
+#[test]
+fn study_temporal_measures_flicker_beside_the_still_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("temporal");
+    ok(cuticle(&[
+        "study",
+        "temporal",
+        "-o",
+        out.to_str().unwrap(),
+        "--res",
+        "40x30",
+        "--frames",
+        "3",
+        "--spp",
+        "2,16",
+        "--reference-spp",
+        "64",
+    ]));
+    let csv = std::fs::read_to_string(out.join("temporal.csv")).unwrap();
+    let md = std::fs::read_to_string(out.join("temporal.md")).unwrap();
+    assert!(md.contains("flickers least"), "{md}");
+    // scene,camera,seeds,method,spp,denoised,series,still_error,flicker,seconds
+    let rows: Vec<Vec<String>> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(str::to_owned).collect())
+        .collect();
+    assert_eq!(rows.len(), 2 * 2 * 3 * 2 * 2, "{csv}");
+    let value = |camera: &str,
+                 seeds: &str,
+                 method: &str,
+                 spp: &str,
+                 denoised: &str,
+                 column: usize| {
+        let r = rows
+            .iter()
+            .find(|r| {
+                r[1] == camera && r[2] == seeds && r[3] == method && r[4] == spp && r[5] == denoised
+            })
+            .unwrap_or_else(|| panic!("no row {camera} {seeds} {method} {spp} {denoised}"));
+        r[column].parse::<f64>().unwrap()
+    };
+    for method in ["rt-stochastic", "rt-exact", "deep-opacity"] {
+        for denoised in ["false", "true"] {
+            assert_eq!(value("static", "fixed", method, "2", denoised, 8), 0.0);
+        }
+        let (few, many) = (
+            value("static", "per-frame", method, "2", "false", 8),
+            value("static", "per-frame", method, "16", "false", 8),
+        );
+        assert!(
+            few > 0.0 && many < few,
+            "{method}: flicker {few} at 2 spp, {many} at 16"
+        );
+        let (still_few, still_many) = (
+            value("turntable", "per-frame", method, "2", "false", 7),
+            value("turntable", "per-frame", method, "16", "false", 7),
+        );
+        assert!(
+            still_many < still_few,
+            "{method}: still error {still_few} → {still_many}"
+        );
+        let clean = value("static", "per-frame", method, "2", "true", 8);
+        assert!(
+            clean < few,
+            "{method}: denoised flicker {clean} against {few}"
+        );
+    }
+}

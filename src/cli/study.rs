@@ -38,6 +38,9 @@ pub enum StudyCommand {
     /// Error against a converged reference versus time with and without the denoiser (RMSE, SSIM, detail kept
     /// around the hair), over samples per pixel: denoise.csv, denoise.md.
     Denoise(StudyDenoiseArgs),
+    /// Frame-to-frame flicker beside each frame's error, on a still camera and a turntable: shadowing and
+    /// transmittance modes, denoised or not, a seed per frame or one seed.
+    Temporal(StudyTemporalArgs),
     /// Writes a seeded set of random test scenes (grooms, strand widths on screen, models, absorption, lights) on
     /// which no constant is tuned: the held-out set `study auto` is judged on.
     Scenes(StudyScenesArgs),
@@ -62,6 +65,33 @@ pub struct StudyDenoiseArgs {
     /// Three spp points.
     #[arg(long)]
     quick: bool,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    threads: Option<usize>,
+}
+
+#[derive(clap::Args)]
+pub struct StudyTemporalArgs {
+    /// Scene files (TOML), one per fibre model to compare. Without any, the built-in default scene.
+    scenes: Vec<PathBuf>,
+    /// Output directory: temporal.csv, temporal.md; references cached in OUT/cache.
+    #[arg(short, long, default_value = "study")]
+    out: PathBuf,
+    /// Film resolution WxH.
+    #[arg(long, value_parser = parse_resolution, default_value = "160x120")]
+    res: [u32; 2],
+    /// Frames per sequence.
+    #[arg(long, default_value_t = 6)]
+    frames: u32,
+    /// Degrees the turntable turns per frame.
+    #[arg(long, default_value_t = 2.0)]
+    orbit: f32,
+    /// Samples per pixel swept.
+    #[arg(long, value_delimiter = ',', default_value = "4,16,64")]
+    spp: Vec<u32>,
+    /// Samples per pixel of the references (one per turntable frame).
+    #[arg(long, default_value_t = 512)]
+    reference_spp: u32,
     /// Worker threads (default: all cores).
     #[arg(long)]
     threads: Option<usize>,
@@ -351,6 +381,21 @@ pub fn study_command(command: StudyCommand) -> Result<()> {
                 out: a.out,
             };
             let report = cuticle::study::denoise::run(&config)?;
+            print!("{}", report.markdown);
+            print_written(&report.files, "references", &config.out.join("cache"));
+        }
+        StudyCommand::Temporal(a) => {
+            let config = cuticle::study::temporal::TemporalStudyConfig {
+                scenes: scene_files(&a.scenes)?,
+                resolution: a.res,
+                frames: a.frames,
+                orbit_degrees: a.orbit,
+                spp: a.spp,
+                reference_spp: a.reference_spp,
+                out: a.out,
+                threads: threads(a.threads)?,
+            };
+            let report = cuticle::study::temporal::run(&config)?;
             print!("{}", report.markdown);
             print_written(&report.files, "references", &config.out.join("cache"));
         }

@@ -27,6 +27,7 @@ pub mod generated;
 pub mod kinds;
 pub mod report;
 pub mod stress;
+pub mod temporal;
 
 use std::path::{Path, PathBuf};
 
