@@ -12,7 +12,9 @@
 //!   hair ([`super::figures::hair_window`]): the reference's fine structure that survives (a denoiser that smears
 //!   strands scores low here even where its RMSE is small), and the error in that band (noise and smoothing both).
 //!
-//! Written: `denoise.csv` (one row per scene, spp and method) and `denoise.md` (the table, and per scene and guide
+//! Written: `denoise-crops-<scene>.png` (the hair window: the reference, then per spp the noisy frame beside it
+//! denoised with the colour guide, one exposure for all), `denoise.csv` (one row per scene, spp and method) and
+//! `denoise.md` (the table, and per scene and guide
 //! the read-out: the fewest spp at which the denoised frame reaches both the SSIM and the detail error of the noisy
 //! frame at the largest spp, in what fraction of its time, and how much detail it keeps there).
 
@@ -21,6 +23,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use super::cache::{scene_key, write_text};
+use super::figures;
 use super::{cached_reference, create_dir, SceneFile, StudyError};
 use crate::image::{denoise, Image};
 use crate::measure::{metrics::REL_EPSILON, pixels};
@@ -160,6 +163,7 @@ pub fn run(config: &DenoiseStudyConfig) -> Result<DenoiseReport, StudyError> {
     create_dir(&cache)?;
     let pool = crate::render::thread_pool(Some(config.threads))?;
     let mut rows = Vec::new();
+    let mut crop_files = Vec::new();
     // Per scene: its reference's two halves, then each spp.
     let steps = (config.scenes.len() * (2 + config.spp.len())) as u64;
     let progress = super::steps_bar(steps, "study denoise");
@@ -204,6 +208,19 @@ pub fn run(config: &DenoiseStudyConfig) -> Result<DenoiseReport, StudyError> {
         for (t, b) in truth.data.iter_mut().zip(&halves[1].data) {
             *t = 0.5 * (*t + b);
         }
+        // The crops of the hair window: reference, then per spp the noisy and the colour-guided denoised frame.
+        let (cx, cy, cs) = window;
+        let reference_crop = figures::crop(&truth, cx, cy, cs).map_err(StudyError::Config)?;
+        let mut crop_rows = vec![vec![
+            figures::Panel {
+                label: "WHOLE IMAGE".into(),
+                rgb: figures::overview(&truth, cx, cy, cs, cs),
+            },
+            figures::Panel {
+                label: format!("REFERENCE {} SPP", config.reference_spp),
+                rgb: reference_crop.clone(),
+            },
+        ]];
         for &spp in &config.spp {
             let mut s = settings.clone();
             s.film.spp = spp;
@@ -223,12 +240,25 @@ pub fn run(config: &DenoiseStudyConfig) -> Result<DenoiseReport, StudyError> {
                 &halves,
                 window,
             )?);
+            let noisy_crop = figures::crop(&x, cx, cy, cs).map_err(StudyError::Config)?;
             for guide in denoise::Guide::ALL {
                 let start = Instant::now();
                 denoise::add_denoised(&mut image, guide, config.threads)
                     .map_err(|e| StudyError::Config(format!("study denoise: {e}")))?;
                 let seconds = start.elapsed().as_secs_f64();
                 let x = rgb_of(&image, denoise::CHANNELS)?;
+                if guide == denoise::Guide::Color {
+                    crop_rows.push(vec![
+                        figures::Panel {
+                            label: format!("NOISY {spp} SPP"),
+                            rgb: noisy_crop.clone(),
+                        },
+                        figures::Panel {
+                            label: format!("DENOISED {spp} SPP"),
+                            rgb: figures::crop(&x, cx, cy, cs).map_err(StudyError::Config)?,
+                        },
+                    ]);
+                }
                 rows.push(measured(
                     file,
                     spp,
@@ -243,6 +273,20 @@ pub fn run(config: &DenoiseStudyConfig) -> Result<DenoiseReport, StudyError> {
             }
             progress.inc(1);
         }
+        let crops = figures::mosaic(
+            &format!(
+                "{}: the hair window, noisy and denoised (colour guide)",
+                file.name()
+            ),
+            &crop_rows,
+            cs,
+            figures::exposure(&reference_crop),
+        )?;
+        let path = config
+            .out
+            .join(format!("denoise-crops-{}.png", file.name()));
+        crate::image::write(&path, &crops)?;
+        crop_files.push(path);
     }
     progress.finish_and_clear();
     let csv = csv_of(&rows)?;
@@ -256,7 +300,7 @@ pub fn run(config: &DenoiseStudyConfig) -> Result<DenoiseReport, StudyError> {
     Ok(DenoiseReport {
         rows,
         markdown: md,
-        files: vec![csv_path, md_path],
+        files: [vec![csv_path, md_path], crop_files].concat(),
     })
 }
 

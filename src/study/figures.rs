@@ -206,6 +206,15 @@ pub fn overview(image: &Image, x0: usize, y0: usize, window: usize, size: usize)
     out
 }
 
+/// The exposure that puts the 99th percentile of `crop`'s largest channel at 0.9 (within [1/8, 64]; 1 for a black
+/// crop): the one exposure a mosaic's panels share.
+pub fn exposure(crop: &[Vec3]) -> f32 {
+    match p99_largest_channel(crop.iter().copied()) {
+        Some(p99) if p99 > 0.0 => (0.9 / p99).clamp(0.125, 64.0),
+        _ => 1.0,
+    }
+}
+
 /// Gap between panels, pixels.
 const GAP: usize = 10;
 /// Panels are upscaled to at least this many pixels across (and to their widest label).

@@ -23,12 +23,7 @@ pub(super) fn crops_mosaic(
         .iter()
         .map(|j| figures::crop(&j.reference, cx, cy, cs).map_err(StudyError::Config))
         .collect::<Result<Vec<_>, _>>()?;
-    let p99 = figures::p99_largest_channel(reference_crops[0].iter().copied()).unwrap_or(1.0);
-    let exposure = if p99 > 0.0 {
-        (0.9 / p99).clamp(0.125, 64.0)
-    } else {
-        1.0
-    };
+    let exposure = figures::exposure(&reference_crops[0]);
     let mut rows = vec![vec![figures::Panel {
         label: "WHOLE IMAGE".into(),
         rgb: figures::overview(&judges[0].reference, cx, cy, cs, cs),
