@@ -1025,3 +1025,63 @@ visible = false
     let rays = |s: &cuticle::render::RenderStats| s.rays.material;
     assert!(rays(&cut_stats) < rays(&tail_stats) && rays(&tail_stats) < rays(&long_stats));
 }
+
+/// Deep opacity maps combine light and material samples by MIS, a material sample's light seen through the maps as
+/// a light sample's is: under a white environment and Chiang's narrow forward (TT) lobe, light samples alone (what
+/// deep-opacity mode did before, here `strategy = "light"`) put single samples far above the environment's
+/// radiance, while MIS keeps the frame's noise near the ray-traced frame's. The three estimate the same image.
+#[test]
+fn deep_opacity_maps_take_material_samples_under_mis_without_fireflies() {
+    let render = |mode: &str, strategy: &str, seed: u32| {
+        let scene = parse(
+            &format!(
+                "[hair]\nprocedural = {{ kind = \"fur-ball\", strands = 1500 }}\nopacity = 1.0\n\
+                 [camera]\nmargin = 0.9\n[film]\nresolution = [48, 48]\nspp = 4\nseed = {seed}\naovs = []\n\
+                 [material]\nmodel = \"chiang\"\nbeta_m = 0.3\nbeta_n = 0.3\n\
+                 [environment]\nradiance = [1.0, 1.0, 1.0]\n\
+                 [shadows]\nmode = \"{mode}\"\n[integrator]\npath_length = 0\nstrategy = \"{strategy}\"\n"
+            ),
+            Path::new("."),
+        );
+        channel(&render_scene(&scene, 2), "R")
+    };
+    // Noise: half the mean squared difference of two seeds' frames; the brightest pixel; the mean.
+    let measure = |mode: &str, strategy: &str| {
+        let (a, b) = (render(mode, strategy, 1), render(mode, strategy, 2));
+        let n = a.len() as f64;
+        let noise = a
+            .iter()
+            .zip(&b)
+            .map(|(x, y)| f64::from(x - y).powi(2))
+            .sum::<f64>()
+            / (2.0 * n);
+        let max = a.iter().chain(&b).fold(0.0f32, |m, &v| m.max(v));
+        let mean = a.iter().chain(&b).map(|&v| f64::from(v)).sum::<f64>() / (2.0 * n);
+        (noise, max, mean)
+    };
+    let rays = measure("raytraced", "mis");
+    let maps = measure("deep-opacity", "mis");
+    let light_only = measure("deep-opacity", "light");
+    eprintln!("noise, max, mean: ray traced {rays:?}, maps {maps:?}, maps with light samples alone {light_only:?}");
+    assert!(
+        maps.0 < 1.5 * rays.0,
+        "maps' noise {} against the rays' {}",
+        maps.0,
+        rays.0
+    );
+    assert!(
+        maps.1 < 2.0,
+        "a pixel of {} under an environment of 1",
+        maps.1
+    );
+    assert!(
+        light_only.0 > 2.0 * maps.0 && light_only.1 > 2.0,
+        "{light_only:?}"
+    );
+    assert!(
+        (maps.2 / light_only.2 - 1.0).abs() < 0.05,
+        "means {} and {}",
+        maps.2,
+        light_only.2
+    );
+}

@@ -62,7 +62,6 @@
 
 use crate::image::denoise::{self, Guide};
 use crate::image::Image;
-use crate::measure::metrics::REL_EPSILON;
 use crate::render::film::PixelSums;
 use crate::render::strategy::{PixelSampling, PixelSource};
 use crate::render::{Frame, RegionRender, Request};
@@ -70,6 +69,10 @@ use crate::sys::oidn::OidnError;
 
 use super::pilot::PilotPlan;
 use super::QualityConfig;
+
+/// The relative error's floor in the target's weight 1 / (r² + 0.01) ([`crate::quality`]'s docs; the measure
+/// layer's `REL_EPSILON`, which this layer may not import).
+const REL_EPSILON: f64 = 0.01;
 
 /// Fewest samples per pixel of the first round (halves of 2).
 pub const FIRST_SPP: u32 = 4;

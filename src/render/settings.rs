@@ -318,14 +318,10 @@ impl RenderSettings {
             clamp: i.clamp,
             shadows: self.shadows.mode,
             transmittance: self.shadows.transmittance,
-            // Maps replace the shadow queries of light samples; a material sample's ray would see the hair the
-            // maps stand in for, so in deep-opacity mode material samples only continue paths and light samples
-            // carry all direct light.
-            strategy: if self.shadows.mode == ShadowMode::DeepOpacity {
-                Strategy::Light
-            } else {
-                i.strategy
-            },
+            // In deep-opacity mode a material sample's light is also seen through the maps
+            // (`Integrator::mapped_light`), so both strategies estimate the same integral and MIS applies as in
+            // ray-traced mode.
+            strategy: i.strategy,
             light_selection: i.lights,
             light_threshold: i.light_threshold,
         }

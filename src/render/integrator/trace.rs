@@ -189,14 +189,7 @@ impl<'a> Integrator<'a> {
         match self.settings.shadows {
             ShadowMode::None => return 1.0,
             ShadowMode::DeepOpacity => {
-                // A far-field fibre model treats the fibre's cross-section as one point: look the light up where it
-                // enters the fibre (the side facing the light), not at the hit on the viewer's side.
-                let p = match v.surface {
-                    Surface::Hair { radius, .. } => v.p + wi * radius,
-                    Surface::Lambert { .. } => v.p,
-                };
-                if let Some(t) = self.maps.and_then(|m| m.transmittance(light, p, wi)) {
-                    counts.map_lookups += 1;
+                if let Some(t) = self.map_transmittance(light, v, wi, counts) {
                     return t;
                 }
             }
@@ -214,6 +207,74 @@ impl<'a> Integrator<'a> {
             counts.rejected += 1;
             1.0
         })
+    }
+
+    /// The deep opacity maps' transmittance from `v` towards light `light` along `wi`, or `None` outside
+    /// deep-opacity mode or when the light has no map (it needs a shadow ray).
+    #[inline]
+    fn map_transmittance(
+        &self,
+        light: usize,
+        v: &Vertex,
+        wi: Vec3,
+        counts: &mut RayCounts,
+    ) -> Option<f32> {
+        if self.settings.shadows != ShadowMode::DeepOpacity {
+            return None;
+        }
+        // A far-field fibre model treats the fibre's cross-section as one point: look the light up where it enters
+        // the fibre (the side facing the light), not at the hit on the viewer's side.
+        let p = match v.surface {
+            Surface::Hair { radius, .. } => v.p + wi * radius,
+            Surface::Lambert { .. } => v.p,
+        };
+        let t = self.maps?.transmittance(light, p, wi)?;
+        counts.map_lookups += 1;
+        Some(t)
+    }
+
+    /// The light a material sample along `ray` (from `v`, density `pdf` per sample) brings back in deep-opacity
+    /// mode: what it reaches with hair left out (shapes still block), each light's MIS-weighted share times the
+    /// maps' transmittance towards that light, the visibility a light sample of it gets. So the light and the
+    /// material samples estimate the same integral, ∫ f L T_map cos, and MIS combines them; the hair the ray
+    /// meets only continues the path. A light without a map (an area light inside the hair's bounds) is seen
+    /// through the hair by a stochastic occlusion query, as its light samples' shadow rays are.
+    fn mapped_light(
+        &self,
+        v: &Vertex,
+        mis: &Mis,
+        ray: &Ray,
+        pdf: f32,
+        (key, ignore): (u64, Option<u32>),
+        counts: &mut RayCounts,
+    ) -> Vec3 {
+        let (t_end, other) = self.nearest_non_hair(ray, ray.tfar);
+        let mut visibility = |j: usize| match self.map_transmittance(j, v, ray.dir, counts) {
+            Some(t) => t,
+            None => {
+                let segment = Ray::segment(ray.origin, ray.dir, ray.tnear, t_end);
+                let blocked = self
+                    .tracer
+                    .occluded_stochastic(&segment, ignore, key)
+                    .unwrap_or_else(|_| {
+                        counts.rejected += 1;
+                        false
+                    });
+                if blocked {
+                    0.0
+                } else {
+                    1.0
+                }
+            }
+        };
+        self.emitted_along_with(
+            v,
+            mis,
+            ray,
+            Reached::without_hair(other),
+            pdf,
+            &mut visibility,
+        )
     }
 
     /// Traces a material sample leaving `v` along `wi`, drawn with density `pdf` (per sample) at a vertex weighted
@@ -243,10 +304,12 @@ impl<'a> Integrator<'a> {
             return (le, self.find_with(&ray, Some((key, ignore)), counts, view));
         }
         let found = self.find_with(&ray, Some((key, ignore)), counts, view);
-        (
-            self.emitted_along(v, mis, &ray, found.reached(), pdf),
-            found,
-        )
+        let le = if self.settings.shadows == ShadowMode::DeepOpacity {
+            self.mapped_light(v, mis, &ray, pdf, (key, ignore), counts)
+        } else {
+            self.emitted_along(v, mis, &ray, found.reached(), pdf)
+        };
+        (le, found)
     }
 
     /// [`Integrator::trace_material_sample`] for a material sample that does not continue the path (it only looks
@@ -266,6 +329,9 @@ impl<'a> Integrator<'a> {
         let (origin, tnear, ignore) = self.spawn(v, wi);
         let ray = Ray::segment(origin, wi, tnear, f32::INFINITY);
         counts.material += 1;
+        if self.settings.shadows == ShadowMode::DeepOpacity {
+            return self.mapped_light(v, mis, &ray, pdf, (key, ignore), counts);
+        }
         let (t_end, other) = self.nearest_non_hair(&ray, ray.tfar);
         let reached = Reached::without_hair(other);
         if let Reached::Surface = reached {
@@ -292,6 +358,20 @@ impl<'a> Integrator<'a> {
     /// each light's share weighted by [`Mis::material_weight`] against that light's own density for the direction:
     /// every non-delta infinite light if it escaped, the area light it hit, nothing at a surface.
     fn emitted_along(&self, v: &Vertex, mis: &Mis, ray: &Ray, reached: Reached, pdf: f32) -> Vec3 {
+        self.emitted_along_with(v, mis, ray, reached, pdf, &mut |_| 1.0)
+    }
+
+    /// [`Integrator::emitted_along`] with each light's share times `visibility(j)` (deep-opacity mode's
+    /// transmittance, [`Integrator::mapped_light`]); asked only of lights the sample reaches.
+    fn emitted_along_with(
+        &self,
+        v: &Vertex,
+        mis: &Mis,
+        ray: &Ray,
+        reached: Reached,
+        pdf: f32,
+        visibility: &mut dyn FnMut(usize) -> f32,
+    ) -> Vec3 {
         let p_material = mis.material_density(pdf);
         let weight = |j: usize| {
             let p_light = mis.light_density(&self.lights[j], self.select.pmf(j), v.p, ray.dir);
@@ -308,10 +388,22 @@ impl<'a> Integrator<'a> {
                 .map(|(j, l)| {
                     let (le, pdf_li) = l.le_and_pdf(ray.dir);
                     let p_light = mis.light_count(false, self.select.pmf(j)) * pdf_li;
-                    le * mis.material_weight(p_material, p_light)
+                    let w = mis.material_weight(p_material, p_light);
+                    if le.max_element() > 0.0 && w > 0.0 {
+                        le * w * visibility(j)
+                    } else {
+                        Vec3::ZERO
+                    }
                 })
                 .fold(Vec3::ZERO, |a, b| a + b),
-            Reached::Emitter(radiance, j) => radiance * weight(j),
+            Reached::Emitter(radiance, j) => {
+                let w = weight(j);
+                if w > 0.0 {
+                    radiance * w * visibility(j)
+                } else {
+                    Vec3::ZERO
+                }
+            }
             Reached::Surface => Vec3::ZERO,
         }
     }
