@@ -150,6 +150,20 @@ fn measured(
     })
 }
 
+/// What a study with the denoiser needs first: the denoiser (named as `study`'s error if missing), the output
+/// directory and its `cache` (both created), and a pool of `threads` workers. Returns the cache and the pool.
+pub(super) fn setup(
+    study: &str,
+    out: &std::path::Path,
+    threads: usize,
+) -> Result<(PathBuf, rayon::ThreadPool), StudyError> {
+    denoise::available().map_err(|e| StudyError::Config(format!("{study}: {e}")))?;
+    create_dir(out)?;
+    let cache = out.join("cache");
+    create_dir(&cache)?;
+    Ok((cache, crate::render::thread_pool(Some(threads))?))
+}
+
 /// Runs the study (see the module docs).
 pub fn run(config: &DenoiseStudyConfig) -> Result<DenoiseReport, StudyError> {
     if config.spp.is_empty() || config.spp.contains(&0) || config.reference_spp == 0 {
@@ -157,11 +171,7 @@ pub fn run(config: &DenoiseStudyConfig) -> Result<DenoiseReport, StudyError> {
             "study denoise: spp and the reference's spp must be positive".to_owned(),
         ));
     }
-    denoise::available().map_err(|e| StudyError::Config(format!("study denoise: {e}")))?;
-    create_dir(&config.out)?;
-    let cache = config.out.join("cache");
-    create_dir(&cache)?;
-    let pool = crate::render::thread_pool(Some(config.threads))?;
+    let (cache, pool) = setup("study denoise", &config.out, config.threads)?;
     let mut rows = Vec::new();
     let mut crop_files = Vec::new();
     // Per scene: its reference's two halves, then each spp.

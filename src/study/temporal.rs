@@ -39,7 +39,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use super::cache::{scene_key, write_text};
-use super::{cached_reference, create_dir, SceneFile, StudyError};
+use super::{cached_reference, SceneFile, StudyError};
 use crate::image::{denoise, Image};
 use crate::measure::metrics::REL_EPSILON;
 use crate::render::{Frame, RenderSettings, Request, ShadowMode, TransmittanceMode};
@@ -198,11 +198,7 @@ pub fn run(config: &TemporalStudyConfig) -> Result<TemporalReport, StudyError> {
             "study temporal: the reference's spp must be positive and the orbit finite".to_owned(),
         ));
     }
-    denoise::available().map_err(|e| StudyError::Config(format!("study temporal: {e}")))?;
-    create_dir(&config.out)?;
-    let cache = config.out.join("cache");
-    create_dir(&cache)?;
-    let pool = crate::render::thread_pool(Some(config.threads))?;
+    let (cache, pool) = super::denoise::setup("study temporal", &config.out, config.threads)?;
     let n = config.frames as usize;
     let sequences = CAMERAS.len() * SEEDS.len() * METHODS.len() * config.spp.len();
     let steps = (config.scenes.len() * (n + sequences)) as u64;
