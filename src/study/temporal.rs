@@ -16,10 +16,12 @@
 //!
 //! - **still error**: each frame's relative RMSE against its reference (√ mean of (x − r)² / (r² + 0.01)), the
 //!   mean over the frames: what a still shows;
-//! - **flicker**: for each pair of consecutive frames, the RMS over pixels and channels of their difference less the
-//!   references' difference (the motion a converged sequence shows; zero on the static camera), over the reference's
-//!   mean; the RMS over the pairs. Independent noise of relative size σ between frames gives about √2 σ; noise that
-//!   stays in place gives 0.
+//! - **flicker**: for each pair of consecutive frames, their difference less the references' difference (the motion
+//!   a converged sequence shows; zero on the static camera), weighed as the still error weighs an error
+//!   (1 / (r̄² + 0.01), r̄ the two references' mean) and divided by 2: √ of its mean over pixels, channels and
+//!   pairs. So noise drawn anew each frame flickers by the noise part of the still error (the difference of two
+//!   independent errors has twice their variance), noise that stays in place by 0, and a bias that is the same in
+//!   every frame not at all: flicker ÷ still error is the share of a still's error that moves.
 //!
 //! A fixed seed on the static camera renders the same frame every time, so it cannot flicker (measured as 0, and
 //! listed so the table is complete); on the turntable the same seed is a noise pattern fixed to the screen while
@@ -92,7 +94,7 @@ pub struct Row {
     pub denoised: bool,
     /// Mean relative RMSE of the frames against their references.
     pub still_error: f64,
-    /// RMS over consecutive pairs of the motion-free difference, over the reference's mean.
+    /// Consecutive frames' difference less the references', as a relative RMSE over √2 ([`flicker`]).
     pub flicker: f64,
     /// Mean seconds per frame (render, maps and, when denoised, the denoiser).
     pub seconds: f64,
@@ -160,16 +162,13 @@ fn rel_rmse(x: &[f32], r: &[f32]) -> f64 {
     (sum / x.len().max(1) as f64).sqrt()
 }
 
-/// The flicker of `frames` against the references' motion (`references[i]` for frame i; one for a static camera).
+/// The flicker of `frames` against the references' motion (`references[i]` for frame i; one for a static camera):
+/// √ of the mean over consecutive pairs, pixels and channels of ((b − a) − (r_b − r_a))² / (r̄² + 0.01) / 2, with r̄
+/// the two references' mean (see the module docs). Frames are RGB triples, all of one length.
 pub fn flicker(frames: &[Vec<f32>], references: &[Vec<f32>]) -> f64 {
     let reference = |i: usize| &references[i.min(references.len() - 1)];
-    let mean: f64 = references
-        .iter()
-        .map(|r| r.iter().map(|&v| f64::from(v)).sum::<f64>() / r.len().max(1) as f64)
-        .sum::<f64>()
-        / references.len().max(1) as f64;
     let pairs = frames.len().saturating_sub(1);
-    if pairs == 0 || mean <= 0.0 {
+    if pairs == 0 {
         return 0.0;
     }
     let mut sum = 0.0;
@@ -178,12 +177,13 @@ pub fn flicker(frames: &[Vec<f32>], references: &[Vec<f32>]) -> f64 {
         let s: f64 = (0..a.len())
             .map(|k| {
                 let d = f64::from(b[k] - a[k]) - f64::from(rb[k] - ra[k]);
-                d * d
+                let r = 0.5 * (f64::from(ra[k]) + f64::from(rb[k]));
+                d * d / (r * r + REL_EPSILON)
             })
             .sum();
         sum += s / a.len().max(1) as f64;
     }
-    (sum / pairs as f64).sqrt() / mean
+    (0.5 * sum / pairs as f64).sqrt()
 }
 
 /// Runs the study (see the module docs).
@@ -378,8 +378,10 @@ pub fn flicker_at(points: &[(f64, f64)], e: f64) -> Option<f64> {
 /// The table and the read-outs.
 fn markdown(rows: &[Row], config: &TemporalStudyConfig) -> String {
     let mut md = format!(
-        "# study temporal\n\n{}x{}, {} frames, turntable {}° a frame, references {} spp (ray traced), {} threads. Still error: mean relative RMSE of a frame; flicker: RMS of consecutive \
-         frames' difference less the references', over the reference's mean. Seconds: per frame.\n\n\
+        "# study temporal\n\n{}x{}, {} frames, turntable {}° a frame, references {} spp (ray traced), {} \
+         threads. Still error: mean relative RMSE of a frame; flicker: consecutive frames' difference less \
+         the references', as a relative RMSE over √2 (independent noise: the still error's noise). Seconds: per \
+         frame.\n\n\
          | scene | camera | seeds | method | spp | denoised | still error | flicker | s |\n\
          |---|---|---|---|---:|---|---:|---:|---:|\n",
         config.resolution[0],
@@ -521,7 +523,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn independent_noise_flickers_by_root_two_sigma_and_motion_does_not_count() {
+    fn independent_noise_flickers_by_its_relative_error_and_motion_does_not_count() {
         use rand::{Rng, SeedableRng};
         let mut rng = rand_pcg::Pcg32::seed_from_u64(3);
         let n = 30_000;
@@ -534,12 +536,13 @@ mod tests {
                     .collect()
             })
             .collect();
-        let mean = references
-            .iter()
-            .flatten()
-            .map(|&v| f64::from(v))
+        // The weight 1 / (r̄² + 0.01) averaged over the pairs and pixels, r̄ the pair's mean reference.
+        let weight = references
+            .windows(2)
+            .flat_map(|w| w[0].iter().zip(&w[1]))
+            .map(|(&a, &b)| 1.0 / ((0.5 * f64::from(a + b)).powi(2) + REL_EPSILON))
             .sum::<f64>()
-            / (4 * n) as f64;
+            / (3 * n) as f64;
         let noisy: Vec<Vec<f32>> = references
             .iter()
             .map(|r| {
@@ -549,7 +552,8 @@ mod tests {
             })
             .collect();
         let f = flicker(&noisy, &references);
-        let expected = 2f64.sqrt() * f64::from(sigma) / mean;
+        // The noise part of a frame's relative error: σ² weighed.
+        let expected = (f64::from(sigma).powi(2) * weight).sqrt();
         assert!(
             (f / expected - 1.0).abs() < 0.02,
             "flicker {f}, expected {expected}"
