@@ -278,11 +278,24 @@ impl Job {
                 }
                 decisions.extend(measured);
                 if let (Some(guide), false) = (request.denoise, fixed.spp) {
-                    let s = DenoisedSchedule::new(&p.pilot, &scene.quality, guide);
-                    denoised = Some(s);
-                    // The rounds replace the adaptive rule: the target applies to the denoised frame.
-                    decisions.retain(|d| d.key != "adaptive sampling" && d.key != "film.spp");
-                    decisions.push(s.decision());
+                    let extra = DenoisedSchedule::extra_bytes(&p.settings);
+                    if frame.fits(extra) {
+                        let s = DenoisedSchedule::new(&p.pilot, &scene.quality, guide);
+                        denoised = Some(s);
+                        // The rounds replace the adaptive rule: the target applies to the denoised frame.
+                        decisions.retain(|d| d.key != "adaptive sampling" && d.key != "film.spp");
+                        decisions.push(s.decision());
+                    } else {
+                        decisions.push(Decision {
+                            key: "film.spp",
+                            value: "adaptive, then denoised".to_owned(),
+                            reason: format!(
+                                "--denoise: the denoised rounds need {} more than the memory limit leaves, so the \
+                                 target applies to the frame before denoising (the adaptive rule above)",
+                                crate::util::input_file::human_bytes(extra)
+                            ),
+                        });
+                    }
                 }
                 let auto = AutoPlan {
                     decisions,

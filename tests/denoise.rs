@@ -400,3 +400,52 @@ fn study_temporal_measures_flicker_beside_the_still_error() {
         );
     }
 }
+
+/// The denoised rounds hold two more copies of the film: under a memory limit that leaves no room for them, auto
+/// keeps its adaptive rule (the target on the frame before denoising) and says why; with room, it runs the rounds.
+#[test]
+fn auto_with_the_denoiser_runs_its_rounds_only_within_the_memory_limit() {
+    use cuticle::image::denoise::Guide;
+    use cuticle::job::{Job, Part, Request};
+    use cuticle::quality::Fixed;
+    use cuticle::render::budget;
+    use cuticle::scene::Scene;
+
+    let scene = Scene::parse(
+        "[hair]\nprocedural = { kind = \"fur-ball\", strands = 300 }\n[film]\nresolution = [256, 256]\n\
+         [quality]\nmode = \"auto\"\ntarget = 0.2\n",
+        Path::new("<test>"),
+        Path::new("."),
+    )
+    .unwrap();
+    let estimate = budget::estimate_frame(&scene.resolve().unwrap(), 1, true)
+        .unwrap()
+        .total();
+    let prepare = |max_memory: u64| {
+        Job::prepare(Request {
+            scene: scene.clone(),
+            fixed: Fixed::default(),
+            threads: Some(1),
+            max_memory: Some(max_memory),
+            part: Part::Full,
+            frames: None,
+            output: None,
+            dump_shadow_maps: None,
+            denoise: Some(Guide::Color),
+            progress: false,
+        })
+        .unwrap()
+    };
+    let tight = prepare(estimate);
+    assert!(tight.denoised.is_none());
+    let auto = tight.auto.as_ref().unwrap();
+    let why = auto
+        .decisions
+        .iter()
+        .find(|d| d.key == "film.spp" && d.value.contains("denoised"))
+        .expect("a decision naming the memory");
+    assert!(why.reason.contains("memory limit"), "{}", why.reason);
+    assert!(auto.decisions.iter().any(|d| d.key == "adaptive sampling"));
+    let roomy = prepare(estimate + (1 << 30));
+    assert!(roomy.denoised.is_some());
+}

@@ -114,6 +114,17 @@ impl DenoisedSchedule {
 }
 
 impl DenoisedSchedule {
+    /// Bytes the rounds hold beyond a frame's own film (`settings`' film): the frame so far and the round's new
+    /// block besides the block being assembled (two copies of the film), and the denoised half with the filter's
+    /// input and output (three RGB buffers).
+    pub fn extra_bytes(settings: &crate::render::RenderSettings) -> u64 {
+        let [w, h] = settings.film.resolution;
+        let rgb = (u64::from(w) * u64::from(h)).saturating_mul(3 * 4);
+        crate::render::budget::film_copy_bytes(settings)
+            .saturating_mul(2)
+            .saturating_add(rgb.saturating_mul(3))
+    }
+
     /// The decision auto prints for the rounds.
     pub fn decision(&self) -> super::Decision {
         super::Decision {
@@ -284,14 +295,15 @@ pub fn render(
                 denoise_seconds,
             });
         }
-        // Next round: the frame so far is the new A, the samples n .. 2n the new B.
-        let next = block(n..2 * n);
+        // Next round: the frame so far is the new A, the samples n .. 2n the new B (the old halves freed first).
         a = RegionRender {
             image: mixed,
             stats,
             tiles_done: a.tiles_done,
             tiles_total: a.tiles_total,
         };
+        drop(b);
+        let next = block(n..2 * n);
         if !next.is_complete() {
             let mut partial = next;
             partial.image = a.image;

@@ -208,6 +208,13 @@ pub fn estimate(
     }
 }
 
+/// Bytes of one copy of the film `settings` render: every pixel's kept channels, f32 each.
+pub fn film_copy_bytes(settings: &RenderSettings) -> u64 {
+    let [w, h] = settings.film.resolution;
+    let channels = super::film::Layout::new(&settings.film).len() as u64;
+    (u64::from(w) * u64::from(h)).saturating_mul(channels * 4)
+}
+
 /// Bytes of `backend`'s acceleration structure over `segments` curve segments as `curves`, at its build peak
 /// ([`ACCEL_BYTES_PER_SEGMENT`]).
 pub fn accel_bytes(segments: u64, backend: Backend, curves: CurveKind) -> u64 {
