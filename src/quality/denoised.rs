@@ -252,7 +252,7 @@ pub fn render(
         let denoised_a = denoise::denoised(&a.image, schedule.guide, threads)?;
         denoise_seconds += t.elapsed().as_secs_f64();
         let mixed = mix(&a.image, &b.image);
-        let measured = estimate(&a.image, &b.image, &denoised_a);
+        let measured = estimate(&a.image, &b.image, &denoised_a)?;
         let order = match rounds.last() {
             Some(prev) if measured.half > 0.0 && prev.half_rel_mse > 0.0 => {
                 (prev.half_rel_mse / measured.half).log2().clamp(0.0, 1.0)
@@ -384,9 +384,16 @@ struct Estimate {
 }
 
 /// The denoised half's relMSE from the halves `a`, `b` and `a` denoised (RGB triples) (see the module docs).
-fn estimate(a: &Image, b: &Image, denoised_a: &[f32]) -> Estimate {
-    let beauty = |image: &Image| image.triples(["R", "G", "B"]).unwrap_or_default();
-    let (a, b) = (beauty(a), beauty(b));
+fn estimate(a: &Image, b: &Image, denoised_a: &[f32]) -> Result<Estimate, OidnError> {
+    let beauty = |image: &Image| {
+        image
+            .triples(["R", "G", "B"])
+            .filter(|v| v.len() == denoised_a.len())
+            .ok_or_else(|| {
+                OidnError("a half of the frame has no beauty of the frame's size".to_owned())
+            })
+    };
+    let (a, b) = (beauty(a)?, beauty(b)?);
     let pixels = denoised_a.len() / 3;
     let (mut sum, mut squares, mut noisy) = (0.0f64, 0.0f64, 0.0f64);
     for p in 0..pixels {
@@ -410,11 +417,11 @@ fn estimate(a: &Image, b: &Image, denoised_a: &[f32]) -> Estimate {
     let n = pixels.max(1) as f64;
     let mean = sum / n;
     let variance = (squares / n - mean * mean).max(0.0) / (n - 1.0).max(1.0);
-    Estimate {
+    Ok(Estimate {
         half: mean,
         standard_error: variance.sqrt(),
         noisy: 0.25 * noisy / n,
-    }
+    })
 }
 
 #[cfg(test)]
@@ -465,7 +472,7 @@ mod tests {
                 .collect();
             let w = |x: f32| 1.0 / (f64::from(x) * f64::from(x) + REL_EPSILON);
             let mean_w = 0.5 * (w(truth + e) + w(truth - e));
-            let got = estimate(&rgb(&a), &rgb(&b), &rgb(&d).data);
+            let got = estimate(&rgb(&a), &rgb(&b), &rgb(&d).data).unwrap();
             let expected = f64::from(e * e) * mean_w;
             assert!(
                 (got.half - expected).abs() < 3.0 * got.standard_error,
