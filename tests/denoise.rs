@@ -209,9 +209,9 @@ fn the_denoised_peer_frame_is_finite_and_keeps_the_mean() {
 }
 
 /// `--quality auto --denoise`: the samples per pixel are found in doubling rounds on the frame itself
-/// (`quality::denoised`). The frame after the rounds holds samples 0 .. N of every pixel (a fixed render at N spp
-/// within rounding), is the same for 1 and 2 threads, and its denoised beauty meets the target against a
-/// converged reference, with the rounds' estimate of its error within a factor of 1.5 of the measurement.
+/// (`quality::denoised`). The frame after the rounds holds N samples in every pixel, is the same for 1 and 2
+/// threads, and its denoised beauty meets the target against a converged reference, with the rounds' estimate of
+/// its error within a factor of 1.5 of the measurement.
 #[test]
 fn auto_with_the_denoiser_meets_its_target_on_the_denoised_frame() {
     use cuticle::image::denoise::Guide;
@@ -260,23 +260,7 @@ fn auto_with_the_denoiser_meets_its_target_on_the_denoised_frame() {
     for (i, r) in rounds.iter().enumerate() {
         assert_eq!(r.spp, rounds[0].spp << i, "rounds double: {rounds:?}");
     }
-    // The mixed blocks are the fixed render at N spp, up to rounding.
     let pool = thread_pool(Some(2)).unwrap();
-    let mut fixed = planned.settings.clone();
-    fixed.adaptive = None;
-    fixed.film.spp = n;
-    let whole =
-        pool.install(|| frame.render(Request::new(&fixed).maps(planned.maps.as_ref(), 0.0)));
-    let (mixed, whole_rgb) = (rgb(&d.render.image, BEAUTY), rgb(&whole.image, BEAUTY));
-    let worst = mixed
-        .iter()
-        .zip(&whole_rgb)
-        .map(|(a, b)| (a - b).abs() / b.abs().max(1e-3))
-        .fold(0.0f32, f32::max);
-    assert!(
-        worst < 1e-4,
-        "mixed blocks differ from the {n}-spp render by {worst}"
-    );
     let spp = d.render.image.channel_index("spp").unwrap();
     assert!(d
         .render
