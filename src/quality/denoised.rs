@@ -26,14 +26,14 @@
 //!
 //! an unbiased estimate of the denoised half's relMSE against the converged image without any reference: the
 //! filter's smoothing counts in it as well as its leftover noise. w is taken from D(A) (smooth, so its noise does
-//! not bias the weights). The estimate's standard error over the pixels (their terms taken as independent; the
-//! filter's output is correlated over a few pixels, so this reads it somewhat low) gives an upper bound, the
-//! estimate plus two standard errors, and the stop reads that bound.
+//! not bias the weights). The estimate's standard error over 16² tiles of pixels (the filter's output is correlated
+//! between neighbouring pixels, so single pixels are not independent draws) gives an upper bound, the estimate plus
+//! two standard errors, and the stop reads that bound.
 //!
 //! The frame denoised is the mean of both halves, at twice a half's samples. Its error is predicted from the half's
-//! as e²(N) = e²(N/2) · 2^−p, the order p measured between the last two rounds' halves (clamped to [0, 1]; 1 is
-//! the noisy frame's order, which a denoised frame never beats by more than noise) and taken as 0 after the first
-//! round, when there is only one: the first stop can only trust the half. The frame's estimate is over its own
+//! as e²(N) = e²(N/2) · 2^−p, the order p measured between the last two rounds' halves, clamped to [0,
+//! [`MAX_ORDER`]], and taken as 0 after the first round, when there is only one: the first stop can only trust
+//! the half. The frame's estimate is over its own
 //! means, as the adaptive stop's is, and is scaled by the pilots' darkening to be over the converged image's
 //! ([`super::pilot::PilotPlan::darkening`]).
 //!
@@ -75,6 +75,18 @@ use super::QualityConfig;
 /// The relative error's floor in the target's weight 1 / (r² + 0.01) ([`crate::quality`]'s docs; the measure
 /// layer's `REL_EPSILON`, which this layer may not import).
 const REL_EPSILON: f64 = 0.01;
+
+/// Side of the tiles over which [`estimate`]'s standard error is taken, pixels: wider than the filter's correlation
+/// between neighbouring output pixels, small enough that a 128² frame has 64 of them.
+const ESTIMATE_TILE: usize = 16;
+
+/// The largest order p the prediction from a half to the whole frame takes (e² ∝ spp^−p). A denoised frame's error
+/// falls slower than the noisy frame's order 1: its smoothing shrinks only as the input gets cleaner. Tuned on the
+/// thesis frame (straight hair under the city map, 300×400): `study denoise` measured orders 0.34, 0.83 and 0.55
+/// between 16, 32, 64 and 256 spp, and with the cap at 1 auto's estimate at a target of 0.02 read 0.79× the
+/// measured error (64 spp). Judged on the held-out generated set (`study auto --auto-only --denoise`,
+/// docs/measured/denoise.md).
+pub const MAX_ORDER: f64 = 0.5;
 
 /// Fewest samples per pixel of the first round (halves of 2).
 pub const FIRST_SPP: u32 = 4;
@@ -272,10 +284,11 @@ pub fn render(
         let mixed = mix(&a.image, &b.image);
         let measured = estimate(&a.image, &b.image, &denoised_a)?;
         let order = match rounds.last() {
-            Some(prev) if measured.half > 0.0 && prev.half_rel_mse > 0.0 => {
-                (prev.half_rel_mse / measured.half).log2().clamp(0.0, 1.0)
-            }
-            Some(_) => 1.0,
+            Some(prev) if measured.half > 0.0 && prev.half_rel_mse > 0.0 => (prev.half_rel_mse
+                / measured.half)
+                .log2()
+                .clamp(0.0, MAX_ORDER),
+            Some(_) => MAX_ORDER,
             None => 0.0,
         };
         let scale = 2f64.powf(-order) * schedule.darkening;
@@ -404,6 +417,7 @@ struct Estimate {
 
 /// The denoised half's relMSE from the halves `a`, `b` and `a` denoised (RGB triples) (see the module docs).
 fn estimate(a: &Image, b: &Image, denoised_a: &[f32]) -> Result<Estimate, OidnError> {
+    let width = a.width.max(1);
     let beauty = |image: &Image| {
         image
             .triples(["R", "G", "B"])
@@ -414,7 +428,11 @@ fn estimate(a: &Image, b: &Image, denoised_a: &[f32]) -> Result<Estimate, OidnEr
     };
     let (a, b) = (beauty(a)?, beauty(b)?);
     let pixels = denoised_a.len() / 3;
-    let (mut sum, mut squares, mut noisy) = (0.0f64, 0.0f64, 0.0f64);
+    let height = pixels.div_ceil(width);
+    let tiles_x = width.div_ceil(ESTIMATE_TILE);
+    // Per tile of ESTIMATE_TILE² pixels: the sum of the pixels' terms and their count.
+    let mut tiles = vec![(0.0f64, 0usize); tiles_x * height.div_ceil(ESTIMATE_TILE)];
+    let (mut sum, mut noisy) = (0.0f64, 0.0f64);
     for p in 0..pixels {
         let mut term = 0.0;
         let mut ab = 0.0;
@@ -430,12 +448,21 @@ fn estimate(a: &Image, b: &Image, denoised_a: &[f32]) -> Result<Estimate, OidnEr
         // Mean over the three channels.
         term /= 3.0;
         sum += term;
-        squares += term * term;
         noisy += ab / 3.0;
+        let t = &mut tiles[(p / width / ESTIMATE_TILE) * tiles_x + (p % width) / ESTIMATE_TILE];
+        t.0 += term;
+        t.1 += 1;
     }
     let n = pixels.max(1) as f64;
     let mean = sum / n;
-    let variance = (squares / n - mean * mean).max(0.0) / (n - 1.0).max(1.0);
+    // The ratio estimator's variance over the tiles, Σ (S_t − mean·N_t)² / N² · k / (k − 1): the filter's output
+    // is correlated over a few pixels, so pixels are not independent draws and tiles nearly are.
+    let k = tiles.iter().filter(|t| t.1 > 0).count() as f64;
+    let spread: f64 = tiles
+        .iter()
+        .map(|&(s, c)| (s - mean * c as f64).powi(2))
+        .sum();
+    let variance = spread / (n * n) * k / (k - 1.0).max(1.0);
     Ok(Estimate {
         half: mean,
         standard_error: variance.sqrt(),
