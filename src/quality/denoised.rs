@@ -125,9 +125,7 @@ impl DenoisedSchedule {
             noisy_spp: pilot.spp,
         }
     }
-}
 
-impl DenoisedSchedule {
     /// Bytes the rounds hold beyond a frame's own film (`settings`' film): the frame so far and the round's new
     /// block besides the block being assembled (two copies of the film), and the denoised half with the filter's
     /// input and output (three RGB buffers).
@@ -277,7 +275,7 @@ pub fn render(
     let mut rounds: Vec<Round> = Vec::new();
     let mut n = schedule.first;
     loop {
-        // The frame so far: A (samples 0 .. n/2) and B (n/2 .. n).
+        // The frame so far, n samples per pixel: A (the blocks before, n/2 samples) and B (the last block, n/2).
         let t = std::time::Instant::now();
         let denoised_a = denoise::denoised(&a.image, schedule.guide, threads)?;
         denoise_seconds += t.elapsed().as_secs_f64();
@@ -326,7 +324,8 @@ pub fn render(
                 denoise_seconds,
             });
         }
-        // Next round: the frame so far is the new A, the samples n .. 2n the new B (the old halves freed first).
+        // Next round: the frame so far is the new A, a new block of n samples the new B (the old halves freed
+        // first).
         a = RegionRender {
             image: mixed,
             stats,

@@ -95,7 +95,7 @@ pub struct DenoiseReport {
 }
 
 /// The image's R, G, B as an image of those three channels, from channels `names`.
-fn rgb_of(image: &Image, names: [&str; 3]) -> Result<Image, StudyError> {
+pub(super) fn rgb_of(image: &Image, names: [&str; 3]) -> Result<Image, StudyError> {
     let data = image
         .triples(names)
         .ok_or_else(|| StudyError::Config(format!("the image lacks one of {names:?}")))?;
@@ -108,15 +108,17 @@ fn rgb_of(image: &Image, names: [&str; 3]) -> Result<Image, StudyError> {
     Ok(out)
 }
 
-/// RMSE and relative RMSE of `image` against `reference` (both R, G, B only).
-fn errors(image: &Image, reference: &Image) -> (f64, f64) {
+/// RMSE and relative RMSE (√ of the mean of (x − r)² / (r² + 0.01)) of the values `image` against `reference`,
+/// value by value (RGB triples, or images of R, G, B only).
+pub(super) fn errors(image: &[f32], reference: &[f32]) -> (f64, f64) {
     let (mut se, mut rel, mut n) = (0.0, 0.0, 0.0);
-    for (x, r) in image.data.iter().zip(&reference.data) {
+    for (x, r) in image.iter().zip(reference) {
         let (x, r) = (f64::from(*x), f64::from(*r));
         se += (x - r).powi(2);
         rel += (x - r).powi(2) / (r * r + REL_EPSILON);
         n += 1.0;
     }
+    let n = f64::max(n, 1.0);
     ((se / n).sqrt(), (rel / n).sqrt())
 }
 
@@ -133,7 +135,7 @@ fn measured(
     halves: &[Image],
     window: (usize, usize, usize),
 ) -> Result<Row, StudyError> {
-    let (rmse, rel_rmse) = errors(x, truth);
+    let (rmse, rel_rmse) = errors(&x.data, &truth.data);
     let measure = |r: Result<f64, String>| r.map_err(StudyError::Config);
     let d = pixels::detail(x, [&halves[0], &halves[1]], window).map_err(StudyError::Config)?;
     Ok(Row {

@@ -41,6 +41,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use super::cache::{scene_key, write_text};
+use super::denoise::{errors, rgb_of, setup};
 use super::{cached_reference, SceneFile, StudyError};
 use crate::image::{denoise, Image};
 use crate::measure::metrics::REL_EPSILON;
@@ -142,24 +143,9 @@ fn with_method(settings: &RenderSettings, method: &str) -> RenderSettings {
     s
 }
 
-/// R, G, B of `image` (its beauty, or the denoised channels).
-fn rgb(image: &Image, names: [&str; 3]) -> Result<Vec<f32>, StudyError> {
-    image
-        .triples(names)
-        .ok_or_else(|| StudyError::Config(format!("the image lacks one of {names:?}")))
-}
-
-/// Relative RMSE of `x` against `r` (RGB triples).
-fn rel_rmse(x: &[f32], r: &[f32]) -> f64 {
-    let sum: f64 = x
-        .iter()
-        .zip(r)
-        .map(|(&x, &r)| {
-            let (x, r) = (f64::from(x), f64::from(r));
-            (x - r).powi(2) / (r * r + REL_EPSILON)
-        })
-        .sum();
-    (sum / x.len().max(1) as f64).sqrt()
+/// R, G, B of `image` as RGB triples.
+fn rgb(image: &Image) -> Result<Vec<f32>, StudyError> {
+    Ok(rgb_of(image, ["R", "G", "B"])?.data)
 }
 
 /// The flicker of `frames` against the references' motion (`references[i]` for frame i; one for a static camera):
@@ -188,9 +174,13 @@ pub fn flicker(frames: &[Vec<f32>], references: &[Vec<f32>]) -> f64 {
 
 /// Runs the study (see the module docs).
 pub fn run(config: &TemporalStudyConfig) -> Result<TemporalReport, StudyError> {
-    if config.frames < 2 || config.spp.is_empty() || config.spp.contains(&0) {
+    if config.scenes.is_empty()
+        || config.frames < 2
+        || config.spp.is_empty()
+        || config.spp.contains(&0)
+    {
         return Err(StudyError::Config(
-            "study temporal: at least 2 frames and positive spp".to_owned(),
+            "study temporal: at least one scene, 2 frames and positive spp".to_owned(),
         ));
     }
     if config.reference_spp == 0 || !config.orbit_degrees.is_finite() {
@@ -198,7 +188,7 @@ pub fn run(config: &TemporalStudyConfig) -> Result<TemporalReport, StudyError> {
             "study temporal: the reference's spp must be positive and the orbit finite".to_owned(),
         ));
     }
-    let (cache, pool) = super::denoise::setup("study temporal", &config.out, config.threads)?;
+    let (cache, pool) = setup("study temporal", &config.out, config.threads)?;
     let n = config.frames as usize;
     let sequences = CAMERAS.len() * SEEDS.len() * METHODS.len() * config.spp.len();
     let steps = (config.scenes.len() * (n + sequences)) as u64;
@@ -239,7 +229,7 @@ pub fn run(config: &TemporalStudyConfig) -> Result<TemporalReport, StudyError> {
                 let image = pool.install(|| frame.render(Request::new(&s)).image);
                 (image, start.elapsed().as_secs_f64())
             })?;
-            references.push(rgb(&image, ["R", "G", "B"])?);
+            references.push(rgb(&image)?);
             progress.inc(1);
         }
         for method in METHODS {
@@ -279,14 +269,14 @@ pub fn run(config: &TemporalStudyConfig) -> Result<TemporalReport, StudyError> {
                                         StudyError::Config(format!("study temporal: {e}"))
                                     })?;
                             denoise_seconds += start.elapsed().as_secs_f64();
-                            noisy.push(rgb(&image, ["R", "G", "B"])?);
+                            noisy.push(rgb(&image)?);
                             clean.push(d);
                         }
                         for (denoised, frames) in [(false, &noisy), (true, &clean)] {
                             let still = frames
                                 .iter()
                                 .enumerate()
-                                .map(|(i, f)| rel_rmse(f, &refs[i.min(refs.len() - 1)]))
+                                .map(|(i, f)| errors(f, &refs[i.min(refs.len() - 1)]).1)
                                 .sum::<f64>()
                                 / n as f64;
                             let seconds =
@@ -312,12 +302,12 @@ pub fn run(config: &TemporalStudyConfig) -> Result<TemporalReport, StudyError> {
         write_text(&config.out.join("temporal.csv"), &csv_of(&rows)?)?;
     }
     progress.finish_and_clear();
+    // temporal.csv was last written after the last scene.
     let md = markdown(&rows, config);
     let (csv_path, md_path) = (
         config.out.join("temporal.csv"),
         config.out.join("temporal.md"),
     );
-    write_text(&csv_path, &csv_of(&rows)?)?;
     write_text(&md_path, &md)?;
     Ok(TemporalReport {
         rows,

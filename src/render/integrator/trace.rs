@@ -253,14 +253,7 @@ impl<'a> Integrator<'a> {
             Some(t) => t,
             None => {
                 let segment = Ray::segment(ray.origin, ray.dir, ray.tnear, t_end);
-                let blocked = self
-                    .tracer
-                    .occluded_stochastic(&segment, ignore, key)
-                    .unwrap_or_else(|_| {
-                        counts.rejected += 1;
-                        false
-                    });
-                if blocked {
+                if self.hair_blocks(&segment, ignore, key, counts) {
                     0.0
                 } else {
                     1.0
@@ -338,20 +331,31 @@ impl<'a> Integrator<'a> {
             // A shape emits nothing: whatever hair lies before it, the sample brings no light.
             return Vec3::ZERO;
         }
-        if self.settings.shadows != ShadowMode::None && t_end > tnear {
-            let blocked = self
-                .tracer
-                .occluded_stochastic(&Ray::segment(origin, wi, tnear, t_end), ignore, key)
-                .unwrap_or_else(|_| {
-                    // As `find`: a refused ray counts as rejected and finds nothing.
-                    counts.rejected += 1;
-                    false
-                });
-            if blocked {
-                return Vec3::ZERO;
-            }
+        if self.settings.shadows != ShadowMode::None
+            && t_end > tnear
+            && self.hair_blocks(&Ray::segment(origin, wi, tnear, t_end), ignore, key, counts)
+        {
+            return Vec3::ZERO;
         }
         self.emitted_along(v, mis, &ray, reached, pdf)
+    }
+
+    /// Whether a strand present for `key` (strands present with probability = opacity; `ignore` left out) lies on
+    /// `segment`: the any-hit query of a material sample looking for light. As [`Integrator::find`], a refused ray
+    /// counts as rejected and finds nothing.
+    fn hair_blocks(
+        &self,
+        segment: &Ray,
+        ignore: Option<u32>,
+        key: u64,
+        counts: &mut RayCounts,
+    ) -> bool {
+        self.tracer
+            .occluded_stochastic(segment, ignore, key)
+            .unwrap_or_else(|_| {
+                counts.rejected += 1;
+                false
+            })
     }
 
     /// The emitted radiance a material sample from `v` along `ray` (density `pdf` per sample) finds in `found`,

@@ -8,12 +8,12 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use crate::accel::CurveKind;
-use crate::image::Image;
 use crate::quality::delivered::{delivered, delivered_denoised};
 use crate::quality::denoised::{self, DenoisedSchedule};
 use crate::quality::{self, Fixed, QualityConfig};
 use crate::render::{thread_pool, Frame, Request};
 
+use super::super::denoise::rgb_of;
 use super::super::{cache, create_dir, SceneFile, StudyError};
 use super::measure::mean_spp;
 use super::scene::reference_of;
@@ -135,7 +135,7 @@ fn scene_rows(
         let seconds = start.elapsed().as_secs_f64();
         let (measured, noisy) = match &rounds {
             Some(_) => (
-                reference.measure(&denoised_as_beauty(&image)?)?,
+                reference.measure(&rgb_of(&image, crate::image::denoise::CHANNELS)?)?,
                 Some(reference.measure(&image)?.error),
             ),
             None => (reference.measure(&image)?, None),
@@ -162,20 +162,6 @@ fn scene_rows(
         });
     }
     Ok(rows)
-}
-
-/// `image` with its `denoised.R/G/B` as its beauty, for the yardstick, which reads R, G, B.
-fn denoised_as_beauty(image: &Image) -> Result<Image, StudyError> {
-    let values = image
-        .triples(crate::image::denoise::CHANNELS)
-        .ok_or_else(|| StudyError::Config("the denoised frame has no denoised.R/G/B".into()))?;
-    let mut out = Image::new(
-        image.width,
-        image.height,
-        vec!["R".into(), "G".into(), "B".into()],
-    );
-    out.data = values;
-    Ok(out)
 }
 
 /// The headline of `rows`: how many met the target, how many were more than 5 % over, how many estimates were
