@@ -323,6 +323,57 @@ impl Chiang {
     fn uniform(&self) -> bool {
         self.params.sampling == Sampling::Uniform
     }
+
+    /// A_p per order and channel and Φ(p) for p = 0, 1, 2 at offset `h` (clamped to [−1, 1]) seen from an ωo of
+    /// inclination (`sin_o`, `cos_o` ≥ 0): the terms of N_p and A_p that depend on the hit (module docs).
+    #[inline(always)]
+    pub fn azimuthal_terms<R: Real>(
+        &self,
+        h: R,
+        sin_o: R,
+        cos_o: R,
+    ) -> ([[R; 3]; P_MAX + 1], [R; P_MAX]) {
+        let one = R::splat(1.0);
+        let zero = R::splat(0.0);
+        let eta = self.params.eta;
+        let h = h.clamp_to(-1.0, 1.0);
+        let gamma_o = h.asin();
+        let cos_gamma_o = (one - h * h).max(zero).sqrt();
+        // Refraction into the fibre: θt (sin θt = sin θo/η) and, in the normal plane, γt with Bravais' index η′.
+        let sin_t = sin_o / R::splat(eta);
+        let cos_t = (one - sin_t * sin_t).max(zero).sqrt();
+        let eta_p = (R::splat(eta * eta) - sin_o * sin_o).max(zero).sqrt()
+            / cos_o.max(R::splat(COS_THETA_MIN));
+        let sin_gt = (h / eta_p).clamp_to(-1.0, 1.0);
+        let gamma_t = sin_gt.asin();
+        let cos_gt = (one - sin_gt * sin_gt).max(zero).sqrt();
+        // One chord of length 2 cos γt / cos θt radii; cos θt ≥ √(1 − 1/η²) > 0.
+        let chord = R::splat(2.0) * cos_gt / cos_t;
+        let sigma = self.params.sigma_a;
+        let t: [R; 3] = std::array::from_fn(|c| (-R::splat(sigma[c]) * chord).exp());
+        let ap = a_p(cos_o, cos_gamma_o, eta, t);
+        let phis = std::array::from_fn(|p| phi_p(p, gamma_o, gamma_t));
+        (ap, phis)
+    }
+
+    /// (sin θo′, |cos θo′|) per order p = 0 ..= [`P_MAX`] for an ωo of inclination (`sin_o`, `cos_o`): the tilted
+    /// angles M_p is evaluated at, θo − 2α (R), θo + α (TT), θo + 4α (TRT), θo (residual).
+    #[inline(always)]
+    pub fn tilted<R: Real>(&self, sin_o: R, cos_o: R) -> [(R, R); P_MAX + 1] {
+        let rot = |(s, c): (f32, f32), sign: f32| {
+            let (s, c) = (R::splat(sign * s), R::splat(c));
+            (
+                sin_o.mul_add(c, cos_o * s),
+                cos_o.mul_sub(c, sin_o * s).abs(),
+            )
+        };
+        [
+            rot(self.tilt[1], -1.0),
+            rot(self.tilt[0], 1.0),
+            rot(self.tilt[2], 1.0),
+            (sin_o, cos_o),
+        ]
+    }
 }
 
 /// What Chiang's eval and sample share for one hit (its h and ωo), per lane: computed once per shading point
@@ -385,45 +436,13 @@ impl Fibre for Chiang {
 
     #[inline(always)]
     fn view<R: Real>(&self, h: R, wo: [R; 3]) -> ChiangView<R> {
-        let one = R::splat(1.0);
-        let zero = R::splat(0.0);
-        let eta = self.params.eta;
-        let h = h.clamp_to(-1.0, 1.0);
-        let gamma_o = h.asin();
-        let cos_gamma_o = (one - h * h).max(zero).sqrt();
         let (sin_o, cos_o) = sin_cos_theta(wo);
-        // Refraction into the fibre: θt (sin θt = sin θo/η) and, in the normal plane, γt with Bravais' index η′.
-        let sin_t = sin_o / R::splat(eta);
-        let cos_t = (one - sin_t * sin_t).max(zero).sqrt();
-        let eta_p = (R::splat(eta * eta) - sin_o * sin_o).max(zero).sqrt()
-            / cos_o.max(R::splat(COS_THETA_MIN));
-        let sin_gt = (h / eta_p).clamp_to(-1.0, 1.0);
-        let gamma_t = sin_gt.asin();
-        let cos_gt = (one - sin_gt * sin_gt).max(zero).sqrt();
-        // One chord of length 2 cos γt / cos θt radii; cos θt ≥ √(1 − 1/η²) > 0.
-        let chord = R::splat(2.0) * cos_gt / cos_t;
-        let sigma = self.params.sigma_a;
-        let t: [R; 3] = std::array::from_fn(|c| (-R::splat(sigma[c]) * chord).exp());
-        let ap = a_p(cos_o, cos_gamma_o, eta, t);
+        let (ap, phis) = self.azimuthal_terms(h, sin_o, cos_o);
         let lum = ap.map(|a| luminance(&a));
         // A₀ = F ≥ ((η − 1)/(η + 1))² > 0, so the total is positive.
         let total = lum[0] + lum[1] + lum[2] + lum[3];
         let ap_pdf = lum.map(|l| l / total);
-        let phis = std::array::from_fn(|p| phi_p(p, gamma_o, gamma_t));
-        // Tilts: θo − 2α (R), θo + α (TT), θo + 4α (TRT), θo (residual).
-        let rot = |(s, c): (f32, f32), sign: f32| {
-            let (s, c) = (R::splat(sign * s), R::splat(c));
-            (
-                sin_o.mul_add(c, cos_o * s),
-                cos_o.mul_sub(c, sin_o * s).abs(),
-            )
-        };
-        let tilted = [
-            rot(self.tilt[1], -1.0),
-            rot(self.tilt[0], 1.0),
-            rot(self.tilt[2], 1.0),
-            (sin_o, cos_o),
-        ];
+        let tilted = self.tilted(sin_o, cos_o);
         ChiangView {
             wo_y: wo[1],
             wo_z: wo[2],

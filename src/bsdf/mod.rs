@@ -32,6 +32,7 @@
 
 pub mod cauchy;
 pub mod chiang;
+pub mod dual;
 pub mod frame;
 pub mod fresnel;
 pub mod gaussian;

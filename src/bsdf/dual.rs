@@ -1,0 +1,448 @@
+//! Dual scattering (Zinke, Yuksel, Weber & Keyser 2008, "Dual scattering approximation for fast multiple
+//! scattering in hair"): the light a fibre receives after scattering in *other* fibres, from averages of the
+//! single-fibre model instead of paths through the hair. Built here from Chiang et al.'s model
+//! ([`super::chiang`]), whose A_p, N_p and M_p are integrated by the program into the tables below.
+//!
+//! # The approximation
+//!
+//! Light from a light towards a shading point x crosses n fibres. If n = 0 it arrives directly (single scattering,
+//! the path tracer's own light sample); otherwise only light forward-scattered through every fibre arrives, and
+//! the paper approximates it as
+//!
+//! - **global multiple scattering**: T_f = ∏ ā_f(θk) ≈ ā_f(θ)ⁿ of the light (forward-scattering transmittance)
+//!   arriving with its direction spread by σ_f² = Σ β̄_f²(θk) ≈ n β̄_f²(θ) in inclination and, in azimuth, over the
+//!   half circle around the light; x scatters it with f^G: Chiang's lobes with M_p's variance widened to
+//!   v_p + σ_f² and N_p averaged over that half circle (and over h);
+//! - **local multiple scattering**: light back-scattered by the fibres around x, f_back = A_b M_b(θi; θo − Δ_b,
+//!   σ_b²) / π over the backward half (|φ| < π/2), from the back-scattering attenuation A_b, shift Δ_b and variance
+//!   σ_b² of up to three back-scattering events (the paper's eqs. 14 and 16; the variance as derived below).
+//!
+//! The multiple-scattered light at x (f · cos θi, on top of single scattering) is then
+//! d_b f_back(σ_b²) where n = 0, and T_f d_f (f^G(σ_f²) + d_b f_back(σ_b² + σ_f²)) where n ≥ 1 — the paper's
+//! F_direct and F_scatter less the single scattering, with its density factors d_f = d_b = 0.7
+//! ([`DENSITY_FORWARD`], [`DENSITY_BACKWARD`]).
+//!
+//! # The averages (computed by the program, not fitted)
+//!
+//! In this crate's convention the path tracer weights light from ωi by f(ωo, ωi) cos θi dωi for a fixed ωo, and
+//! ∫ f cos θi dωi = Σ A_p (1 with σa = 0). So the average forward attenuation at inclination θ is that integral
+//! over the forward half, |φ| > π/2 (φ = φi − φo; φ = 0 sends light back towards ωi), averaged over the offset h:
+//! ā_f(θ) = ⟨Σ_p A_p(θ, h) ∫_{|φ|>π/2} N_p(φ, h) dφ⟩_h, and ā_b(θ) the same over |φ| < π/2, so ā_f + ā_b =
+//! ⟨Σ A_p⟩ (exactly 1 with σa = 0: tested). The shifts and variances are those of the deviation δ = θi + θo (0
+//! for a mirror reflection and for light passing straight through), as angles of the direction, over the
+//! forward- (backward-) scattered energy: each lobe's M_p contributes its mean and variance of δ (integrated
+//! numerically), mixed by its energy — the variance of the mixture, the spread between the lobes' means included.
+//! The tables hold 64 inclinations; N^G a further 64 azimuths in [0, π] (it is even in φ once averaged over h).
+//!
+//! # Departures from the paper, and why
+//!
+//! - **Units**: the paper writes shifts and widths of Marschner's θ_h = (θi + θo)/2 and normalises f_back with
+//!   2/(π cos²θd); here every angle is of the direction (δ = 2θ_h) and f_back integrates to A_b exactly
+//!   (∫ f_back cos θi dωi = A_b), the convention of the rest of the crate.
+//! - **σ_b²**: the paper's eq. 17 divides a sum of standard deviations weighted by attenuations by
+//!   ā_b + ā_b³(2β̄_f + 3β̄_b), which adds attenuations to angles. Here σ_b² is the variance of the two classes of
+//!   paths that eq. 14 sums: A₁ = ā_b ā_f²/(1 − ā_f²) (one back-scattering, k forward events each way, k ≥ 1,
+//!   weighted ā_f^{2k}: on average 2/(1 − ā_f²) forward events) and A₃ = ā_b³ ā_f²/(1 − ā_f²)³ (three
+//!   back-scatterings; the series ā_f²/(1 − ā_f²)³ = Σ k(k+1)/2 ā_f^{2k} gives on average 2(1 + 2ā_f²)/(1 − ā_f²)
+//!   forward events): σ_b² = (A₁ s₁ + A₃ s₃)/(A₁ + A₃), s₁ = 2β̄_f²/(1 − ā_f²) + β̄_b²,
+//!   s₃ = 2β̄_f²(1 + 2ā_f²)/(1 − ā_f²) + 3β̄_b².
+//! - **Where a table is read**: ā_f and β̄_f along the light's path at the inclination of the direction back
+//!   towards x (−θi of the light, the fibres taken parallel to x's, as the paper does); A_b, Δ_b, σ_b² and N^G at
+//!   x's own θo.
+//!
+//! # Which models
+//!
+//! Chiang's alone. The formulation needs an energy-conserving single-fibre model: A_b sums the geometric series of
+//! ā_f², which is only meaningful when ā_f + ā_b ≤ 1. Kajiya-Kay has no forward/backward split to speak of, and the
+//! thesis' Marschner R lobes and ISHair are not energy conserving (their white furnaces are not 1:
+//! `bsdf::marschner` and `bsdf::ishair`).
+
+use super::chiang::{m_p, Chiang, P_MAX};
+use super::frame::sin_cos_theta;
+use glam::Vec3;
+use std::f64::consts::{FRAC_PI_2, PI, TAU};
+
+/// d_f, the forward-scattering density factor (Zinke et al. 2008, §4.2: 0.7 works for their hair models; kept and
+/// judged on this crate's scenes by `cuticle study multiple-scattering`).
+pub const DENSITY_FORWARD: f32 = 0.7;
+
+/// d_b, the backward-scattering density factor (as [`DENSITY_FORWARD`]).
+pub const DENSITY_BACKWARD: f32 = 0.7;
+
+/// Inclinations θ ∈ (−π/2, π/2) of the tables, at the centres of equal bins.
+pub const THETA_BINS: usize = 64;
+
+/// Azimuths φ ∈ [0, π] of the N^G table, end points included.
+pub const PHI_BINS: usize = 64;
+
+/// Nodes of the rule over h ∈ [−1, 1] that averages A_p and N_p over the fibre's width.
+const H_NODES: usize = 64;
+
+/// Incident inclinations of the midpoint rule that takes M_p's moments.
+const THETA_I_NODES: usize = 2048;
+
+/// The most strands a light's path is counted through: past it T_f ≤ ā_f⁶⁴ (2e-5 for ā_f = 0.85) and the count
+/// stops (the tracer's list of strands seen holds 64).
+pub const MAX_STRANDS: u32 = 64;
+
+/// The averages of the single-fibre model at one inclination, per colour channel (module docs).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Averages {
+    /// ā_f, the energy scattered into the forward half.
+    pub forward: Vec3,
+    /// ā_b, the energy scattered into the backward half.
+    pub backward: Vec3,
+    /// ᾱ_f, the mean deviation δ = θi + θo of the forward-scattered light, radians.
+    pub shift_forward: Vec3,
+    /// ᾱ_b, the same of the backward-scattered light.
+    pub shift_backward: Vec3,
+    /// β̄_f², the variance of δ of the forward-scattered light, radians².
+    pub variance_forward: Vec3,
+    /// β̄_b², the same of the backward-scattered light.
+    pub variance_backward: Vec3,
+}
+
+/// Back-scattering by the fibres around a point, per channel: the paper's A_b (eq. 14), Δ_b (eq. 16) and the
+/// variance σ_b² of the module docs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Backscatter {
+    /// A_b, the energy returned by up to three back-scattering events.
+    pub attenuation: Vec3,
+    /// Δ_b, its mean deviation, radians.
+    pub shift: Vec3,
+    /// σ_b², its variance, radians².
+    pub variance: Vec3,
+}
+
+impl Averages {
+    /// A_b, Δ_b and σ_b² from these averages (module docs).
+    pub fn backscatter(&self) -> Backscatter {
+        let mut out = Backscatter {
+            attenuation: Vec3::ZERO,
+            shift: Vec3::ZERO,
+            variance: Vec3::ZERO,
+        };
+        for c in 0..3 {
+            let (af, ab) = (self.forward[c] as f64, self.backward[c] as f64);
+            let (alpha_f, alpha_b) = (self.shift_forward[c] as f64, self.shift_backward[c] as f64);
+            let (beta_f, beta_b) = (
+                self.variance_forward[c] as f64,
+                self.variance_backward[c] as f64,
+            );
+            let af2 = af * af;
+            let ab2 = ab * ab;
+            // ā_f < 1 whenever ā_b > 0 (their sum is at most 1); the floor only keeps a degenerate table finite.
+            let one_m = (1.0 - af2).max(1e-9);
+            let a1 = ab * af2 / one_m;
+            let a3 = ab * ab2 * af2 / one_m.powi(3);
+            let shift = alpha_b * (1.0 - 2.0 * ab2 / (one_m * one_m))
+                + alpha_f * (2.0 * one_m * one_m + 4.0 * af2 * ab2) / one_m.powi(3);
+            let s1 = 2.0 * beta_f / one_m + beta_b;
+            let s3 = 2.0 * beta_f * (1.0 + 2.0 * af2) / one_m + 3.0 * beta_b;
+            let total = a1 + a3;
+            out.attenuation[c] = total as f32;
+            out.shift[c] = shift as f32;
+            out.variance[c] = if total > 0.0 {
+                ((a1 * s1 + a3 * s3) / total) as f32
+            } else {
+                beta_b as f32
+            };
+        }
+        out
+    }
+}
+
+/// The dual-scattering tables of one Chiang material, ready to shade (module docs).
+#[derive(Debug, Clone)]
+pub struct DualScattering {
+    model: Chiang,
+    /// v_p of M_p per order.
+    variances: [f64; P_MAX + 1],
+    /// Per inclination bin.
+    averages: Vec<Averages>,
+    /// Per inclination bin, from `averages`.
+    back: Vec<Backscatter>,
+    /// N^G_p (A_p included) per inclination bin (major) and azimuth node (minor), per order and channel.
+    global_azimuthal: Vec<[Vec3; P_MAX + 1]>,
+}
+
+/// θ at the centre of table bin `k`.
+fn theta_of_bin(k: usize) -> f64 {
+    -FRAC_PI_2 + PI * (k as f64 + 0.5) / THETA_BINS as f64
+}
+
+/// φ of azimuth node `j` of the N^G table.
+fn phi_of_node(j: usize) -> f64 {
+    PI * j as f64 / (PHI_BINS - 1) as f64
+}
+
+/// The bins around inclination `theta` and the weight of the upper one (clamped at the ends).
+fn theta_lookup(theta: f32) -> (usize, usize, f32) {
+    let x = (theta as f64 + FRAC_PI_2) / PI * THETA_BINS as f64 - 0.5;
+    let x = x.clamp(0.0, (THETA_BINS - 1) as f64);
+    let lo = (x.floor() as usize).min(THETA_BINS - 2);
+    (lo, lo + 1, (x - lo as f64) as f32)
+}
+
+/// The logistic's CDF 1/(1 + e^{−x/s}).
+fn logistic_cdf(x: f64, s: f64) -> f64 {
+    1.0 / (1.0 + (-x / s).exp())
+}
+
+/// The cumulative integral from −π of the trimmed logistic of scale `s` wrapped around the circle, for any x
+/// (it grows by 1 per turn): the trimmed CDF (F(y) − F(−π))/(F(π) − F(−π)) plus the whole turns before y.
+fn wrapped_cdf(x: f64, s: f64) -> f64 {
+    let turns = ((x + PI) / TAU).floor();
+    let y = x - turns * TAU;
+    let lo = logistic_cdf(-PI, s);
+    let span = logistic_cdf(PI, s) - lo;
+    turns + (logistic_cdf(y, s) - lo) / span
+}
+
+/// ∫ over φ ∈ [a − w, a + w] of N_p(φ) centred on 0 (the trimmed logistic wrapped), for w ≤ π.
+fn logistic_mass(a: f64, w: f64, s: f64) -> f64 {
+    wrapped_cdf(a + w, s) - wrapped_cdf(a - w, s)
+}
+
+impl DualScattering {
+    /// The tables of `model` (under 0.1 s on one core: `tests`).
+    pub fn new(model: &Chiang) -> DualScattering {
+        let variances = model.variances().map(|v| v as f64);
+        let s = model.logistic_scale() as f64;
+        // h = sin γ at the midpoints of equal steps in γ, each weighted cos γ dγ / 2: A₀ = F climbs to 1 as
+        // |h| → 1, where equal steps in h would leave out the steepest part.
+        let (hs, h_weights): (Vec<f32>, Vec<f64>) = (0..H_NODES)
+            .map(|i| {
+                let d = PI / H_NODES as f64;
+                let gamma = -FRAC_PI_2 + (i as f64 + 0.5) * d;
+                (gamma.sin() as f32, 0.5 * gamma.cos() * d)
+            })
+            .unzip();
+        let mut averages = Vec::with_capacity(THETA_BINS);
+        let mut global_azimuthal = Vec::with_capacity(THETA_BINS * PHI_BINS);
+        for k in 0..THETA_BINS {
+            let theta_o = theta_of_bin(k);
+            let (sin_o, cos_o) = (theta_o.sin() as f32, theta_o.cos() as f32);
+            let terms: Vec<_> = hs
+                .iter()
+                .map(|&h| model.azimuthal_terms(h, sin_o, cos_o))
+                .collect();
+            // Energy per order into each half, per channel, averaged over h.
+            let mut forward = [[0.0f64; 3]; P_MAX + 1];
+            let mut backward = [[0.0f64; 3]; P_MAX + 1];
+            for ((ap, phis), &weight) in terms.iter().zip(&h_weights) {
+                for p in 0..=P_MAX {
+                    // ∫_{|φ|<π/2} N_p dφ: the residual's N_p is uniform.
+                    let back_share = if p < P_MAX {
+                        logistic_mass(-(phis[p] as f64), FRAC_PI_2, s)
+                    } else {
+                        0.5
+                    };
+                    for c in 0..3 {
+                        let a = ap[p][c] as f64 * weight;
+                        backward[p][c] += a * back_share;
+                        forward[p][c] += a * (1.0 - back_share);
+                    }
+                }
+            }
+            let moments = lobe_moments(model, &variances, theta_o);
+            averages.push(mix(&forward, &backward, &moments));
+            // N^G_p(θo, φ): N_p averaged over incident azimuths within ±π/2 of φ, times A_p, averaged over h.
+            for j in 0..PHI_BINS {
+                let phi = phi_of_node(j);
+                let mut ng = [Vec3::ZERO; P_MAX + 1];
+                for ((ap, phis), &weight) in terms.iter().zip(&h_weights) {
+                    for (p, n) in ng.iter_mut().enumerate() {
+                        let box_average = if p < P_MAX {
+                            logistic_mass(phi - phis[p] as f64, FRAC_PI_2, s) / PI
+                        } else {
+                            0.5 / PI
+                        };
+                        *n += Vec3::from(ap[p]) * (box_average * weight) as f32;
+                    }
+                }
+                global_azimuthal.push(ng);
+            }
+        }
+        let back = averages.iter().map(Averages::backscatter).collect();
+        DualScattering {
+            model: *model,
+            variances,
+            averages,
+            back,
+            global_azimuthal,
+        }
+    }
+
+    /// The averages at inclination `theta` (interpolated linearly between the table's bins).
+    pub fn averages(&self, theta: f32) -> Averages {
+        let (lo, hi, t) = theta_lookup(theta);
+        let (a, b) = (&self.averages[lo], &self.averages[hi]);
+        let l = |x: Vec3, y: Vec3| x.lerp(y, t);
+        Averages {
+            forward: l(a.forward, b.forward),
+            backward: l(a.backward, b.backward),
+            shift_forward: l(a.shift_forward, b.shift_forward),
+            shift_backward: l(a.shift_backward, b.shift_backward),
+            variance_forward: l(a.variance_forward, b.variance_forward),
+            variance_backward: l(a.variance_backward, b.variance_backward),
+        }
+    }
+
+    /// A_b, Δ_b, σ_b² at inclination `theta` (interpolated).
+    pub fn backscatter(&self, theta: f32) -> Backscatter {
+        let (lo, hi, t) = theta_lookup(theta);
+        let (a, b) = (&self.back[lo], &self.back[hi]);
+        Backscatter {
+            attenuation: a.attenuation.lerp(b.attenuation, t),
+            shift: a.shift.lerp(b.shift, t),
+            variance: a.variance.lerp(b.variance, t),
+        }
+    }
+
+    /// N^G_p (A_p included) per order at inclination `theta` and azimuth |`phi`| (bilinear).
+    pub fn global_azimuthal(&self, theta: f32, phi: f32) -> [Vec3; P_MAX + 1] {
+        let (lo, hi, t) = theta_lookup(theta);
+        let x = (phi.abs() as f64 / PI * (PHI_BINS - 1) as f64).clamp(0.0, (PHI_BINS - 1) as f64);
+        let j = (x.floor() as usize).min(PHI_BINS - 2);
+        let u = (x - j as f64) as f32;
+        let at = |k: usize, j: usize| &self.global_azimuthal[k * PHI_BINS + j];
+        std::array::from_fn(|p| {
+            let row = |k| at(k, j)[p].lerp(at(k, j + 1)[p], u);
+            row(lo).lerp(row(hi), t)
+        })
+    }
+
+    /// The strands after which a light's path carries nothing visible: ā_f(θ)ⁿ < 1e-3 in every channel for
+    /// the largest ā_f of the table, at most [`MAX_STRANDS`].
+    pub fn strand_limit(&self) -> u32 {
+        let largest = self
+            .averages
+            .iter()
+            .map(|a| a.forward.max_element())
+            .fold(0.0f32, f32::max) as f64;
+        if largest <= 0.0 {
+            return 1;
+        }
+        let n = (1e-3f64).ln() / largest.min(1.0 - 1e-9).ln();
+        (n.ceil() as u32).clamp(1, MAX_STRANDS)
+    }
+
+    /// f · cos θi of the multiple-scattered light only (single scattering is the caller's), RGB, for light from
+    /// `wi` seen from `wo` (local hair frame, unit) that crossed `strands` fibres on its way (0: unoccluded).
+    pub fn fcos(&self, wo: Vec3, wi: Vec3, strands: u32) -> Vec3 {
+        let (sin_o, cos_o) = sin_cos_theta(wo);
+        let (sin_i, cos_i) = sin_cos_theta(wi);
+        let theta_o = sin_o.atan2(cos_o);
+        // φ = φi − φo.
+        let phi = (wo.y * wi.z - wo.z * wi.y).atan2(wo.y * wi.y + wo.z * wi.z);
+        let back = self.backscatter(theta_o);
+        let backward_half = phi.abs() < std::f32::consts::FRAC_PI_2;
+        // f_back cos θi = A_b M(θi; θo − Δ_b, σ_b² + extra) / π on the backward half.
+        let f_back = |extra: Vec3| -> Vec3 {
+            if !backward_half {
+                return Vec3::ZERO;
+            }
+            Vec3::from(std::array::from_fn::<f32, 3, _>(|c| {
+                let (s, co) = (theta_o - back.shift[c]).sin_cos();
+                let v = (back.variance[c] + extra[c]).max(1e-6) as f64;
+                back.attenuation[c] * m_p(v, sin_i, cos_i, s, co.abs()) / std::f32::consts::PI
+            }))
+        };
+        if strands == 0 {
+            return DENSITY_BACKWARD * f_back(Vec3::ZERO);
+        }
+        let along = self.averages(-sin_i.atan2(cos_i));
+        let n = strands as f32;
+        let transmittance = along.forward.powf(n);
+        if transmittance.max_element() <= 0.0 {
+            return Vec3::ZERO;
+        }
+        let spread = along.variance_forward * n;
+        let ng = self.global_azimuthal(theta_o, phi);
+        let tilted = self.model.tilted(sin_o, cos_o);
+        let mut global = Vec3::ZERO;
+        for p in 0..=P_MAX {
+            let (s, co) = tilted[p];
+            for c in 0..3 {
+                let v = self.variances[p] + spread[c] as f64;
+                global[c] += ng[p][c] * m_p(v, sin_i, cos_i, s, co);
+            }
+        }
+        transmittance * DENSITY_FORWARD * (global + DENSITY_BACKWARD * f_back(spread))
+    }
+}
+
+/// Per order p, the mean and variance of δ = θi + θo under M_p(θi, θo′_p) cos θi (a density over θi) at `theta_o`.
+fn lobe_moments(
+    model: &Chiang,
+    variances: &[f64; P_MAX + 1],
+    theta_o: f64,
+) -> [(f64, f64); P_MAX + 1] {
+    let tilted = model.tilted(theta_o.sin() as f32, theta_o.cos() as f32);
+    let d = PI / THETA_I_NODES as f64;
+    std::array::from_fn(|p| {
+        let (so, co) = tilted[p];
+        let (mut w, mut m1, mut m2) = (0.0f64, 0.0f64, 0.0f64);
+        for i in 0..THETA_I_NODES {
+            let theta_i = -FRAC_PI_2 + (i as f64 + 0.5) * d;
+            let (si, ci) = theta_i.sin_cos();
+            let density = m_p(variances[p], si as f32, ci as f32, so, co) as f64 * ci * d;
+            let delta = theta_i + theta_o;
+            w += density;
+            m1 += density * delta;
+            m2 += density * delta * delta;
+        }
+        let mean = m1 / w;
+        (mean, (m2 / w - mean * mean).max(0.0))
+    })
+}
+
+/// The averages from each order's energy into the two halves and its moments of δ: energies summed, means and
+/// variances of the energy-weighted mixture.
+fn mix(
+    forward: &[[f64; 3]; P_MAX + 1],
+    backward: &[[f64; 3]; P_MAX + 1],
+    moments: &[(f64, f64); P_MAX + 1],
+) -> Averages {
+    let half = |energy: &[[f64; 3]; P_MAX + 1]| -> (Vec3, Vec3, Vec3) {
+        let mut out = (Vec3::ZERO, Vec3::ZERO, Vec3::ZERO);
+        #[allow(clippy::needless_range_loop)] // c indexes the inner arrays of every order
+        for c in 0..3 {
+            let total: f64 = (0..=P_MAX).map(|p| energy[p][c]).sum();
+            let mean = if total > 0.0 {
+                (0..=P_MAX)
+                    .map(|p| energy[p][c] * moments[p].0)
+                    .sum::<f64>()
+                    / total
+            } else {
+                0.0
+            };
+            let variance = if total > 0.0 {
+                (0..=P_MAX)
+                    .map(|p| energy[p][c] * (moments[p].1 + (moments[p].0 - mean).powi(2)))
+                    .sum::<f64>()
+                    / total
+            } else {
+                0.0
+            };
+            out.0[c] = total as f32;
+            out.1[c] = mean as f32;
+            out.2[c] = variance as f32;
+        }
+        out
+    };
+    let (f, fm, fv) = half(forward);
+    let (b, bm, bv) = half(backward);
+    Averages {
+        forward: f,
+        backward: b,
+        shift_forward: fm,
+        shift_backward: bm,
+        variance_forward: fv,
+        variance_backward: bv,
+    }
+}
+
+#[cfg(test)]
+mod tests;
