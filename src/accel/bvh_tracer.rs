@@ -227,6 +227,30 @@ impl Tracer for BvhTracer {
         Ok(seen.transmittance)
     }
 
+    fn strands_crossed(
+        &self,
+        ray: &Ray,
+        ignore_strand: Option<u32>,
+        limit: u32,
+    ) -> Result<u32, InvalidRay> {
+        let limit = limit.clamp(1, SEEN_STRANDS as u32) as usize;
+        let q = self.query(ray)?;
+        let mut seen = Seen::new(ignore_strand);
+        self.bvh.for_each_unordered(&q.ray, |p, tfar| {
+            if seen.skips(p.strand, p.opacity) || !q.occludes(p, tfar) {
+                return Control::Continue;
+            }
+            seen.strands[seen.len] = p.strand;
+            seen.len += 1;
+            if seen.len >= limit {
+                Control::Stop
+            } else {
+                Control::Continue
+            }
+        });
+        Ok(seen.len.min(limit) as u32)
+    }
+
     fn intersect_stochastic(
         &self,
         ray: &Ray,
@@ -381,6 +405,7 @@ mod tests {
         transmittance: (f32, f32),
         stochastic: (Option<Hit>, Option<Hit>),
         occluded: (bool, bool),
+        crossed: (u32, u32),
     }
 
     fn outcome(
@@ -410,6 +435,10 @@ mod tests {
                 embree.occluded_stochastic(&ray, ignore, key).unwrap(),
                 bvh.occluded_stochastic(&ray, ignore, key).unwrap(),
             ),
+            crossed: (
+                embree.strands_crossed(&ray, ignore, 64).unwrap(),
+                bvh.strands_crossed(&ray, ignore, 64).unwrap(),
+            ),
         }
     }
 
@@ -430,6 +459,7 @@ mod tests {
             "transmittance",
             "intersect_stochastic",
             "occluded_stochastic",
+            "strands_crossed",
         ];
         let mut t = names.map(Tally::new);
         for o in outcomes {
@@ -464,6 +494,10 @@ mod tests {
             let (e, b) = o.occluded;
             t[3].add(if e == b { 0.0 } else { f64::INFINITY }, || {
                 format!("{ray:?} ignore {ignore:?} key {key}: embree {e}, bvh {b}")
+            });
+            let (e, b) = o.crossed;
+            t[4].add(if e == b { 0.0 } else { f64::INFINITY }, || {
+                format!("{ray:?} ignore {ignore:?}: embree {e} strands, bvh {b}")
             });
         }
         for tally in &t {

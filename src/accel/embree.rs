@@ -168,6 +168,15 @@ impl Tracer for EmbreeTracer {
     fn transmittance(&self, ray: &Ray, ignore_strand: Option<u32>) -> Result<f32, InvalidRay> {
         Ok(self.scene.transmittance1(ray, ignore_strand)?.value)
     }
+
+    fn strands_crossed(
+        &self,
+        ray: &Ray,
+        ignore_strand: Option<u32>,
+        limit: u32,
+    ) -> Result<u32, InvalidRay> {
+        self.scene.strands_crossed1(ray, ignore_strand, limit)
+    }
 }
 
 /// Packet queries: [`Tracer::intersect`], [`Tracer::intersect_stochastic`] and [`Tracer::occluded_stochastic`] for

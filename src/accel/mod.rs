@@ -90,6 +90,17 @@ pub trait Tracer: Sync {
     /// out (the strand being shaded: its own scattering is the BSDF's job, not a shadow).
     fn transmittance(&self, ray: &Ray, ignore_strand: Option<u32>) -> Result<f32, InvalidRay>;
 
+    /// The distinct strands `ray` crosses (of opacity above 0, each counted once however many times the tracer
+    /// reports it), `ignore_strand` left out, counted up to `limit` (at most 64, the tracers' list of strands
+    /// seen): how many fibres light passes on its way to a shading point, for dual scattering
+    /// ([`crate::bsdf::dual`]).
+    fn strands_crossed(
+        &self,
+        ray: &Ray,
+        ignore_strand: Option<u32>,
+        limit: u32,
+    ) -> Result<u32, InvalidRay>;
+
     /// The closest hit among the strands *present* for the ray with this `key` (see [`strand_present`]): the
     /// semi-transparent hair of the thesis' shadows, made stochastic so that light and material samples see the
     /// same hair. `ignore_strand` is never hit.

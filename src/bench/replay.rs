@@ -39,6 +39,8 @@ pub enum Query {
     OccludedStochastic,
     /// [`Tracer::transmittance`] (light samples, exact transmittance).
     Transmittance,
+    /// [`Tracer::strands_crossed`] (light samples under dual scattering; the limit is recorded as the key).
+    StrandsCrossed,
 }
 
 /// One tracer query of a frame.
@@ -72,6 +74,9 @@ impl TracedRay {
                 matches!(tracer.occluded_stochastic(ray, ignore, key), Ok(true))
             }
             Query::Transmittance => matches!(tracer.transmittance(ray, ignore), Ok(t) if t < 1.0),
+            Query::StrandsCrossed => {
+                matches!(tracer.strands_crossed(ray, ignore, key as u32), Ok(n) if n > 0)
+            }
         }
     }
 }
@@ -129,6 +134,16 @@ impl Tracer for Recorder {
         self.inner.transmittance(ray, ignore_strand)
     }
 
+    fn strands_crossed(
+        &self,
+        ray: &Ray,
+        ignore_strand: Option<u32>,
+        limit: u32,
+    ) -> Result<u32, InvalidRay> {
+        self.record(ray, ignore_strand, limit as u64, Query::StrandsCrossed);
+        self.inner.strands_crossed(ray, ignore_strand, limit)
+    }
+
     fn intersect_stochastic(
         &self,
         ray: &Ray,
@@ -164,6 +179,9 @@ impl Tracer for Unset {
         unreachable!("the replay's placeholder tracer is never traced")
     }
     fn transmittance(&self, _: &Ray, _: Option<u32>) -> Result<f32, InvalidRay> {
+        unreachable!("the replay's placeholder tracer is never traced")
+    }
+    fn strands_crossed(&self, _: &Ray, _: Option<u32>, _: u32) -> Result<u32, InvalidRay> {
         unreachable!("the replay's placeholder tracer is never traced")
     }
     fn intersect_stochastic(

@@ -164,6 +164,8 @@ pub struct DualScattering {
     back: Vec<Backscatter>,
     /// N^G_p (A_p included) per inclination bin (major) and azimuth node (minor), per order and channel.
     global_azimuthal: Vec<[Vec3; P_MAX + 1]>,
+    /// [`DualScattering::strand_limit`].
+    limit: u32,
 }
 
 /// θ at the centre of table bin `k`.
@@ -265,12 +267,14 @@ impl DualScattering {
             }
         }
         let back = averages.iter().map(Averages::backscatter).collect();
+        let limit = strand_limit(&averages);
         DualScattering {
             model: *model,
             variances,
             averages,
             back,
             global_azimuthal,
+            limit,
         }
     }
 
@@ -314,18 +318,9 @@ impl DualScattering {
     }
 
     /// The strands after which a light's path carries nothing visible: ā_f(θ)ⁿ < 1e-3 in every channel for
-    /// the largest ā_f of the table, at most [`MAX_STRANDS`].
+    /// the largest ā_f of the table, at most [`MAX_STRANDS`]. A light sample counts strands up to this many.
     pub fn strand_limit(&self) -> u32 {
-        let largest = self
-            .averages
-            .iter()
-            .map(|a| a.forward.max_element())
-            .fold(0.0f32, f32::max) as f64;
-        if largest <= 0.0 {
-            return 1;
-        }
-        let n = (1e-3f64).ln() / largest.min(1.0 - 1e-9).ln();
-        (n.ceil() as u32).clamp(1, MAX_STRANDS)
+        self.limit
     }
 
     /// f · cos θi of the multiple-scattered light only (single scattering is the caller's), RGB, for light from
@@ -371,6 +366,19 @@ impl DualScattering {
         }
         transmittance * DENSITY_FORWARD * (global + DENSITY_BACKWARD * f_back(spread))
     }
+}
+
+/// [`DualScattering::strand_limit`] of these averages.
+fn strand_limit(averages: &[Averages]) -> u32 {
+    let largest = averages
+        .iter()
+        .map(|a| a.forward.max_element())
+        .fold(0.0f32, f32::max) as f64;
+    if largest <= 0.0 {
+        return 1;
+    }
+    let n = (1e-3f64).ln() / largest.min(1.0 - 1e-9).ln();
+    (n.ceil() as u32).clamp(1, MAX_STRANDS)
 }
 
 /// Per order p, the mean and variance of δ = θi + θo under M_p(θi, θo′_p) cos θi (a density over θi) at `theta_o`.

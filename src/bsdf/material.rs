@@ -8,12 +8,14 @@
 //! integrator computes h only when [`Material::uses_offset`] says the model reads it (Chiang et al.).
 
 use super::chiang::Chiang;
+use super::dual::DualScattering;
 use super::ishair::IsHair;
 use super::kajiya_kay::KajiyaKay;
 use super::lanes::{At, EvalOf, Fibre, SampleOf};
 use super::marschner::Marschner;
 use super::{Bsdf, BsdfSample, LobeValues};
 use glam::Vec3;
+use std::sync::{Arc, OnceLock};
 use wide::f32x8;
 
 /// The scattering model of a [`Material`].
@@ -72,9 +74,28 @@ pub struct Material {
     pub tint_diffuse_by_strand: bool,
     /// The model's scene name, for messages and summaries.
     pub name: &'static str,
+    /// Dual scattering's tables, built on first use ([`Material::dual`]) and shared by the material's clones.
+    pub dual: DualTables,
 }
 
+/// A material's dual-scattering tables, computed once when first asked for (~50 ms on one core, so a material
+/// that never renders with dual scattering never pays for them).
+#[derive(Clone, Default)]
+pub struct DualTables(Arc<OnceLock<Option<DualScattering>>>);
+
 impl Material {
+    /// Dual scattering's tables of this material ([`crate::bsdf::dual`]), or `None` for a model it is not built for
+    /// (every model but Chiang's).
+    pub fn dual(&self) -> Option<&DualScattering> {
+        self.dual
+            .0
+            .get_or_init(|| match &self.scattering {
+                Scattering::Chiang(m) => Some(DualScattering::new(m)),
+                _ => None,
+            })
+            .as_ref()
+    }
+
     /// Whether the model reads the offset h (so the integrator need not compute it otherwise).
     #[inline]
     pub fn uses_offset(&self) -> bool {
@@ -255,6 +276,7 @@ mod tests {
             scattering: Scattering::Chiang(Chiang::new(ChiangParams::default()).unwrap()),
             tint_diffuse_by_strand: false,
             name: "chiang",
+            dual: Default::default(),
         };
         assert!(chiang.uses_offset());
         let (a, b) = (chiang.at(-0.6).eval(wo, wi), chiang.at(0.6).eval(wo, wi));
@@ -271,6 +293,7 @@ mod tests {
             ),
             tint_diffuse_by_strand: true,
             name: "kajiya-kay",
+            dual: Default::default(),
         };
         assert!(!kk.uses_offset());
         assert_eq!(kk.at(-0.6).eval(wo, wi), kk.at(0.6).eval(wo, wi));

@@ -68,6 +68,7 @@ pub fn chiang_sigma_a_for_albedo(base: ChiangParams, target: Vec3) -> Result<Vec
             scattering: crate::bsdf::Scattering::Chiang(model),
             tint_diffuse_by_strand: false,
             name: "chiang",
+            dual: Default::default(),
         };
         Ok(fibre_albedo(&material))
     };
@@ -105,6 +106,7 @@ mod tests {
             ),
             tint_diffuse_by_strand: false,
             name: "chiang",
+            dual: Default::default(),
         }
     }
 

@@ -15,7 +15,6 @@ use super::camera::Camera;
 use super::film::{self, PixelSums, Tile};
 use super::filter::GaussianFilter;
 use super::integrator::{Integrator, RayCounts};
-use super::settings::Shading;
 use super::strategy::{Fixed, PixelSampling, PixelSource};
 use super::{Frame, Region, RegionRender, RenderSettings, RenderStats};
 use crate::shadow::ShadowMaps;
@@ -51,7 +50,7 @@ pub(super) fn render_tiles(
         filter: GaussianFilter::shared(settings.film.filter_width),
         integrator: Integrator::new(frame, settings, maps),
         seed: settings.film.seed,
-        lanes: settings.integrator.shading == Shading::Lanes,
+        lanes: settings.integrator.lanes(),
     };
 
     let tiles_x = region.width().div_ceil(tile_side);

@@ -38,6 +38,7 @@ use glam::{Vec3, Vec3A};
 use crate::accel::{CurveKind, Tracer};
 use crate::bsdf::frame::{h_from_normal, h_from_ribbon};
 use crate::bsdf::frame::{sin_cos_theta, strand_noise, HairFrame};
+use crate::bsdf::dual::DualScattering;
 use crate::bsdf::{Lobe, LobeValues, Material, PreparedBsdf};
 use crate::hair::strands::tube_exit;
 use crate::hair::Strands;
@@ -89,6 +90,8 @@ pub struct Settings {
     /// Light-sample Russian roulette below this unshadowed contribution; 0 = off
     /// ([`crate::render::settings::IntegratorConfig::light_threshold`]).
     pub light_threshold: f32,
+    /// Dual scattering at the first vertex's light samples ([`crate::bsdf::dual`]; `path_length` is then 0).
+    pub dual: bool,
 }
 
 /// Counters of rays, kept per tile and summed.
@@ -305,6 +308,8 @@ pub struct Integrator<'a> {
     /// Every strand is opaque (opacity 1): rays leaving a fibre start past its local tube ([`tube_exit`]) instead
     /// of ignoring the whole strand, so that the tracer can trace them without a filter.
     skip_by_tube: bool,
+    /// Dual scattering's tables, when the settings ask for it and the material has them.
+    pub(in crate::render) dual: Option<&'a DualScattering>,
     /// Whether a ray can meet anything besides hair: a shape or an area light. Without them (the fur ball under an
     /// environment and a sun) every ray skips the scan for them (0.5 % of the peer frame's instructions).
     non_hair: bool,
@@ -354,6 +359,7 @@ impl<'a> Integrator<'a> {
             material_finds_light: settings.strategy != Strategy::Light
                 && lights.iter().any(|l| !l.is_delta()),
             skip_by_tube: frame.strands.all_opaque(),
+            dual: settings.dual.then(|| frame.material.dual()).flatten(),
         }
     }
 
@@ -553,6 +559,11 @@ impl<'a> Integrator<'a> {
         before: &RayCounts,
     ) {
         end_first_vertex(out, &counts.since(before), record);
+        if self.dual.is_some() {
+            // The multiple-scattered light the light samples gathered in the indirect pass (light scattered more
+            // than once), by lobe as diffuse: what the path's later vertices would have brought.
+            out.lobes.diffuse += Vec3A::from(out.indirect);
+        }
         // By reference: the second vertex is not moved out of `next`.
         let indirect = next.as_ref().map(|(second, first_weights)| {
             self.indirect(second, first_weights, sampler, index, counts, record)

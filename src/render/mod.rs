@@ -213,7 +213,7 @@ pub fn render_bounces(
     let camera = Camera::from_config(&settings.camera, frame.hair_bounds(), width, height);
     let filter = GaussianFilter::shared(settings.film.filter_width);
     let integrator = Integrator::new(frame, settings, maps);
-    let lanes = settings.integrator.shading == settings::Shading::Lanes;
+    let lanes = settings.integrator.lanes();
     let lengths = settings.integrator.path_length as usize + 1;
     let mut pixels = vec![Vec::with_capacity((region.width() * region.height()) as usize); lengths];
     let mut variances = pixels.clone();

@@ -188,6 +188,20 @@ pub enum Shading {
     Scalar,
 }
 
+/// How light scattered between fibres more than once is found.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum MultipleScattering {
+    /// Path tracing: `path_length` bounces through the hair.
+    #[default]
+    Path,
+    /// Dual scattering (Zinke et al. 2008, [`crate::bsdf::dual`]): each light sample at the first vertex counts the
+    /// strands its shadow ray crosses and adds the light forward-scattered through them and back-scattered around
+    /// the point; paths end at the first vertex (`path_length` and `tail` do not apply). Chiang's model only;
+    /// ray-traced shadows; shaded one path at a time (the scalar integrator).
+    Dual,
+}
+
 /// `[integrator]`: the thesis' sample counts (§6, table 3) and the path length.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -219,6 +233,8 @@ pub struct IntegratorConfig {
     /// without bias, at the cost of their noise, instead of left out. 0 = off (the default: paths end at
     /// `path_length`); needs `path_length` ≥ 1.
     pub tail: f32,
+    /// Path tracing or dual scattering for the light scattered between fibres ([`MultipleScattering`]).
+    pub multiple_scattering: MultipleScattering,
 }
 
 impl Default for IntegratorConfig {
@@ -233,6 +249,7 @@ impl Default for IntegratorConfig {
             light_threshold: 0.0,
             shading: Shading::Lanes,
             tail: 0.0,
+            multiple_scattering: MultipleScattering::Path,
         }
     }
 }
@@ -241,6 +258,17 @@ impl Default for IntegratorConfig {
 pub const MAX_SAMPLES_PER_POINT: u32 = 2048;
 
 impl IntegratorConfig {
+    /// Whether multiple scattering is dual scattering.
+    pub fn dual(&self) -> bool {
+        self.multiple_scattering == MultipleScattering::Dual
+    }
+
+    /// Whether the wavefront shades (`shading = "lanes"`, and path tracing: dual scattering is written for the
+    /// scalar integrator).
+    pub fn lanes(&self) -> bool {
+        self.shading == Shading::Lanes && !self.dual()
+    }
+
     /// Range checks; messages name the `integrator.*` key.
     pub fn validate(&self) -> Result<(), String> {
         for (key, n) in [
@@ -276,6 +304,18 @@ impl IntegratorConfig {
         if self.tail > 0.0 && self.path_length == 0 {
             return Err("integrator.tail needs integrator.path_length >= 1".into());
         }
+        if self.dual() {
+            if self.tail > 0.0 {
+                return Err("integrator.tail continues paths, which integrator.multiple_scattering = \"dual\" \
+                            ends at the first vertex: set one of them"
+                    .into());
+            }
+            if self.strategy == Strategy::Material {
+                return Err("integrator.multiple_scattering = \"dual\" adds its light to the light samples: \
+                            integrator.strategy must be \"mis\" or \"light\""
+                    .into());
+            }
+        }
         Ok(())
     }
 }
@@ -305,11 +345,14 @@ impl RenderSettings {
         let i = &self.integrator;
         // A tail: paths go on to the longest length, thinned once at `path_length` (the integrator's roulette).
         let tail = (i.tail > 0.0 && i.path_length >= 1 && i.path_length < MAX_PATH_LENGTH)
-            .then_some((i.path_length, i.tail));
+            .then_some((i.path_length, i.tail))
+            .filter(|_| !i.dual());
         Settings {
             light_samples: i.light_samples,
             material_samples: i.material_samples,
-            path_length: if tail.is_some() {
+            path_length: if i.dual() {
+                0
+            } else if tail.is_some() {
                 MAX_PATH_LENGTH
             } else {
                 i.path_length
@@ -324,6 +367,7 @@ impl RenderSettings {
             strategy: i.strategy,
             light_selection: i.lights,
             light_threshold: i.light_threshold,
+            dual: i.dual(),
         }
     }
 }

@@ -575,6 +575,7 @@ impl MaterialConfig {
             scattering,
             tint_diffuse_by_strand,
             name: self.name(),
+            dual: Default::default(),
         })
     }
 }

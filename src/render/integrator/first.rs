@@ -12,7 +12,7 @@ use crate::util::color::luminance;
 use super::super::sampler::{dim, CameraSample};
 use super::super::settings::LightSelection;
 use super::trace::Found;
-use super::{add_lobes, BounceRecorder, Draw, Integrator, PathSample, RayCounts, Vertex};
+use super::{add_lobes, BounceRecorder, Draw, Integrator, PathSample, RayCounts, Surface, Vertex};
 
 impl<'a> Integrator<'a> {
     /// [`Integrator::sample`]'s steps 2–5 for a camera ray that found the surface `v` (`out` as it starts; the
@@ -185,6 +185,21 @@ impl<'a> Integrator<'a> {
         let Some(kept) = self.light_roulette(contribution, u) else {
             return;
         };
+        if let Some(dual) = self.dual {
+            // Dual scattering: one query counts the strands towards the light; none crossed is the direct light.
+            let crossed = self.strands_towards(v, ls.wi, ls.distance, dual.strand_limit(), counts);
+            let vis = kept * if crossed == Some(0) { 1.0 } else { 0.0 };
+            out.lit += unshadowed * vis;
+            if vis > 0.0 {
+                add_lobes(&mut out.lobes, &fcos, scale * vis);
+            }
+            if let (Some(n), Surface::Hair { frame, .. }) = (crossed, v.surface) {
+                // Light-sampled alone (no material sample estimates it): weight 1, not the MIS weight.
+                let f = dual.fcos(frame.to_local(v.wo), frame.to_local(ls.wi), n);
+                out.indirect += f * ls.radiance * (kept / (ls.pdf * count));
+            }
+            return;
+        }
         let vis = kept * self.visibility(j, v, ls.wi, ls.distance, draw.key(d), counts);
         out.lit += unshadowed * vis;
         if vis > 0.0 {

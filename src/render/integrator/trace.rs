@@ -169,19 +169,8 @@ impl<'a> Integrator<'a> {
         key: u64,
         counts: &mut RayCounts,
     ) -> f32 {
-        let (origin, tnear, ignore) = self.spawn(v, wi);
-        // Stop short of an area light's surface so the light itself does not occlude.
-        let tfar = if distance.is_finite() {
-            distance * (1.0 - 1e-4)
-        } else {
-            f32::INFINITY
-        };
-        // A light closer than the fibre's tube exit: ignore the strand instead.
-        let (tnear, ignore) = match (tnear < tfar, v.surface) {
-            (false, Surface::Hair { strand, .. }) => (0.0, Some(strand)),
-            _ => (tnear, ignore),
-        };
-        let ray = Ray::segment(origin, wi, tnear, tfar);
+        let (ray, ignore) = self.shadow_ray(v, wi, distance);
+        let tfar = ray.tfar;
         if self.shapes.occluded(&ray, tfar) {
             counts.shadow += 1;
             return 0.0;
@@ -207,6 +196,52 @@ impl<'a> Integrator<'a> {
             counts.rejected += 1;
             1.0
         })
+    }
+
+    /// A light sample's shadow ray from `v` along `wi` towards a light `distance` away (∞ for infinite lights)
+    /// and the strand it leaves out.
+    fn shadow_ray(&self, v: &Vertex, wi: Vec3, distance: f32) -> (Ray, Option<u32>) {
+        let (origin, tnear, ignore) = self.spawn(v, wi);
+        // Stop short of an area light's surface so the light itself does not occlude.
+        let tfar = if distance.is_finite() {
+            distance * (1.0 - 1e-4)
+        } else {
+            f32::INFINITY
+        };
+        // A light closer than the fibre's tube exit: ignore the strand instead.
+        let (tnear, ignore) = match (tnear < tfar, v.surface) {
+            (false, Surface::Hair { strand, .. }) => (0.0, Some(strand)),
+            _ => (tnear, ignore),
+        };
+        (Ray::segment(origin, wi, tnear, tfar), ignore)
+    }
+
+    /// The strands a light sample's shadow ray from `v` along `wi` crosses (up to `limit`), for dual scattering;
+    /// `None` when a shape blocks it (no light at all). Without shadows, 0.
+    pub(in crate::render) fn strands_towards(
+        &self,
+        v: &Vertex,
+        wi: Vec3,
+        distance: f32,
+        limit: u32,
+        counts: &mut RayCounts,
+    ) -> Option<u32> {
+        let (ray, ignore) = self.shadow_ray(v, wi, distance);
+        counts.shadow += 1;
+        if self.shapes.occluded(&ray, ray.tfar) {
+            return None;
+        }
+        if self.settings.shadows == ShadowMode::None {
+            return Some(0);
+        }
+        Some(
+            self.tracer
+                .strands_crossed(&ray, ignore, limit)
+                .unwrap_or_else(|_| {
+                    counts.rejected += 1;
+                    0
+                }),
+        )
     }
 
     /// The deep opacity maps' transmittance from `v` towards light `light` along `wi`, or `None` outside

@@ -43,6 +43,9 @@ pub(super) struct TransmittanceQuery {
     pub(super) transmittance: f32,
     pub(super) cutoff: Option<Cutoff>,
     pub(super) seen_len: u32,
+    /// 0: a transmittance query. Otherwise a count of the strands crossed, whatever their opacity (above 0),
+    /// which stops once it reaches this many.
+    count_limit: u32,
     seen: [u32; SEEN_STRANDS],
 }
 
@@ -61,7 +64,8 @@ enum Verdict {
 impl TransmittanceQuery {
     /// A payload whose context carries [`transmittance_filter`] (Embree 3; Embree 4 takes the filter in the query
     /// arguments).
-    pub(super) fn new(ignore_strand: Option<u32>) -> Self {
+    /// With `count_limit` > 0 the query counts strands instead, up to that many (at most [`SEEN_STRANDS`]).
+    pub(super) fn new(ignore_strand: Option<u32>, count_limit: u32) -> Self {
         #[allow(unused_mut)]
         let mut context = init_query_context();
         #[cfg(not(embree4))]
@@ -74,6 +78,7 @@ impl TransmittanceQuery {
             transmittance: 1.0,
             cutoff: None,
             seen_len: 0,
+            count_limit: count_limit.min(SEEN_STRANDS as u32),
             seen: [NO_STRAND; SEEN_STRANDS],
         }
     }
@@ -93,6 +98,13 @@ impl TransmittanceQuery {
         }
         self.seen[self.seen_len as usize] = strand;
         self.seen_len += 1;
+        if self.count_limit > 0 {
+            return if self.seen_len >= self.count_limit {
+                Verdict::Stop
+            } else {
+                Verdict::Continue
+            };
+        }
         self.transmittance *= 1.0 - opacity;
         if self.transmittance < TRANSMITTANCE_CUTOFF {
             return self.stop(Cutoff::Dark);
@@ -321,7 +333,7 @@ mod tests {
 
     #[test]
     fn each_strand_counts_once() {
-        let mut q = TransmittanceQuery::new(None);
+        let mut q = TransmittanceQuery::new(None, 0);
         assert_eq!(q.on_hit(Some((7, 0.5))), Verdict::Continue);
         assert_eq!(q.on_hit(Some((7, 0.5))), Verdict::Continue);
         assert_eq!(q.on_hit(Some((3, 0.5))), Verdict::Continue);
@@ -333,7 +345,7 @@ mod tests {
 
     #[test]
     fn ignored_strand_is_transparent() {
-        let mut q = TransmittanceQuery::new(Some(4));
+        let mut q = TransmittanceQuery::new(Some(4), 0);
         assert_eq!(q.on_hit(Some((4, 1.0))), Verdict::Continue);
         assert_eq!(q.transmittance, 1.0);
         assert_eq!(q.seen_len, 0);
@@ -341,15 +353,15 @@ mod tests {
 
     #[test]
     fn stops_dark_opaque_and_full() {
-        let mut q = TransmittanceQuery::new(None);
+        let mut q = TransmittanceQuery::new(None, 0);
         assert_eq!(q.on_hit(Some((1, 1.0))), Verdict::Stop);
         assert_eq!((q.transmittance, q.cutoff), (0.0, Some(Cutoff::Dark)));
 
-        let mut q = TransmittanceQuery::new(None);
+        let mut q = TransmittanceQuery::new(None, 0);
         assert_eq!(q.on_hit(None), Verdict::Stop);
         assert_eq!((q.transmittance, q.cutoff), (0.0, Some(Cutoff::Opaque)));
 
-        let mut q = TransmittanceQuery::new(None);
+        let mut q = TransmittanceQuery::new(None, 0);
         for s in 0..SEEN_STRANDS as u32 {
             assert_eq!(q.on_hit(Some((s, 1e-6))), Verdict::Continue);
         }

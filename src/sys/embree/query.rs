@@ -8,9 +8,9 @@ use glam::Vec3;
 use super::ffi::*;
 #[cfg(embree4)]
 use super::filter::{stochastic_filter, transmittance_filter};
-use super::filter::{Cutoff, StochasticQuery, TransmittanceQuery};
+use super::filter::{Cutoff, StochasticQuery, TransmittanceQuery, SEEN_STRANDS};
 #[cfg(doc)]
-use super::filter::{SEEN_STRANDS, TRANSMITTANCE_CUTOFF};
+use super::filter::TRANSMITTANCE_CUTOFF;
 use super::scene::CommittedScene;
 #[cfg(doc)]
 use super::scene::Scene;
@@ -218,11 +218,45 @@ impl CommittedScene {
         ray: &Ray,
         ignore_strand: Option<u32>,
     ) -> Result<Transmittance, InvalidRay> {
+        let (query, tfar) = self.all_hits(ray, TransmittanceQuery::new(ignore_strand, 0))?;
+        // Embree sets tfar to −∞ when a hit was accepted; only the filter accepts hits, and it zeroes the
+        // transmittance when it does.
+        debug_assert!(tfar != f32::NEG_INFINITY || query.transmittance == 0.0);
+        Ok(Transmittance {
+            value: query.transmittance,
+            strands: query.seen_len,
+            cutoff: query.cutoff,
+        })
+    }
+
+    /// The distinct strands `ray` crosses within `[tnear, tfar]` (of opacity above 0, however often Embree reports
+    /// each), leaving out `ignore_strand`, counted up to `limit` (at most [`SEEN_STRANDS`]; a primitive without
+    /// strand data counts as the limit). Rays failing [`Ray::check`] never reach Embree.
+    pub fn strands_crossed1(
+        &self,
+        ray: &Ray,
+        ignore_strand: Option<u32>,
+        limit: u32,
+    ) -> Result<u32, InvalidRay> {
+        let limit = limit.clamp(1, SEEN_STRANDS as u32);
+        let (query, _) = self.all_hits(ray, TransmittanceQuery::new(ignore_strand, limit))?;
+        Ok(match query.cutoff {
+            Some(Cutoff::Opaque) => limit,
+            _ => query.seen_len.min(limit),
+        })
+    }
+
+    /// Runs `query`'s filter over every hit along `ray` (an occlusion query whose filter rejects hits until it
+    /// stops); the payload afterwards and Embree's tfar.
+    fn all_hits(
+        &self,
+        ray: &Ray,
+        mut query: TransmittanceQuery,
+    ) -> Result<(TransmittanceQuery, f32), InvalidRay> {
         let (mut rtc_ray, _) = embree_ray(ray)?;
         // Embree 3: the payload's context carries the filter from construction, so nothing writes to `query`
         // through the local while Embree and the filter use the pointer below (a write through the local would
         // invalidate that pointer under Stacked Borrows).
-        let mut query = TransmittanceQuery::new(ignore_strand);
         // Derived from the whole payload (not from `query.context`) so the filter may reach every field.
         let context = ptr::addr_of_mut!(query).cast::<QueryContext>();
         #[cfg(not(embree4))]
@@ -243,13 +277,6 @@ impl CommittedScene {
             unsafe { rtcOccluded1(self.raw(), &mut rtc_ray, &mut args) };
         }
         self.device().after_query();
-        // Embree sets tfar to −∞ when a hit was accepted; only the filter accepts hits, and it zeroes the
-        // transmittance when it does.
-        debug_assert!(rtc_ray.tfar != f32::NEG_INFINITY || query.transmittance == 0.0);
-        Ok(Transmittance {
-            value: query.transmittance,
-            strands: query.seen_len,
-            cutoff: query.cutoff,
-        })
+        Ok((query, rtc_ray.tfar))
     }
 }
