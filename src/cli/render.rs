@@ -9,7 +9,9 @@ use cuticle::farm::{FarmError, Interrupted};
 use cuticle::job::{AutoPlan, Job, Part, Request};
 use cuticle::quality::delivered::{delivered, delivered_denoised};
 use cuticle::quality::{Fixed, QualityMode};
-use cuticle::render::{self, LightSelection, RenderStats, Shading, ShadowMode, TransmittanceMode};
+use cuticle::render::{
+    self, LightSelection, MultipleScattering, RenderStats, Shading, ShadowMode, TransmittanceMode,
+};
 use cuticle::scene::Overrides;
 
 use super::{load_scene, parse_resolution, scene_name};
@@ -66,6 +68,10 @@ pub struct RenderArgs {
     /// tracer, the reference; the same image either way (overrides integrator.shading).
     #[arg(long, value_parser = scene_name::<Shading>)]
     shading: Option<Shading>,
+    /// path: light between fibres by path tracing (integrator.path_length bounces); dual: by dual scattering,
+    /// Chiang's model only, paths end at the first shading point (overrides integrator.multiple_scattering).
+    #[arg(long, value_parser = scene_name::<MultipleScattering>)]
+    multiple_scattering: Option<MultipleScattering>,
     /// Refuse the frame before building it when its estimated memory exceeds this size (e.g. 4G, 512M; default:
     /// 3/4 of physical memory).
     #[arg(long, value_name = "SIZE", value_parser = render::budget::parse_size)]
@@ -142,6 +148,7 @@ pub fn render_command(args: RenderArgs) -> Result<()> {
         path_length: args.path_length,
         lights: args.lights,
         shading: args.shading,
+        multiple_scattering: args.multiple_scattering,
         quality: args.quality,
         target: args.target,
     };

@@ -28,6 +28,9 @@ pub enum StudyCommand {
     Models(StudyKindArgs),
     /// Round tubes against flat ribbons per model and film width.
     Curves(StudyKindArgs),
+    /// Dual scattering against path tracing at 1 to 30 bounces (chiang; blond, brown and black), against 30
+    /// bounces: error against time and each method's bias at convergence. Not part of `all`.
+    MultipleScattering(StudyKindArgs),
     /// Adversarial cases per method: stress.csv, stress.md, bar charts per case (NaN/Inf, fireflies, error;
     /// failures named).
     Stress(StudyKindArgs),
@@ -365,6 +368,7 @@ pub fn study_command(command: StudyCommand) -> Result<()> {
         StudyCommand::Lobes(a) => study_kind("lobes", a)?,
         StudyCommand::Hery(a) => study_kind("hery", a)?,
         StudyCommand::Models(a) => study_kind("models", a)?,
+        StudyCommand::MultipleScattering(a) => study_kind("multiple-scattering", a)?,
         StudyCommand::Curves(a) => study_kind("curves", a)?,
         StudyCommand::All(a) => study_kind("all", a)?,
         StudyCommand::Scenes(a) => write_scenes(&a)?,

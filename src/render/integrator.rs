@@ -36,9 +36,9 @@
 use glam::{Vec3, Vec3A};
 
 use crate::accel::{CurveKind, Tracer};
+use crate::bsdf::dual::DualScattering;
 use crate::bsdf::frame::{h_from_normal, h_from_ribbon};
 use crate::bsdf::frame::{sin_cos_theta, strand_noise, HairFrame};
-use crate::bsdf::dual::DualScattering;
 use crate::bsdf::{Lobe, LobeValues, Material, PreparedBsdf};
 use crate::hair::strands::tube_exit;
 use crate::hair::Strands;

@@ -40,8 +40,8 @@ use sampler::{dim, CameraSample, PixelSampler};
 pub use film::CHANNELS;
 pub use frame::{thread_pool, Frame, FrameError, FrameSpec, ThreadPoolError};
 pub use settings::{
-    FilmConfig, IntegratorConfig, LightSelection, RenderSettings, Shading, ShadowConfig,
-    ShadowMode, Strategy, TransmittanceMode,
+    FilmConfig, IntegratorConfig, LightSelection, MultipleScattering, RenderSettings, Shading,
+    ShadowConfig, ShadowMode, Strategy, TransmittanceMode,
 };
 pub use strategy::{PixelSampling, PixelSource};
 pub use tiles::Region;

@@ -32,8 +32,8 @@ use crate::render::{FrameSpec, RenderSettings};
 
 pub use crate::render::camera::CameraConfig;
 pub use crate::render::settings::{
-    FilmConfig, IntegratorConfig, LightSelection, Shading, ShadowConfig, ShadowMode, Strategy,
-    TransmittanceMode,
+    FilmConfig, IntegratorConfig, LightSelection, MultipleScattering, Shading, ShadowConfig,
+    ShadowMode, Strategy, TransmittanceMode,
 };
 
 pub mod fuzz;
@@ -353,6 +353,9 @@ impl Scene {
         if let Some(s) = o.shading {
             self.integrator.shading = s;
         }
+        if let Some(m) = o.multiple_scattering {
+            self.integrator.multiple_scattering = m;
+        }
         if let Some(m) = o.quality {
             self.quality.mode = m;
         }
@@ -392,6 +395,8 @@ pub struct Overrides {
     pub lights: Option<LightSelection>,
     /// `integrator.shading`.
     pub shading: Option<Shading>,
+    /// `integrator.multiple_scattering`.
+    pub multiple_scattering: Option<MultipleScattering>,
     /// `quality.mode`.
     pub quality: Option<QualityMode>,
     /// `quality.target`.

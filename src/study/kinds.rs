@@ -416,6 +416,120 @@ pub fn models(quick: bool) -> Result<Kind, String> {
     })
 }
 
+/// The colours of `multiple-scattering`: blond, brown and black as Chiang's eq. 9 colour (the colour of a whole
+/// volume of such hair after multiple scattering).
+pub const HAIR_COLOURS: [(&str, [f64; 3]); 3] = [
+    ("blond", [0.85, 0.65, 0.4]),
+    ("brown", [0.42, 0.26, 0.13]),
+    ("black", [0.06, 0.04, 0.03]),
+];
+
+/// The path lengths `multiple-scattering` sweeps beside dual scattering; the reference is the longest
+/// ([`crate::render::integrator::MAX_PATH_LENGTH`], 30 bounces: 31 shading points).
+pub const MULTIPLE_SCATTERING_PATHS: [u32; 6] = [1, 2, 4, 8, 16, 30];
+
+/// `multiple-scattering`: path tracing at each of [`MULTIPLE_SCATTERING_PATHS`] and dual scattering, over spp,
+/// for each of [`HAIR_COLOURS`] (Chiang's model, opaque strands, ray-traced shadows), against path tracing at 30
+/// bounces. The bias read-out is each method's remaining error at convergence. Not part of `all` (its references
+/// trace 30 bounces).
+pub fn multiple_scattering(quick: bool) -> Kind {
+    let colours: &[(&str, [f64; 3])] = if quick {
+        &HAIR_COLOURS[..1]
+    } else {
+        &HAIR_COLOURS
+    };
+    let paths: &[u32] = if quick {
+        &[1, 30]
+    } else {
+        &MULTIPLE_SCATTERING_PATHS
+    };
+    let spp: Vec<u32> = if quick {
+        vec![1, 2]
+    } else {
+        vec![1, 2, 4, 8, 16]
+    };
+    let reference_length = *MULTIPLE_SCATTERING_PATHS.last().expect("not empty");
+    let mut references = Vec::new();
+    let mut variants = Vec::new();
+    let mut compare = Vec::new();
+    for (r, (name, colour)) in colours.iter().enumerate() {
+        let base = vec![
+            material("chiang", &[]),
+            key(
+                "material.color",
+                toml::Value::try_from(*colour).expect("an array"),
+            ),
+            key("hair.opacity", toml::Value::Float(1.0)),
+            key("shadows.mode", string("raytraced")),
+        ];
+        let with = |extra: Vec<(String, toml::Value)>| -> Overrides {
+            base.iter().cloned().chain(extra).collect()
+        };
+        references.push(Reference {
+            label: format!("chiang {name}, path tracing, {reference_length} bounces"),
+            overrides: with(vec![key("integrator.path_length", int(reference_length))]),
+        });
+        let mut methods: Vec<(String, Vec<(String, toml::Value)>)> = paths
+            .iter()
+            .map(|&n| {
+                (
+                    format!("{name} path {n}"),
+                    vec![key("integrator.path_length", int(n))],
+                )
+            })
+            .collect();
+        methods.push((
+            format!("{name} dual"),
+            vec![key("integrator.multiple_scattering", string("dual"))],
+        ));
+        for (series, extra) in &methods {
+            variants.extend(spp.iter().map(|&s| {
+                Variant {
+                    series: series.clone(),
+                    method: series.clone(),
+                    settings: format!("spp={s}"),
+                    x: f64::from(s),
+                    overrides: with(
+                        extra
+                            .iter()
+                            .cloned()
+                            .chain([key("film.spp", int(s))])
+                            .collect(),
+                    ),
+                    reference: r,
+                }
+            }));
+        }
+        compare.push((
+            format!("{name} dual"),
+            format!("{name} path {}", paths[paths.len() - 1]),
+        ));
+    }
+    let budget = if quick {
+        Budget::default()
+    } else {
+        Budget {
+            crop: Some(SWEEP_CROP),
+            reference_spp: spp.last().map(|s| s * REFERENCE_FACTOR),
+        }
+    };
+    Kind {
+        name: "multiple-scattering".into(),
+        title: "dual scattering against path tracing by path length (chiang; blond, brown, black)"
+            .into(),
+        x_label: "samples per pixel".into(),
+        time_includes_setup: false,
+        references,
+        variants,
+        compare,
+        bias_readout: true,
+        equal_setting: false,
+        budget,
+        differences: Vec::new(),
+        categories: Vec::new(),
+    }
+}
+
 /// `curves` (see the module docs).
 pub fn curves(quick: bool) -> Kind {
     let scales: Vec<f64> = if quick {
@@ -746,6 +860,7 @@ pub fn by_name(name: &str, quick: bool) -> Option<Result<Kind, String>> {
         "curves" => curves(quick),
         "backends" => backends(quick),
         "shadows" => shadows(quick),
+        "multiple-scattering" => multiple_scattering(quick),
         _ => return None,
     }))
 }

@@ -6,11 +6,11 @@ use std::ptr;
 use glam::Vec3;
 
 use super::ffi::*;
+#[cfg(doc)]
+use super::filter::TRANSMITTANCE_CUTOFF;
 #[cfg(embree4)]
 use super::filter::{stochastic_filter, transmittance_filter};
 use super::filter::{Cutoff, StochasticQuery, TransmittanceQuery, SEEN_STRANDS};
-#[cfg(doc)]
-use super::filter::TRANSMITTANCE_CUTOFF;
 use super::scene::CommittedScene;
 #[cfg(doc)]
 use super::scene::Scene;
