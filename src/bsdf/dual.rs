@@ -6,21 +6,37 @@
 //! # The approximation
 //!
 //! Light from a light towards a shading point x crosses n fibres. If n = 0 it arrives directly (single scattering,
-//! the path tracer's own light sample); otherwise only light forward-scattered through every fibre arrives, and
-//! the paper approximates it as
+//! the path tracer's own light sample); otherwise only light scattered on the way arrives. Zinke et al. split it
+//! into
 //!
-//! - **global multiple scattering**: T_f = ∏ ā_f(θk) ≈ ā_f(θ)ⁿ of the light (forward-scattering transmittance)
-//!   arriving with its direction spread by σ_f² = Σ β̄_f²(θk) ≈ n β̄_f²(θ) in inclination and, in azimuth, over the
-//!   half circle around the light; x scatters it with f^G: Chiang's lobes with M_p's variance widened to
-//!   v_p + σ_f² and N_p averaged over that half circle (and over h);
-//! - **local multiple scattering**: light back-scattered by the fibres around x, f_back = A_b M_b(θi; θo − Δ_b,
-//!   σ_b²) / π over the backward half (|φ| < π/2), from the back-scattering attenuation A_b, shift Δ_b and variance
-//!   σ_b² of up to three back-scattering events (the paper's eqs. 14 and 16; the variance as derived below).
+//! - **global multiple scattering**: the light forward-scattered through the n fibres, arriving with its direction
+//!   spread by σ_f² = Σ β̄_f²(θk) ≈ n β̄_f²(θ) in inclination and, in azimuth, over the half circle around the
+//!   light; x scatters it with f^G: Chiang's lobes with M_p's variance widened to v_p + σ_f² and N_p averaged
+//!   over that half circle (and over h);
+//! - **local multiple scattering**: light back-scattered to x by the fibres behind it, as a lobe f_back =
+//!   M_b(θi; θo − Δ_b, σ_b²) / π over the backward half (|φ| < π/2), normalised to 1, shifted by Δ_b and spread
+//!   by σ_b² (the paper's eq. 16 and the variance derived below).
 //!
-//! The multiple-scattered light at x (f · cos θi, on top of single scattering) is then
-//! d_b f_back(σ_b²) where n = 0, and T_f d_f (f^G(σ_f²) + d_b f_back(σ_b² + σ_f²)) where n ≥ 1 — the paper's
-//! F_direct and F_scatter less the single scattering, with its density factors d_f = d_b = 0.7
-//! ([`DENSITY_FORWARD`], [`DENSITY_BACKWARD`]).
+//! Two forms ([`DualForm`]) weigh these two lobes:
+//!
+//! - **Published** (Zinke et al.): the forward light is T_f = ∏ ā_f(θk) ≈ ā_f(θ)ⁿ and the back-scattered light
+//!   A_b of up to three back-scattering events (eq. 14), with density factors d_f = d_b = 0.7
+//!   ([`DENSITY_FORWARD`], [`DENSITY_BACKWARD`]): d_b A_b f_back where n = 0, and
+//!   T_f d_f (f^G(σ_f²) + d_b A_b f_back(σ_b² + σ_f²)) where n ≥ 1. The product drops the light that fibres
+//!   ahead of x reflect back and forth before it passes, and three back-scatterings leave out the rest of the
+//!   series; on a white furnace (σa = 0, the exact answer 1) it gives 0.55 (`tests/dual.rs`).
+//! - **Layered** (cuticle's `dual`): the same lobes, their weights summed to every order by the adding method of
+//!   two-stream transport, each fibre a layer that passes ā_f and returns ā_b (a stack of n layers has T_n, R_n:
+//!   [`layers`]). A second query counts the m fibres behind x (along −ωi). The light arriving from the light's
+//!   side is F = T_n/(1 − R_n R_m) (passed by the n fibres, reflected between them and those behind), the light
+//!   coming back from behind B = F R_m; x scatters F − V (V = 1 where n = 0: the direct part is single
+//!   scattering) with f^G and B, times its own albedo ā_f + ā_b at θo, with f_back. No density factors: for white
+//!   fibres F plus what the n fibres return of the light from the other side is exactly 1 for every n and m
+//!   (tested), so nothing needs damping; on the white furnace it gives 0.73, short of 1 because light crosses
+//!   real hair along other lines than the straight one counted.
+//!
+//! The multiple-scattered light at x is f · cos θi on top of single scattering, light-sampled (no material sample
+//! estimates it).
 //!
 //! # The averages (computed by the program, not fitted)
 //!
@@ -52,10 +68,11 @@
 //!
 //! # Which models
 //!
-//! Chiang's alone. The formulation needs an energy-conserving single-fibre model: A_b sums the geometric series of
-//! ā_f², which is only meaningful when ā_f + ā_b ≤ 1. Kajiya-Kay has no forward/backward split to speak of, and the
-//! thesis' Marschner R lobes and ISHair are not energy conserving (their white furnaces are not 1:
-//! `bsdf::marschner` and `bsdf::ishair`).
+//! Chiang's alone. Both forms sum series in ā_f and ā_b, which mean something only when they are the energy a
+//! fibre passes on and returns, ā_f + ā_b ≤ 1: the fibre must conserve energy and must transmit. The thesis'
+//! Marschner is two R-type lobes and a diffuse term (no transmission lobe carries light forward through a fibre),
+//! ISHair's lobes are unit-height Gaussians whose albedo grows with their width (not energy conserving, by design:
+//! `bsdf::ishair`), and Kajiya-Kay is a diffuse cylinder and a cone.
 
 use super::chiang::{m_p, Chiang, P_MAX};
 use super::frame::sin_cos_theta;
@@ -164,8 +181,17 @@ pub struct DualScattering {
     back: Vec<Backscatter>,
     /// N^G_p (A_p included) per inclination bin (major) and azimuth node (minor), per order and channel.
     global_azimuthal: Vec<[Vec3; P_MAX + 1]>,
-    /// [`DualScattering::strand_limit`].
-    limit: u32,
+    /// [`DualScattering::strand_limits`] of [`DualForm::Published`] and of [`DualForm::Layered`].
+    limits: [(u32, u32); 2],
+}
+
+/// Which form of dual scattering shades (module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DualForm {
+    /// The series summed to every order by the adding method, fibres counted on both sides of the point.
+    Layered,
+    /// As Zinke et al. published it: ∏ ā_f towards the light, back-scattering to three events, d_f = d_b = 0.7.
+    Published,
 }
 
 /// θ at the centre of table bin `k`.
@@ -267,14 +293,14 @@ impl DualScattering {
             }
         }
         let back = averages.iter().map(Averages::backscatter).collect();
-        let limit = strand_limit(&averages);
+        let limits = [published_limit(&averages), layered_limits(&averages)];
         DualScattering {
             model: *model,
             variances,
             averages,
             back,
             global_azimuthal,
-            limit,
+            limits,
         }
     }
 
@@ -317,15 +343,70 @@ impl DualScattering {
         })
     }
 
-    /// The strands after which a light's path carries nothing visible: ā_f(θ)ⁿ < 1e-3 in every channel for
-    /// the largest ā_f of the table, at most [`MAX_STRANDS`]. A light sample counts strands up to this many.
-    pub fn strand_limit(&self) -> u32 {
-        self.limit
+    /// How many strands a light sample of `form` counts towards the light and behind the point (at most
+    /// [`MAX_STRANDS`] each): past them what they change is below 1e-3 of the light for the most transparent
+    /// inclination of the table. Published: ā_fⁿ < 1e-3 ahead, nothing behind. Layered: T_n < 1e-3 ahead and
+    /// R_∞ − R_m < 1e-3 behind, from the largest ā_f and ā_b of the table.
+    pub fn strand_limits(&self, form: DualForm) -> (u32, u32) {
+        match form {
+            DualForm::Published => self.limits[0],
+            DualForm::Layered => self.limits[1],
+        }
     }
 
     /// f · cos θi of the multiple-scattered light only (single scattering is the caller's), RGB, for light from
-    /// `wi` seen from `wo` (local hair frame, unit) that crossed `strands` fibres on its way (0: unoccluded).
-    pub fn fcos(&self, wo: Vec3, wi: Vec3, strands: u32) -> Vec3 {
+    /// `wi` seen from `wo` (local hair frame, unit), `ahead` fibres crossed between the point and the light (0:
+    /// unoccluded) and `behind` fibres behind the point (along −ωi; read by [`DualForm::Layered`] only).
+    pub fn fcos(&self, form: DualForm, wo: Vec3, wi: Vec3, ahead: u32, behind: u32) -> Vec3 {
+        match form {
+            DualForm::Layered => self.layered(wo, wi, ahead, behind),
+            DualForm::Published => self.published(wo, wi, ahead),
+        }
+    }
+
+    /// [`DualForm::Layered`] (module docs).
+    fn layered(&self, wo: Vec3, wi: Vec3, ahead: u32, behind: u32) -> Vec3 {
+        let (sin_o, cos_o) = sin_cos_theta(wo);
+        let (sin_i, cos_i) = sin_cos_theta(wi);
+        let theta_o = sin_o.atan2(cos_o);
+        let phi = (wo.y * wi.z - wo.z * wi.y).atan2(wo.y * wi.y + wo.z * wi.z);
+        let along = self.averages(-sin_i.atan2(cos_i));
+        let (t, r) = (along.forward, along.backward);
+        let (tn, rn) = layers(t, r, ahead);
+        let (_, rm) = layers(t, r, behind);
+        let forward = tn / (Vec3::ONE - rn * rm).max(Vec3::splat(1e-9));
+        let backward = forward * rm;
+        let direct = if ahead == 0 { Vec3::ONE } else { Vec3::ZERO };
+        let spread = along.variance_forward * ahead as f32;
+        let mut out = Vec3::ZERO;
+        let scattered = (forward - direct).max(Vec3::ZERO);
+        if scattered.max_element() > 0.0 {
+            let ng = self.global_azimuthal(theta_o, phi);
+            let tilted = self.model.tilted(sin_o, cos_o);
+            for p in 0..=P_MAX {
+                let (s, co) = tilted[p];
+                for c in 0..3 {
+                    let v = self.variances[p] + spread[c] as f64;
+                    out[c] += scattered[c] * ng[p][c] * m_p(v, sin_i, cos_i, s, co);
+                }
+            }
+        }
+        if backward.max_element() > 0.0 && phi.abs() < std::f32::consts::FRAC_PI_2 {
+            let back = self.backscatter(theta_o);
+            let own = self.averages(theta_o);
+            let albedo = own.forward + own.backward;
+            for c in 0..3 {
+                let (s, co) = (theta_o - back.shift[c]).sin_cos();
+                let v = (back.variance[c] + spread[c]).max(1e-6) as f64;
+                out[c] += backward[c] * albedo[c] * m_p(v, sin_i, cos_i, s, co.abs())
+                    / std::f32::consts::PI;
+            }
+        }
+        out
+    }
+
+    /// [`DualForm::Published`] (module docs), `strands` fibres crossed towards the light.
+    fn published(&self, wo: Vec3, wi: Vec3, strands: u32) -> Vec3 {
         let (sin_o, cos_o) = sin_cos_theta(wo);
         let (sin_i, cos_i) = sin_cos_theta(wi);
         let theta_o = sin_o.atan2(cos_o);
@@ -368,17 +449,48 @@ impl DualScattering {
     }
 }
 
-/// [`DualScattering::strand_limit`] of these averages.
-fn strand_limit(averages: &[Averages]) -> u32 {
-    let largest = averages
-        .iter()
-        .map(|a| a.forward.max_element())
-        .fold(0.0f32, f32::max) as f64;
-    if largest <= 0.0 {
-        return 1;
+/// Transmittance and reflectance of `n` identical layers that each transmit `t` and reflect `r` (the adding
+/// method of two-stream transport: a layer added behind a stack of (T, R) gives T t/(1 − R r) and
+/// R + T² r/(1 − R r)).
+pub fn layers(t: Vec3, r: Vec3, n: u32) -> (Vec3, Vec3) {
+    let (mut tn, mut rn) = (Vec3::ONE, Vec3::ZERO);
+    for _ in 0..n {
+        let d = (Vec3::ONE - rn * r).max(Vec3::splat(1e-9));
+        let next = tn * t / d;
+        rn += tn * tn * r / d;
+        tn = next;
     }
-    let n = (1e-3f64).ln() / largest.min(1.0 - 1e-9).ln();
-    (n.ceil() as u32).clamp(1, MAX_STRANDS)
+    (tn, rn)
+}
+
+/// The largest ā_f and ā_b of a table, per channel.
+fn largest(averages: &[Averages]) -> (Vec3, Vec3) {
+    averages.iter().fold((Vec3::ZERO, Vec3::ZERO), |(f, b), a| {
+        (f.max(a.forward), b.max(a.backward))
+    })
+}
+
+/// [`DualScattering::strand_limits`] of [`DualForm::Published`].
+fn published_limit(averages: &[Averages]) -> (u32, u32) {
+    let t = largest(averages).0.max_element() as f64;
+    if t <= 0.0 {
+        return (1, 0);
+    }
+    let n = (1e-3f64).ln() / t.min(1.0 - 1e-9).ln();
+    ((n.ceil() as u32).clamp(1, MAX_STRANDS), 0)
+}
+
+/// [`DualScattering::strand_limits`] of [`DualForm::Layered`].
+fn layered_limits(averages: &[Averages]) -> (u32, u32) {
+    let (t, r) = largest(averages);
+    let ahead = (1..=MAX_STRANDS)
+        .find(|&n| layers(t, r, n).0.max_element() < 1e-3)
+        .unwrap_or(MAX_STRANDS);
+    let infinite = layers(t, r, 4096).1;
+    let behind = (0..=MAX_STRANDS)
+        .find(|&m| (infinite - layers(t, r, m).1).max_element() < 1e-3)
+        .unwrap_or(MAX_STRANDS);
+    (ahead, behind)
 }
 
 /// Per order p, the mean and variance of δ = θi + θo under M_p(θi, θo′_p) cos θi (a density over θi) at `theta_o`.

@@ -36,7 +36,7 @@
 use glam::{Vec3, Vec3A};
 
 use crate::accel::{CurveKind, Tracer};
-use crate::bsdf::dual::DualScattering;
+use crate::bsdf::dual::{DualForm, DualScattering};
 use crate::bsdf::frame::{h_from_normal, h_from_ribbon};
 use crate::bsdf::frame::{sin_cos_theta, strand_noise, HairFrame};
 use crate::bsdf::{Lobe, LobeValues, Material, PreparedBsdf};
@@ -90,8 +90,9 @@ pub struct Settings {
     /// Light-sample Russian roulette below this unshadowed contribution; 0 = off
     /// ([`crate::render::settings::IntegratorConfig::light_threshold`]).
     pub light_threshold: f32,
-    /// Dual scattering at the first vertex's light samples ([`crate::bsdf::dual`]; `path_length` is then 0).
-    pub dual: bool,
+    /// Dual scattering at the first vertex's light samples, in this form ([`crate::bsdf::dual`]; `path_length` is
+    /// then 0).
+    pub dual: Option<DualForm>,
 }
 
 /// Counters of rays, kept per tile and summed.
@@ -309,7 +310,7 @@ pub struct Integrator<'a> {
     /// of ignoring the whole strand, so that the tracer can trace them without a filter.
     skip_by_tube: bool,
     /// Dual scattering's tables, when the settings ask for it and the material has them.
-    pub(in crate::render) dual: Option<&'a DualScattering>,
+    pub(in crate::render) dual: Option<(&'a DualScattering, DualForm)>,
     /// Whether a ray can meet anything besides hair: a shape or an area light. Without them (the fur ball under an
     /// environment and a sun) every ray skips the scan for them (0.5 % of the peer frame's instructions).
     non_hair: bool,
@@ -359,7 +360,9 @@ impl<'a> Integrator<'a> {
             material_finds_light: settings.strategy != Strategy::Light
                 && lights.iter().any(|l| !l.is_delta()),
             skip_by_tube: frame.strands.all_opaque(),
-            dual: settings.dual.then(|| frame.material.dual()).flatten(),
+            dual: settings
+                .dual
+                .and_then(|form| Some((frame.material.dual()?, form))),
         }
     }
 

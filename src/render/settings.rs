@@ -11,6 +11,7 @@ use crate::shadow::DeepOpacityConfig;
 
 use super::camera::CameraConfig;
 use super::integrator::{Settings, MAX_PATH_LENGTH};
+use crate::bsdf::dual::DualForm;
 
 /// `[film]`: image size and sampling.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
@@ -195,11 +196,15 @@ pub enum MultipleScattering {
     /// Path tracing: `path_length` bounces through the hair.
     #[default]
     Path,
-    /// Dual scattering (Zinke et al. 2008, [`crate::bsdf::dual`]): each light sample at the first vertex counts the
-    /// strands its shadow ray crosses and adds the light forward-scattered through them and back-scattered around
-    /// the point; paths end at the first vertex (`path_length` and `tail` do not apply). Chiang's model only;
-    /// ray-traced shadows; shaded one path at a time (the scalar integrator).
+    /// Dual scattering (after Zinke et al. 2008, [`crate::bsdf::dual`]) in its layered form: each light sample at
+    /// the first vertex counts the strands towards the light and behind the point and adds the light forward-
+    /// and back-scattered between them, every order summed; paths end at the first vertex (`path_length` and
+    /// `tail` do not apply). Chiang's model only; ray-traced shadows; shaded one path at a time (the scalar
+    /// integrator).
     Dual,
+    /// Dual scattering as Zinke et al. published it (product of forward attenuations, back-scattering to three
+    /// events, density factors 0.7): kept to measure against; otherwise as `dual`.
+    DualPublished,
 }
 
 /// `[integrator]`: the thesis' sample counts (§6, table 3) and the path length.
@@ -258,9 +263,18 @@ impl Default for IntegratorConfig {
 pub const MAX_SAMPLES_PER_POINT: u32 = 2048;
 
 impl IntegratorConfig {
-    /// Whether multiple scattering is dual scattering.
+    /// Whether multiple scattering is dual scattering (either form).
     pub fn dual(&self) -> bool {
-        self.multiple_scattering == MultipleScattering::Dual
+        self.dual_form().is_some()
+    }
+
+    /// The form of dual scattering, if multiple scattering is dual scattering.
+    pub fn dual_form(&self) -> Option<DualForm> {
+        match self.multiple_scattering {
+            MultipleScattering::Path => None,
+            MultipleScattering::Dual => Some(DualForm::Layered),
+            MultipleScattering::DualPublished => Some(DualForm::Published),
+        }
     }
 
     /// Whether the wavefront shades (`shading = "lanes"`, and path tracing: dual scattering is written for the
@@ -367,7 +381,7 @@ impl RenderSettings {
             strategy: i.strategy,
             light_selection: i.lights,
             light_threshold: i.light_threshold,
-            dual: i.dual(),
+            dual: i.dual_form(),
         }
     }
 }

@@ -428,7 +428,8 @@ pub const HAIR_COLOURS: [(&str, [f64; 3]); 3] = [
 /// ([`crate::render::integrator::MAX_PATH_LENGTH`], 30 bounces: 31 shading points).
 pub const MULTIPLE_SCATTERING_PATHS: [u32; 6] = [1, 2, 4, 8, 16, 30];
 
-/// `multiple-scattering`: path tracing at each of [`MULTIPLE_SCATTERING_PATHS`] and dual scattering, over spp,
+/// `multiple-scattering`: path tracing at each of [`MULTIPLE_SCATTERING_PATHS`] and dual scattering in both forms
+/// (layered, published), over spp,
 /// for each of [`HAIR_COLOURS`] (Chiang's model, opaque strands, ray-traced shadows), against path tracing at 30
 /// bounces. The bias read-out is each method's remaining error at convergence. Not part of `all` (its references
 /// trace 30 bounces).
@@ -453,7 +454,7 @@ pub fn multiple_scattering(quick: bool) -> Kind {
     let mut variants = Vec::new();
     let mut compare = Vec::new();
     for (r, (name, colour)) in colours.iter().enumerate() {
-        let base = vec![
+        let base = [
             material("chiang", &[]),
             key(
                 "material.color",
@@ -478,10 +479,12 @@ pub fn multiple_scattering(quick: bool) -> Kind {
                 )
             })
             .collect();
-        methods.push((
-            format!("{name} dual"),
-            vec![key("integrator.multiple_scattering", string("dual"))],
-        ));
+        for (label, form) in [("dual", "dual"), ("dual published", "dual-published")] {
+            methods.push((
+                format!("{name} {label}"),
+                vec![key("integrator.multiple_scattering", string(form))],
+            ));
+        }
         for (series, extra) in &methods {
             variants.extend(spp.iter().map(|&s| {
                 Variant {

@@ -226,7 +226,7 @@ fn local_term_returns_its_backscattered_energy() {
                 let d_omega = theta.cos()
                     * (std::f32::consts::PI / nt as f32)
                     * (std::f32::consts::TAU / np as f32);
-                sum += tables.fcos(wo, wi, 0) * d_omega;
+                sum += tables.fcos(DualForm::Published, wo, wi, 0, 0) * d_omega;
             }
         }
         let want = DENSITY_BACKWARD * tables.backscatter(theta_o).attenuation;
@@ -275,14 +275,62 @@ fn finite_over_the_parameter_sweep() {
                 let wo = from_spherical(theta(&mut rng), rng.random_range(-4.0..4.0));
                 let wi = from_spherical(theta(&mut rng), rng.random_range(-4.0..4.0));
                 for strands in [0, 1, 3, 17, MAX_STRANDS] {
-                    let f = tables.fcos(wo, wi, strands);
-                    assert!(
-                        f.is_finite() && f.min_element() >= 0.0,
-                        "σa {sigma_a} βm {beta_m} βn {beta_n} {wo} {wi} n {strands}: {f}"
-                    );
+                    for (form, behind) in [
+                        (DualForm::Published, 0),
+                        (DualForm::Layered, 0),
+                        (DualForm::Layered, 5),
+                        (DualForm::Layered, MAX_STRANDS),
+                    ] {
+                        let f = tables.fcos(form, wo, wi, strands, behind);
+                        assert!(
+                            f.is_finite() && f.min_element() >= 0.0,
+                            "σa {sigma_a} βm {beta_m} βn {beta_n} {wo} {wi} n {strands} {form:?}: {f}"
+                        );
+                    }
                 }
             }
-            assert!((1..=MAX_STRANDS).contains(&tables.strand_limit()));
+            for form in [DualForm::Published, DualForm::Layered] {
+                let (ahead, behind) = tables.strand_limits(form);
+                assert!((1..=MAX_STRANDS).contains(&ahead) && behind <= MAX_STRANDS);
+            }
+        }
+    }
+}
+
+/// The adding method against its definition: one layer is (t, r); a stack of n has T_n + R_n = 1 when nothing is
+/// absorbed; and with the point between n layers towards the light and m behind it, the light arriving from the
+/// light's side, F = T_n/(1 − R_n R_m), plus what the layers ahead reflect back of the light the point sends
+/// through from the other side, R_n T_m/(1 − R_n R_m), is exactly 1 for white fibres: the layered form conserves
+/// the white furnace on a line, for every n and m.
+#[test]
+fn layers_conserve_a_white_stack() {
+    let (t, r) = (Vec3::new(0.7, 0.5, 0.3), Vec3::new(0.1, 0.08, 0.05));
+    assert_eq!(layers(t, r, 0), (Vec3::ONE, Vec3::ZERO));
+    let (t1, r1) = layers(t, r, 1);
+    assert!((t1 - t).abs().max_element() < 1e-7 && (r1 - r).abs().max_element() < 1e-7);
+    // Two layers by the series of their inter-reflections: T₂ = t² Σ (r²)^k, R₂ = r + t² r Σ (r²)^k.
+    let (t2, r2) = layers(t, r, 2);
+    let geometric = Vec3::ONE / (Vec3::ONE - r * r);
+    assert!((t2 - t * t * geometric).abs().max_element() < 1e-6);
+    assert!((r2 - (r + t * t * r * geometric)).abs().max_element() < 1e-6);
+    for white_r in [0.05f32, 0.2, 0.5] {
+        let (t, r) = (Vec3::splat(1.0 - white_r), Vec3::splat(white_r));
+        for n in [1u32, 3, 10, 64] {
+            let (tn, rn) = layers(t, r, n);
+            assert!(
+                ((tn + rn) - Vec3::ONE).abs().max_element() < 1e-5,
+                "n {n}: {tn} + {rn}"
+            );
+            for m in [0u32, 1, 7, 64] {
+                let (tm, rm) = layers(t, r, m);
+                let d = Vec3::ONE - rn * rm;
+                let arriving = tn / d + rn * tm / d;
+                // f32 over up to 128 additions: a few ulps per step.
+                assert!(
+                    (arriving - Vec3::ONE).abs().max_element() < 1e-4,
+                    "r {white_r} n {n} m {m}: {arriving}"
+                );
+            }
         }
     }
 }

@@ -185,17 +185,24 @@ impl<'a> Integrator<'a> {
         let Some(kept) = self.light_roulette(contribution, u) else {
             return;
         };
-        if let Some(dual) = self.dual {
+        if let Some((dual, form)) = self.dual {
             // Dual scattering: one query counts the strands towards the light; none crossed is the direct light.
-            let crossed = self.strands_towards(v, ls.wi, ls.distance, dual.strand_limit(), counts);
+            let (ahead, behind) = dual.strand_limits(form);
+            let crossed = self.strands_towards(v, ls.wi, ls.distance, ahead, counts);
             let vis = kept * if crossed == Some(0) { 1.0 } else { 0.0 };
             out.lit += unshadowed * vis;
             if vis > 0.0 {
                 add_lobes(&mut out.lobes, &fcos, scale * vis);
             }
             if let (Some(n), Surface::Hair { frame, .. }) = (crossed, v.surface) {
+                // The layered form also counts the strands behind the point, which send light back to it.
+                let m = if behind > 0 {
+                    self.strands_behind(v, ls.wi, behind, counts)
+                } else {
+                    0
+                };
                 // Light-sampled alone (no material sample estimates it): weight 1, not the MIS weight.
-                let f = dual.fcos(frame.to_local(v.wo), frame.to_local(ls.wi), n);
+                let f = dual.fcos(form, frame.to_local(v.wo), frame.to_local(ls.wi), n, m);
                 out.indirect += f * ls.radiance * (kept / (ls.pdf * count));
             }
             return;

@@ -244,6 +244,28 @@ impl<'a> Integrator<'a> {
         )
     }
 
+    /// The strands behind `v` as seen from a light in direction `wi` (along −ωi, to infinity; shapes do not stop
+    /// the count), up to `limit`, for the layered form of dual scattering.
+    pub(in crate::render) fn strands_behind(
+        &self,
+        v: &Vertex,
+        wi: Vec3,
+        limit: u32,
+        counts: &mut RayCounts,
+    ) -> u32 {
+        if self.settings.shadows == ShadowMode::None {
+            return 0;
+        }
+        let (ray, ignore) = self.shadow_ray(v, -wi, f32::INFINITY);
+        counts.shadow += 1;
+        self.tracer
+            .strands_crossed(&ray, ignore, limit)
+            .unwrap_or_else(|_| {
+                counts.rejected += 1;
+                0
+            })
+    }
+
     /// The deep opacity maps' transmittance from `v` towards light `light` along `wi`, or `None` outside
     /// deep-opacity mode or when the light has no map (it needs a shadow ray).
     #[inline]
