@@ -64,6 +64,12 @@ pub(in crate::render) use trace::Found;
 /// [`dim::PER_VERTEX`] dimensions.
 pub const MAX_PATH_LENGTH: u32 = dim::MAX_VERTICES - 1;
 
+/// The longest path a tail ([`Settings::tail`]) continues to: past [`MAX_PATH_LENGTH`] its vertices draw hashed
+/// independent numbers ([`super::sampler::PixelSampler::get_salted`]); Russian roulette ends paths long before
+/// (a path this long has survived a roulette of ≤ 0.95 per vertex ~10²² times over), the bound keeps a path
+/// finite whatever the scene.
+pub const MAX_TAIL_LENGTH: u32 = 1000;
+
 /// Light-transport settings of one render.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Settings {
@@ -75,7 +81,7 @@ pub struct Settings {
     pub path_length: u32,
     /// (bounce b, probability p): after vertex b a path goes on only with probability p on top of Russian
     /// roulette, weighted by 1 / p ([`crate::render::settings::IntegratorConfig::tail`]; `path_length` is then
-    /// [`MAX_PATH_LENGTH`]).
+    /// [`MAX_TAIL_LENGTH`]).
     pub tail: Option<(u32, f32)>,
     /// Largest channel value of one indirect contribution; 0 = no clamping (the default: clamping is biased).
     pub clamp: f32,

@@ -204,8 +204,10 @@ pub fn render_bounces(
     impl integrator::BounceRecorder for Vertices {
         #[inline]
         fn vertex(&mut self, b: u32, radiance: Vec3, rays: &RayCounts) {
-            self.radiance[b as usize] += radiance;
-            self.rays[b as usize].add(rays);
+            // A tail's vertices past the longest path length add to the last cut.
+            let b = (b as usize).min(integrator::MAX_PATH_LENGTH as usize);
+            self.radiance[b] += radiance;
+            self.rays[b].add(rays);
         }
     }
     let [width, height] = settings.film.resolution;

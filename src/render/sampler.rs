@@ -8,7 +8,7 @@ use sobol_burley::parts::{
     hash_int4, owen_scramble_int4_rev, owen_scramble_rev, sobol_int4_rev, Int4,
 };
 
-use crate::util::hash::hash64;
+use crate::util::hash::{hash64, unit_f32};
 
 /// Every sample dimension a camera sample uses, in one table so that no two consumers share one. The values are
 /// part of every image: changing one changes the noise of every render (`scripts/same-images.sh` notices).
@@ -144,8 +144,16 @@ impl PixelSampler {
 
     /// As [`PixelSampler::get`], from an independent scrambling chosen by `salt` (e.g. one per light, so that the
     /// samples of different lights are not correlated).
+    ///
+    /// Past the Sobol sequence's [`dim::COUNT`] dimensions (bounces past the 30th, which only a tail of paths
+    /// reaches: [`crate::render::integrator::MAX_TAIL_LENGTH`]) the numbers are independent uniform ones hashed from
+    /// the pixel, index, dimension and salt: unbiased, not stratified, where a path's contribution is already
+    /// small.
     #[inline]
     pub fn get_salted(&self, index: u32, dimension: u32, salt: u32) -> f32 {
+        if dimension >= dim::COUNT {
+            return unit_f32(self.key(index, dimension, salt));
+        }
         let block = index >> 16;
         let seed = if block == 0 && salt == 0 {
             self.seed

@@ -10,7 +10,7 @@ use serde::Deserialize;
 use crate::shadow::DeepOpacityConfig;
 
 use super::camera::CameraConfig;
-use super::integrator::{Settings, MAX_PATH_LENGTH};
+use super::integrator::{Settings, MAX_PATH_LENGTH, MAX_TAIL_LENGTH};
 use crate::bsdf::dual::DualForm;
 
 /// `[film]`: image size and sampling.
@@ -233,8 +233,8 @@ pub struct IntegratorConfig {
     /// In lanes or one at a time ([`Shading`]); the same image either way.
     pub shading: Shading,
     /// Past `path_length` bounces, the probability that a path goes on (times Russian roulette's own), its
-    /// throughput divided by it, up to the longest path the sampler allows
-    /// ([`MAX_PATH_LENGTH`]): the bounces past `path_length` are then estimated
+    /// throughput divided by it, up to [`MAX_TAIL_LENGTH`] bounces (Russian roulette ends them long before):
+    /// the bounces past `path_length` are then estimated
     /// without bias, at the cost of their noise, instead of left out. 0 = off (the default: paths end at
     /// `path_length`); needs `path_length` ≥ 1.
     pub tail: f32,
@@ -358,7 +358,7 @@ impl RenderSettings {
     pub fn transport(&self) -> Settings {
         let i = &self.integrator;
         // A tail: paths go on to the longest length, thinned once at `path_length` (the integrator's roulette).
-        let tail = (i.tail > 0.0 && i.path_length >= 1 && i.path_length < MAX_PATH_LENGTH)
+        let tail = (i.tail > 0.0 && i.path_length >= 1 && i.path_length < MAX_TAIL_LENGTH)
             .then_some((i.path_length, i.tail))
             .filter(|_| !i.dual());
         Settings {
@@ -367,7 +367,7 @@ impl RenderSettings {
             path_length: if i.dual() {
                 0
             } else if tail.is_some() {
-                MAX_PATH_LENGTH
+                MAX_TAIL_LENGTH
             } else {
                 i.path_length
             },
@@ -426,7 +426,7 @@ mod tests {
             background_visible: true,
         };
         let t = s.transport();
-        assert_eq!((t.path_length, t.tail), (MAX_PATH_LENGTH, Some((2, 0.5))));
+        assert_eq!((t.path_length, t.tail), (MAX_TAIL_LENGTH, Some((2, 0.5))));
         s.integrator.tail = 0.0;
         let t = s.transport();
         assert_eq!((t.path_length, t.tail), (2, None));
