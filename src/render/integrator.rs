@@ -344,9 +344,12 @@ impl<'a> Integrator<'a> {
         let (lights, scene_radius) = (&frame.lights[..], frame.radius());
         let background_visible = settings.background_visible;
         let settings = settings.transport();
+        // Under dual scattering only light samples carry the multiple-scattered light, so every light is chosen by
+        // its power, a constant environment too (which MIS otherwise leaves to the material samples).
+        let material_finds_light = settings.strategy == Strategy::Mis && settings.dual.is_none();
         let weights: Vec<f32> = lights
             .iter()
-            .map(|l| l.selection_weight(scene_radius, settings.strategy == Strategy::Mis))
+            .map(|l| l.selection_weight(scene_radius, material_finds_light))
             .collect();
         Integrator {
             strands: &frame.strands,
