@@ -28,8 +28,9 @@ pub enum StudyCommand {
     Models(StudyKindArgs),
     /// Round tubes against flat ribbons per model and film width.
     Curves(StudyKindArgs),
-    /// Dual scattering against path tracing at 1 to 30 bounces (chiang; blond, brown and black), against 30
-    /// bounces: error against time and each method's bias at convergence. Not part of `all`.
+    /// Dual scattering (both forms) against path tracing at 1 to 30 bounces (chiang; blond, brown and black),
+    /// against path tracing converged in path length: error against time and each method's bias at convergence.
+    /// Not part of `all`.
     MultipleScattering(StudyKindArgs),
     /// Adversarial cases per method: stress.csv, stress.md, bar charts per case (NaN/Inf, fireflies, error;
     /// failures named).

@@ -572,7 +572,7 @@ fn plan_tail(
         value: AUTO_TAIL.to_string(),
         reason: format!(
             "past path {path_length} a path goes on with probability {AUTO_TAIL} (and Russian roulette), weighted by \
-             its inverse, to 30 bounces: the bounces after {path_length} (the pilots read {}) are estimated, not \
+             its inverse, until Russian roulette ends it: the bounces after {path_length} (the pilots read {}) are estimated, not \
              left out, so the noise may take {:.4} instead of {before:.4}",
             read.map_or("nothing".into(), |b| format!("{b:.4}")),
             p.noise_budget
