@@ -480,9 +480,18 @@ impl Job {
             }
             (None, None) => format!("{} spp", s.film.spp),
         };
+        // Dual scattering's strand counts, when there are any.
+        let counted = if stats.rays.counted > 0 {
+            format!(
+                ", {} strand counts over {} strands",
+                stats.rays.counted, stats.rays.crossed
+            )
+        } else {
+            String::new()
+        };
         format!(
             "{} strands ({} curves, {} backend), {width}x{height}, {samples}, {} threads: load {:.2} s, build {:.2} \
-             s, render {:.2} s ({:.2} Mrays/s: {} camera, {} shadow, {} material rays)",
+             s, render {:.2} s ({:.2} Mrays/s: {} camera, {} shadow, {} material rays{counted})",
             self.frame.strands.strand_count(),
             self.frame.curves.name(),
             self.frame.backend.name(),

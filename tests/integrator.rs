@@ -868,6 +868,8 @@ fn the_wavefront_gives_the_scalar_image_on_long_paths_adaptive_frames_and_the_pi
                 material: 0.7,
                 map_lookup: 0.1,
                 deep: 0.3,
+                counted: 2.0,
+                crossed: 0.2,
             }),
             sampler_gain: 1.0,
         });

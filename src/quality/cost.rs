@@ -23,12 +23,20 @@ pub use crate::render::integrator::RayCost as CostWeights;
 /// `docs/measured/study/auto/cost-calibration.csv`); read them as ratios, 1 : 3.6 : 3.7 : 1.8.
 /// `deep` is 0.41 × the mean shadow/material weight: the median excess, in callgrind instructions, of a bounce-2
 /// vertex's rays over a bounce-1 vertex's on the hair scenes (`scripts/deep-ray-cost.sh SCENE`).
+/// `counted` (per strand-counting query of dual scattering, its dual shading included) and `crossed` (per strand
+/// it counted): least squares over four one-thread renders, 8 spp, blond Chiang, path length 0 against dual and
+/// dual-published on `scenes/default.toml` at 128² and `scenes/study/straight-city.toml` at 96×128, each
+/// render's time less the path-0 render's plus its shadow rays at `shadow`'s weight (7 Dec 2026, commit after
+/// 8d1a0b0, another study on the second core): 6.7 µs and 0.65 µs, the four renders within 15 %. Tuned on those
+/// two shipped scenes.
 pub const WEIGHTS: CostWeights = CostWeights {
     camera: 0.92e-6,
     shadow: 3.34e-6,
     material: 3.42e-6,
     map_lookup: 1.66e-6,
     deep: 1.4e-6,
+    counted: 6.7e-6,
+    crossed: 0.65e-6,
 };
 
 /// How many times a ribbon's the cost model's weights take a round tube's rays to cost: the weights were fitted
@@ -97,6 +105,8 @@ mod tests {
             material: 1.0,
             map_lookup: 1.0,
             deep: 0.0,
+            counted: 1.0,
+            crossed: 0.0,
         };
         let (a1, a4) = (
             inverse_efficiency(e1, &one, &alike),

@@ -643,6 +643,12 @@ pub fn plan_frame_with(
         }
     }
     decisions.append(&mut chosen.decisions);
+    // Dual scattering (chosen, or the scene's) ends paths at the first vertex: no path length to search, no tail.
+    let mut fixed = fixed;
+    if settings.integrator.dual() {
+        settings.integrator.path_length = 0;
+        fixed.path_length = true;
+    }
     let active = chosen.frame.as_ref().unwrap_or(frame);
     let mut p = pilot::plan(
         active,

@@ -117,6 +117,11 @@ pub struct RayCounts {
     /// Of the shadow and material rays, those traced at the third path vertex and beyond (bounce 2 onwards): they
     /// start deep in the hair and cost more each ([`RayCost::deep`]).
     pub deep: u64,
+    /// Strand-counting queries of dual scattering (all-hits traversals, towards a light or behind the point), with
+    /// their light sample and dual shading.
+    pub counted: u64,
+    /// Strands those queries counted, together: a count's traversal grows with them.
+    pub crossed: u64,
 }
 
 impl RayCounts {
@@ -128,6 +133,8 @@ impl RayCounts {
         self.rejected += o.rejected;
         self.map_lookups += o.map_lookups;
         self.deep += o.deep;
+        self.counted += o.counted;
+        self.crossed += o.crossed;
     }
 
     /// The rays counted since `earlier`, an earlier reading of the same counters.
@@ -139,12 +146,14 @@ impl RayCounts {
             rejected: self.rejected - earlier.rejected,
             map_lookups: self.map_lookups - earlier.map_lookups,
             deep: self.deep - earlier.deep,
+            counted: self.counted - earlier.counted,
+            crossed: self.crossed - earlier.crossed,
         }
     }
 
-    /// Every ray traced.
+    /// Every ray traced (strand counts included).
     pub fn total(&self) -> u64 {
-        self.camera + self.shadow + self.material
+        self.camera + self.shadow + self.material + self.counted
     }
 }
 
@@ -164,6 +173,10 @@ pub struct RayCost {
     pub map_lookup: f64,
     /// Added per shadow or material ray traced at bounce 2 or later ([`RayCounts::deep`]), over its kind's weight.
     pub deep: f64,
+    /// Per strand-counting query of dual scattering ([`RayCounts::counted`]), with its shading.
+    pub counted: f64,
+    /// Per strand such a query counted ([`RayCounts::crossed`]).
+    pub crossed: f64,
 }
 
 impl RayCost {
@@ -174,6 +187,8 @@ impl RayCost {
             + self.material * rays.material as f64
             + self.map_lookup * rays.map_lookups as f64
             + self.deep * rays.deep as f64
+            + self.counted * rays.counted as f64
+            + self.crossed * rays.crossed as f64
     }
 }
 
@@ -593,7 +608,9 @@ pub(in crate::render) fn end_first_vertex<R: BounceRecorder>(
     record: &mut R,
 ) {
     out.direct = out.lobes.sum();
-    record.vertex(0, out.direct, rays);
+    // With dual scattering the light samples also gathered the multiple-scattered light (in `indirect`, 0 otherwise
+    // at this point): vertex 0 brings both.
+    record.vertex(0, out.direct + out.indirect, rays);
 }
 
 /// The path ended: its `indirect` light (by the first vertex's lobes, if it went beyond the first vertex) into the

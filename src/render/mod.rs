@@ -227,17 +227,22 @@ pub fn render_bounces(
             // Σx and Σx² of each cut, in f64.
             let mut sums = vec![[[0.0f64; 3]; 2]; lengths];
             let mut kept = 0u32;
+            // The last cut holds every vertex from it on: a tail's deeper bounces belong to it.
+            let last = lengths - 1;
             let mut add = |s: &PathSample, v: &Vertices| {
-                for (r, v) in rays.iter_mut().zip(&v.rays) {
-                    r.add(v);
+                for (b, r) in v.rays.iter().enumerate() {
+                    rays[b.min(last)].add(r);
                 }
                 if !s.beauty.is_finite() {
                     return;
                 }
                 kept += 1;
                 let mut prefix = Vec3::ZERO;
-                for ([sum, squares], r) in sums.iter_mut().zip(&v.radiance[..lengths]) {
-                    prefix += *r;
+                for (b, [sum, squares]) in sums.iter_mut().enumerate() {
+                    prefix += v.radiance[b];
+                    if b == last {
+                        prefix += v.radiance[lengths..].iter().copied().sum::<Vec3>();
+                    }
                     for (c, x) in prefix.to_array().into_iter().enumerate() {
                         sum[c] += f64::from(x);
                         squares[c] += f64::from(x) * f64::from(x);

@@ -1,4 +1,5 @@
-//! The approximations auto may choose — flat ribbons for round tubes, deep opacity maps for ray-traced shadows —
+//! The approximations auto may choose — flat ribbons for round tubes, deep opacity maps for ray-traced shadows, dual
+//! scattering for path tracing's bounces —
 //! each kept only with the bias it measures against the more exact choice on the same pilot windows and seeds, and
 //! only where it is cheaper for the target once that bias is paid for.
 //!
@@ -19,7 +20,7 @@
 //! [`FIRST_PILOT_PATH_LENGTH`]), so the choice kept costs nothing more: the search starts from its pilots.
 
 use crate::accel::CurveKind;
-use crate::render::settings::{RenderSettings, ShadowMode};
+use crate::render::settings::{MultipleScattering, RenderSettings, ShadowMode, Strategy};
 use crate::render::{Frame, Region};
 use crate::shadow::ShadowMaps;
 
@@ -374,6 +375,55 @@ pub fn choose(
                 });
                 current = Some(rays);
             }
+        }
+    }
+    // Dual scattering for the bounces path tracing would trace, where it is built (Chiang's model, ray-traced or no
+    // shadows): measured against path tracing with a tail that Russian roulette alone ends (every bounce, no bias
+    // in path length), on the same windows and seeds; its cost against that of the path-traced frame with every
+    // bounce, which is what auto renders otherwise (a tail past the path length it finds).
+    let active = chosen.frame.as_ref().unwrap_or(frame);
+    if !fixed.path_length
+        && settings.shadows.mode != ShadowMode::DeepOpacity
+        && settings.integrator.strategy != Strategy::Material
+        && !settings.integrator.dual()
+        && active.material.dual().is_some()
+    {
+        let taken = bias2_of(&chosen.measured.approximations);
+        let mut every_bounce = pilot.clone();
+        every_bounce.integrator.tail = 1.0;
+        let paths = render(active, &every_bounce, chosen.maps.as_ref());
+        let mut dual_settings = pilot.clone();
+        dual_settings.integrator.multiple_scattering = MultipleScattering::Dual;
+        let dual = render(active, &dual_settings, chosen.maps.as_ref());
+        let a = bias_of(
+            "dual scattering for path tracing".into(),
+            &dual,
+            &paths,
+            &windows,
+            margins.approximation_standard_errors,
+        );
+        let c_dual = dual.frame_seconds(film_pixels, noise_left(taken + a.bias2()));
+        let c_paths = paths.frame_seconds(film_pixels, noise_left(taken));
+        let keep = taken + a.bias2() <= APPROXIMATION_BIAS_SHARE * target2 && c_dual < c_paths;
+        chosen.decisions.push(Decision {
+            key: "integrator.multiple_scattering",
+            value: if keep { "dual" } else { "path" }.into(),
+            reason: format!(
+                "dual scattering against path tracing to every bounce (path {} and Russian roulette's tail) on the \
+                 same pilots ({PILOT_SPP} spp): dual's bias {:.4} (point {:.4}, {} standard error(s) added; the \
+                 approximations' budget is {:.4}); predicted CPU s of the frame at the noise the target leaves, dual \
+                 {c_dual:.2}, path tracing {c_paths:.2}",
+                pilot.integrator.path_length,
+                a.bias,
+                a.point,
+                margins.approximation_standard_errors,
+                (APPROXIMATION_BIAS_SHARE * target2 - taken).max(0.0).sqrt(),
+            ),
+        });
+        if keep {
+            settings.integrator.multiple_scattering = MultipleScattering::Dual;
+            chosen.measured.approximations.push(a);
+            current = Some(dual);
         }
     }
     chosen.measured.pilots = current;

@@ -227,21 +227,13 @@ impl<'a> Integrator<'a> {
         counts: &mut RayCounts,
     ) -> Option<u32> {
         let (ray, ignore) = self.shadow_ray(v, wi, distance);
-        counts.shadow += 1;
         if self.shapes.occluded(&ray, ray.tfar) {
             return None;
         }
         if self.settings.shadows == ShadowMode::None {
             return Some(0);
         }
-        Some(
-            self.tracer
-                .strands_crossed(&ray, ignore, limit)
-                .unwrap_or_else(|_| {
-                    counts.rejected += 1;
-                    0
-                }),
-        )
+        Some(self.count_strands(&ray, ignore, limit, counts))
     }
 
     /// The strands behind `v` as seen from a light in direction `wi` (along −ωi, to infinity; shapes do not stop
@@ -257,13 +249,27 @@ impl<'a> Integrator<'a> {
             return 0;
         }
         let (ray, ignore) = self.shadow_ray(v, -wi, f32::INFINITY);
-        counts.shadow += 1;
-        self.tracer
-            .strands_crossed(&ray, ignore, limit)
+        self.count_strands(&ray, ignore, limit, counts)
+    }
+
+    /// The tracer's strand count along `ray`, counted in `counts`.
+    fn count_strands(
+        &self,
+        ray: &Ray,
+        ignore: Option<u32>,
+        limit: u32,
+        counts: &mut RayCounts,
+    ) -> u32 {
+        counts.counted += 1;
+        let n = self
+            .tracer
+            .strands_crossed(ray, ignore, limit)
             .unwrap_or_else(|_| {
                 counts.rejected += 1;
                 0
-            })
+            });
+        counts.crossed += u64::from(n);
+        n
     }
 
     /// The deep opacity maps' transmittance from `v` towards light `light` along `wi`, or `None` outside
