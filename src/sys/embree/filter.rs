@@ -329,7 +329,10 @@ mod tests {
             // Debian's Embree 3.13: flags (4) + padding (4) + filter pointer (8) + instID[1] (4) + padding (4).
             assert_eq!(context, 24);
             // The fields after the context, then 4 bytes of padding to the context's 8-byte alignment.
-            assert_eq!(size_of::<TransmittanceQuery>(), 24 + 20 + 4 * SEEN_STRANDS + 4);
+            assert_eq!(
+                size_of::<TransmittanceQuery>(),
+                24 + 20 + 4 * SEEN_STRANDS + 4
+            );
         }
     }
 
@@ -338,12 +341,24 @@ mod tests {
         let mut q = TransmittanceQuery::new(Some(9), 3);
         assert_eq!(q.on_hit(Some((7, 1.0))), Verdict::Continue);
         assert_eq!(q.on_hit(Some((7, 1.0))), Verdict::Continue);
-        assert_eq!(q.on_hit(Some((9, 1.0))), Verdict::Continue, "the ignored strand");
-        assert_eq!(q.on_hit(Some((4, 0.0))), Verdict::Continue, "opacity 0 is no strand");
+        assert_eq!(
+            q.on_hit(Some((9, 1.0))),
+            Verdict::Continue,
+            "the ignored strand"
+        );
+        assert_eq!(
+            q.on_hit(Some((4, 0.0))),
+            Verdict::Continue,
+            "opacity 0 is no strand"
+        );
         assert_eq!(q.on_hit(Some((3, 0.2))), Verdict::Continue);
         assert_eq!(q.seen_len, 2);
         assert_eq!(q.transmittance, 1.0, "a count multiplies nothing");
-        assert_eq!(q.on_hit(Some((5, 1.0))), Verdict::Stop, "the third strand reaches the limit");
+        assert_eq!(
+            q.on_hit(Some((5, 1.0))),
+            Verdict::Stop,
+            "the third strand reaches the limit"
+        );
         assert_eq!(q.seen_len, 3);
     }
 
