@@ -74,7 +74,7 @@ radiance = [1.0, 1.0, 1.0]
 /// the bands below keep that bias in numbers: the published form follows light only along the straight line to
 /// the light, each fibre keeping ā_f of it, with back-scattering to three events and density factors 0.7
 /// (measured 0.546 ± 0.009); the layered form sums every order of forward and back scattering between the fibres
-/// ahead of and behind the point (measured 0.730 ± 0.012; it would be 1 if light crossed the hair in straight
+/// ahead of and behind the point (measured 0.747 ± 0.012; it would be 1 if light crossed the hair in straight
 /// lines: `bsdf::dual`'s `layers_conserve_a_white_stack`). Single scattering alone: 0.085 ± 0.006.
 #[test]
 fn white_furnace_stays_below_one_and_keeps_its_bias() {

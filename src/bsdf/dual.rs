@@ -27,12 +27,13 @@
 //!   series; on a white furnace (σa = 0, the exact answer 1) it gives 0.55 (`tests/dual.rs`).
 //! - **Layered** (cuticle's `dual`): the same lobes, their weights summed to every order by the adding method of
 //!   two-stream transport, each fibre a layer that passes ā_f and returns ā_b (a stack of n layers has T_n, R_n:
-//!   [`layers`]). A second query counts the m fibres behind x (along −ωi). The light arriving from the light's
-//!   side is F = T_n/(1 − R_n R_m) (passed by the n fibres, reflected between them and those behind), the light
-//!   coming back from behind B = F R_m; x scatters F − V (V = 1 where n = 0: the direct part is single
-//!   scattering) with f^G and B, times its own albedo ā_f + ā_b at θo, with f_back. No density factors: for white
-//!   fibres F plus what the n fibres return of the light from the other side is exactly 1 for every n and m
-//!   (tested), so nothing needs damping; on the white furnace it gives 0.73, short of 1 because light crosses
+//!   [`layers`]). A second query counts the m fibres behind x (along −ωi). x's own fibre is a layer of the line
+//!   too, so the light reaching the fibres behind it passes it first: the light arriving at x from the light's
+//!   side is F and from behind B ([`fluxes`]: the stack ahead's T_n, reflected between it and x with the stack
+//!   behind). x scatters F − V (V = 1 where n = 0: the direct part is single scattering) with f^G, and B, times
+//!   its own albedo ā_f + ā_b at θo, with f_back. No density factors: for white fibres the light arriving at x
+//!   from one side, F of the light on that side plus B of the light on the other, is exactly 1 for every n and m
+//!   (tested), so nothing needs damping; on the white furnace it gives 0.75, short of 1 because light crosses
 //!   real hair along other lines than the straight one counted.
 //!
 //! The multiple-scattered light at x is f · cos θi on top of single scattering, light-sampled (no material sample
@@ -372,10 +373,7 @@ impl DualScattering {
         let phi = (wo.y * wi.z - wo.z * wi.y).atan2(wo.y * wi.y + wo.z * wi.z);
         let along = self.averages(-sin_i.atan2(cos_i));
         let (t, r) = (along.forward, along.backward);
-        let (tn, rn) = layers(t, r, ahead);
-        let (_, rm) = layers(t, r, behind);
-        let forward = tn / (Vec3::ONE - rn * rm).max(Vec3::splat(1e-9));
-        let backward = forward * rm;
+        let (forward, backward) = fluxes(t, r, ahead, behind);
         let direct = if ahead == 0 { Vec3::ONE } else { Vec3::ZERO };
         let spread = along.variance_forward * ahead as f32;
         let mut out = Vec3::ZERO;
@@ -468,6 +466,21 @@ fn largest(averages: &[Averages]) -> (Vec3, Vec3) {
     averages.iter().fold((Vec3::ZERO, Vec3::ZERO), |(f, b), a| {
         (f.max(a.forward), b.max(a.backward))
     })
+}
+
+/// The light arriving at a point of a line of fibres that each pass `t` and return `r`, `ahead` of them between it and
+/// the light and `behind` beyond it, per unit of light: (from the light's side, from behind). The point's own fibre
+/// is a layer of the line too, so light reaches the fibres behind it only through it: with (T_n, R_n) the stack
+/// ahead, R_m the one behind and R_x = r + t² R_m/(1 − r R_m) the point's fibre with the stack behind, the light
+/// arriving from the front is T_n/(1 − R_n R_x) (passed by the stack ahead, reflected back and forth between it and
+/// what is behind), and from behind that times t R_m/(1 − r R_m).
+pub fn fluxes(t: Vec3, r: Vec3, ahead: u32, behind: u32) -> (Vec3, Vec3) {
+    let floor = Vec3::splat(1e-9);
+    let (tn, rn) = layers(t, r, ahead);
+    let (_, rm) = layers(t, r, behind);
+    let behind_x = r + t * t * rm / (Vec3::ONE - r * rm).max(floor);
+    let forward = tn / (Vec3::ONE - rn * behind_x).max(floor);
+    (forward, forward * t * rm / (Vec3::ONE - r * rm).max(floor))
 }
 
 /// [`DualScattering::strand_limits`] of [`DualForm::Published`].

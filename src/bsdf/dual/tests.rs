@@ -298,10 +298,9 @@ fn finite_over_the_parameter_sweep() {
 }
 
 /// The adding method against its definition: one layer is (t, r); a stack of n has T_n + R_n = 1 when nothing is
-/// absorbed; and with the point between n layers towards the light and m behind it, the light arriving from the
-/// light's side, F = T_n/(1 − R_n R_m), plus what the layers ahead reflect back of the light the point sends
-/// through from the other side, R_n T_m/(1 − R_n R_m), is exactly 1 for white fibres: the layered form conserves
-/// the white furnace on a line, for every n and m.
+/// absorbed; and for white fibres the light arriving at a point of the line from one side — F of the light on that
+/// side ([`fluxes`] with n ahead, m behind) plus B of the light on the other (m ahead, n behind) — is exactly 1 for
+/// every n and m: the layered form conserves the white furnace on a line.
 #[test]
 fn layers_conserve_a_white_stack() {
     let (t, r) = (Vec3::new(0.7, 0.5, 0.3), Vec3::new(0.1, 0.08, 0.05));
@@ -322,9 +321,7 @@ fn layers_conserve_a_white_stack() {
                 "n {n}: {tn} + {rn}"
             );
             for m in [0u32, 1, 7, 64] {
-                let (tm, rm) = layers(t, r, m);
-                let d = Vec3::ONE - rn * rm;
-                let arriving = tn / d + rn * tm / d;
+                let arriving = fluxes(t, r, n, m).0 + fluxes(t, r, m, n).1;
                 // f32 over up to 128 additions: a few ulps per step.
                 assert!(
                     (arriving - Vec3::ONE).abs().max_element() < 1e-4,
