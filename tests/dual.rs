@@ -5,22 +5,12 @@ use std::path::Path;
 
 mod common;
 
-use common::{bit_differences, render_scene};
+use common::{bit_differences, channel, render_scene};
 use cuticle::image::Image;
 use cuticle::scene::Scene;
 
 fn parse(text: &str) -> Result<Scene, String> {
     Scene::parse(text, Path::new("test scene"), Path::new(".")).map_err(|e| e.to_string())
-}
-
-fn channel(image: &Image, name: &str) -> Vec<f32> {
-    let c = image
-        .channel_index(name)
-        .unwrap_or_else(|| panic!("no channel {name}"));
-    (0..image.height)
-        .flat_map(|y| (0..image.width).map(move |x| (x, y)))
-        .map(|(x, y)| image.get(x, y, c))
-        .collect()
 }
 
 /// Mean and standard error of the mean over the pixels (coverage ≥ 0.9) of channel `name`.

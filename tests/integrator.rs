@@ -5,22 +5,12 @@ use std::path::Path;
 
 mod common;
 
-use common::{bit_differences, render_scene, render_scene_with_stats};
+use common::{bit_differences, channel, render_scene, render_scene_with_stats};
 use cuticle::image::Image;
 use cuticle::scene::{LightSelection, Scene, ShadowMode, Strategy};
 
 fn parse(text: &str, base: &Path) -> Scene {
     Scene::parse(text, Path::new("test scene"), base).unwrap_or_else(|e| panic!("{e}"))
-}
-
-fn channel(image: &Image, name: &str) -> Vec<f32> {
-    let c = image
-        .channel_index(name)
-        .unwrap_or_else(|| panic!("no channel {name}"));
-    (0..image.height)
-        .flat_map(|y| (0..image.width).map(move |x| (x, y)))
-        .map(|(x, y)| image.get(x, y, c))
-        .collect()
 }
 
 /// Mean and standard error of the mean of `v`.

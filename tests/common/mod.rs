@@ -33,6 +33,17 @@ pub fn bit_differences(a: &[f32], b: &[f32]) -> usize {
         .count()
 }
 
+/// Channel `name` of `image`, row by row; panics naming a missing channel.
+pub fn channel(image: &Image, name: &str) -> Vec<f32> {
+    let c = image
+        .channel_index(name)
+        .unwrap_or_else(|| panic!("no channel {name}"));
+    (0..image.height)
+        .flat_map(|y| (0..image.width).map(move |x| (x, y)))
+        .map(|(x, y)| image.get(x, y, c))
+        .collect()
+}
+
 /// The names of the files directly in `dir`, sorted.
 pub fn listing(dir: &std::path::Path) -> Vec<String> {
     let mut names: Vec<String> = std::fs::read_dir(dir)
