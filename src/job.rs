@@ -480,11 +480,16 @@ impl Job {
             }
             (None, None) => format!("{} spp", s.film.spp),
         };
-        // Dual scattering's strand counts, when there are any.
+        // Dual scattering's strand counts and tables, when there are any.
         let counted = if stats.rays.counted > 0 {
             format!(
-                ", {} strand counts over {} strands",
-                stats.rays.counted, stats.rays.crossed
+                ", {} strand counts over {} strands; dual-scattering tables {:.3} s",
+                stats.rays.counted,
+                stats.rays.crossed,
+                self.frame
+                    .material
+                    .dual()
+                    .map_or(0.0, |d| d.build_seconds())
             )
         } else {
             String::new()
