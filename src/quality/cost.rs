@@ -26,9 +26,9 @@ pub use crate::render::integrator::RayCost as CostWeights;
 /// `counted` (per strand-counting query of dual scattering, its dual shading included) and `crossed` (per strand
 /// it counted): least squares over four one-thread renders, 8 spp, blond Chiang, path length 0 against dual and
 /// dual-published on `scenes/default.toml` at 128² and `scenes/study/straight-city.toml` at 96×128, each
-/// render's time less the path-0 render's plus its shadow rays at `shadow`'s weight (7 Dec 2026, commit after
-/// 8d1a0b0, another study on the second core): 6.7 µs and 0.65 µs, the four renders within 15 %. Tuned on those
-/// two shipped scenes.
+/// render's time less the path-0 render's plus its shadow rays at `shadow`'s weight (7 Dec 2026, the code of
+/// commit 597d91c, another study on the second core): 6.7 µs and 0.65 µs, the four renders within 15 %. Tuned on
+/// those two shipped scenes.
 pub const WEIGHTS: CostWeights = CostWeights {
     camera: 0.92e-6,
     shadow: 3.34e-6,
