@@ -182,6 +182,12 @@ impl Seen {
         opacity == 0.0 || strand == self.ignore_strand || self.strands[..self.len].contains(&strand)
     }
 
+    /// Adds `strand` to the strands seen (the caller has checked there is room).
+    fn remember(&mut self, strand: u32) {
+        self.strands[self.len] = strand;
+        self.len += 1;
+    }
+
     /// Counts a hit on a strand not skipped: transmittance ×= 1 − opacity; stops dark below the cutoff or when
     /// the list is full.
     fn count(&mut self, strand: u32, opacity: f32) -> Control {
@@ -189,8 +195,7 @@ impl Seen {
             self.transmittance = 0.0;
             return Control::Stop;
         }
-        self.strands[self.len] = strand;
-        self.len += 1;
+        self.remember(strand);
         self.transmittance *= 1.0 - opacity;
         if self.transmittance < TRANSMITTANCE_CUTOFF {
             self.transmittance = 0.0;
@@ -240,8 +245,7 @@ impl Tracer for BvhTracer {
             if seen.skips(p.strand, p.opacity) || !q.occludes(p, tfar) {
                 return Control::Continue;
             }
-            seen.strands[seen.len] = p.strand;
-            seen.len += 1;
+            seen.remember(p.strand);
             if seen.len >= limit {
                 Control::Stop
             } else {

@@ -376,11 +376,8 @@ impl DualScattering {
 
     /// [`DualForm::Layered`] (module docs).
     fn layered(&self, wo: Vec3, wi: Vec3, ahead: u32, behind: u32) -> Vec3 {
-        let (sin_o, cos_o) = sin_cos_theta(wo);
-        let (sin_i, cos_i) = sin_cos_theta(wi);
-        let theta_o = sin_o.atan2(cos_o);
-        let phi = (wo.y * wi.z - wo.z * wi.y).atan2(wo.y * wi.y + wo.z * wi.z);
-        let along = self.averages(-sin_i.atan2(cos_i));
+        let g = Geometry::of(wo, wi);
+        let along = self.averages(-g.theta_i);
         let (t, r) = (along.forward, along.backward);
         let (forward, backward) = fluxes(t, r, ahead, behind);
         let direct = if ahead == 0 { Vec3::ONE } else { Vec3::ZERO };
@@ -388,72 +385,93 @@ impl DualScattering {
         let mut out = Vec3::ZERO;
         let scattered = (forward - direct).max(Vec3::ZERO);
         if scattered.max_element() > 0.0 {
-            let ng = self.global_azimuthal(theta_o, phi);
-            let tilted = self.model.tilted(sin_o, cos_o);
-            for p in 0..=P_MAX {
-                let (s, co) = tilted[p];
-                for c in 0..3 {
-                    let v = self.variances[p] + spread[c] as f64;
-                    out[c] += scattered[c] * ng[p][c] * m_p(v, sin_i, cos_i, s, co);
-                }
-            }
+            out += scattered * self.global_lobes(&g, spread);
         }
-        if backward.max_element() > 0.0 && phi.abs() < std::f32::consts::FRAC_PI_2 {
-            let back = self.backscatter(theta_o);
-            let own = self.averages(theta_o);
+        // Back-scattered light leaves towards the backward half only (`back_lobe`): no lookups for the rest.
+        if backward.max_element() > 0.0 && g.phi.abs() < std::f32::consts::FRAC_PI_2 {
+            let own = self.averages(g.theta_o);
             let albedo = own.forward + own.backward;
-            for c in 0..3 {
-                let (s, co) = (theta_o - back.shift[c]).sin_cos();
-                let v = (back.variance[c] + spread[c]).max(1e-6) as f64;
-                out[c] += backward[c] * albedo[c] * m_p(v, sin_i, cos_i, s, co.abs())
-                    / std::f32::consts::PI;
-            }
+            out += backward * albedo * back_lobe(&g, &self.backscatter(g.theta_o), spread);
         }
         out
     }
 
     /// [`DualForm::Published`] (module docs), `strands` fibres crossed towards the light.
     fn published(&self, wo: Vec3, wi: Vec3, strands: u32) -> Vec3 {
-        let (sin_o, cos_o) = sin_cos_theta(wo);
-        let (sin_i, cos_i) = sin_cos_theta(wi);
-        let theta_o = sin_o.atan2(cos_o);
-        // φ = φi − φo.
-        let phi = (wo.y * wi.z - wo.z * wi.y).atan2(wo.y * wi.y + wo.z * wi.z);
-        let back = self.backscatter(theta_o);
-        let backward_half = phi.abs() < std::f32::consts::FRAC_PI_2;
+        let g = Geometry::of(wo, wi);
+        let back = self.backscatter(g.theta_o);
         // f_back cos θi = A_b M(θi; θo − Δ_b, σ_b² + extra) / π on the backward half.
-        let f_back = |extra: Vec3| -> Vec3 {
-            if !backward_half {
-                return Vec3::ZERO;
-            }
-            Vec3::from(std::array::from_fn::<f32, 3, _>(|c| {
-                let (s, co) = (theta_o - back.shift[c]).sin_cos();
-                let v = (back.variance[c] + extra[c]).max(1e-6) as f64;
-                back.attenuation[c] * m_p(v, sin_i, cos_i, s, co.abs()) / std::f32::consts::PI
-            }))
-        };
+        let f_back = |extra: Vec3| back.attenuation * back_lobe(&g, &back, extra);
         if strands == 0 {
             return DENSITY_BACKWARD * f_back(Vec3::ZERO);
         }
-        let along = self.averages(-sin_i.atan2(cos_i));
+        let along = self.averages(-g.theta_i);
         let n = strands as f32;
         let transmittance = along.forward.powf(n);
         if transmittance.max_element() <= 0.0 {
             return Vec3::ZERO;
         }
         let spread = along.variance_forward * n;
-        let ng = self.global_azimuthal(theta_o, phi);
-        let tilted = self.model.tilted(sin_o, cos_o);
-        let mut global = Vec3::ZERO;
-        for p in 0..=P_MAX {
-            let (s, co) = tilted[p];
+        transmittance
+            * DENSITY_FORWARD
+            * (self.global_lobes(&g, spread) + DENSITY_BACKWARD * f_back(spread))
+    }
+
+    /// f^G cos θi per unit of forward-scattered light whose direction is spread by `spread` (radians², per
+    /// channel): Σ_p N^G_p M_p with M_p's variance widened to v_p + spread.
+    fn global_lobes(&self, g: &Geometry, spread: Vec3) -> Vec3 {
+        let ng = self.global_azimuthal(g.theta_o, g.phi);
+        let tilted = self.model.tilted(g.sin_o, g.cos_o);
+        let mut out = Vec3::ZERO;
+        for (p, &(s, co)) in tilted.iter().enumerate() {
             for c in 0..3 {
                 let v = self.variances[p] + spread[c] as f64;
-                global[c] += ng[p][c] * m_p(v, sin_i, cos_i, s, co);
+                out[c] += ng[p][c] * m_p(v, g.sin_i, g.cos_i, s, co);
             }
         }
-        transmittance * DENSITY_FORWARD * (global + DENSITY_BACKWARD * f_back(spread))
+        out
     }
+}
+
+/// The angles both forms read of a pair of local directions.
+struct Geometry {
+    sin_o: f32,
+    cos_o: f32,
+    sin_i: f32,
+    cos_i: f32,
+    theta_o: f32,
+    theta_i: f32,
+    /// φ = φi − φo.
+    phi: f32,
+}
+
+impl Geometry {
+    fn of(wo: Vec3, wi: Vec3) -> Geometry {
+        let (sin_o, cos_o) = sin_cos_theta(wo);
+        let (sin_i, cos_i) = sin_cos_theta(wi);
+        Geometry {
+            sin_o,
+            cos_o,
+            sin_i,
+            cos_i,
+            theta_o: sin_o.atan2(cos_o),
+            theta_i: sin_i.atan2(cos_i),
+            phi: (wo.y * wi.z - wo.z * wi.y).atan2(wo.y * wi.y + wo.z * wi.z),
+        }
+    }
+}
+
+/// The back-scattering lobe per unit of light, f_back cos θi / A_b = M(θi; θo − Δ_b, σ_b² + `extra`) / π on the
+/// backward half (|φ| < π/2), 0 on the forward half: it integrates to 1.
+fn back_lobe(g: &Geometry, back: &Backscatter, extra: Vec3) -> Vec3 {
+    if g.phi.abs() >= std::f32::consts::FRAC_PI_2 {
+        return Vec3::ZERO;
+    }
+    Vec3::from(std::array::from_fn::<f32, 3, _>(|c| {
+        let (s, co) = (g.theta_o - back.shift[c]).sin_cos();
+        let v = (back.variance[c] + extra[c]).max(1e-6) as f64;
+        m_p(v, g.sin_i, g.cos_i, s, co.abs()) / std::f32::consts::PI
+    }))
 }
 
 /// Transmittance and reflectance of `n` identical layers that each transmit `t` and reflect `r` (the adding

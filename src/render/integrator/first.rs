@@ -4,6 +4,7 @@
 
 use glam::Vec3;
 
+use crate::bsdf::dual::{DualForm, DualScattering};
 use crate::bsdf::LobeValues;
 use crate::light::LightSample;
 use crate::ray::Ray;
@@ -185,32 +186,48 @@ impl<'a> Integrator<'a> {
         let Some(kept) = self.light_roulette(contribution, u) else {
             return;
         };
-        if let Some((dual, form)) = self.dual {
-            // Dual scattering: one query counts the strands towards the light; none crossed is the direct light.
-            let (ahead, behind) = dual.strand_limits(form);
-            let crossed = self.strands_towards(v, ls.wi, ls.distance, ahead, counts);
-            let vis = kept * if crossed == Some(0) { 1.0 } else { 0.0 };
-            out.lit += unshadowed * vis;
-            if vis > 0.0 {
-                add_lobes(&mut out.lobes, &fcos, scale * vis);
-            }
-            if let (Some(n), Surface::Hair { frame, .. }) = (crossed, v.surface) {
-                // The layered form also counts the strands behind the point, which send light back to it.
-                let m = if behind > 0 {
-                    self.strands_behind(v, ls.wi, behind, counts)
-                } else {
-                    0
-                };
-                // Light-sampled alone (no material sample estimates it): weight 1, not the MIS weight.
-                let f = dual.fcos(form, frame.to_local(v.wo), frame.to_local(ls.wi), n, m);
-                out.indirect += f * ls.radiance * (kept / (ls.pdf * count));
-            }
-            return;
-        }
-        let vis = kept * self.visibility(j, v, ls.wi, ls.distance, draw.key(d), counts);
+        let vis = kept
+            * match self.dual {
+                Some(dual) => {
+                    self.dual_light_sample(dual, v, ls, kept / (ls.pdf * count), out, counts)
+                }
+                None => self.visibility(j, v, ls.wi, ls.distance, draw.key(d), counts),
+            };
         out.lit += unshadowed * vis;
         if vis > 0.0 {
             add_lobes(&mut out.lobes, &fcos, scale * vis);
+        }
+    }
+
+    /// Dual scattering's part of a first-vertex light sample `ls` (whose estimate is scaled by `scale`, the
+    /// roulette's factor over the density and the light's count): one query counts the strands towards the light
+    /// (none crossed is the direct light) and the layered form a second those behind the point; the multiple-scattered
+    /// light, light-sampled alone (no material sample estimates it, so weight 1, not the MIS weight), goes to
+    /// `out.indirect`. Returns the visibility of the direct light.
+    fn dual_light_sample(
+        &self,
+        (dual, form): (&DualScattering, DualForm),
+        v: &Vertex,
+        ls: &LightSample,
+        scale: f32,
+        out: &mut PathSample,
+        counts: &mut RayCounts,
+    ) -> f32 {
+        let (ahead, behind) = dual.strand_limits(form);
+        let crossed = self.strands_towards(v, ls.wi, ls.distance, ahead, counts);
+        if let (Some(n), Surface::Hair { frame, .. }) = (crossed, v.surface) {
+            let m = if behind > 0 {
+                self.strands_behind(v, ls.wi, behind, counts)
+            } else {
+                0
+            };
+            let f = dual.fcos(form, frame.to_local(v.wo), frame.to_local(ls.wi), n, m);
+            out.indirect += f * ls.radiance * scale;
+        }
+        if crossed == Some(0) {
+            1.0
+        } else {
+            0.0
         }
     }
 
