@@ -480,19 +480,16 @@ impl Job {
             }
             (None, None) => format!("{} spp", s.film.spp),
         };
-        // Dual scattering's strand counts and tables, when there are any.
-        let counted = if stats.rays.counted > 0 {
-            format!(
+        // Dual scattering's strand counts (ray traced; the maps' lookups are on the maps' line) and tables.
+        let counted = match (s.integrator.dual(), self.frame.material.dual()) {
+            (true, Some(d)) if stats.rays.counted > 0 => format!(
                 ", {} strand counts over {} strands; dual-scattering tables {:.3} s",
                 stats.rays.counted,
                 stats.rays.crossed,
-                self.frame
-                    .material
-                    .dual()
-                    .map_or(0.0, |d| d.build_seconds())
-            )
-        } else {
-            String::new()
+                d.build_seconds()
+            ),
+            (true, Some(d)) => format!("; dual-scattering tables {:.3} s", d.build_seconds()),
+            _ => String::new(),
         };
         format!(
             "{} strands ({} curves, {} backend), {width}x{height}, {samples}, {} threads: load {:.2} s, build {:.2} \

@@ -186,8 +186,7 @@ pub fn estimate(
         .saturating_mul(channels * 4)
         .saturating_mul(FILM_COPIES);
     let shadow_maps = if settings.shadows.mode == ShadowMode::DeepOpacity {
-        let d = &settings.shadows.deep_opacity;
-        map_bytes(d.resolution, d.layers, maps.max(1))
+        map_bytes(settings, maps.max(1))
     } else {
         0
     };
@@ -225,12 +224,19 @@ pub fn accel_bytes(segments: u64, backend: Backend, curves: CurveKind) -> u64 {
     segments.saturating_mul(per_segment)
 }
 
-/// Bytes of `count` deep opacity maps of `resolution`² texels and `layers` layers: per texel the cumulative layers,
-/// z0 and the layer bounds ([`crate::shadow::deep_opacity`]), f32 each.
-pub fn map_bytes(resolution: u32, layers: u32, count: usize) -> u64 {
-    let texels = u64::from(resolution) * u64::from(resolution);
+/// Bytes of `count` deep opacity maps as `settings` build them (`shadows.deep_opacity`'s resolution² texels and
+/// layers): per texel the cumulative layers, z0 and the layer bounds ([`crate::shadow::deep_opacity`]), f32 each,
+/// and as many strand counts again under dual scattering.
+pub fn map_bytes(settings: &RenderSettings, count: usize) -> u64 {
+    let d = &settings.shadows.deep_opacity;
+    let texels = u64::from(d.resolution) * u64::from(d.resolution);
+    let per_texel = if settings.integrator.dual() {
+        2 * u64::from(d.layers) + 2
+    } else {
+        u64::from(d.layers) + 2
+    };
     texels
-        .saturating_mul((u64::from(layers) + 2) * 4)
+        .saturating_mul(per_texel * 4)
         .saturating_mul(count as u64)
 }
 

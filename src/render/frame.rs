@@ -234,12 +234,7 @@ impl Frame {
 
     /// Bytes of the deep opacity maps `settings` build for this frame's lights ([`super::budget::map_bytes`]).
     pub fn map_bytes(&self, settings: &RenderSettings) -> u64 {
-        let d = &settings.shadows.deep_opacity;
-        super::budget::map_bytes(
-            d.resolution,
-            d.layers,
-            super::budget::map_count(&self.lights, settings),
-        )
+        super::budget::map_bytes(settings, super::budget::map_count(&self.lights, settings))
     }
 
     /// Bytes of a tracer over this frame's strands as `curves`, at its build peak.
@@ -249,7 +244,12 @@ impl Frame {
 
     /// Builds the deep opacity maps of every light with `settings.shadows.deep_opacity`, on the current rayon pool.
     pub fn shadow_maps(&self, settings: &RenderSettings) -> ShadowMaps {
-        ShadowMaps::build(&self.strands, &self.lights, &settings.shadows.deep_opacity)
+        ShadowMaps::build(
+            &self.strands,
+            &self.lights,
+            &settings.shadows.deep_opacity,
+            settings.integrator.dual(),
+        )
     }
 
     /// Renders `request` on the current rayon pool: its settings, its region (the whole film by default), its

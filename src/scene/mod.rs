@@ -225,19 +225,12 @@ impl Scene {
         // and is dropped here. The material a frame renders with is built once, by `resolve`.
         self.material.build()?;
         self.integrator.validate()?;
-        if self.integrator.dual() {
-            if !matches!(self.material, MaterialConfig::Chiang(_)) {
-                return Err(format!(
-                    "integrator.multiple_scattering = \"dual\" is built for material model \"chiang\" (an \
-                     energy-conserving fibre), not \"{}\"",
-                    self.material.name()
-                ));
-            }
-            if self.shadows.mode == crate::render::settings::ShadowMode::DeepOpacity {
-                return Err("integrator.multiple_scattering = \"dual\" counts strands along ray-traced shadow \
-                            rays: shadows.mode must be \"raytraced\" or \"none\""
-                    .into());
-            }
+        if self.integrator.dual() && !matches!(self.material, MaterialConfig::Chiang(_)) {
+            return Err(format!(
+                "integrator.multiple_scattering = \"dual\" is built for material model \"chiang\" (an \
+                 energy-conserving fibre), not \"{}\"",
+                self.material.name()
+            ));
         }
         self.shadows.deep_opacity.validate()?;
         self.quality.validate()?;

@@ -226,7 +226,7 @@ fn local_term_returns_its_backscattered_energy() {
                 let d_omega = theta.cos()
                     * (std::f32::consts::PI / nt as f32)
                     * (std::f32::consts::TAU / np as f32);
-                sum += tables.fcos(DualForm::Published, wo, wi, 0, 0) * d_omega;
+                sum += tables.fcos(DualForm::Published, wo, wi, Crossed::counted(0, 0)) * d_omega;
             }
         }
         let want = DENSITY_BACKWARD * tables.backscatter(theta_o).attenuation;
@@ -281,7 +281,7 @@ fn finite_over_the_parameter_sweep() {
                         (DualForm::Layered, 5),
                         (DualForm::Layered, MAX_STRANDS),
                     ] {
-                        let f = tables.fcos(form, wo, wi, strands, behind);
+                        let f = tables.fcos(form, wo, wi, Crossed::counted(strands, behind));
                         assert!(
                             f.is_finite() && f.min_element() >= 0.0,
                             "σa {sigma_a} βm {beta_m} βn {beta_n} {wo} {wi} n {strands} {form:?}: {f}"
@@ -321,7 +321,8 @@ fn layers_conserve_a_white_stack() {
                 "n {n}: {tn} + {rn}"
             );
             for m in [0u32, 1, 7, 64] {
-                let arriving = fluxes(t, r, n, m).0 + fluxes(t, r, m, n).1;
+                let (nf, mf) = (n as f32, m as f32);
+                let arriving = fluxes(t, r, nf, mf).0 + fluxes(t, r, mf, nf).1;
                 // f32 over up to 128 additions: a few ulps per step.
                 assert!(
                     (arriving - Vec3::ONE).abs().max_element() < 1e-4,

@@ -189,7 +189,7 @@ impl<'a> Integrator<'a> {
         let vis = kept
             * match self.dual {
                 Some(dual) => {
-                    self.dual_light_sample(dual, v, ls, kept / (ls.pdf * count), out, counts)
+                    self.dual_light_sample(dual, v, j, ls, kept / (ls.pdf * count), out, counts)
                 }
                 None => self.visibility(j, v, ls.wi, ls.distance, draw.key(d), counts),
             };
@@ -199,36 +199,31 @@ impl<'a> Integrator<'a> {
         }
     }
 
-    /// Dual scattering's part of a first-vertex light sample `ls` (whose estimate is scaled by `scale`, the
-    /// roulette's factor over the density and the light's count): one query counts the strands towards the light
-    /// (none crossed is the direct light) and the layered form a second those behind the point; the multiple-scattered
-    /// light, light-sampled alone (no material sample estimates it, so weight 1, not the MIS weight), goes to
-    /// `out.indirect`. Returns the visibility of the direct light.
+    /// Dual scattering's part of a first-vertex light sample `ls` of light `j` (whose estimate is scaled by
+    /// `scale`, the roulette's factor over the density and the light's count): the strands crossed towards the light
+    /// and behind the point ([`Integrator::strands_crossed`]: two counting queries, or one deep-opacity-map lookup);
+    /// the multiple-scattered light, light-sampled alone (no material sample estimates it, so weight 1, not the MIS
+    /// weight), goes to `out.indirect`. Returns the visibility of the direct light.
+    #[allow(clippy::too_many_arguments)]
     fn dual_light_sample(
         &self,
         (dual, form): (&DualScattering, DualForm),
         v: &Vertex,
+        j: usize,
         ls: &LightSample,
         scale: f32,
         out: &mut PathSample,
         counts: &mut RayCounts,
     ) -> f32 {
-        let (ahead, behind) = dual.strand_limits(form);
-        let crossed = self.strands_towards(v, ls.wi, ls.distance, ahead, counts);
-        if let (Some(n), Surface::Hair { frame, .. }) = (crossed, v.surface) {
-            let m = if behind > 0 {
-                self.strands_behind(v, ls.wi, behind, counts)
-            } else {
-                0
-            };
-            let f = dual.fcos(form, frame.to_local(v.wo), frame.to_local(ls.wi), n, m);
+        let limits = dual.strand_limits(form);
+        let Some(crossed) = self.strands_crossed(j, v, ls, limits, counts) else {
+            return 0.0;
+        };
+        if let Surface::Hair { frame, .. } = v.surface {
+            let f = dual.fcos(form, frame.to_local(v.wo), frame.to_local(ls.wi), crossed);
             out.indirect += f * ls.radiance * scale;
         }
-        if crossed == Some(0) {
-            1.0
-        } else {
-            0.0
-        }
+        crossed.direct
     }
 
     /// Light-sample Russian roulette ([`Settings::light_threshold`](super::Settings::light_threshold), Cycles' light

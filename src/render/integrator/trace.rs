@@ -1,6 +1,8 @@
 //! The integrator's rays: what a camera or material ray finds first (hair, a shape, an area light, or nothing),
 //! the visibility along a light sample's shadow ray, and the MIS-weighted light a material sample brings back.
 
+use crate::bsdf::dual::Crossed;
+use crate::light::LightSample;
 use glam::Vec3;
 
 use crate::ray::Ray;
@@ -216,24 +218,48 @@ impl<'a> Integrator<'a> {
         (Ray::segment(origin, wi, tnear, tfar), ignore)
     }
 
-    /// The strands a light sample's shadow ray from `v` along `wi` crosses (up to `limit`), for dual scattering;
-    /// `None` when a shape blocks it (no light at all). Without shadows, 0.
-    pub(in crate::render) fn strands_towards(
+    /// The strands light sample `ls` of light `j` crosses towards `v` and behind it, for dual scattering, at most
+    /// `limits` (ahead, behind; `behind` 0 skips them): read from the light's deep opacity map in deep-opacity
+    /// mode (where it has one), else counted along two rays; `None` when a shape blocks the light. Without shadows,
+    /// none.
+    pub(in crate::render) fn strands_crossed(
         &self,
+        j: usize,
         v: &Vertex,
-        wi: Vec3,
-        distance: f32,
-        limit: u32,
+        ls: &LightSample,
+        (ahead, behind): (u32, u32),
         counts: &mut RayCounts,
-    ) -> Option<u32> {
-        let (ray, ignore) = self.shadow_ray(v, wi, distance);
+    ) -> Option<Crossed> {
+        let (ray, ignore) = self.shadow_ray(v, ls.wi, ls.distance);
         if self.shapes.occluded(&ray, ray.tfar) {
             return None;
         }
-        if self.settings.shadows == ShadowMode::None {
-            return Some(0);
+        match self.settings.shadows {
+            ShadowMode::None => return Some(Crossed::counted(0, 0)),
+            ShadowMode::DeepOpacity => {
+                let p = self.map_point(v, ls.wi);
+                if let Some([n, m, direct]) = self.maps.and_then(|maps| maps.strands(j, p, ls.wi)) {
+                    counts.map_lookups += 1;
+                    return Some(Crossed {
+                        ahead: n.min(ahead as f32),
+                        behind: if behind > 0 {
+                            m.min(behind as f32)
+                        } else {
+                            0.0
+                        },
+                        direct,
+                    });
+                }
+            }
+            ShadowMode::Raytraced => {}
         }
-        Some(self.count_strands(&ray, ignore, limit, counts))
+        let n = self.count_strands(&ray, ignore, ahead, counts);
+        let m = if behind > 0 {
+            self.strands_behind(v, ls.wi, behind, counts)
+        } else {
+            0
+        };
+        Some(Crossed::counted(n, m))
     }
 
     /// The strands behind `v` as seen from a light in direction `wi` (along −ωi, to infinity; shapes do not stop
@@ -285,15 +311,19 @@ impl<'a> Integrator<'a> {
         if self.settings.shadows != ShadowMode::DeepOpacity {
             return None;
         }
-        // A far-field fibre model treats the fibre's cross-section as one point: look the light up where it enters
-        // the fibre (the side facing the light), not at the hit on the viewer's side.
-        let p = match v.surface {
-            Surface::Hair { radius, .. } => v.p + wi * radius,
-            Surface::Lambert { .. } => v.p,
-        };
-        let t = self.maps?.transmittance(light, p, wi)?;
+        let t = self.maps?.transmittance(light, self.map_point(v, wi), wi)?;
         counts.map_lookups += 1;
         Some(t)
+    }
+
+    /// Where a map lookup from `v` towards `wi` reads: a far-field fibre model treats the fibre's cross-section as
+    /// one point, so the light is looked up where it enters the fibre (the side facing the light), not at the hit
+    /// on the viewer's side.
+    fn map_point(&self, v: &Vertex, wi: Vec3) -> Vec3 {
+        match v.surface {
+            Surface::Hair { radius, .. } => v.p + wi * radius,
+            Surface::Lambert { .. } => v.p,
+        }
     }
 
     /// The light a material sample along `ray` (from `v`, density `pdf` per sample) brings back in deep-opacity

@@ -9,6 +9,9 @@ use crate::light::Light;
 use crate::shadow::DeepOpacityConfig;
 use crate::util::color::luminance;
 
+/// The least depth counting maps' layers cover, in bounding-sphere radii: its diameter.
+pub const COUNTED_DEPTH: f32 = 2.0;
+
 /// What stands in for a shadow ray towards light j.
 #[derive(Debug, Clone)]
 enum LightMaps {
@@ -55,17 +58,29 @@ fn nearest(centres: &[Vec3], w: Vec3) -> usize {
 }
 
 impl ShadowMaps {
-    /// Builds the maps of `lights` for `strands`.
-    pub fn build(strands: &Strands, lights: &[Light], config: &DeepOpacityConfig) -> ShadowMaps {
+    /// Builds the maps of `lights` for `strands`; with `count`, each map also counts the strands per layer
+    /// ([`ShadowMaps::strands`], for dual scattering) and its layers reach through the whole hair (at least a
+    /// bounding-sphere diameter, whatever `config.depth` says), since the strands behind a point count as much as
+    /// those in front of it.
+    pub fn build(
+        strands: &Strands,
+        lights: &[Light],
+        config: &DeepOpacityConfig,
+        count: bool,
+    ) -> ShadowMaps {
         let (lo, hi) = strands.bounds();
         let center = 0.5 * (lo + hi);
         let radius = (0.5 * (hi - lo).length()).max(1e-6);
-        let depth = config.depth * radius;
+        let depth = if count {
+            config.depth.max(COUNTED_DEPTH)
+        } else {
+            config.depth
+        } * radius;
         let raster = Raster {
             min_width: config.min_width,
             keep_coverage: true,
         };
-        let map = |frame| DeepOpacityMap::build(strands, frame, config, depth, raster);
+        let map = |frame| DeepOpacityMap::build(strands, frame, config, depth, raster, count);
         let lights = lights
             .iter()
             .map(|light| match light {
@@ -109,6 +124,17 @@ impl ShadowMaps {
         match &self.lights[light] {
             LightMaps::One(m) => Some(m.transmittance(p)),
             LightMaps::Cells { centres, maps } => Some(maps[nearest(centres, wi)].transmittance(p)),
+            LightMaps::Raytraced => None,
+        }
+    }
+
+    /// The strands ahead of `p` towards light `light` along `wi`, those behind it, and the share of light that
+    /// crosses none ([`DeepOpacityMap::strands`]); `None` when this light has no map or the maps do not count.
+    #[inline]
+    pub fn strands(&self, light: usize, p: Vec3, wi: Vec3) -> Option<[f32; 3]> {
+        match &self.lights[light] {
+            LightMaps::One(m) => m.strands(p),
+            LightMaps::Cells { centres, maps } => maps[nearest(centres, wi)].strands(p),
             LightMaps::Raytraced => None,
         }
     }

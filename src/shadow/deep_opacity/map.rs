@@ -12,7 +12,7 @@ use crate::hair::Strands;
 use crate::image::Image;
 use crate::shadow::{DeepOpacityConfig, LayerSpacing};
 
-/// Fixed-point scale of accumulated optical depth (σ = 1 ⇔ 4096).
+/// Fixed-point scale of accumulated optical depth (σ = 1 ⇔ 4096) and of strand counts (one strand ⇔ 4096).
 const SIGMA_SCALE: f32 = 4096.0;
 
 /// Strands per parallel work item of a build.
@@ -28,6 +28,8 @@ pub struct DeepOpacityMap {
     z0: Vec<f32>,
     /// Optical depth up to the *end* of each layer: `cumulative[layer × texels + texel]` (layer-major).
     cumulative: Vec<f32>,
+    /// Strands up to the end of each layer, laid out as `cumulative`, when the map counts them (dual scattering).
+    strands: Option<Vec<f32>>,
     /// Filter radius (texels) and depth bias (texels) of lookups.
     filter: u32,
     bias: f32,
@@ -49,13 +51,15 @@ fn layer_bounds(layers: u32, depth: f32, spacing: LayerSpacing) -> Vec<f32> {
 }
 
 impl DeepOpacityMap {
-    /// Builds the map of `strands` seen through `frame`.
+    /// Builds the map of `strands` seen through `frame`, with a strand count per layer if `count` (what
+    /// [`DeepOpacityMap::strands`] reads).
     pub fn build(
         strands: &Strands,
         frame: MapFrame,
         config: &DeepOpacityConfig,
         depth: f32,
         raster: Raster,
+        count: bool,
     ) -> DeepOpacityMap {
         let texels = (frame.resolution as usize).pow(2);
         let k = config.layers as usize;
@@ -70,7 +74,7 @@ impl DeepOpacityMap {
             .map(|_| AtomicU32::new(f32::INFINITY.to_bits()))
             .collect();
         tasks.par_iter().for_each(|range| {
-            rasterise(strands, &frame, raster, range.clone(), |texel, z, _| {
+            rasterise(strands, &frame, raster, range.clone(), |texel, z, _, _| {
                 // Most fragments lie behind the texel's current front: a plain load spares them the atomic RMW.
                 let bits = z.max(0.0).to_bits();
                 if bits < z0_bits[texel].load(Ordering::Relaxed) {
@@ -83,33 +87,32 @@ impl DeepOpacityMap {
             .map(|b| f32::from_bits(b.into_inner()))
             .collect();
 
-        // Pass 2: optical depth per layer, in fixed point (integer sums do not depend on the order).
-        let layers: Vec<AtomicU32> = (0..texels * k).map(|_| AtomicU32::new(0)).collect();
+        // Pass 2: optical depth (and strands) per layer, in fixed point (integer sums do not depend on the order).
+        let zeros = |n: usize| (0..n).map(|_| AtomicU32::new(0)).collect::<Vec<_>>();
+        let layers = zeros(texels * k);
+        let counts = zeros(if count { texels * k } else { 0 });
         tasks.par_iter().for_each(|range| {
-            rasterise(strands, &frame, raster, range.clone(), |texel, z, sigma| {
-                let layer = layer_of(&bounds, z - z0[texel]);
-                let add = (sigma * SIGMA_SCALE + 0.5) as u32; // σ ≥ 0: rounds to nearest
-                layers[layer * texels + texel].fetch_add(add, Ordering::Relaxed);
-            });
+            rasterise(
+                strands,
+                &frame,
+                raster,
+                range.clone(),
+                |texel, z, sigma, cover| {
+                    let i = layer_of(&bounds, z - z0[texel]) * texels + texel;
+                    // σ, cover ≥ 0: rounds to nearest.
+                    layers[i].fetch_add((sigma * SIGMA_SCALE + 0.5) as u32, Ordering::Relaxed);
+                    if count {
+                        counts[i].fetch_add((cover * SIGMA_SCALE + 0.5) as u32, Ordering::Relaxed);
+                    }
+                },
+            );
         });
-        let mut cumulative: Vec<f32> = layers
-            .into_iter()
-            .map(|v| v.into_inner() as f32 / SIGMA_SCALE)
-            .collect();
-        // Layer-major storage: one piece's fragments fall on neighbouring texels of mostly one layer, so they
-        // share cache lines; the running sum over layers is then a sum of whole rows.
-        for i in 1..k {
-            let (front, back) = cumulative.split_at_mut(i * texels);
-            back[..texels]
-                .par_iter_mut()
-                .zip(&front[(i - 1) * texels..])
-                .for_each(|(c, prev)| *c += *prev);
-        }
         DeepOpacityMap {
             frame,
             bounds,
             z0,
-            cumulative,
+            cumulative: running_sums(layers, texels),
+            strands: count.then(|| running_sums(counts, texels)),
             filter: config.filter,
             bias: config.bias,
         }
@@ -117,12 +120,15 @@ impl DeepOpacityMap {
 
     /// Memory held, bytes.
     pub fn bytes(&self) -> usize {
-        (self.z0.len() + self.cumulative.len() + self.bounds.len()) * std::mem::size_of::<f32>()
+        let counts = self.strands.as_ref().map_or(0, Vec::len);
+        (self.z0.len() + self.cumulative.len() + counts + self.bounds.len())
+            * std::mem::size_of::<f32>()
     }
 
-    /// Optical depth between the light and depth `z` at texel `texel` (against the texel's own z0).
+    /// What `layers` (laid out as [`DeepOpacityMap::cumulative`]) hold between the light and depth `z` at texel
+    /// `texel` (against the texel's own z0), interpolated linearly inside z's layer.
     #[inline]
-    fn optical_depth(&self, texel: usize, z: f32) -> f32 {
+    fn up_to(&self, layers: &[f32], texel: usize, z: f32) -> f32 {
         let z0 = self.z0[texel];
         let delta = z - z0;
         if delta.is_nan() || delta <= 0.0 {
@@ -134,9 +140,9 @@ impl DeepOpacityMap {
         let before = if i == 0 {
             0.0
         } else {
-            self.cumulative[(i - 1) * texels + texel]
+            layers[(i - 1) * texels + texel]
         };
-        let own = self.cumulative[i * texels + texel] - before;
+        let own = layers[i * texels + texel] - before;
         let (d0, d1) = (self.bounds[i], self.bounds[i + 1]);
         let fraction = if i == k - 1 && delta >= d1 {
             1.0
@@ -148,19 +154,53 @@ impl DeepOpacityMap {
 
     /// Transmittance from the light to world point `p`, in [0, 1], percentage-closer filtered.
     pub fn transmittance(&self, p: Vec3) -> f32 {
+        let [t] = self.filtered(p, [1.0], |texel, z, bias| {
+            let od = texel.map_or(0.0, |t| self.up_to(&self.cumulative, t, z - bias));
+            [if od > 0.0 { (-od).exp() } else { 1.0 }]
+        });
+        t.clamp(0.0, 1.0)
+    }
+
+    /// Strands on the line through world point `p` along the light's direction, filtered as
+    /// [`DeepOpacityMap::transmittance`]: those between the light and p, those behind p, and the share of the
+    /// footprint with no strand between the light and p (a texel counts min(1, strands ahead) of it as blocked),
+    /// each averaged over the footprint. A strand at p is neither ahead nor behind it (the depth bias either way).
+    /// `None` when the map was built without counts.
+    pub fn strands(&self, p: Vec3) -> Option<[f32; 3]> {
+        let counts = self.strands.as_ref()?;
+        let last = (self.bounds.len() - 2) * self.z0.len();
+        Some(self.filtered(p, [0.0, 0.0, 1.0], |texel, z, bias| {
+            let Some(t) = texel else {
+                return [0.0, 0.0, 1.0];
+            };
+            let ahead = self.up_to(counts, t, z - bias);
+            let behind = (counts[last + t] - self.up_to(counts, t, z + bias)).max(0.0);
+            [ahead, behind, (1.0 - ahead).max(0.0)]
+        }))
+    }
+
+    /// The percentage-closer filter of both lookups: `per_texel(texel, z, bias)` of each texel in a tent of radius
+    /// `filter + 1` texels around `p`'s projection (`None` for a texel outside the map), with p's depth z and the
+    /// depth bias in world units, averaged with the tent's weights; `outside` where p projects off the map.
+    fn filtered<const N: usize>(
+        &self,
+        p: Vec3,
+        outside: [f32; N],
+        per_texel: impl Fn(Option<usize>, f32, f32) -> [f32; N],
+    ) -> [f32; N] {
         let Some((x, y, z)) = self.frame.project(p) else {
-            return 1.0;
+            return outside;
         };
         let res = self.frame.resolution as i64;
-        let z = z - self.bias * self.frame.texel_size(z);
+        let bias = self.bias * self.frame.texel_size(z);
         let reach = self.filter as f32 + 1.0;
         let (cx, cy) = (x - 0.5, y - 0.5);
         let (x0, x1) = (ceil_i(cx - reach), floor_i(cx + reach));
         let (y0, y1) = (ceil_i(cy - reach), floor_i(cy + reach));
         if x1 < 0 || y1 < 0 || x0 >= res || y0 >= res {
-            return 1.0; // outside the map: no strand between p and the light
+            return outside; // outside the map: no strand on p's line
         }
-        let (mut sum, mut weights) = (0.0, 0.0);
+        let (mut sum, mut weights) = ([0.0; N], 0.0);
         for ty in y0..=y1 {
             let wy = 1.0 - (ty as f32 - cy).abs() / reach;
             if wy <= 0.0 {
@@ -172,20 +212,18 @@ impl DeepOpacityMap {
                     continue;
                 }
                 let w = wx * wy;
-                let od = if (0..res).contains(&tx) && (0..res).contains(&ty) {
-                    self.optical_depth((ty * res + tx) as usize, z)
-                } else {
-                    0.0
-                };
-                let t = if od > 0.0 { (-od).exp() } else { 1.0 };
-                sum += w * t;
+                let inside = (0..res).contains(&tx) && (0..res).contains(&ty);
+                let v = per_texel(inside.then_some((ty * res + tx) as usize), z, bias);
+                for (s, v) in sum.iter_mut().zip(v) {
+                    *s += w * v;
+                }
                 weights += w;
             }
         }
         if weights > 0.0 {
-            (sum / weights).clamp(0.0, 1.0)
+            sum.map(|s| s / weights)
         } else {
-            1.0
+            outside
         }
     }
 
@@ -217,6 +255,24 @@ impl DeepOpacityMap {
         }
         image
     }
+}
+
+/// Layer-major per-layer sums (fixed point) made running sums over the layers, as floats: one piece's fragments
+/// fall on neighbouring texels of mostly one layer, so they share cache lines, and the running sum is a sum of
+/// whole rows.
+fn running_sums(layers: Vec<AtomicU32>, texels: usize) -> Vec<f32> {
+    let mut out: Vec<f32> = layers
+        .into_iter()
+        .map(|v| v.into_inner() as f32 / SIGMA_SCALE)
+        .collect();
+    for i in 1..out.len() / texels.max(1) {
+        let (front, back) = out.split_at_mut(i * texels);
+        back[..texels]
+            .par_iter_mut()
+            .zip(&front[(i - 1) * texels..])
+            .for_each(|(c, prev)| *c += *prev);
+    }
+    out
 }
 
 /// The layer of a depth `delta` ≥ 0 behind z0: i with d_i ≤ delta < d_{i+1}, the last layer taking everything deeper.
@@ -345,6 +401,56 @@ mod tests {
         assert!(fine < 0.1, "a 1024² map should resolve them: {fine}");
     }
 
+    /// Dual scattering's counts: three sheets that each cover every texel centre once give whole numbers of
+    /// strands ahead of and behind points between them (and the direct share 1 only in front of all three), and a
+    /// row of strands thinner than a texel, widened with their coverage kept, counts the share of the line of sight
+    /// they cover (2r / spacing) on average.
+    #[test]
+    fn strand_counts_are_the_strands_ahead_and_behind() {
+        let mut lines = sheet(0.0, 0.05, 1.0);
+        lines.extend(sheet(0.3, 0.05, 1.0));
+        lines.extend(sheet(0.6, 0.05, 1.0));
+        let m = map(&lines, &config(256, 16, LayerSpacing::Uniform), 1.0, RASTER);
+        for &(z, ahead, behind) in &[
+            (-0.2, 0.0, 3.0),
+            (0.15, 1.0, 2.0),
+            (0.45, 2.0, 1.0),
+            (0.9, 3.0, 0.0),
+        ] {
+            let [n, b, direct] = m.strands(Vec3::new(0.1, 0.2, z)).unwrap();
+            assert!(
+                (n - ahead).abs() < 0.01 && (b - behind).abs() < 0.01,
+                "z = {z}: {n} ahead, {b} behind; want {ahead}, {behind}"
+            );
+            let want = if ahead == 0.0 { 1.0 } else { 0.0 };
+            assert!((direct - want).abs() < 1e-6, "z = {z}: direct {direct}");
+        }
+        // Off the map: nothing on the line.
+        assert_eq!(m.strands(Vec3::new(5.0, 0.0, 1.0)), Some([0.0, 0.0, 1.0]));
+
+        let texel = 2.0 / 256.0;
+        // Spacing and offset off the texel grid, so no strand sits exactly between two texel centres.
+        let (r, spacing) = (0.2 * texel, 3.37 * texel);
+        let thin = row(200, -0.8031, spacing, |_| 0.0, r, 1.0);
+        let m = map(&thin, &config(256, 8, LayerSpacing::Uniform), 1.0, RASTER);
+        let (mut sum, mut n) = (0.0, 0);
+        for i in 0..97 {
+            for j in 0..101 {
+                let p = Vec3::new(-0.5 + i as f32 / 97.0, -0.5 + j as f32 / 101.0, 0.5);
+                sum += m.strands(p).unwrap()[0];
+                n += 1;
+            }
+        }
+        let (mean, want) = (sum / n as f32, 2.0 * r / spacing);
+        assert!(
+            (mean / want - 1.0).abs() < 0.05,
+            "thin strands: {mean} ahead on average, want {want}"
+        );
+        // Without counts the map has none to give.
+        let plain = DeepOpacityMap { strands: None, ..m };
+        assert!(plain.strands(Vec3::ZERO).is_none());
+    }
+
     #[test]
     fn the_build_does_not_depend_on_the_thread_count() {
         let mut lines = sheet(0.0, 0.05, 0.3);
@@ -360,5 +466,6 @@ mod tests {
         let (a, b) = (build(1), build(3));
         assert_eq!(a.z0, b.z0);
         assert_eq!(a.cumulative, b.cumulative);
+        assert_eq!(a.strands, b.strands);
     }
 }

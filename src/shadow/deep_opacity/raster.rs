@@ -24,13 +24,15 @@ pub struct Raster {
     pub keep_coverage: bool,
 }
 
-/// Calls `fragment(texel index, depth, σ)` for every texel centre that strand pieces of `strands` cover in `frame`.
+/// Calls `fragment(texel index, depth, σ, strands)` for every texel centre that strand pieces of `strands` cover in
+/// `frame`, `strands` being the share of a strand the fragment stands for (w / drawn width when a thin strand is
+/// widened with its coverage kept, else 1): the strand count dual scattering reads.
 pub(super) fn rasterise(
     strands: &Strands,
     frame: &MapFrame,
     raster: Raster,
     strand_range: std::ops::Range<usize>,
-    mut fragment: impl FnMut(usize, f32, f32),
+    mut fragment: impl FnMut(usize, f32, f32, f32),
 ) {
     // One piece: the strand pieces are cut, projected and point-sampled in one pass over the segments.
     let res = frame.resolution as i64;
@@ -84,12 +86,12 @@ pub(super) fn rasterise(
                 }
                 let width = 0.5 * (wa + wb);
                 let drawn = width.max(raster.min_width);
-                let a = if raster.keep_coverage && drawn > 0.0 {
-                    opacity * width / drawn
+                let cover = if raster.keep_coverage && drawn > 0.0 {
+                    width / drawn
                 } else {
-                    opacity
+                    1.0
                 };
-                let sigma = -(1.0 - a).ln();
+                let sigma = -(1.0 - opacity * cover).ln();
                 let half = 0.5 * drawn;
                 let (dx, dy) = (xb - xa, yb - ya);
                 let len2 = dx * dx + dy * dy;
@@ -112,7 +114,7 @@ pub(super) fn rasterise(
                     if px * px + py * py > half * half {
                         return;
                     }
-                    fragment((ty * res + tx) as usize, za + t * (zb - za), sigma);
+                    fragment((ty * res + tx) as usize, za + t * (zb - za), sigma, cover);
                 };
                 // … visited along the piece's major axis (x for a flat piece, y for a steep one).
                 let half_length = half * len2.sqrt();

@@ -71,7 +71,7 @@ pub(super) fn map(
         projection: Projection::Orthographic { half_extent: HALF },
         resolution: config.resolution,
     };
-    DeepOpacityMap::build(&strands(lines), frame, config, depth, raster)
+    DeepOpacityMap::build(&strands(lines), frame, config, depth, raster, true)
 }
 
 pub(super) const RASTER: Raster = Raster {
