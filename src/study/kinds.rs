@@ -430,11 +430,15 @@ pub const HAIR_COLOURS: [(&str, [f64; 3]); 3] = [
 /// bounces): light hair in a dense fur ball still gains tens of per cent between 16 and 30 bounces.
 pub const MULTIPLE_SCATTERING_PATHS: [u32; 6] = [1, 2, 4, 8, 16, 30];
 
+/// Texels along a side of the deep opacity maps `multiple-scattering`'s "dual maps" counts strands with (an
+/// environment's maps take half): about two texels per pixel of its 256-pixel frames.
+pub const MULTIPLE_SCATTERING_MAP_RESOLUTION: u32 = 512;
+
 /// References of `multiple-scattering` render this many times its sweep's largest spp.
 pub const MULTIPLE_SCATTERING_REFERENCE_FACTOR: u32 = 32;
 
 /// `multiple-scattering`: path tracing at each of [`MULTIPLE_SCATTERING_PATHS`] and dual scattering in both forms
-/// (layered, published), over spp,
+/// (layered, published; the layered form also with its counts from deep opacity maps), over spp,
 /// for each of [`HAIR_COLOURS`] (Chiang's model, opaque strands, ray-traced shadows), against path tracing to
 /// convergence in path length (30 bounces and a tail ended by Russian roulette alone). The bias read-out is each
 /// method's remaining error at convergence. Not part of `all` (its references trace every bounce).
@@ -495,6 +499,18 @@ pub fn multiple_scattering(quick: bool) -> Kind {
                 vec![key("integrator.multiple_scattering", string(form))],
             ));
         }
+        // The layered form with its strand counts from deep opacity maps (their build in each render's time).
+        methods.push((
+            format!("{name} dual maps"),
+            vec![
+                key("integrator.multiple_scattering", string("dual")),
+                key("shadows.mode", string("deep-opacity")),
+                key(
+                    "shadows.deep_opacity.resolution",
+                    int(MULTIPLE_SCATTERING_MAP_RESOLUTION),
+                ),
+            ],
+        ));
         for (series, extra) in &methods {
             variants.extend(spp.iter().map(|&s| {
                 Variant {
@@ -516,8 +532,10 @@ pub fn multiple_scattering(quick: bool) -> Kind {
         // Both ways: whether dual scattering reaches the longest paths' error, and how long those paths take to
         // reach dual scattering's (its bias level).
         let longest = format!("{name} path {}", paths[paths.len() - 1]);
-        compare.push((format!("{name} dual"), longest.clone()));
-        compare.push((longest, format!("{name} dual")));
+        for dual in ["dual", "dual maps"] {
+            compare.push((format!("{name} {dual}"), longest.clone()));
+            compare.push((longest.clone(), format!("{name} {dual}")));
+        }
     }
     // References of 32 × the sweep's largest spp: light hair's deep paths are rare and bright, and at 8 × (128 spp)
     // two blond references under the city map differed by 0.25 relative RMSE, as much as the variants' errors.
