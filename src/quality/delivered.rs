@@ -107,7 +107,14 @@ impl Delivered {
         let bias = match (self.bias, self.approximations) {
             (Some(b), 0) => format!("bias {b:.4} of bounces left out"),
             (Some(b), n) => format!("bias {b:.4} of bounces + {n} approx."),
-            (None, _) => "bias not measured".to_owned(),
+            (None, 0) => "bias not measured".to_owned(),
+            // No bounce left out to measure (dual scattering ends paths at the first vertex): the approximations'.
+            (None, n) => format!(
+                "bias {:.4} of {n} approx.",
+                (self.error * self.error - self.noise * self.noise)
+                    .max(0.0)
+                    .sqrt()
+            ),
         };
         format!(
             "auto: estimated error {:.4} for target {} ({noise}, {bias})",
@@ -135,5 +142,42 @@ impl Delivered {
             "auto's estimated error {:.4} is over the target {}: {why}",
             self.error, self.target
         ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn said(bias: Option<f64>, approximations: usize) -> Delivered {
+        Delivered {
+            error: 0.25,
+            noise: 0.2,
+            noise_range: (0.19, 0.2),
+            read_from_frame: true,
+            bias,
+            approximations,
+            target: 0.3,
+            capped: None,
+            denoised: false,
+        }
+    }
+
+    /// The line names the bias it holds: the bounces' with the approximations', the approximations' alone (dual
+    /// scattering leaves no bounce out to measure: √(error² − noise²)), or none measured.
+    #[test]
+    fn the_line_names_the_bias_it_holds() {
+        let line = said(Some(0.15), 1).line();
+        assert!(
+            line.contains("bias 0.1500 of bounces + 1 approx."),
+            "{line}"
+        );
+        let line = said(None, 2).line();
+        assert!(line.contains("bias 0.1500 of 2 approx."), "{line}");
+        let line = said(None, 0).line();
+        assert!(line.contains("bias not measured"), "{line}");
+        for d in [said(Some(0.15), 3), said(None, 3)] {
+            assert!(d.line().chars().count() <= 120, "{}", d.line());
+        }
     }
 }

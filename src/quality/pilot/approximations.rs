@@ -377,13 +377,14 @@ pub fn choose(
             }
         }
     }
-    // Dual scattering for the bounces path tracing would trace, where it is built (Chiang's model, ray-traced or no
-    // shadows): measured against path tracing with a tail that Russian roulette alone ends (every bounce, no bias
-    // in path length), on the same windows and seeds; its cost against that of the path-traced frame with every
-    // bounce, which is what auto renders otherwise (a tail past the path length it finds).
+    // Dual scattering for the bounces path tracing would trace, where it is built (Chiang's model): measured against
+    // path tracing with a tail that Russian roulette alone ends (every bounce, no bias in path length), on the same
+    // windows and seeds; its cost against that of the path-traced frame with every bounce, which is what auto
+    // renders otherwise (a tail past the path length it finds). Where deep opacity maps were kept for the shadows,
+    // dual reads its strand counts from them: they are rebuilt with counts if those fit beside the frame (else
+    // dual counts along rays, as the maps without counts leave it).
     let active = chosen.frame.as_ref().unwrap_or(frame);
     if !fixed.path_length
-        && settings.shadows.mode != ShadowMode::DeepOpacity
         && settings.integrator.strategy != Strategy::Material
         && !settings.integrator.dual()
         && active.material.dual().is_some()
@@ -394,7 +395,29 @@ pub fn choose(
         let paths = render(active, &every_bounce, chosen.maps.as_ref());
         let mut dual_settings = pilot.clone();
         dual_settings.integrator.multiple_scattering = MultipleScattering::Dual;
-        let dual = render(active, &dual_settings, chosen.maps.as_ref());
+        let mut dual_frame_settings = settings.clone();
+        dual_frame_settings.integrator.multiple_scattering = MultipleScattering::Dual;
+        let counting_maps = chosen
+            .maps
+            .as_ref()
+            .filter(|_| {
+                frame.fits(
+                    second_tracer
+                        + held_maps(settings, &chosen.maps)
+                        + frame.map_bytes(&dual_frame_settings),
+                )
+            })
+            .map(|_| {
+                let start = std::time::Instant::now();
+                let maps = active.shadow_maps(&dual_frame_settings);
+                chosen.maps_seconds += start.elapsed().as_secs_f64();
+                maps
+            });
+        let dual = render(
+            active,
+            &dual_settings,
+            counting_maps.as_ref().or(chosen.maps.as_ref()),
+        );
         let a = bias_of(
             "dual scattering for path tracing".into(),
             &dual,
@@ -424,6 +447,9 @@ pub fn choose(
             settings.integrator.multiple_scattering = MultipleScattering::Dual;
             chosen.measured.approximations.push(a);
             current = Some(dual);
+            if counting_maps.is_some() {
+                chosen.maps = counting_maps;
+            }
         }
     }
     chosen.measured.pilots = current;
