@@ -28,9 +28,10 @@ fn hair_mean(image: &Image, name: &str) -> (f64, f64) {
     (mean, (var / n).sqrt())
 }
 
-/// A thick, dense, opaque fur ball (6000 strands, radius ×3) at 40×40 under a white environment of radiance 1,
-/// Chiang with absorption `sigma_a`, then `integrator` (the `[integrator]` table's keys).
-fn furnace(sigma_a: f32, integrator: &str) -> Scene {
+/// A thick, dense, opaque fur ball (6000 strands, radius ×3) at 40×40, 16 spp, Chiang with absorption `sigma_a`
+/// (RGB), then `rest` (its lights and any other tables).
+fn fur_ball(sigma_a: [f32; 3], rest: &str) -> Scene {
+    let [r, g, b] = sigma_a;
     parse(&format!(
         r#"
 [hair]
@@ -47,16 +48,20 @@ spp = 16
 
 [material]
 model = "chiang"
-sigma_a = [{sigma_a}, {sigma_a}, {sigma_a}]
+sigma_a = [{r}, {g}, {b}]
 
-[environment]
-radiance = [1.0, 1.0, 1.0]
-
-[integrator]
-{integrator}
+{rest}
 "#
     ))
     .unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// [`fur_ball`] under a white environment of radiance 1, then `integrator` (the `[integrator]` table's keys).
+fn furnace(sigma_a: f32, integrator: &str) -> Scene {
+    fur_ball(
+        [sigma_a; 3],
+        &format!("[environment]\nradiance = [1.0, 1.0, 1.0]\n\n[integrator]\n{integrator}"),
+    )
 }
 
 /// With σa = 0 nothing is absorbed, so under a white environment the exact answer is 1 at every hair pixel (path
@@ -192,41 +197,14 @@ fn refused_where_it_is_not_built() {
 #[test]
 fn deep_opacity_maps_count_the_strands_in_place_of_rays() {
     let scene = |shadows: &str| {
-        parse(&format!(
-            r#"
-[hair]
-procedural = {{ kind = "fur-ball", strands = 6000 }}
-radius_scale = 3.0
-opacity = 1.0
-
-[camera]
-margin = 0.9
-
-[film]
-resolution = [40, 40]
-spp = 16
-
-[material]
-model = "chiang"
-sigma_a = [0.25, 0.4, 0.7]
-
-[[light]]
-kind = "distant"
-direction = [1.0, -1.0, -0.5]
-irradiance = 2.0
-
-[environment]
-radiance = [0.5, 0.5, 0.5]
-
-[shadows]
-mode = "{shadows}"
-deep_opacity = {{ resolution = 512 }}
-
-[integrator]
-multiple_scattering = "dual"
-"#
-        ))
-        .unwrap_or_else(|e| panic!("{e}"))
+        fur_ball(
+            [0.25, 0.4, 0.7],
+            &format!(
+                "[[light]]\nkind = \"distant\"\ndirection = [1.0, -1.0, -0.5]\nirradiance = 2.0\n\n\
+                 [environment]\nradiance = [0.5, 0.5, 0.5]\n\n[shadows]\nmode = \"{shadows}\"\n\
+                 deep_opacity = {{ resolution = 512 }}\n\n[integrator]\nmultiple_scattering = \"dual\"\n"
+            ),
+        )
     };
     let (rays, rays_stats) = common::render_scene_with_stats(&scene("raytraced"), 2);
     let (maps, maps_stats) = common::render_scene_with_stats(&scene("deep-opacity"), 2);

@@ -760,28 +760,15 @@ fn auto_builds_nothing_the_memory_limit_cannot_hold() {
 /// numbers, and a dual frame gets no path length search and no tail.
 #[test]
 fn auto_chooses_dual_scattering_where_its_bias_fits_and_it_is_cheaper() {
-    let mut s = Scene::parse(
-        &format!(
-            "[hair]\nfile = {:?}\nopacity = 1.0\n[camera]\nfov = 35.0\nup = [0.0, 0.0, 1.0]\n\
-             view = [0.0, 1.0, 0.0]\n[film]\nresolution = [96, 128]\n[material]\nmodel = \"chiang\"\n\
-             color = [0.85, 0.65, 0.4]\n[environment]\nmap = {:?}\nup = [0.0, 0.0, 1.0]\n",
-            common::data::file("hair/straight.hair"),
-            common::data::file("envmaps/city.exr"),
-        ),
-        Path::new("<test>"),
-        Path::new("."),
-    )
-    .unwrap();
-    s.quality.mode = cuticle::quality::QualityMode::Auto;
-    let frame = Frame::load(s.resolve().unwrap()).unwrap();
-    let pool = thread_pool(Some(2)).unwrap();
+    let frame = auto_frame(&format!(
+        "[hair]\nfile = {:?}\nopacity = 1.0\n[camera]\nfov = 35.0\nup = [0.0, 0.0, 1.0]\n\
+         view = [0.0, 1.0, 0.0]\n[film]\nresolution = [96, 128]\n[material]\nmodel = \"chiang\"\n\
+         color = [0.85, 0.65, 0.4]\n[environment]\nmap = {:?}\nup = [0.0, 0.0, 1.0]\n",
+        common::data::file("hair/straight.hair"),
+        common::data::file("envmaps/city.exr"),
+    ));
     for (target, dual) in [(0.3f32, true), (0.1, false)] {
-        let q = QualityConfig {
-            target,
-            ..QualityConfig::default()
-        };
-        let p = pool.install(|| quality::plan_frame(&frame, &frame.settings, &q, Fixed::default()));
-        let why: Vec<String> = p.decisions.iter().map(ToString::to_string).collect();
+        let (p, why) = plan_at(&frame, target);
         let decision = why
             .iter()
             .find(|d| d.contains("integrator.multiple_scattering"))
@@ -808,23 +795,12 @@ fn auto_chooses_dual_scattering_where_its_bias_fits_and_it_is_cheaper() {
 /// behind).
 #[test]
 fn auto_with_deep_opacity_maps_gives_dual_scattering_counting_maps() {
-    let mut s = Scene::parse(
+    let frame = auto_frame(
         "[hair]\nprocedural = { kind = \"fur-ball\", strands = 6000 }\nopacity = 1.0\n[film]\n\
          resolution = [96, 96]\n[material]\nmodel = \"chiang\"\ncolor = [0.85, 0.65, 0.4]\n[[light]]\n\
          kind = \"distant\"\ndirection = [0.3, -1.0, -1.0]\nirradiance = 3.0\n[shadows]\nmode = \"deep-opacity\"\n",
-        Path::new("<test>"),
-        Path::new("."),
-    )
-    .unwrap();
-    s.quality.mode = cuticle::quality::QualityMode::Auto;
-    let frame = Frame::load(s.resolve().unwrap()).unwrap();
-    let pool = thread_pool(Some(2)).unwrap();
-    let q = QualityConfig {
-        target: 0.3,
-        ..QualityConfig::default()
-    };
-    let p = pool.install(|| quality::plan_frame(&frame, &frame.settings, &q, Fixed::default()));
-    let why: Vec<String> = p.decisions.iter().map(ToString::to_string).collect();
+    );
+    let (p, why) = plan_at(&frame, 0.3);
     assert_eq!(p.settings.shadows.mode, ShadowMode::DeepOpacity, "{why:#?}");
     assert!(p.settings.integrator.dual(), "{why:#?}");
     let maps = p.maps.as_ref().expect("the maps auto kept");
@@ -839,4 +815,23 @@ fn auto_with_deep_opacity_maps_gives_dual_scattering_counting_maps() {
         ahead > 0.0 && behind > 0.0 && direct < 1.0,
         "{ahead} {behind} {direct}"
     );
+}
+
+/// The frame of scene `text` with `--quality auto`.
+fn auto_frame(text: &str) -> Frame {
+    let mut s = Scene::parse(text, Path::new("<test>"), Path::new(".")).unwrap();
+    s.quality.mode = cuticle::quality::QualityMode::Auto;
+    Frame::load(s.resolve().unwrap()).unwrap()
+}
+
+/// Auto's plan of `frame` for `target` on 2 threads, with its decisions as printed.
+fn plan_at(frame: &Frame, target: f32) -> (quality::Planned, Vec<String>) {
+    let q = QualityConfig {
+        target,
+        ..QualityConfig::default()
+    };
+    let pool = thread_pool(Some(2)).unwrap();
+    let p = pool.install(|| quality::plan_frame(frame, &frame.settings, &q, Fixed::default()));
+    let why = p.decisions.iter().map(ToString::to_string).collect();
+    (p, why)
 }
