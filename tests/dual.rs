@@ -237,3 +237,27 @@ fn deep_opacity_maps_count_the_strands_in_place_of_rays() {
         "1 and 2 threads differ"
     );
 }
+
+/// The frame's memory estimate holds the maps it builds, counting or not: a sun's map and an environment's 16 at
+/// half the resolution, with the strand counts doubling the layers under dual scattering (estimate at least what
+/// the maps hold, and within 10 % of it).
+#[test]
+fn the_memory_estimate_holds_the_maps_with_their_counts() {
+    for integrator in ["", "multiple_scattering = \"dual\""] {
+        let scene = fur_ball(
+            [0.25, 0.4, 0.7],
+            &format!(
+                "[[light]]\nkind = \"distant\"\ndirection = [1.0, -1.0, -0.5]\nirradiance = 2.0\n\n\
+                 [environment]\nradiance = [0.5, 0.5, 0.5]\n\n[shadows]\nmode = \"deep-opacity\"\n\
+                 deep_opacity = {{ resolution = 256 }}\n\n[integrator]\n{integrator}\n"
+            ),
+        );
+        let frame = cuticle::render::Frame::load(scene.resolve().unwrap()).unwrap();
+        let held = frame.shadow_maps(&frame.settings).bytes() as u64;
+        let estimate = frame.map_bytes(&frame.settings);
+        assert!(
+            estimate >= held && estimate <= held + held / 10,
+            "{integrator:?}: estimate {estimate} B, maps {held} B"
+        );
+    }
+}

@@ -164,8 +164,8 @@ impl MemoryEstimate {
 }
 
 /// The estimate for a frame of `strands` strands holding `points` points in all, traced by `backend` as
-/// `curves`, rendered with `settings` on `threads` workers, with `maps` deep opacity maps in deep-opacity mode (one
-/// per light, `environment_directions` for an environment: [`map_count`]); `adaptive`: whether it samples adaptively (`settings.adaptive`, or `--quality auto`, which
+/// `curves`, rendered with `settings` on `threads` workers, with `maps` deep opacity maps' worth of texels in
+/// deep-opacity mode ([`map_count`]); `adaptive`: whether it samples adaptively (`settings.adaptive`, or `--quality auto`, which
 /// sets that after the frame is loaded). Saturating arithmetic throughout: inputs come from files and users.
 pub fn estimate(
     (strands, points): (u64, u64),
@@ -259,15 +259,23 @@ pub fn estimate_frame(
     ))
 }
 
-/// How many deep opacity maps `lights` get under `settings`: one per light, and one per direction of the
-/// environment's partition (`shadows.deep_opacity.environment_directions`, up to 256) for an environment light. A
-/// 64² frame counted one map for an environment that built 16–256, and grew past 9 GB after it was admitted.
+/// How many deep opacity maps of `shadows.deep_opacity.resolution` `lights` get under `settings`, in texels: one
+/// per light, and for an environment light one per direction of its partition (`environment_directions`, up to
+/// 256) at [`environment_resolution`](crate::shadow::deep_opacity::environment_resolution) (a quarter of the
+/// texels), rounded up. A 64² frame counted one map for an environment that built 16–256, and grew past 9 GB after
+/// it was admitted.
 pub fn map_count(lights: &[crate::light::Light], settings: &RenderSettings) -> usize {
-    let directions = settings.shadows.deep_opacity.environment_directions as usize;
+    let d = &settings.shadows.deep_opacity;
+    let full = u64::from(d.resolution).pow(2);
+    let environment = u64::from(crate::shadow::deep_opacity::environment_resolution(
+        d.resolution,
+    ))
+    .pow(2)
+        * u64::from(d.environment_directions);
     lights
         .iter()
         .map(|l| match l {
-            crate::light::Light::Environment(_) => directions,
+            crate::light::Light::Environment(_) => environment.div_ceil(full.max(1)) as usize,
             _ => 1,
         })
         .sum()

@@ -32,6 +32,12 @@ pub struct ShadowMaps {
     lights: Vec<LightMaps>,
 }
 
+/// Texels along a side of each of an environment's maps, for maps of `resolution` elsewhere: half (at least 16),
+/// since an environment gets one map per direction.
+pub fn environment_resolution(resolution: u32) -> u32 {
+    (resolution / 2).max(16)
+}
+
 /// `n` points spread evenly over the sphere (the spherical Fibonacci lattice).
 pub fn fibonacci_sphere(n: u32) -> Vec<Vec3> {
     let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
@@ -103,7 +109,7 @@ impl ShadowMaps {
                 Light::Environment(_) => {
                     let centres = fibonacci_sphere(config.environment_directions);
                     let directions = environment_directions(light, &centres);
-                    let resolution = (config.resolution / 2).max(16);
+                    let resolution = environment_resolution(config.resolution);
                     let maps = directions
                         .iter()
                         .map(|&to_light| {

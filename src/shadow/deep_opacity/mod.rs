@@ -67,6 +67,6 @@ mod raster;
 mod test_field;
 
 pub use framing::MapFrame;
-pub use lights::{fibonacci_sphere, ShadowMaps};
+pub use lights::{environment_resolution, fibonacci_sphere, ShadowMaps};
 pub use map::DeepOpacityMap;
 pub use raster::Raster;
