@@ -1,10 +1,10 @@
 //! The integrator's rays: what a camera or material ray finds first (hair, a shape, an area light, or nothing),
 //! the visibility along a light sample's shadow ray, and the MIS-weighted light a material sample brings back.
 
-use crate::bsdf::dual::Crossed;
-use crate::light::LightSample;
 use glam::Vec3;
 
+use crate::bsdf::dual::Crossed;
+use crate::light::LightSample;
 use crate::ray::Ray;
 use crate::shape::ShapeHit;
 
