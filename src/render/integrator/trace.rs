@@ -242,11 +242,8 @@ impl<'a> Integrator<'a> {
                     counts.map_lookups += 1;
                     return Some(Crossed {
                         ahead: n.min(ahead as f32),
-                        behind: if behind > 0 {
-                            m.min(behind as f32)
-                        } else {
-                            0.0
-                        },
+                        // m ≥ 0, so a limit of 0 (no count behind) gives 0.
+                        behind: m.min(behind as f32),
                         direct,
                     });
                 }

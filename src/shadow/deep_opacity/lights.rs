@@ -123,26 +123,29 @@ impl ShadowMaps {
         ShadowMaps { lights }
     }
 
+    /// The map a lookup towards light `light` along `wi` (towards the light) reads: the light's own, or its
+    /// environment cell's; `None` when this light has no map and needs rays.
+    #[inline]
+    fn map_towards(&self, light: usize, wi: Vec3) -> Option<&DeepOpacityMap> {
+        match &self.lights[light] {
+            LightMaps::One(m) => Some(m),
+            LightMaps::Cells { centres, maps } => Some(&maps[nearest(centres, wi)]),
+            LightMaps::Raytraced => None,
+        }
+    }
+
     /// Transmittance towards light `light` from `p` along `wi` (towards the light); `None` when this light has no
     /// map and needs a shadow ray.
     #[inline]
     pub fn transmittance(&self, light: usize, p: Vec3, wi: Vec3) -> Option<f32> {
-        match &self.lights[light] {
-            LightMaps::One(m) => Some(m.transmittance(p)),
-            LightMaps::Cells { centres, maps } => Some(maps[nearest(centres, wi)].transmittance(p)),
-            LightMaps::Raytraced => None,
-        }
+        Some(self.map_towards(light, wi)?.transmittance(p))
     }
 
     /// The strands ahead of `p` towards light `light` along `wi`, those behind it, and the share of light that
     /// crosses none ([`DeepOpacityMap::strands`]); `None` when this light has no map or the maps do not count.
     #[inline]
     pub fn strands(&self, light: usize, p: Vec3, wi: Vec3) -> Option<[f32; 3]> {
-        match &self.lights[light] {
-            LightMaps::One(m) => m.strands(p),
-            LightMaps::Cells { centres, maps } => maps[nearest(centres, wi)].strands(p),
-            LightMaps::Raytraced => None,
-        }
+        self.map_towards(light, wi)?.strands(p)
     }
 
     /// Memory held by all maps, bytes.
