@@ -12,7 +12,7 @@
 //! - [`render`]: one frame set up ([`render::Frame`]), camera, sampler, film, integrator, adaptive sampling;
 //! - physics: [`shadow`] (deep opacity maps), then [`light`], [`bsdf`] (fibre models), [`shape`] (Lambert shapes);
 //! - [`accel`] (the [`accel::Tracer`] trait, Embree and the pure-Rust BVH) and [`geometry`] (ray–primitive hits);
-//! - [`hair`] (files → B-spline strands) and [`image`] (OpenImageIO);
+//! - [`hair`] (files → B-spline strands), [`mesh`] (triangle meshes as plain data) and [`image`] (OpenImageIO);
 //! - [`sys`]: FFI only; all `unsafe` code lives there;
 //! - [`ray`] (validated rays) and [`util`] (hashing, colour, sampling, statistics, atomic file writes).
 #![deny(unsafe_code)]
@@ -31,6 +31,7 @@ pub mod image;
 pub mod job;
 pub mod light;
 pub mod measure;
+pub mod mesh;
 pub mod plot;
 pub mod quality;
 pub mod ray;

@@ -1,0 +1,288 @@
+//! Triangle meshes: the surfaces hair grows from (a scalp, a head) and anything else a groom file brings beside its
+//! curves. Plain data, as a reader produces it: world-space positions, triangles as index triples, and a Lambert
+//! albedo, constant or per triangle corner. The tracers ([`crate::accel::mesh (the tracers)`]) and the shading
+//! ([`crate::shape`]) read it; nothing here knows a file format.
+
+use glam::{Mat4, Vec3};
+
+/// What is wrong with a mesh, naming it (its file and prim).
+#[derive(Debug, thiserror::Error)]
+#[error("{name}: {message}")]
+pub struct MeshError {
+    /// The mesh's name: file and prim path, as a reader gave it.
+    pub name: String,
+    /// What is wrong, lower case, with the offending numbers.
+    pub message: String,
+}
+
+/// A triangle mesh with a two-sided Lambert material.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct TriangleMesh {
+    /// Where it came from (e.g. `head.usda:/Head/Mesh`), for messages and `cuticle info`.
+    pub name: String,
+    /// Vertex positions, world space.
+    pub positions: Vec<Vec3>,
+    /// Triangles as indices into `positions`; the normal of triangle (a, b, c) lies along (b − a) × (c − a).
+    pub triangles: Vec<[u32; 3]>,
+    /// Albedo at each triangle's three corners (linear RGB in [0, 1]), interpolated across the triangle; `None`:
+    /// [`TriangleMesh::albedo`] everywhere. Per corner holds every interpolation a file gives (constant, per face,
+    /// per vertex, per face-vertex) in one layout.
+    pub corner_albedo: Option<Vec<[Vec3; 3]>>,
+    /// The albedo where `corner_albedo` is `None`.
+    pub albedo: Vec3,
+}
+
+impl TriangleMesh {
+    /// Checks what the tracers and the shading rely on: at least one triangle, every index in range, positions
+    /// finite and within [`crate::ray::MAX_SCENE_COORD`] of the origin, one albedo triple per triangle, albedos
+    /// finite and in [0, 1] (a Lambert surface reflects at most what arrives).
+    pub fn validate(&self) -> Result<(), MeshError> {
+        let fail = |message: String| {
+            Err(MeshError {
+                name: self.name.clone(),
+                message,
+            })
+        };
+        if self.triangles.is_empty() {
+            return fail("has no triangles".into());
+        }
+        let max = crate::ray::MAX_SCENE_COORD;
+        if let Some(i) = self
+            .positions
+            .iter()
+            .position(|p| !p.is_finite() || p.abs().max_element() > max)
+        {
+            return fail(format!(
+                "point {i} at {:?} is not finite or lies farther than {max:e} from the origin",
+                self.positions[i].to_array()
+            ));
+        }
+        let n = self.positions.len();
+        if let Some((t, tri)) = self
+            .triangles
+            .iter()
+            .enumerate()
+            .find(|(_, tri)| tri.iter().any(|&i| i as usize >= n))
+        {
+            return fail(format!(
+                "triangle {t} names point {} of {n}",
+                tri.iter().max().copied().unwrap_or(0)
+            ));
+        }
+        let bad_albedo = |c: Vec3| !c.is_finite() || c.min_element() < 0.0 || c.max_element() > 1.0;
+        if bad_albedo(self.albedo) {
+            return fail(format!(
+                "albedo {:?} is not in [0, 1]",
+                self.albedo.to_array()
+            ));
+        }
+        if let Some(corners) = &self.corner_albedo {
+            if corners.len() != self.triangles.len() {
+                return fail(format!(
+                    "{} albedo triples for {} triangles",
+                    corners.len(),
+                    self.triangles.len()
+                ));
+            }
+            if let Some(t) = corners
+                .iter()
+                .position(|c| c.iter().any(|&c| bad_albedo(c)))
+            {
+                return fail(format!(
+                    "triangle {t}'s colour {:?} is not in [0, 1]",
+                    corners[t].map(|c| c.to_array())
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The box around the points the triangles use (all points, for a valid mesh read from a file).
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        self.positions.iter().fold(
+            (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+            |(lo, hi), &p| (lo.min(p), hi.max(p)),
+        )
+    }
+
+    /// Bytes the mesh holds.
+    pub fn bytes(&self) -> usize {
+        self.positions.len() * std::mem::size_of::<Vec3>()
+            + self.triangles.len() * std::mem::size_of::<[u32; 3]>()
+            + self
+                .corner_albedo
+                .as_ref()
+                .map_or(0, |c| c.len() * std::mem::size_of::<[Vec3; 3]>())
+            + self.name.len()
+    }
+
+    /// Triangle `t`'s three corners.
+    #[inline]
+    pub fn corners(&self, t: u32) -> [Vec3; 3] {
+        self.triangles[t as usize].map(|i| self.positions[i as usize])
+    }
+
+    /// Triangle `t`'s unit normal along (b − a) × (c − a) (zero for a degenerate triangle, which no tracer hits).
+    #[inline]
+    pub fn normal(&self, t: u32) -> Vec3 {
+        let [a, b, c] = self.corners(t);
+        (b - a).cross(c - a).normalize_or_zero()
+    }
+
+    /// The albedo at barycentric (`u`, `v`) of triangle `t`: the point a + u (b − a) + v (c − a).
+    #[inline]
+    pub fn albedo_at(&self, t: u32, u: f32, v: f32) -> Vec3 {
+        match &self.corner_albedo {
+            None => self.albedo,
+            Some(corners) => {
+                let [a, b, c] = corners[t as usize];
+                (a * (1.0 - u - v) + b * u + c * v).clamp(Vec3::ZERO, Vec3::ONE)
+            }
+        }
+    }
+
+    /// The mesh with every point moved by `m` (a reader's transform from the prim's space to the world). A
+    /// transform that mirrors (negative determinant) flips the triangles' winding, so reversing each triangle keeps
+    /// the normal convention; the material is two-sided, so only the convention depends on it.
+    pub fn transformed(mut self, m: Mat4) -> TriangleMesh {
+        for p in &mut self.positions {
+            *p = m.transform_point3(*p);
+        }
+        if m.determinant() < 0.0 {
+            for tri in &mut self.triangles {
+                tri.swap(1, 2);
+            }
+            if let Some(corners) = &mut self.corner_albedo {
+                for c in corners {
+                    c.swap(1, 2);
+                }
+            }
+        }
+        self
+    }
+}
+
+/// Fans polygons into triangles: polygon k has `counts[k]` points, its indices the next `counts[k]` entries of
+/// `indices` (USD's `faceVertexCounts` and `faceVertexIndices`, OBJ's faces). Returns the triangles and, for each,
+/// its polygon and the positions in `indices` of its three corners (so per-face and per-face-vertex data follow
+/// the triangles). Polygons of fewer than three points are dropped (a file may carry points and lines among its
+/// faces); `None` when the counts need more indices than there are.
+pub fn fan_triangulate(counts: &[u32], indices: &[u32]) -> Option<Vec<FanTriangle>> {
+    let needed: u64 = counts.iter().map(|&c| u64::from(c)).sum();
+    if needed != indices.len() as u64 {
+        return None;
+    }
+    let triangles: u64 = counts.iter().map(|&c| u64::from(c.saturating_sub(2))).sum();
+    let mut out = Vec::with_capacity(usize::try_from(triangles).ok()?);
+    let mut at = 0usize;
+    for (face, &c) in counts.iter().enumerate() {
+        let c = c as usize;
+        for k in 1..c.saturating_sub(1) {
+            let corner = [at, at + k, at + k + 1];
+            out.push(FanTriangle {
+                points: corner.map(|i| indices[i]),
+                face: face as u32,
+                corners: corner.map(|i| i as u32),
+            });
+        }
+        at += c;
+    }
+    Some(out)
+}
+
+/// One triangle of [`fan_triangulate`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FanTriangle {
+    /// Its points (indices into the positions).
+    pub points: [u32; 3],
+    /// The polygon it came from.
+    pub face: u32,
+    /// The positions in the face-vertex index list of its corners.
+    pub corners: [u32; 3],
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn square() -> TriangleMesh {
+        let fan = fan_triangulate(&[4], &[0, 1, 2, 3]).unwrap();
+        TriangleMesh {
+            name: "square".into(),
+            positions: vec![Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y],
+            triangles: fan.iter().map(|t| t.points).collect(),
+            corner_albedo: None,
+            albedo: Vec3::splat(0.5),
+        }
+    }
+
+    #[test]
+    fn polygons_fan_into_triangles_that_remember_their_face_and_corners() {
+        let fan = fan_triangulate(
+            &[3, 4, 2, 5],
+            &[0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13],
+        )
+        .unwrap();
+        // 1 + 2 + 0 + 3 triangles; the 2-point face is dropped.
+        assert_eq!(fan.len(), 6);
+        assert_eq!(fan[1].points, [3, 4, 5]);
+        assert_eq!(fan[2].points, [3, 5, 6]);
+        assert_eq!((fan[2].face, fan[2].corners), (1, [3, 5, 6]));
+        assert_eq!((fan[5].face, fan[5].points), (3, [9, 12, 13]));
+        assert!(fan_triangulate(&[3, 4], &[0, 1, 2]).is_none());
+        assert!(fan_triangulate(&[u32::MAX, u32::MAX], &[0; 4]).is_none());
+    }
+
+    #[test]
+    fn a_mesh_is_checked_before_it_is_traced() {
+        let good = square();
+        assert!(good.validate().is_ok());
+        assert_eq!(good.normal(0), Vec3::Z);
+        let mut bad = square();
+        bad.triangles[1][2] = 4;
+        let e = bad.validate().unwrap_err().to_string();
+        assert!(
+            e.starts_with("square: triangle 1 names point 4 of 4"),
+            "{e}"
+        );
+        let mut far = square();
+        far.positions[2].x = f32::NAN;
+        assert!(far.validate().unwrap_err().message.contains("point 2"));
+        let mut bright = square();
+        bright.corner_albedo = Some(vec![
+            [Vec3::ONE; 3],
+            [Vec3::ONE, Vec3::ONE, Vec3::splat(1.5)],
+        ]);
+        assert!(bright
+            .validate()
+            .unwrap_err()
+            .message
+            .contains("triangle 1's colour"));
+        bright.corner_albedo = Some(vec![[Vec3::ONE; 3]]);
+        assert!(bright
+            .validate()
+            .unwrap_err()
+            .message
+            .contains("1 albedo triples for 2"));
+        assert!(TriangleMesh::default().validate().is_err());
+    }
+
+    #[test]
+    fn albedo_interpolates_across_a_triangle() {
+        let mut m = square();
+        m.corner_albedo = Some(vec![[Vec3::X, Vec3::Y, Vec3::Z]; 2]);
+        assert_eq!(m.albedo_at(0, 0.0, 0.0), Vec3::X);
+        assert_eq!(m.albedo_at(0, 1.0, 0.0), Vec3::Y);
+        assert_eq!(m.albedo_at(1, 0.25, 0.5), Vec3::new(0.25, 0.25, 0.5));
+    }
+
+    #[test]
+    fn a_mirroring_transform_keeps_the_normal_convention() {
+        let m = square().transformed(Mat4::from_scale(Vec3::new(-1.0, 1.0, 1.0)));
+        assert_eq!(m.positions[1], Vec3::NEG_X);
+        // Mirrored in x, the square still faces +z once the winding is reversed.
+        assert_eq!(m.normal(0), Vec3::Z);
+        let moved = square().transformed(Mat4::from_translation(Vec3::Z));
+        assert_eq!(moved.bounds(), (Vec3::Z, Vec3::new(1.0, 1.0, 1.0)));
+    }
+}
