@@ -1,5 +1,7 @@
 //! Binned SAH construction (Wald 2007) into pbrt-v3's depth-first node array, parallel at the top levels, with
-//! splits also searched in oriented frames near the leaves (Woop et al. 2014, see [`oriented_split`]).
+//! splits also searched in oriented frames near the leaves (Woop et al. 2014, see [`oriented_split`]). The curve
+//! segments of [`Bvh::build`] and the plain boxes of [`Bvh::build_boxes`] (triangles) become the same primitive
+//! references and go through the same build.
 
 use glam::{Vec3, Vec4};
 
@@ -48,7 +50,8 @@ struct Context<'a> {
     polygons: &'a [Polygon],
 }
 
-/// A primitive during the build: its box and segment id.
+/// A primitive during the build: its box and id (the segment, or the index of a box given to
+/// [`Bvh::build_boxes`]).
 #[derive(Debug, Clone, Copy)]
 struct PrimRef {
     bounds: Aabb,
@@ -114,8 +117,8 @@ fn hull_box(p: &[Vec4; 4]) -> Aabb {
     })
 }
 
-/// Builds the tree (see [`Bvh::build`]).
-pub(super) fn build(strands: &Strands, options: BuildOptions) -> Bvh {
+/// Checks the options every build shares.
+fn check_options(options: &BuildOptions) {
     assert!(
         (1..=255).contains(&options.max_leaf),
         "bvh: max_leaf must be in 1..=255, got {}",
@@ -131,13 +134,18 @@ pub(super) fn build(strands: &Strands, options: BuildOptions) -> Bvh {
         "bvh: intersect_cost must be > 0, got {}",
         options.intersect_cost
     );
+}
+
+/// Builds the tree over the segments of `strands` (see [`Bvh::build`]).
+pub(super) fn build(strands: &Strands, options: BuildOptions) -> Bvh {
+    check_options(&options);
     if let Bounding::Spans { levels } | Bounding::SpanRefs { levels } = options.bounding {
         assert!(
             (1..=3).contains(&levels),
             "bvh: span levels must be in 1..=3, got {levels}"
         );
     }
-    let mut refs = primitive_refs(strands, options.bounding);
+    let refs = primitive_refs(strands, options.bounding);
     // Oriented splits need the segment's geometry; a span reference is not a whole segment, so span-reference
     // trees keep the aligned build.
     let polygons: Vec<Polygon> =
@@ -150,9 +158,42 @@ pub(super) fn build(strands: &Strands, options: BuildOptions) -> Bvh {
         } else {
             Vec::new()
         };
+    from_refs(refs, options, &polygons)
+}
+
+/// Builds the tree over primitives given by their boxes alone (see [`Bvh::build_boxes`]): primitive `i` is
+/// `boxes[i]`. Aligned splits only, since there is no segment to orient a frame by.
+pub(super) fn build_boxes(boxes: &[Aabb], options: BuildOptions) -> Bvh {
+    check_options(&options);
+    assert!(
+        boxes.len() <= u32::MAX as usize,
+        "bvh: {} primitives exceed u32 indices",
+        boxes.len()
+    );
+    let refs = boxes
+        .iter()
+        .enumerate()
+        .map(|(i, &bounds)| PrimRef {
+            bounds,
+            segment: i as u32,
+        })
+        .collect();
+    from_refs(
+        refs,
+        BuildOptions {
+            oriented_splits: false,
+            ..options
+        },
+        &[],
+    )
+}
+
+/// The build both entry points share: the tree over `refs`, with oriented splits where `polygons` (by primitive
+/// id) is not empty.
+fn from_refs(mut refs: Vec<PrimRef>, options: BuildOptions, polygons: &[Polygon]) -> Bvh {
     let cx = Context {
         options: &options,
-        polygons: &polygons,
+        polygons,
     };
     assert!(
         refs.len() <= u32::MAX as usize,

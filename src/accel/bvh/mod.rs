@@ -278,6 +278,17 @@ impl Bvh {
         build::build(strands, options)
     }
 
+    /// Builds the hierarchy over primitives known only by their boxes (the triangles of `accel::mesh`): primitive
+    /// `i` is `boxes[i]`, and [`Bvh::closest`] and [`Bvh::for_each`] hand `i` to their callbacks. The build is the
+    /// one of [`Bvh::build`] with aligned splits only: `options.bounding` does not apply and
+    /// `options.oriented_splits` is ignored (there is no segment direction to orient a frame by).
+    ///
+    /// # Panics
+    /// If `options` are out of range, or there are 2³² boxes or more.
+    pub fn build_boxes(boxes: &[Aabb], options: BuildOptions) -> Bvh {
+        build::build_boxes(boxes, options)
+    }
+
     /// The nodes, depth first; empty for a model without segments.
     pub fn nodes(&self) -> &[Node] {
         &self.nodes
