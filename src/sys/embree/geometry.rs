@@ -187,13 +187,17 @@ impl CurveGeometry {
             device: Arc::clone(handle),
             strands,
         };
-        geometry.fill_buffer(
+        fill_buffer(
+            &geometry.device,
+            raw,
             RTC_BUFFER_TYPE_VERTEX,
             RTC_FORMAT_FLOAT4,
             control_points,
             "vertex",
         )?;
-        geometry.fill_buffer(
+        fill_buffer(
+            &geometry.device,
+            raw,
             RTC_BUFFER_TYPE_INDEX,
             RTC_FORMAT_UINT,
             segment_first,
@@ -210,39 +214,41 @@ impl CurveGeometry {
         Ok(geometry)
     }
 
-    /// Copies `data` into a new Embree-owned buffer of `kind` (slot 0) in `format`, which must describe `T`.
-    fn fill_buffer<T: Copy>(
-        &self,
-        kind: RTCBufferType,
-        format: RTCFormat,
-        data: &[T],
-        name: &str,
-    ) -> Result<(), EmbreeError> {
-        let stride = std::mem::size_of::<T>();
-        let dst = self.device.call(&format!("create {name} buffer"), || {
-            // SAFETY: `self.raw` is live; Embree allocates (and owns) a buffer of `data.len()` items of `stride`
-            // bytes, padded for its SIMD loads, or returns null after reporting an error.
-            unsafe { rtcSetNewGeometryBuffer(self.raw, kind, 0, format, stride, data.len()) }
-        })?;
-        if data.is_empty() {
-            return Ok(());
-        }
-        if dst.is_null() {
-            return Err(EmbreeError {
-                code: ErrorCode::OutOfMemory,
-                message: format!("create {name} buffer: embree returned no buffer"),
-            });
-        }
-        // SAFETY: `dst` is a fresh Embree allocation of `data.len()` items of `T`'s size, aligned for `T` (Embree
-        // aligns buffers to at least 16 bytes), and cannot overlap `data`.
-        unsafe { ptr::copy_nonoverlapping(data.as_ptr(), dst.cast::<T>(), data.len()) };
-        Ok(())
-    }
-
     /// The strand table this geometry carries.
     pub fn strands(&self) -> &Arc<StrandTable> {
         &self.strands
     }
+}
+
+/// Copies `data` into a new Embree-owned buffer of `kind` (slot 0) in `format`, which must describe `T`, of the
+/// live geometry `raw` created on `device`.
+pub(super) fn fill_buffer<T: Copy>(
+    device: &DeviceHandle,
+    raw: RTCGeometry,
+    kind: RTCBufferType,
+    format: RTCFormat,
+    data: &[T],
+    name: &str,
+) -> Result<(), EmbreeError> {
+    let stride = std::mem::size_of::<T>();
+    let dst = device.call(&format!("create {name} buffer"), || {
+        // SAFETY: `raw` is live; Embree allocates (and owns) a buffer of `data.len()` items of `stride` bytes,
+        // padded for its SIMD loads, or returns null after reporting an error.
+        unsafe { rtcSetNewGeometryBuffer(raw, kind, 0, format, stride, data.len()) }
+    })?;
+    if data.is_empty() {
+        return Ok(());
+    }
+    if dst.is_null() {
+        return Err(EmbreeError {
+            code: ErrorCode::OutOfMemory,
+            message: format!("create {name} buffer: embree returned no buffer"),
+        });
+    }
+    // SAFETY: `dst` is a fresh Embree allocation of `data.len()` items of `T`'s size, aligned for `T` (Embree
+    // aligns buffers to at least 16 bytes), and cannot overlap `data`.
+    unsafe { ptr::copy_nonoverlapping(data.as_ptr(), dst.cast::<T>(), data.len()) };
+    Ok(())
 }
 
 impl Drop for CurveGeometry {

@@ -13,6 +13,9 @@
 //!   and one `u32` per segment (its first control point). Embree copies both arrays into buffers it owns. Each
 //!   geometry carries a [`StrandTable`] (segment → strand, strand → opacity) as its Embree user data, which is
 //!   what the transparent-shadow filter reads.
+//! - [`TriangleGeometry`]: a triangle mesh from `float3` positions and `uint3` indices, copied into Embree-owned
+//!   buffers. A [`Scene::robust`] scene traces it with Embree's watertight triangle test; its hits report the
+//!   triangle as `primID` and Embree's barycentrics (u, v).
 //! - [`Scene`] (being built) → [`Scene::commit`] → [`CommittedScene`]: only a committed scene answers queries
 //!   (Embree does not check this in release builds), and it is `Send + Sync`.
 //!
@@ -51,6 +54,7 @@
 //! - `error.rs`: [`EmbreeError`] and its [`ErrorCode`].
 //! - `device.rs`: [`Device`], its callbacks and their state.
 //! - `geometry.rs`: [`StrandTable`] and [`CurveGeometry`].
+//! - `triangles.rs`: [`TriangleGeometry`].
 //! - `scene.rs`: [`Scene`], [`BuildQuality`] and [`CommittedScene`].
 //! - `query.rs`: the queries of a [`CommittedScene`] and their results ([`RayHit`], [`Transmittance`]).
 //! - `packet.rs`: the packet queries of a [`CommittedScene`] (8 or 16 rays per call).
@@ -65,6 +69,7 @@ mod geometry;
 mod packet;
 mod query;
 mod scene;
+mod triangles;
 
 pub use device::Device;
 pub use error::{EmbreeError, ErrorCode};
@@ -73,3 +78,4 @@ pub use geometry::{CurveBasis, CurveGeometry, StrandTable};
 pub use packet::PACKET_WIDTHS;
 pub use query::{RayHit, Transmittance};
 pub use scene::{BuildQuality, CommittedScene, Layout, Scene};
+pub use triangles::TriangleGeometry;

@@ -23,13 +23,15 @@ pub struct RayHit {
     pub t: f32,
     /// Geometry id ([`Scene::attach`]).
     pub geom_id: u32,
-    /// Primitive id: the curve segment.
+    /// Primitive id: the curve segment, or the triangle.
     pub prim_id: u32,
-    /// Curve parameter along the segment, in [0, 1].
+    /// Curve parameter along the segment, in [0, 1]. Triangles: the barycentric weight of the second corner.
     pub u: f32,
-    /// Round curves: 0. Flat curves: position across the ribbon, in [−1, 1].
+    /// Round curves: 0. Flat curves: position across the ribbon, in [−1, 1]. Triangles: the weight of the third
+    /// corner (the point is a + u (b − a) + v (c − a)).
     pub v: f32,
     /// Unnormalised geometric normal. Round curves: outward from the axis. Flat curves: the curve tangent.
+    /// Triangles: (b − a) × (c − a).
     pub ng: Vec3,
 }
 

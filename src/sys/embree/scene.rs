@@ -8,6 +8,7 @@ use super::device::{Device, DeviceHandle};
 use super::error::{EmbreeError, ErrorCode};
 use super::ffi::*;
 use super::geometry::CurveGeometry;
+use super::triangles::TriangleGeometry;
 
 /// BVH build quality (`RTCBuildQuality`): higher builds slower and traces faster.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -57,8 +58,10 @@ const SCENE_FLAGS: RTCSceneFlags = RTC_SCENE_FLAG_FILTER_FUNCTION_IN_ARGUMENTS;
 pub struct Scene {
     raw: RTCScene,
     device: Arc<DeviceHandle>,
-    /// Keeps every attached geometry, and so its strand table (the filter's user data), alive.
+    /// Keeps every attached curve geometry, and so its strand table (the filter's user data), alive.
     geometries: Vec<CurveGeometry>,
+    /// Keeps every attached triangle geometry alive.
+    triangles: Vec<TriangleGeometry>,
 }
 
 // SAFETY: an Embree scene has no thread affinity; mutation needs `&mut self`.
@@ -68,6 +71,7 @@ impl fmt::Debug for Scene {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.debug_struct("Scene")
             .field("geometries", &self.geometries)
+            .field("triangles", &self.triangles)
             .finish()
     }
 }
@@ -88,6 +92,21 @@ impl Scene {
             Layout::Fast => SCENE_FLAGS,
             Layout::Compact => SCENE_FLAGS | RTC_SCENE_FLAG_COMPACT,
         };
+        Self::with_flags(device, quality, flags)
+    }
+
+    /// An empty static scene in Embree's robust mode (`RTC_SCENE_FLAG_ROBUST`), for triangle meshes: Embree then
+    /// intersects triangles with its watertight Plücker test instead of the faster Möller–Trumbore test (which
+    /// lets rays through shared edges and vertices) and avoids the traversal shortcuts that lose precision.
+    pub fn robust(device: &Device, quality: BuildQuality) -> Result<Scene, EmbreeError> {
+        Self::with_flags(device, quality, SCENE_FLAGS | RTC_SCENE_FLAG_ROBUST)
+    }
+
+    fn with_flags(
+        device: &Device,
+        quality: BuildQuality,
+        flags: RTCSceneFlags,
+    ) -> Result<Scene, EmbreeError> {
         let handle = &device.inner;
         let raw = handle.call("create scene", || {
             // SAFETY: `handle.raw` is a live device.
@@ -103,6 +122,7 @@ impl Scene {
             raw,
             device: Arc::clone(handle),
             geometries: Vec::new(),
+            triangles: Vec::new(),
         };
         scene.device.call("configure scene", || {
             // SAFETY: `raw` is a live scene and `flags` a combination of the header's flags.
@@ -122,6 +142,17 @@ impl Scene {
             unsafe { rtcAttachGeometry(self.raw, geometry.raw) }
         })?;
         self.geometries.push(geometry);
+        Ok(id)
+    }
+
+    /// Attaches a triangle mesh and returns its geometry id (Embree's `geomID`, counted with the curve geometries
+    /// in attachment order). The scene keeps the geometry.
+    pub fn attach_triangles(&mut self, geometry: TriangleGeometry) -> Result<u32, EmbreeError> {
+        let id = self.device.call("attach triangle geometry", || {
+            // SAFETY: both handles are live; Embree checks that they belong to the same device.
+            unsafe { rtcAttachGeometry(self.raw, geometry.raw) }
+        })?;
+        self.triangles.push(geometry);
         Ok(id)
     }
 
@@ -166,8 +197,13 @@ impl CommittedScene {
         &self.scene.device
     }
 
-    /// The geometries in the scene, in the order they were attached.
+    /// The curve geometries in the scene, in the order they were attached.
     pub fn geometries(&self) -> &[CurveGeometry] {
         &self.scene.geometries
+    }
+
+    /// The triangle geometries in the scene, in the order they were attached.
+    pub fn triangle_geometries(&self) -> &[TriangleGeometry] {
+        &self.scene.triangles
     }
 }
