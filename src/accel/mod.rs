@@ -1,10 +1,11 @@
 //! Ray tracing of strands behind one small trait, so that Embree and the pure-Rust BVH can be
-//! swapped per render and timed on identical rays.
+//! swapped per render and timed on identical rays; [`mesh`] traces triangle meshes on the same two backends.
 
 pub mod bvh;
 pub mod bvh_tracer;
 pub mod curves;
 pub mod embree;
+pub mod mesh;
 #[cfg(test)]
 mod testing;
 
