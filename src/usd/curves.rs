@@ -82,8 +82,8 @@ pub fn segment_count(basis: Basis, wrap: Wrap, n: usize) -> Option<usize> {
     let periodic = wrap == Wrap::Periodic;
     match basis {
         Basis::Linear => (n >= 2).then(|| if periodic { n } else { n - 1 }),
-        Basis::Bezier if periodic => (n >= 3 && n % 3 == 0).then_some(n / 3),
-        Basis::Bezier => (n >= 4 && (n - 4) % 3 == 0).then_some((n - 1) / 3),
+        Basis::Bezier if periodic => (n >= 3 && n.is_multiple_of(3)).then_some(n / 3),
+        Basis::Bezier => (n >= 4 && (n - 4).is_multiple_of(3)).then_some((n - 1) / 3),
         Basis::BSpline | Basis::CatmullRom => match wrap {
             Wrap::Periodic => (n >= 3).then_some(n),
             Wrap::Pinned => (n >= 2).then_some(n - 1),
@@ -197,7 +197,7 @@ pub fn convert(
             };
             cps.push(cp(pts[i % m], r));
         }
-        first.extend((0..segments as u32).map(|k| k));
+        first.extend(0..segments as u32);
     } else {
         let nv = pts.len();
         for k in 0..segments {

@@ -294,9 +294,8 @@ fn prim_err(path: &Path, prim: &sdf::Path, message: impl Into<String>) -> UsdErr
 
 impl<'a> Reader<'a> {
     fn new(path: &'a Path, name: &str, default_radius: f32) -> Result<Self, UsdError> {
-        let stage = usd::Stage::open(name).map_err(|e| {
-            UsdError::file(path, format!("cannot open the stage: {}", format!("{e:#}")))
-        })?;
+        let stage = usd::Stage::open(name)
+            .map_err(|e| UsdError::file(path, format!("cannot open the stage: {e:#}")))?;
         Ok(Reader {
             path,
             stage,
