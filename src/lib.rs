@@ -12,7 +12,8 @@
 //! - [`render`]: one frame set up ([`render::Frame`]), camera, sampler, film, integrator, adaptive sampling;
 //! - physics: [`shadow`] (deep opacity maps), then [`light`], [`bsdf`] (fibre models), [`shape`] (Lambert shapes);
 //! - [`accel`] (the [`accel::Tracer`] trait, Embree and the pure-Rust BVH) and [`geometry`] (ray–primitive hits);
-//! - [`hair`] (files → B-spline strands), [`mesh`] (triangle meshes as plain data) and [`image`] (OpenImageIO);
+//! - [`hair`] (files → B-spline strands), [`mesh`] (triangle meshes as plain data), [`usd`] (USD stages → strands,
+//!   meshes, camera, lights) and [`image`] (OpenImageIO);
 //! - [`sys`]: FFI only; all `unsafe` code lives there;
 //! - [`ray`] (validated rays) and [`util`] (hashing, colour, sampling, statistics, atomic file writes).
 #![deny(unsafe_code)]
@@ -42,4 +43,5 @@ pub mod shape;
 pub mod study;
 #[allow(unsafe_code)]
 pub mod sys;
+pub mod usd;
 pub mod util;

@@ -16,7 +16,7 @@ use glam::Vec3;
 use super::HairModel;
 
 /// Flat arrays in the layout Embree's curve geometry wants, plus the per-strand shading data.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct Strands {
     /// B-spline control points as (x, y, z, radius): Embree's `RTC_FORMAT_FLOAT4` vertex layout.
     pub control_points: Vec<[f32; 4]>,
@@ -117,6 +117,59 @@ impl Strands {
         }
         out.strand_offsets.push(out.control_points.len() as u32);
         out
+    }
+
+    /// Appends one strand given as B-spline control points (x, y, z, radius) and, for each of its segments, the
+    /// index of the segment's first control point within `control_points`. Segments may share control points
+    /// (segment k at k, as [`Strands::from_model`] lays them out) or have four of their own (segment k at 4k, as a
+    /// basis converted segment by segment needs: neighbouring segments' converted points differ). `None` when a
+    /// segment's four points reach past `control_points` or the strand has no segment.
+    pub fn push_strand(
+        &mut self,
+        control_points: &[[f32; 4]],
+        segment_first: &[u32],
+        opacity: f32,
+        color: [f32; 3],
+    ) -> Option<()> {
+        let n = control_points.len();
+        if segment_first.is_empty() || segment_first.iter().any(|&f| f as usize + 4 > n) {
+            return None;
+        }
+        if self.strand_offsets.is_empty() {
+            self.strand_offsets.push(0);
+        }
+        let first = self.control_points.len() as u32;
+        let strand = self.strand_count() as u32;
+        self.control_points.extend_from_slice(control_points);
+        self.segment_first
+            .extend(segment_first.iter().map(|&f| first + f));
+        self.segment_strand
+            .extend(segment_first.iter().map(|_| strand));
+        self.strand_offsets.push(self.control_points.len() as u32);
+        self.opacity.push(opacity);
+        self.color.push(color);
+        Some(())
+    }
+
+    /// Appends every strand of `other` after this one's, its indices moved past this one's control points and
+    /// strands.
+    pub fn append(&mut self, other: &Strands) {
+        if other.strand_count() == 0 {
+            return;
+        }
+        if self.strand_offsets.is_empty() {
+            self.strand_offsets.push(0);
+        }
+        let (cp, strand) = (self.control_points.len() as u32, self.strand_count() as u32);
+        self.control_points.extend_from_slice(&other.control_points);
+        self.strand_offsets
+            .extend(other.strand_offsets[1..].iter().map(|&o| cp + o));
+        self.segment_first
+            .extend(other.segment_first.iter().map(|&f| cp + f));
+        self.segment_strand
+            .extend(other.segment_strand.iter().map(|&s| strand + s));
+        self.opacity.extend_from_slice(&other.opacity);
+        self.color.extend_from_slice(&other.color);
     }
 
     /// Number of strands.
@@ -287,6 +340,29 @@ mod tests {
             (a.tangent - b.tangent).length() < 1e-5,
             "C1 continuity: {a:?} {b:?}"
         );
+    }
+
+    #[test]
+    fn strands_of_their_own_segments_append_after_shared_ones() {
+        let mut s = Strands::from_model(&two_strands());
+        let before = s.clone();
+        let own: Vec<[f32; 4]> = (0..8).map(|i| [i as f32, 0.0, 0.0, 0.1]).collect();
+        assert!(s.push_strand(&own, &[0, 4], 0.5, [0.25; 3]).is_some());
+        assert_eq!(s.strand_count(), 3);
+        assert_eq!(&s.segment_first[3..], &[9, 13]);
+        assert_eq!(&s.segment_strand[3..], &[2, 2]);
+        assert_eq!(s.strand_offsets, vec![0, 5, 9, 17]);
+        assert_eq!(s.eval(4, 0.0).position, Vec3::new(5.0, 0.0, 0.0));
+        assert!(s.push_strand(&own, &[5], 0.5, [0.25; 3]).is_none());
+        let mut joined = before.clone();
+        joined.append(&before);
+        assert_eq!(joined.segment_first[3..], [9, 10, 14]);
+        assert_eq!(joined.segment_strand[3..], [2, 2, 3]);
+        assert_eq!(joined.strand_offsets, vec![0, 5, 9, 14, 18]);
+        let mut empty = Strands::default();
+        empty.append(&before);
+        assert_eq!(empty.control_points, before.control_points);
+        assert_eq!(empty.strand_offsets, before.strand_offsets);
     }
 
     #[test]

@@ -1,0 +1,186 @@
+#!/usr/bin/env python3
+"""Writes the USD reader's test files with Pixar's own library (`pip install usd-core`, the `pxr` module).
+
+    scripts/usd-test-data.py                 # tests/data/usd/: groom.usda/.usdc/.usdz, bases.usda
+    scripts/usd-test-data.py --big DIR       # DIR/big.usdc and DIR/big.hair: 100 000 strands, for timing
+
+Deterministic: every value comes from closed forms (no random numbers, no timestamps), so running it again
+rewrites the same files.
+"""
+
+import math
+import os
+import struct
+import sys
+
+from pxr import Gf, Sdf, Usd, UsdGeom, UsdLux, UsdShade, UsdUtils
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+OUT = os.path.join(HERE, "..", "tests", "data", "usd")
+
+
+def sphere(stage, path, radius, slices, stacks):
+    """A UV sphere: triangle fans at the poles, quads between; per-vertex displayColor."""
+    mesh = UsdGeom.Mesh.Define(stage, path)
+    pts = [(0.0, radius, 0.0)]
+    for j in range(1, stacks):
+        theta = math.pi * j / stacks
+        for i in range(slices):
+            phi = 2.0 * math.pi * i / slices
+            pts.append((radius * math.sin(theta) * math.cos(phi), radius * math.cos(theta),
+                        radius * math.sin(theta) * math.sin(phi)))
+    pts.append((0.0, -radius, 0.0))
+    counts, idx = [], []
+    ring = lambda j, i: 1 + (j - 1) * slices + (i % slices)
+    for i in range(slices):
+        counts.append(3)
+        idx += [0, ring(1, i + 1), ring(1, i)]
+    for j in range(1, stacks - 1):
+        for i in range(slices):
+            counts.append(4)
+            idx += [ring(j, i), ring(j, i + 1), ring(j + 1, i + 1), ring(j + 1, i)]
+    last = len(pts) - 1
+    for i in range(slices):
+        counts.append(3)
+        idx += [last, ring(stacks - 1, i), ring(stacks - 1, i + 1)]
+    mesh.CreatePointsAttr([Gf.Vec3f(*p) for p in pts])
+    mesh.CreateFaceVertexCountsAttr(counts)
+    mesh.CreateFaceVertexIndicesAttr(idx)
+    return mesh
+
+
+def groom_stage(path):
+    stage = Usd.Stage.CreateNew(path)
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
+    UsdGeom.SetStageMetersPerUnit(stage, 0.01)
+    world = UsdGeom.Xform.Define(stage, "/World")
+    stage.SetDefaultPrim(world.GetPrim())
+    head = UsdGeom.Xform.Define(stage, "/World/Head")
+    head.AddTranslateOp().Set(Gf.Vec3d(0.0, 1.5, 0.0))
+    mesh = sphere(stage, "/World/Head/Skin", 1.0, 16, 12)
+    mat = UsdShade.Material.Define(stage, "/World/Looks/Skin")
+    shader = UsdShade.Shader.Define(stage, "/World/Looks/Skin/Surface")
+    shader.CreateIdAttr("UsdPreviewSurface")
+    shader.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set(Gf.Vec3f(0.8, 0.6, 0.5))
+    mat.CreateSurfaceOutput().ConnectToSource(shader.ConnectableAPI(), "surface")
+    UsdShade.MaterialBindingAPI.Apply(mesh.GetPrim()).Bind(mat)
+
+    # 36 strands on the upper half of the head: pinned B-splines of 6 points, per-vertex widths and colour.
+    hair = UsdGeom.Xform.Define(stage, "/World/Head/Hair")
+    hair.AddRotateYOp().Set(30.0)
+    curves = UsdGeom.BasisCurves.Define(stage, "/World/Head/Hair/Strands")
+    curves.CreateTypeAttr("cubic")
+    curves.CreateBasisAttr("bspline")
+    curves.CreateWrapAttr("pinned")
+    pts, counts, widths, colors = [], [], [], []
+    for s in range(36):
+        theta = 0.15 + 1.1 * (s // 6) / 6.0
+        phi = 2.0 * math.pi * (s % 6) / 6.0 + 0.1 * (s // 6)
+        n = Gf.Vec3f(math.sin(theta) * math.cos(phi), math.cos(theta), math.sin(theta) * math.sin(phi))
+        counts.append(6)
+        for k in range(6):
+            t = k / 5.0
+            p = n * (1.0 + 0.3 * t) + Gf.Vec3f(0.0, -0.4 * t * t, 0.0)
+            pts.append(p)
+            widths.append(0.02 * (1.0 - 0.5 * t))
+            colors.append(Gf.Vec3f(0.3 + 0.01 * s, 0.2, 0.1))
+    curves.CreatePointsAttr(pts)
+    curves.CreateCurveVertexCountsAttr(counts)
+    curves.CreateWidthsAttr(widths)
+    curves.SetWidthsInterpolation(UsdGeom.Tokens.vertex)
+    pv = UsdGeom.PrimvarsAPI(curves.GetPrim())
+    pv.CreatePrimvar("displayColor", Sdf.ValueTypeNames.Color3fArray, UsdGeom.Tokens.vertex).Set(colors)
+    pv.CreatePrimvar("displayOpacity", Sdf.ValueTypeNames.FloatArray, UsdGeom.Tokens.constant).Set([0.75])
+
+    cam = UsdGeom.Camera.Define(stage, "/World/Camera")
+    cam.AddTranslateOp().Set(Gf.Vec3d(0.0, 1.5, 8.0))
+    cam.CreateFocalLengthAttr(35.0)
+    cam.CreateHorizontalApertureAttr(36.0)
+    cam.CreateVerticalApertureAttr(24.0)
+    sun = UsdLux.DistantLight.Define(stage, "/World/Sun")
+    sun.AddRotateXOp().Set(-45.0)
+    sun.CreateIntensityAttr(3.0)
+    sun.CreateAngleAttr(1.0)
+    sun.CreateColorAttr(Gf.Vec3f(1.0, 0.9, 0.8))
+    dome = UsdLux.DomeLight.Define(stage, "/World/Sky")
+    dome.CreateIntensityAttr(0.5)
+    dome.CreateExposureAttr(1.0)
+    dome.CreateTextureFileAttr(Sdf.AssetPath("sky.exr"))
+    UsdLux.SphereLight.Define(stage, "/World/Bulb")
+    stage.GetRootLayer().Save()
+
+
+def bases_stage(path):
+    """One prim per basis × wrap × width interpolation, 7 (or 6) points each, small exact values."""
+    stage = Usd.Stage.CreateNew(path)
+    root = UsdGeom.Xform.Define(stage, "/Bases")
+    stage.SetDefaultPrim(root.GetPrim())
+    pts7 = [Gf.Vec3f(i, [0, 2, 3, 1, -1, 0.5, 2][i], 1.0 - 0.5 * i) for i in range(7)]
+    for ty, basis in [("cubic", "bezier"), ("cubic", "bspline"), ("cubic", "catmullRom"), ("linear", "bspline")]:
+        for wrap in ["nonperiodic", "periodic", "pinned"]:
+            n = 6 if (basis == "bezier" and ty == "cubic" and wrap == "periodic") else 7
+            for interp in ["constant", "uniform", "varying", "vertex", "faceVarying"]:
+                name = "%s_%s_%s_%s" % (ty, basis, wrap, interp)
+                c = UsdGeom.BasisCurves.Define(stage, "/Bases/" + name)
+                c.CreateTypeAttr(ty)
+                c.CreateBasisAttr(basis)
+                c.CreateWrapAttr(wrap)
+                c.CreatePointsAttr(pts7[:n])
+                c.CreateCurveVertexCountsAttr([n])
+                count = {"constant": 1, "uniform": 1, "vertex": n}.get(interp)
+                if count is None and (ty == "linear" or (wrap == "pinned" and basis != "bezier")):
+                    # Linear: one per vertex; pinned: one per segment end of n - 1 segments (the schema's and
+                    # Hydra's counts; ComputeVaryingDataSize in usd-core 26.11 counts pinned curves as nonperiodic
+                    # and a periodic linear curve's ends as n + 1).
+                    count = n
+                elif count is None:
+                    count = c.ComputeVaryingDataSize(Usd.TimeCode.Default())
+                c.CreateWidthsAttr([0.25 + 0.125 * k for k in range(count)])
+                c.SetWidthsInterpolation(interp)
+    stage.GetRootLayer().Save()
+
+
+def big(directory, strands=100_000, points=16):
+    """The same strands as .usdc (pinned B-spline, per-vertex widths) and as .hair (thickness array)."""
+    os.makedirs(directory, exist_ok=True)
+    pts, widths = [], []
+    for s in range(strands):
+        a, b = 2.0 * math.pi * s / 997.0, 0.5 * math.pi * (s % 991) / 991.0
+        n = (math.sin(b) * math.cos(a), math.cos(b), math.sin(b) * math.sin(a))
+        for k in range(points):
+            t = k / (points - 1)
+            pts.append((n[0] * (1 + 0.5 * t), n[1] * (1 + 0.5 * t) - 0.3 * t * t, n[2] * (1 + 0.5 * t)))
+            widths.append(0.01 * (1 - 0.5 * t))
+    stage = Usd.Stage.CreateNew(os.path.join(directory, "big.usdc"))
+    c = UsdGeom.BasisCurves.Define(stage, "/Groom")
+    c.CreateBasisAttr("bspline")
+    c.CreateWrapAttr("pinned")
+    c.CreatePointsAttr([Gf.Vec3f(*p) for p in pts])
+    c.CreateCurveVertexCountsAttr([points] * strands)
+    c.CreateWidthsAttr(widths)
+    c.SetWidthsInterpolation(UsdGeom.Tokens.vertex)
+    stage.GetRootLayer().Save()
+    with open(os.path.join(directory, "big.hair"), "wb") as f:
+        header = struct.pack("<4sIIII f f 3f", b"HAIR", strands, strands * points, 0b10110, points - 1,
+                             0.01, 0.0, 1.0, 1.0, 1.0)
+        f.write(header + b"usd-test-data big groom".ljust(88, b"\0"))
+        f.write(struct.pack("<%df" % (3 * len(pts)), *[x for p in pts for x in p]))
+        f.write(struct.pack("<%df" % len(widths), *widths))
+        f.write(struct.pack("<%df" % (3 * len(pts)), *([0.5] * (3 * len(pts)))))
+
+
+def main():
+    if len(sys.argv) == 3 and sys.argv[1] == "--big":
+        big(sys.argv[2])
+        return
+    os.makedirs(OUT, exist_ok=True)
+    groom_stage(os.path.join(OUT, "groom.usda"))
+    # The same stage in binary and as a package.
+    layer = Sdf.Layer.FindOrOpen(os.path.join(OUT, "groom.usda"))
+    layer.Export(os.path.join(OUT, "groom.usdc"))
+    UsdUtils.CreateNewUsdzPackage(os.path.join(OUT, "groom.usdc"), os.path.join(OUT, "groom.usdz"))
+    bases_stage(os.path.join(OUT, "bases.usda"))
+
+
+if __name__ == "__main__":
+    main()

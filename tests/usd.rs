@@ -1,0 +1,441 @@
+//! The USD reader against files written by Pixar's library (`scripts/usd-test-data.py`, in `tests/data/usd/`)
+//! and against stages the tests write as `.usda` text: formats agree, transforms land where hand maths says, a
+//! `.hair` model written as pinned B-splines reads back bit for bit, and bad files fail with their name.
+
+use std::path::{Path, PathBuf};
+
+use cuticle::hair::{HairModel, Strands};
+use cuticle::usd::{self, UsdLight, UsdStage};
+use glam::Vec3;
+
+fn data(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data/usd")
+        .join(name)
+}
+
+/// Radius for curves without widths.
+const R: f32 = 0.01;
+
+fn write(dir: &Path, name: &str, text: &[u8]) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+/// A stage with the file's name taken out of mesh names and warnings, to compare stages read from different files.
+fn without_file(mut s: UsdStage) -> UsdStage {
+    for m in &mut s.meshes {
+        m.name = m.name.rsplit_once(':').unwrap().1.to_owned();
+    }
+    for w in &mut s.warnings {
+        *w = w
+            .split_once(":/")
+            .map_or(w.clone(), |(_, rest)| rest.to_owned());
+    }
+    s
+}
+
+#[test]
+fn usda_usdc_and_usdz_of_one_stage_read_the_same() {
+    let a = usd::read(&data("groom.usda"), None, R).unwrap();
+    let c = usd::read(&data("groom.usdc"), None, R).unwrap();
+    let z = usd::read(&data("groom.usdz"), None, R).unwrap();
+    let (a, c, z) = (without_file(a), without_file(c), without_file(z));
+    assert_eq!(a, c);
+    assert_eq!(a.strands, z.strands);
+    assert_eq!(a.meshes, z.meshes);
+    assert_eq!(a.camera, z.camera);
+    // The dome's texture path is the package's for the .usdz; the rest of the lights agree.
+    assert_eq!(a.lights[0], z.lights[0]);
+}
+
+#[test]
+fn the_groom_has_its_strands_head_camera_and_lights_where_the_script_put_them() {
+    let s = usd::read(&data("groom.usda"), None, R).unwrap();
+    let st = s.strands.as_ref().unwrap();
+    assert_eq!(st.strand_count(), 36);
+    assert_eq!(st.segment_count(), 36 * 5, "6 pinned points: 5 segments");
+    assert_eq!(s.curve_prims, ["/World/Head/Hair/Strands"]);
+    // First strand's root: n = (sin 0.15, cos 0.15, 0), rotated 30° about y, then moved up 1.5.
+    let n = Vec3::new(0.15f32.sin(), 0.15f32.cos(), 0.0);
+    let a = 30f32.to_radians();
+    let want = Vec3::new(n.x * a.cos(), n.y + 1.5, -n.x * a.sin());
+    let root = st.eval(0, 0.0);
+    assert!((root.position - want).length() < 1e-5, "{root:?} vs {want}");
+    assert!((root.radius - 0.01).abs() < 1e-6, "width 0.02 at the root");
+    assert!((st.opacity[0] - 0.75).abs() < 1e-7);
+    assert!((st.color[1][0] - 0.31).abs() < 1e-6);
+    assert_eq!(s.meshes.len(), 1);
+    let m = &s.meshes[0];
+    assert_eq!(m.triangles.len(), 16 + 16 * 10 * 2 + 16);
+    assert!(
+        m.name.ends_with("groom.usda:/World/Head/Skin"),
+        "{}",
+        m.name
+    );
+    assert!(
+        (m.albedo - Vec3::new(0.8, 0.6, 0.5)).abs().max_element() < 1e-6,
+        "bound UsdPreviewSurface"
+    );
+    let (lo, hi) = m.bounds();
+    assert!(
+        (lo - Vec3::new(-1.0, 0.5, -1.0)).abs().max_element() < 1e-5
+            && (hi - Vec3::new(1.0, 2.5, 1.0)).abs().max_element() < 1e-5
+    );
+    let cam = s.camera.unwrap();
+    assert_eq!(cam.position, Vec3::new(0.0, 1.5, 8.0));
+    assert_eq!(cam.forward, Vec3::NEG_Z);
+    let fov = 2.0 * (12.0f64 / 35.0).atan().to_degrees();
+    assert!(
+        (f64::from(cam.vertical_fov_degrees) - fov).abs() < 1e-4,
+        "{cam:?}"
+    );
+    assert_eq!(cam.aspect, Some(1.5));
+    let h = std::f32::consts::FRAC_1_SQRT_2;
+    match &s.lights[0] {
+        UsdLight::Distant {
+            direction_to_light,
+            intensity,
+            angle_degrees,
+            color,
+            ..
+        } => {
+            assert!(
+                (*direction_to_light - Vec3::new(0.0, h, h)).length() < 1e-6,
+                "{direction_to_light}"
+            );
+            assert_eq!((*intensity, *angle_degrees), (3.0, 1.0));
+            assert!((*color - Vec3::new(1.0, 0.9, 0.8)).length() < 1e-6);
+        }
+        l => panic!("{l:?}"),
+    }
+    match &s.lights[1] {
+        UsdLight::Dome {
+            intensity,
+            exposure,
+            texture,
+            ..
+        } => {
+            assert_eq!((*intensity, *exposure), (0.5, 1.0));
+            assert!(texture.as_ref().unwrap().ends_with("sky.exr"));
+        }
+        l => panic!("{l:?}"),
+    }
+    assert!(
+        s.warnings
+            .iter()
+            .any(|w| w.contains("/World/Bulb") && w.contains("SphereLight")),
+        "{:?}",
+        s.warnings
+    );
+    assert_eq!((s.up_axis.as_str(), s.meters_per_unit), ("Y", 0.01));
+    let sum = usd::summary(&data("groom.usdc"), None).unwrap();
+    assert_eq!((sum.strands.0, sum.meshes.1, sum.lights), (36, 352, 2));
+    println!("{sum}");
+    // A root limits the traversal to its subtree.
+    let head = usd::read(&data("groom.usda"), Some("/World/Head/Hair"), R).unwrap();
+    assert_eq!(
+        head.strands, s.strands,
+        "the root's ancestors' transforms still apply"
+    );
+    assert!(head.meshes.is_empty() && head.camera.is_none());
+}
+
+#[test]
+fn every_basis_wrap_and_width_interpolation_of_the_file_converts() {
+    let s = usd::read(&data("bases.usda"), None, R).unwrap();
+    let st = s.strands.as_ref().unwrap();
+    assert_eq!(s.curve_prims.len(), 4 * 3 * 5);
+    for (i, prim) in s.curve_prims.iter().enumerate() {
+        let name = prim.rsplit('/').next().unwrap();
+        let f: Vec<&str> = name.split('_').collect();
+        let (ty, basis, wrap, interp) = (f[0], f[1], f[2], f[3]);
+        let segments = match (ty, basis, wrap) {
+            ("linear", _, "periodic") => 7,
+            ("linear", _, _) => 6,
+            (_, "bezier", "periodic") => 2,
+            (_, "bezier", _) => 2,
+            (_, _, "periodic") => 7,
+            (_, _, "pinned") => 6,
+            _ => 4,
+        };
+        let segs: Vec<usize> = (0..st.segment_count())
+            .filter(|&k| st.segment_strand[k] as usize == i)
+            .collect();
+        assert_eq!(segs.len(), segments, "{name}");
+        let start = st.eval(segs[0] as u32, 0.0);
+        // Widths 0.25, 0.375, …: the first is 0.25 wherever it is the curve's first value at u = 0.
+        let first_width_at_start = interp != "vertex"
+            || !(basis == "catmullRom" && wrap != "pinned" && ty == "cubic")
+                && !(basis == "bspline" && wrap != "pinned" && ty == "cubic");
+        // Radii the conversion clamped at 0 (and warned about) are not exact.
+        let clamped = s
+            .warnings
+            .iter()
+            .any(|w| w.contains(&format!("{prim}:")) && w.contains("clamped"));
+        if first_width_at_start && interp != "uniform" && !clamped {
+            assert!((start.radius - 0.125).abs() < 1e-6, "{name}: {start:?}");
+        }
+        // Curves that pass through their first point: Bézier, linear, pinned.
+        if basis == "bezier" || ty == "linear" || wrap == "pinned" {
+            assert!(
+                (start.position - Vec3::new(0.0, 0.0, 1.0)).length() < 1e-6,
+                "{name}: {start:?}"
+            );
+        }
+    }
+}
+
+/// The first `n` strands of a model.
+fn first_strands(m: &HairModel, n: usize) -> HairModel {
+    let n = n.min(m.strand_count());
+    let end = m.strand_offsets[n] as usize;
+    HairModel {
+        points: m.points[..end].to_vec(),
+        strand_offsets: m.strand_offsets[..=n].to_vec(),
+        radius: m.radius[..end].to_vec(),
+        radius_from_file: m.radius_from_file,
+        transparency: m.transparency[..end].to_vec(),
+        color: m.color[..end].to_vec(),
+        format: m.format.clone(),
+        info: String::new(),
+    }
+}
+
+/// A model as a pinned B-spline `BasisCurves` prim in `.usda` text (shortest round-trip floats).
+fn as_usda(m: &HairModel) -> String {
+    let list = |v: Vec<String>| v.join(", ");
+    let p3 = |p: [f32; 3]| format!("({:?}, {:?}, {:?})", p[0], p[1], p[2]);
+    let counts: Vec<String> = (0..m.strand_count())
+        .map(|s| m.strand_range(s).len().to_string())
+        .collect();
+    let points: Vec<String> = m.points.iter().map(|p| p3(p.to_array())).collect();
+    let color: Vec<String> = m.color.iter().map(|c| p3(*c)).collect();
+    let opacity: Vec<String> = m
+        .transparency
+        .iter()
+        .map(|t| format!("{:?}", 1.0 - t))
+        .collect();
+    let widths = if m.radius_from_file {
+        let w: Vec<String> = m.radius.iter().map(|r| format!("{:?}", 2.0 * r)).collect();
+        format!(
+            "float[] widths = [{}] (interpolation = \"vertex\")\n",
+            list(w)
+        )
+    } else {
+        String::new()
+    };
+    format!(
+        "#usda 1.0\ndef BasisCurves \"Hair\"\n{{\nuniform token type = \"cubic\"\nuniform token basis = \"bspline\"\n\
+         uniform token wrap = \"pinned\"\nint[] curveVertexCounts = [{}]\npoint3f[] points = [{}]\n{widths}\
+         color3f[] primvars:displayColor = [{}] (interpolation = \"vertex\")\n\
+         float[] primvars:displayOpacity = [{}] (interpolation = \"vertex\")\n}}\n",
+        list(counts),
+        list(points),
+        list(color),
+        list(opacity)
+    )
+}
+
+#[test]
+fn a_hair_model_written_as_pinned_bsplines_reads_back_bit_for_bit() {
+    let straight = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/hair/straight.hair");
+    assert!(
+        straight.exists(),
+        "{} is missing (CI has ../shared/data)",
+        straight.display()
+    );
+    let model = first_strands(&cuticle::hair::load(&straight).unwrap(), 200);
+    let dir = tempfile::tempdir().unwrap();
+    let mut thin = model.clone();
+    // Without widths: the default radius at every point, tapered like a `.hair` file without thickness.
+    thin.radius_from_file = false;
+    thin.radius.iter_mut().for_each(|r| *r = R);
+    // With widths: per-point thickness, used as it is.
+    let mut thick = model.clone();
+    thick.radius_from_file = true;
+    thick
+        .radius
+        .iter_mut()
+        .enumerate()
+        .for_each(|(i, r)| *r = 0.01 + 1e-5 * (i % 7) as f32);
+    for m in [&thin, &thick] {
+        let p = write(dir.path(), "hair.usda", as_usda(m).as_bytes());
+        let s = usd::read(&p, None, R).unwrap();
+        let want = Strands::from_model(m);
+        let got = s.strands.unwrap();
+        assert_eq!(got.control_points.len(), want.control_points.len());
+        let bits = |v: &[[f32; 4]]| {
+            v.iter()
+                .flat_map(|c| c.map(f32::to_bits))
+                .collect::<Vec<_>>()
+        };
+        assert!(
+            bits(&got.control_points) == bits(&want.control_points),
+            "control points differ (radius from file: {})",
+            m.radius_from_file
+        );
+        assert_eq!(got.segment_first, want.segment_first);
+        assert_eq!(got.strand_offsets, want.strand_offsets);
+        assert_eq!(got.color, want.color);
+        assert!(got
+            .opacity
+            .iter()
+            .zip(&want.opacity)
+            .all(|(a, b)| a.to_bits() == b.to_bits()));
+    }
+}
+
+#[test]
+fn nested_transforms_move_points_where_hand_maths_says() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = r#"#usda 1.0
+(
+    upAxis = "Z"
+    metersPerUnit = 1
+)
+def Xform "A" {
+    double3 xformOp:translate = (1, 2, 3)
+    float3 xformOp:scale = (2, 2, 2)
+    uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:scale"]
+    def Xform "B" {
+        float xformOp:rotateZ = 90
+        uniform token[] xformOpOrder = ["xformOp:rotateZ"]
+        def BasisCurves "C" {
+            uniform token type = "linear"
+            int[] curveVertexCounts = [2]
+            point3f[] points = [(1, 0, 0), (1, 0, 1)]
+            float[] widths = [0.5] (interpolation = "constant")
+        }
+        def Camera "Cam" {
+            float focalLength = 50
+            float verticalAperture = 20
+        }
+    }
+    def Xform "Reset" {
+        uniform token[] xformOpOrder = ["!resetXformStack!", "xformOp:translate"]
+        double3 xformOp:translate = (0, 0, 5)
+        def Mesh "M" {
+            point3f[] points = [(0, 0, 0), (1, 0, 0), (0, 1, 0)]
+            int[] faceVertexCounts = [3]
+            int[] faceVertexIndices = [0, 1, 2]
+            uniform token orientation = "leftHanded"
+            color3f[] primvars:displayColor = [(2, 0.5, -1)]
+        }
+    }
+}
+"#;
+    let p = write(dir.path(), "xf.usda", text.as_bytes());
+    let s = usd::read(&p, None, R).unwrap();
+    assert_eq!((s.up_axis.as_str(), s.meters_per_unit), ("Z", 1.0));
+    let st = s.strands.unwrap();
+    // (1, 0, 0) → rotateZ 90 → (0, 1, 0) → scale 2 → (0, 2, 0) → +(1, 2, 3) → (1, 4, 3).
+    let a = st.eval(0, 0.0);
+    let b = st.eval(0, 1.0);
+    assert!(
+        (a.position - Vec3::new(1.0, 4.0, 3.0)).length() < 1e-6,
+        "{a:?}"
+    );
+    assert!(
+        (b.position - Vec3::new(1.0, 4.0, 5.0)).length() < 1e-6,
+        "{b:?}"
+    );
+    assert!(
+        (a.radius - 0.5).abs() < 1e-6,
+        "width 0.5 → radius 0.25, scaled by 2"
+    );
+    let cam = s.camera.unwrap();
+    assert!((cam.position - Vec3::new(1.0, 2.0, 3.0)).length() < 1e-6);
+    assert!((cam.forward - Vec3::NEG_Z).length() < 1e-6);
+    assert!(
+        (cam.up - Vec3::NEG_X).length() < 1e-6,
+        "+y turned 90° about z: {cam:?}"
+    );
+    let fov = 2.0 * (10.0f32 / 50.0).atan().to_degrees();
+    assert!((cam.vertical_fov_degrees - fov).abs() < 1e-4);
+    let m = &s.meshes[0];
+    assert_eq!(
+        m.positions[1],
+        Vec3::new(1.0, 0.0, 5.0),
+        "the reset drops A's transform"
+    );
+    assert_eq!(m.triangles, [[0, 2, 1]], "leftHanded reverses the winding");
+    assert_eq!(m.albedo, Vec3::new(1.0, 0.5, 0.0));
+    assert!(
+        s.warnings.iter().any(|w| w.contains("clamped")),
+        "{:?}",
+        s.warnings
+    );
+}
+
+/// The error of reading `text` as `name`, which must name the file (and the prim when given).
+fn fails(name: &str, text: &[u8], prim: Option<&str>, says: &str) {
+    let dir = tempfile::tempdir().unwrap();
+    let p = write(dir.path(), name, text);
+    let e = usd::read(&p, None, R).expect_err(name).to_string();
+    assert!(e.starts_with(&p.display().to_string()), "{e}");
+    if let Some(prim) = prim {
+        assert!(e.contains(prim), "{e}");
+    }
+    assert!(e.contains(says), "{name}: {e}");
+}
+
+fn curves(counts: &str, points: &str) -> String {
+    format!("#usda 1.0\ndef BasisCurves \"C\" {{\nuniform token basis = \"bspline\"\nint[] curveVertexCounts = [{counts}]\npoint3f[] points = [{points}]\n}}\n")
+}
+
+#[test]
+fn bad_files_fail_with_their_name_and_prim() {
+    let usdc = std::fs::read(data("groom.usdc")).unwrap();
+    for cut in [usdc.len() / 2, usdc.len() - 100, 100, 10] {
+        fails("cut.usdc", &usdc[..cut], None, "");
+    }
+    let garbage: Vec<u8> = (0..4096u32)
+        .map(|i| (i.wrapping_mul(2_654_435_761) >> 13) as u8)
+        .collect();
+    for name in ["g.usda", "g.usdc", "g.usdz"] {
+        fails(name, &garbage, None, "");
+    }
+    let mut bad_magic = usdc.clone();
+    bad_magic[100..200].fill(0xff);
+    fails("scribbled.usdc", &bad_magic, None, "");
+    let p = "(0,0,0), (0,1,0), (0,2,0), (0,3,0)";
+    fails(
+        "sum.usda",
+        curves("4, 4", p).as_bytes(),
+        Some("/C"),
+        "add up to 8 vertices but there are 4 points",
+    );
+    fails("huge.usda", curves("4000000000", p).as_bytes(), None, "");
+    fails(
+        "negative.usda",
+        curves("-4, 8", p).as_bytes(),
+        Some("/C"),
+        "is -4",
+    );
+    fails(
+        "short.usda",
+        curves("2, 2", p).as_bytes(),
+        Some("/C"),
+        "curve 0 has 2 vertices",
+    );
+    let mesh = "#usda 1.0\ndef Mesh \"M\" {\npoint3f[] points = [(0,0,0), (1,0,0), (0,1,0)]\nint[] faceVertexCounts = [3]\nint[] faceVertexIndices = [0, 1, 7]\n}\n";
+    fails(
+        "index.usda",
+        mesh.as_bytes(),
+        Some("/M"),
+        "faceVertexIndices[2] is 7",
+    );
+    let widths = "#usda 1.0\ndef BasisCurves \"C\" {\nuniform token basis = \"bspline\"\nint[] curveVertexCounts = [4]\npoint3f[] points = [(0,0,0), (0,1,0), (0,2,0), (0,3,0)]\nfloat[] widths = [1, 2]\n}\n";
+    fails(
+        "widths.usda",
+        widths.as_bytes(),
+        Some("/C"),
+        "widths has 2 values; vertex interpolation needs 4",
+    );
+    let e = usd::read(Path::new("/nonexistent/groom.usda"), None, R)
+        .unwrap_err()
+        .to_string();
+    assert!(e.starts_with("/nonexistent/groom.usda"), "{e}");
+}
