@@ -26,8 +26,10 @@ use crate::sys::embree::{
     BuildQuality, CommittedScene, Device, EmbreeError, Scene, TriangleGeometry,
 };
 
-/// The BVH's build options for triangles: leaves of up to 4 triangles (a triangle test costs about as much as a
-/// box test, so SAH leaves of a few pay), aligned splits. `bounding` does not apply to boxes.
+/// The BVH's build options for triangles: SAH leaves of up to 4 triangles, aligned splits (`bounding` does not apply
+/// to boxes). Measured on a 100 352-triangle sphere, 10⁶ random rays, 1 thread: one triangle per leaf (11.2 MB
+/// against 8.1 MB) traced 0.84× as fast on rays mostly missing and 0.56× on rays all hitting; up to 8 built nearly
+/// the same tree (the SAH stops at ≤ 4) and traced the same within noise.
 const TRIANGLE_BUILD: BuildOptions = BuildOptions {
     bounding: Bounding::Hull,
     max_leaf: 4,
