@@ -6,6 +6,11 @@
 
 Deterministic: every value comes from closed forms (no random numbers, no timestamps), so running it again
 rewrites the same files.
+
+The groom's dome light names `sky.exr` beside it: a 32x16 vertical gradient written by OpenImageIO,
+
+    oiiotool --pattern fill:top=0.45,0.55,0.75:bottom=0.15,0.12,0.1 32x16 3 -d half --compression zip \
+        -o tests/data/usd/sky.exr
 """
 
 import math

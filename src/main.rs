@@ -25,7 +25,7 @@ enum Command {
     Merge(cli::render::MergeArgs),
     /// Describe a hair file: strands, points, bounds, thickness statistics, format.
     Info {
-        /// A `.hair` or `.tfx` file.
+        /// A `.hair`, `.tfx` or USD (`.usda`, `.usdc`, `.usdz`, `.usd`) file.
         file: PathBuf,
     },
     /// Plot a fibre model's lobes (like the thesis' figure 4) and its sampled-vs-analytic pdf histograms.

@@ -1,6 +1,6 @@
 //! Triangle meshes: the surfaces hair grows from (a scalp, a head) and anything else a groom file brings beside its
 //! curves. Plain data, as a reader produces it: world-space positions, triangles as index triples, and a Lambert
-//! albedo, constant or per triangle corner. The tracers (`accel::mesh`) and the shading
+//! albedo, constant or per triangle corner. The tracers ([`crate::accel::mesh`]) and the shading
 //! ([`crate::shape`]) read it; nothing here knows a file format.
 
 use glam::{Mat4, Vec3};

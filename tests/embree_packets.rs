@@ -55,7 +55,7 @@ fn random_query(rng: &mut SplitMix64) -> (Ray, Option<u32>, u64) {
     let from = (Vec3::new(u(), u(), u()) * 2.0 - Vec3::ONE).normalize_or(Vec3::X) * 3.0;
     let to = Vec3::new(u(), u(), u()) * 1.6 - Vec3::splat(0.8);
     let key = rng.next_u64();
-    let ignore = (key % 4 == 0).then_some((key >> 8) as u32 % 300);
+    let ignore = key.is_multiple_of(4).then_some((key >> 8) as u32 % 300);
     (Ray::new(from, to - from), ignore, key)
 }
 

@@ -113,3 +113,22 @@ fn corpora_stay_small() {
         .sum();
     assert!(total <= 2 << 20, "corpora total {total} bytes, over 2 MiB");
 }
+
+#[test]
+fn usd_corpus_replays_and_real_seeds_parse() {
+    let ok = replay("usd", cuticle::scene::fuzz::usd);
+    for seed in [
+        "a-groom.usda",
+        "a-bases.usda",
+        "c-groom.usdc",
+        "z-groom.usdz",
+    ] {
+        assert!(
+            ok.iter().any(|n| n == seed),
+            "{seed} rejected; accepted: {ok:?}"
+        );
+    }
+    for hostile in ["c-truncated.usdc", "a-huge-count.usda"] {
+        assert!(!ok.iter().any(|n| n == hostile), "{hostile} accepted");
+    }
+}

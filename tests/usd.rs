@@ -167,8 +167,9 @@ fn every_basis_wrap_and_width_interpolation_of_the_file_converts() {
         let start = st.eval(segs[0] as u32, 0.0);
         // Widths 0.25, 0.375, …: the first is 0.25 wherever it is the curve's first value at u = 0.
         let first_width_at_start = interp != "vertex"
-            || !(basis == "catmullRom" && wrap != "pinned" && ty == "cubic")
-                && !(basis == "bspline" && wrap != "pinned" && ty == "cubic");
+            || !((basis == "catmullRom" || basis == "bspline")
+                && wrap != "pinned"
+                && ty == "cubic");
         // Radii the conversion clamped at 0 (and warned about) are not exact.
         let clamped = s
             .warnings

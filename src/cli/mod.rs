@@ -38,9 +38,11 @@ pub fn scene_name<T: DeserializeOwned>(s: &str) -> Result<T, String> {
         .map_err(|e| e.to_string())
 }
 
-/// The scene file at `path`, or the built-in default scene (a procedural fur ball) without one.
+/// The scene file at `path` (a USD stage becomes a scene with defaults: [`Scene::from_usd`]), or the built-in
+/// default scene (a procedural fur ball) without one.
 pub fn load_scene(path: Option<&Path>) -> Result<Scene> {
     Ok(match path {
+        Some(p) if cuticle::scene::is_usd(p) => Scene::from_usd(p)?,
         Some(p) => Scene::load(p)?,
         None => Scene::default_scene(),
     })

@@ -18,7 +18,8 @@ use super::{load_scene, parse_resolution, scene_name};
 
 #[derive(clap::Args)]
 pub struct RenderArgs {
-    /// Scene file (TOML). Without it, the built-in default scene (a procedural fur ball).
+    /// Scene file (TOML), or a USD stage (`.usda`, `.usdc`, `.usdz`, `.usd`) rendered with defaults: its curves,
+    /// meshes, camera and lights. Without it, the built-in default scene (a procedural fur ball).
     scene: Option<PathBuf>,
     /// Output image: `.exr` (beauty + AOVs, plus a `.png` preview beside it) or `.png` (preview only).
     #[arg(short, long, default_value = "cuticle.exr")]

@@ -92,6 +92,10 @@ enum MaterialName {
 }
 
 pub fn info_command(file: &Path) -> Result<()> {
+    if cuticle::scene::is_usd(file) {
+        println!("{}", cuticle::usd::summary(file, None)?);
+        return Ok(());
+    }
     // The header says how much the model needs: checked against the memory limit before reading it (a large
     // sparse file whose header matches its apparent size aborted in the allocator).
     let counts = hair::declared_counts(file)?;

@@ -3,6 +3,8 @@
 
 use std::path::PathBuf;
 
+use glam::Vec3;
+
 use super::procedural::Procedural;
 use super::{HairError, HairModel, Strands};
 
@@ -11,6 +13,14 @@ use super::{HairError, HairModel, Strands};
 pub enum HairSource {
     /// A `.hair` or `.tfx` file (a path already resolved against the scene's directory).
     File(PathBuf),
+    /// The `BasisCurves` of a USD stage (`.usda`, `.usdc`, `.usdz`, `.usd`), from the prim `prim` down (the whole
+    /// stage when `None`), converted exactly to B-spline strands by [`crate::usd`].
+    Usd {
+        /// The stage's root layer (resolved against the scene's directory).
+        path: PathBuf,
+        /// The prim whose subtree is read.
+        prim: Option<String>,
+    },
     /// A generated model.
     Procedural(Procedural),
 }
@@ -19,17 +29,89 @@ impl HairSource {
     /// The file, or `procedural:<kind>`: how errors name this source.
     pub fn name(&self) -> PathBuf {
         match self {
-            HairSource::File(path) => path.clone(),
+            HairSource::File(path) | HairSource::Usd { path, .. } => path.clone(),
             HairSource::Procedural(p) => p.source(),
         }
     }
 
-    /// Reads or generates the model.
+    /// Reads or generates the model (polylines; a USD stage's curves are not polylines: see
+    /// [`HairSource::strands`]).
     pub fn model(&self) -> Result<HairModel, HairError> {
         match self {
             HairSource::File(path) => super::load(path),
             HairSource::Procedural(p) => p.generate(),
+            HairSource::Usd { path, .. } => Err(HairError::invalid(
+                path,
+                "a USD stage's curves are read as strands, not as polylines",
+            )),
         }
+    }
+
+    /// The strands, and how many strands of zero length were left out: a polyline model converted
+    /// ([`Strands::from_model`]), or a USD stage's curves as its reader converts them. Every point, inflated by its
+    /// radius × `radius_scale`, is checked to lie within reach of single-precision rays ([`super::check_extent`]:
+    /// the model's points, or a stage's control points).
+    pub fn strands(&self, radius_scale: f32) -> Result<(Strands, usize), HairError> {
+        let scaled = || format!(" with hair.radius_scale = {radius_scale:e}");
+        if let HairSource::Usd { path, prim } = self {
+            let stage = crate::usd::read(path, prim.as_deref(), USD_DEFAULT_RADIUS)
+                .map_err(|e| HairError::invalid(path, usd_message(&e)))?;
+            return match stage.strands {
+                Some(s) if s.strand_count() > 0 => {
+                    if radius_scale != 1.0 {
+                        let points: Vec<Vec3> = s
+                            .control_points
+                            .iter()
+                            .map(|c| Vec3::new(c[0], c[1], c[2]))
+                            .collect();
+                        let radius: Vec<f32> = s.control_points.iter().map(|c| c[3]).collect();
+                        super::check_extent(path, &points, &radius, radius_scale, &scaled())?;
+                    }
+                    Ok((s, 0))
+                }
+                _ => Err(HairError::invalid(
+                    path,
+                    format!(
+                        "no BasisCurves under {}",
+                        prim.as_deref().unwrap_or("the stage's root")
+                    ),
+                )),
+            };
+        }
+        let mut model = self.model()?;
+        let zero_length = model.drop_zero_length();
+        if model.strand_count() == 0 {
+            return Err(HairError::invalid(
+                &self.name(),
+                format!(
+                    "all {zero_length} strands have zero length (every point of each at one place)"
+                ),
+            ));
+        }
+        if radius_scale != 1.0 {
+            super::check_extent(
+                &self.name(),
+                &model.points,
+                &model.radius,
+                radius_scale,
+                &scaled(),
+            )?;
+        }
+        Ok((Strands::from_model(&model), zero_length))
+    }
+}
+
+/// Radius of a USD curve without `widths`, in the stage's units: 0.005 (a width of 0.01: 100 µm in a stage in
+/// centimetres, the unit DCCs write grooms in). USD leaves the default to the renderer; `hair.radius_scale`
+/// scales it like any other radius.
+pub const USD_DEFAULT_RADIUS: f32 = 0.005;
+
+/// A USD reader's error as a hair error's message: the reader's message names the file (and prim) itself, so
+/// the prim and message are kept without the file repeated.
+fn usd_message(e: &crate::usd::UsdError) -> String {
+    match &e.prim {
+        Some(prim) => format!("{prim}: {}", e.message),
+        None => e.message.clone(),
     }
 }
 
@@ -53,26 +135,7 @@ impl HairSpec {
     /// [`HairSpec::load`], leaving out the strands of zero length ([`HairModel::drop_zero_length`]), and how many
     /// there were. A model of nothing else is an error.
     pub fn load_counting(&self) -> Result<(Strands, usize), HairError> {
-        let mut model = self.source.model()?;
-        let zero_length = model.drop_zero_length();
-        if model.strand_count() == 0 {
-            return Err(HairError::invalid(
-                &self.source.name(),
-                format!(
-                    "all {zero_length} strands have zero length (every point of each at one place)"
-                ),
-            ));
-        }
-        if self.radius_scale != 1.0 {
-            super::check_extent(
-                &self.source.name(),
-                &model.points,
-                &model.radius,
-                self.radius_scale,
-                &format!(" with hair.radius_scale = {:e}", self.radius_scale),
-            )?;
-        }
-        let mut strands = Strands::from_model(&model);
+        let (mut strands, zero_length) = self.source.strands(self.radius_scale)?;
         if self.radius_scale != 1.0 {
             strands
                 .control_points

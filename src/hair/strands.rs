@@ -172,6 +172,16 @@ impl Strands {
         self.color.extend_from_slice(&other.color);
     }
 
+    /// The segments of strand `s`: segments are stored strand after strand, so they are the run of
+    /// `segment_strand` equal to `s`. A strand's segments may share control points (a file's polyline) or have
+    /// four of their own ([`Strands::push_strand`]); walk them through `segment_first`, never through
+    /// `strand_offsets`.
+    pub fn segments_of(&self, s: usize) -> std::ops::Range<usize> {
+        let lo = self.segment_strand.partition_point(|&t| (t as usize) < s);
+        let hi = lo + self.segment_strand[lo..].partition_point(|&t| t as usize == s);
+        lo..hi
+    }
+
     /// Number of strands.
     pub fn strand_count(&self) -> usize {
         self.strand_offsets.len().saturating_sub(1)

@@ -65,7 +65,27 @@ pub fn hair_counts(source: &HairSource) -> Result<(u64, u64), HairError> {
     match source {
         HairSource::File(path) => crate::hair::declared_counts(path),
         HairSource::Procedural(p) => Ok(p.counts()),
+        HairSource::Usd { path, .. } => usd_counts(path),
     }
+}
+
+/// Bytes of a USD file per point [`usd_counts`] assumes: a point is 12 bytes of floats in `.usdc` (LZ4 gains little
+/// on them), 4 more with its width; 15 or more characters in `.usda`. Points per strand: 16, the real grooms'
+/// typical count (furball.hair 16, straight.hair 25).
+const USD_BYTES_PER_POINT: u64 = 16;
+
+/// The strands and points a USD file holds, estimated from its size before it is read ([`USD_BYTES_PER_POINT`]):
+/// the stage is read once, by the frame's load, and a stage's curves are not counted without reading it. An
+/// estimate, not a bound: a stage of mostly meshes is over-counted, a compressed one under-counted.
+fn usd_counts(path: &std::path::Path) -> Result<(u64, u64), HairError> {
+    let len = std::fs::metadata(path)
+        .map_err(|source| HairError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?
+        .len();
+    let points = (len / USD_BYTES_PER_POINT).max(4);
+    Ok(((points / 16).max(1), points))
 }
 
 /// What a frame needs at its peak, bytes, by part.
@@ -75,6 +95,8 @@ pub struct MemoryEstimate {
     pub strands: u64,
     /// The acceleration structure, at its build peak.
     pub accel: u64,
+    /// Triangle meshes (read when the scene was resolved) and their tracer ([`mesh_bytes`]).
+    pub meshes: u64,
     /// The film (all channels) and its copies.
     pub film: u64,
     /// Deep opacity maps (0 unless the shadow mode uses them).
@@ -119,6 +141,7 @@ impl MemoryEstimate {
         [
             self.strands,
             self.accel,
+            self.meshes,
             self.film,
             self.shadow_maps,
             self.adaptive,
@@ -134,6 +157,7 @@ impl MemoryEstimate {
         let mut parts = [
             ("strands", self.strands),
             ("acceleration structure", self.accel),
+            ("meshes", self.meshes),
             ("film and AOVs", self.film),
             ("deep opacity maps", self.shadow_maps),
             ("adaptive sampling", self.adaptive),
@@ -195,6 +219,7 @@ pub fn estimate(
             .saturating_mul(STRAND_BYTES_PER_POINT)
             .saturating_add(strands.saturating_mul(STRAND_BYTES_PER_STRAND)),
         accel: accel_bytes(segments, backend, curves),
+        meshes: 0,
         film,
         shadow_maps,
         adaptive: if adaptive || settings.adaptive.is_some() {
@@ -248,15 +273,37 @@ pub fn estimate_frame(
     adaptive: bool,
 ) -> Result<MemoryEstimate, HairError> {
     let counts = hair_counts(&spec.hair.source)?;
-    Ok(estimate(
-        counts,
-        spec.backend,
-        spec.curves,
-        &spec.settings,
-        map_count(&spec.lights, &spec.settings),
-        threads,
-        adaptive,
-    ))
+    Ok(MemoryEstimate {
+        meshes: mesh_bytes(&spec.shapes),
+        ..estimate(
+            counts,
+            spec.backend,
+            spec.curves,
+            &spec.settings,
+            map_count(&spec.lights, &spec.settings),
+            threads,
+            adaptive,
+        )
+    })
+}
+
+/// Bytes per triangle of a mesh tracer at its build peak. Measured after the build on a 100 352-triangle sphere
+/// (`MeshTracer::memory_bytes`): Embree 89, the Rust BVH 81 (leaves of 4); doubled for the build's scratch,
+/// which is not measured on its own.
+pub const MESH_ACCEL_BYTES_PER_TRIANGLE: u64 = 180;
+
+/// Bytes of `shapes`' meshes (their data, already in memory) and of the tracer built over them
+/// ([`MESH_ACCEL_BYTES_PER_TRIANGLE`]).
+pub fn mesh_bytes(shapes: &crate::shape::Shapes) -> u64 {
+    shapes
+        .meshes()
+        .iter()
+        .map(|m| {
+            (m.bytes() as u64).saturating_add(
+                (m.triangles.len() as u64).saturating_mul(MESH_ACCEL_BYTES_PER_TRIANGLE),
+            )
+        })
+        .fold(0, u64::saturating_add)
 }
 
 /// How many deep opacity maps of `shadows.deep_opacity.resolution` `lights` get under `settings`, in texels: one
@@ -289,6 +336,7 @@ pub fn estimate_model((strands, points): (u64, u64)) -> MemoryEstimate {
             .saturating_mul(STRAND_BYTES_PER_POINT)
             .saturating_add(strands.saturating_mul(STRAND_BYTES_PER_STRAND)),
         accel: 0,
+        meshes: 0,
         film: 0,
         shadow_maps: 0,
         adaptive: 0,

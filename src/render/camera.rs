@@ -30,6 +30,10 @@ pub struct CameraConfig {
     /// Turntable: degrees the eye turns about the `up` axis through the look-at point per animation frame
     /// (`render --frames`), counter-clockwise seen from above; frame 0 is the camera as placed. 0: no orbit.
     pub orbit_degrees_per_frame: f32,
+    /// A USD stage whose first `Camera` prim places the camera (position, view, up, fov), relative to the scene
+    /// file; read when the scene is resolved ([`crate::scene::Scene::resolve`]). Excludes `position`, `look_at`
+    /// and `fov`.
+    pub usd: Option<std::path::PathBuf>,
     /// The animation frame the camera is placed for (set by `render --frames`; not a scene key).
     #[serde(skip)]
     pub frame: i32,
@@ -45,6 +49,7 @@ impl Default for CameraConfig {
             view: [0.0, 0.0, -1.0],
             margin: 1.05,
             orbit_degrees_per_frame: 0.0,
+            usd: None,
             frame: 0,
         }
     }
@@ -61,6 +66,11 @@ impl CameraConfig {
         }
         if !(self.margin.is_finite() && self.margin > 0.0) {
             return Err(format!("camera.margin must be > 0, got {}", self.margin));
+        }
+        if self.usd.is_some() && (self.position.is_some() || self.look_at.is_some()) {
+            return Err(
+                "camera.usd places the camera: leave camera.position and camera.look_at out".into(),
+            );
         }
         if !self.orbit_degrees_per_frame.is_finite() {
             return Err(format!(

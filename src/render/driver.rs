@@ -143,7 +143,8 @@ fn progress_bar(show: bool, tiles: u64) -> indicatif::ProgressBar {
     bar
 }
 
-/// The centre-ray channels of pixel (x, y): depth, tangent and strand id of one unfiltered camera ray.
+/// The centre-ray channels of pixel (x, y): depth, tangent and strand id of one unfiltered camera ray (depth of
+/// the nearest surface, hair or shape; tangent and id of the hair it sees, none behind a shape).
 fn write_centre(
     frame: &Frame,
     camera: &Camera,
@@ -155,8 +156,13 @@ fn write_centre(
     let centre = camera.ray(x as f32 + 0.5, y as f32 + 0.5);
     counts.camera += 1;
     let hit = frame.tracer.intersect(&centre).unwrap_or(None);
-    let (depth, tangent, id) = match hit {
-        Some(h) => (
+    // A shape in front of the hair (a head, a wall) hides it: its depth, no tangent and no strand.
+    let shape = frame
+        .shapes
+        .intersect(&centre, hit.map_or(centre.tfar, |h| h.t));
+    let (depth, tangent, id) = match (shape, hit) {
+        (Some(s), _) => (s.t * centre.dir.dot(camera.forward), Vec3::ZERO, -1.0),
+        (None, Some(h)) => (
             h.t * centre.dir.dot(camera.forward),
             frame
                 .strands
@@ -165,7 +171,7 @@ fn write_centre(
                 .normalize_or_zero(),
             h.strand as f32,
         ),
-        None => (f32::INFINITY, Vec3::ZERO, -1.0),
+        (None, None) => (f32::INFINITY, Vec3::ZERO, -1.0),
     };
     film::write_centre(depth, tangent, id, pixel);
 }

@@ -25,7 +25,8 @@ use super::settings::FilmConfig;
 ///   through (1 where nothing was lit or nothing was hit).
 /// - `albedo`: a one-sample estimate of the first shading point's directional albedo (f cos θ / pdf).
 /// - `depth.Z`, `tangent`, `strand.id`: from one unfiltered ray through the pixel centre (a depth or id averaged
-///   across an edge would name no real surface); depth is +∞, tangent 0 and id −1 where it misses.
+///   across an edge would name no real surface); depth is +∞, tangent 0 and id −1 where it misses, tangent 0 and
+///   id −1 where it sees a shape.
 /// - `spp`: the camera samples the pixel took (the film's spp, or what adaptive sampling chose for it).
 pub const CHANNELS: [&str; 38] = [
     "R",

@@ -54,6 +54,9 @@ pub enum FrameError {
     /// The frame's memory estimate exceeds the limit (nothing was allocated).
     #[error(transparent)]
     Budget(#[from] super::budget::BudgetError),
+    /// The meshes' tracer could not be built.
+    #[error(transparent)]
+    Meshes(#[from] crate::accel::mesh::MeshTracerError),
 }
 
 /// The tracer of `backend` over `strands` as `curves`.
@@ -147,8 +150,9 @@ impl Frame {
     }
 
     /// Builds the frame around strands already in memory (`spec.hair` is not read).
-    pub fn build(strands: Strands, spec: FrameSpec) -> Result<Frame, FrameError> {
+    pub fn build(strands: Strands, mut spec: FrameSpec) -> Result<Frame, FrameError> {
         let tracer = tracer_of(&strands, spec.backend, spec.curves)?;
+        spec.shapes.trace(spec.backend)?;
         let hair_bounds = strands.bounds();
         Ok(Frame {
             strands: Arc::new(strands),
@@ -195,16 +199,8 @@ impl Frame {
     /// Radius of a sphere around the hair and the shapes (sizes infinite lights' power and ray offsets).
     pub fn radius(&self) -> f32 {
         let (mut lo, mut hi) = self.hair_bounds;
-        for q in self.shapes.quads() {
-            for p in [
-                q.corner,
-                q.corner + q.edge_u,
-                q.corner + q.edge_v,
-                q.corner + q.edge_u + q.edge_v,
-            ] {
-                lo = lo.min(p);
-                hi = hi.max(p);
-            }
+        if let Some((a, b)) = self.shapes.bounds() {
+            (lo, hi) = (lo.min(a), hi.max(b));
         }
         let r = 0.5 * (hi - lo).length();
         if r.is_finite() && r > 0.0 {

@@ -1,6 +1,7 @@
 //! Entry points of the fuzz targets (`fuzz/`, cargo-fuzz) and of the corpus replay test (`tests/fuzz_corpus.rs`):
 //! each takes arbitrary bytes, runs a reader or the scene parser and validation on them in memory (no files; the
-//! tile reader of `merge` goes through OpenImageIO, which reads files, so its bytes go to temporary ones), and
+//! tile reader of `merge` goes through OpenImageIO and the USD reader through openusd, which read files, so their
+//! bytes go to temporary ones), and
 //! returns whether they were accepted. Any input may be rejected; none may panic, hang, or allocate much more
 //! than its own size (or, for `merge`, than [`MERGE_MAX_BYTES`]).
 
@@ -30,6 +31,25 @@ pub fn scene(data: &[u8]) -> bool {
     Scene::parse_bytes(data, Path::new("fuzz.toml"), Path::new("."))
         .map(|s| s.render_settings())
         .is_ok()
+}
+
+/// The USD reader ([`crate::usd::read`]) on `data` as a file: its first byte picks the format the rest is named as
+/// (`.usda`, `.usdc` or `.usdz`, by the byte modulo 3), since openusd reads files by name. An accepted stage's
+/// strands and meshes are what a render would trace.
+pub fn usd(data: &[u8]) -> bool {
+    let Some((&kind, bytes)) = data.split_first() else {
+        return false;
+    };
+    let Ok(dir) = tempfile::tempdir() else {
+        return false;
+    };
+    let path = dir
+        .path()
+        .join(["fuzz.usda", "fuzz.usdc", "fuzz.usdz"][usize::from(kind % 3)]);
+    if std::fs::write(&path, bytes).is_err() {
+        return false;
+    }
+    crate::usd::read(&path, None, crate::hair::source::USD_DEFAULT_RADIUS).is_ok()
 }
 
 /// What separates the tiles of one `merge` input: the bytes between are one tile file each (at most

@@ -202,6 +202,17 @@ pub enum ShapeConfig {
         #[serde(default)]
         open: Vec<String>,
     },
+    /// The `Mesh` prims of a USD stage (a head under a groom), triangulated, in world space.
+    Usd {
+        /// The stage, relative to the scene file.
+        file: std::path::PathBuf,
+        /// The prim whose subtree's meshes are read (default: every mesh of the stage).
+        prim: Option<String>,
+        /// Lambert albedo in [0, 1] replacing the file's colours (`displayColor`, a `UsdPreviewSurface`'s
+        /// `diffuseColor`; 0.5 grey where it gives none).
+        #[serde(default, deserialize_with = "crate::util::exact_array::option_array")]
+        albedo: Option<[f32; 3]>,
+    },
 }
 
 fn grey() -> [f32; 3] {
@@ -430,6 +441,27 @@ pub(super) fn validate(scene: &Scene) -> Result<(), String> {
                 check_coords(&format!("shape[{i}].min"), min)?;
                 check_coords(&format!("shape[{i}].max"), max)?;
             }
+            ShapeConfig::Usd {
+                file, prim, albedo, ..
+            } => {
+                if !super::is_usd(file) {
+                    return Err(format!(
+                        "shape[{i}].file {} is not a USD file (.usda, .usdc, .usdz or .usd)",
+                        file.display()
+                    ));
+                }
+                if let Some(prim) = prim {
+                    super::check_prim_path(&format!("shape[{i}].prim"), prim)?;
+                }
+                if let Some(a) = albedo {
+                    if a.iter().any(|a| !(0.0..=1.0).contains(a)) {
+                        return Err(format!(
+                            "shape[{i}].albedo must be in [0, 1] per channel, got {a:?}"
+                        ));
+                    }
+                }
+                continue;
+            }
         }
         let albedo = match shape {
             ShapeConfig::Quad {
@@ -473,6 +505,7 @@ pub(super) fn validate(scene: &Scene) -> Result<(), String> {
                 }
                 albedo
             }
+            ShapeConfig::Usd { .. } => unreachable!("checked above"),
         };
         if albedo.iter().any(|a| !(0.0..=1.0).contains(a)) {
             return Err(format!(
@@ -509,10 +542,10 @@ impl Scene {
         Ok(lights)
     }
 
-    /// The scene's `[[shape]]`s.
-    pub fn build_shapes(&self) -> Shapes {
+    /// The scene's `[[shape]]`s; a USD shape's stage is read here, errors naming the scene and the file.
+    pub fn build_shapes(&self) -> Result<Shapes, SceneError> {
         let mut shapes = Shapes::new();
-        for shape in &self.shapes {
+        for (i, shape) in self.shapes.iter().enumerate() {
             match shape {
                 ShapeConfig::Quad {
                     corner,
@@ -538,8 +571,35 @@ impl Scene {
                     let open: Vec<&str> = open.iter().map(String::as_str).collect();
                     shapes.push_box((*min).into(), (*max).into(), (*albedo).into(), &open);
                 }
+                ShapeConfig::Usd { file, prim, albedo } => {
+                    let path = self.base_dir.join(file);
+                    let invalid = |message: String| SceneError::Invalid {
+                        path: self.source.clone(),
+                        message: format!("shape[{i}]: {message}"),
+                    };
+                    let stage = crate::usd::read(
+                        &path,
+                        prim.as_deref(),
+                        crate::hair::source::USD_DEFAULT_RADIUS,
+                    )
+                    .map_err(|e| invalid(e.to_string()))?;
+                    if stage.meshes.is_empty() {
+                        return Err(invalid(format!(
+                            "{} has no Mesh prims under {}",
+                            path.display(),
+                            prim.as_deref().unwrap_or("its root")
+                        )));
+                    }
+                    for mut mesh in stage.meshes {
+                        if let Some(a) = albedo {
+                            mesh.albedo = (*a).into();
+                            mesh.corner_albedo = None;
+                        }
+                        shapes.push_mesh(mesh);
+                    }
+                }
             }
         }
-        shapes
+        Ok(shapes)
     }
 }

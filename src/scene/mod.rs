@@ -39,6 +39,7 @@ pub use crate::render::settings::{
 pub mod fuzz;
 pub mod lights;
 pub mod material;
+mod usd;
 pub use lights::{EnvironmentConfig, LightConfig, ShapeConfig};
 pub use material::MaterialConfig;
 
@@ -115,8 +116,10 @@ pub struct Scene {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct HairConfig {
-    /// A `.hair` or `.tfx` file, relative to the scene file.
+    /// A `.hair`, `.tfx` or USD (`.usda`, `.usdc`, `.usdz`, `.usd`) file, relative to the scene file.
     pub file: Option<PathBuf>,
+    /// USD only: the prim whose subtree's `BasisCurves` are the hair (default: every curve of the stage).
+    pub prim: Option<String>,
     /// A procedural model, e.g. `{ kind = "fur-ball", strands = 12000 }`.
     pub procedural: Option<Procedural>,
     /// Round tubes or flat ribbons.
@@ -134,6 +137,25 @@ pub struct HairConfig {
 
 fn one() -> f32 {
     1.0
+}
+
+/// Whether `path` names a USD file by its extension (`.usda`, `.usdc`, `.usdz`, `.usd`, any case).
+pub fn is_usd(path: &Path) -> bool {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .is_some_and(|e| matches!(e.as_str(), "usda" | "usdc" | "usdz" | "usd"))
+}
+
+/// Checks a prim path key: absolute (`/World/Groom`), and no longer than a path needs to be.
+pub(crate) fn check_prim_path(key: &str, prim: &str) -> Result<(), String> {
+    if !prim.starts_with('/') || prim.len() > 4096 || prim.chars().any(char::is_control) {
+        return Err(format!(
+            "{key} must be an absolute prim path such as \"/World/Groom\" (at most 4096 characters), got {:?}",
+            crate::util::report::capped(prim)
+        ));
+    }
+    Ok(())
 }
 
 impl Scene {
@@ -208,6 +230,15 @@ impl Scene {
         if h.file.is_some() == h.procedural.is_some() {
             return Err("[hair] needs exactly one of `file` or `procedural`".into());
         }
+        if let Some(prim) = &h.prim {
+            if !h.file.as_deref().is_some_and(is_usd) {
+                return Err(format!(
+                    "hair.prim = {prim:?} names a prim of a USD stage, but hair.file is not a USD file (.usda, \
+                     .usdc, .usdz or .usd)"
+                ));
+            }
+            check_prim_path("hair.prim", prim)?;
+        }
         if let Some(o) = h.opacity {
             if !(0.0..=1.0).contains(&o) {
                 return Err(format!("hair.opacity must be in [0, 1], got {o}"));
@@ -244,8 +275,16 @@ impl Scene {
         if self.source.is_file() {
             files.push(self.source.clone());
         }
-        if let HairSource::File(path) = self.hair_source() {
+        if let HairSource::File(path) | HairSource::Usd { path, .. } = self.hair_source() {
             files.push(path);
+        }
+        for shape in &self.shapes {
+            if let ShapeConfig::Usd { file, .. } = shape {
+                files.push(self.base_dir.join(file));
+            }
+        }
+        if let Some(file) = &self.camera.usd {
+            files.push(self.base_dir.join(file));
         }
         if let Some(map) = &self.environment.map {
             files.push(self.base_dir.join(map));
@@ -256,6 +295,10 @@ impl Scene {
     /// The hair source with file paths resolved against the scene directory.
     pub fn hair_source(&self) -> HairSource {
         match (&self.hair.file, &self.hair.procedural) {
+            (Some(file), _) if is_usd(file) => HairSource::Usd {
+                path: self.base_dir.join(file),
+                prim: self.hair.prim.clone(),
+            },
             (Some(file), _) => HairSource::File(self.base_dir.join(file)),
             (None, Some(p)) => HairSource::Procedural(p.clone()),
             (None, None) => unreachable!("validate() requires a hair source"),
@@ -293,15 +336,50 @@ impl Scene {
                 path: self.source.clone(),
                 message,
             })?;
+        let mut settings = self.render_settings();
+        if let Some(file) = &self.camera.usd {
+            settings.camera = self.usd_camera(file)?;
+        }
         Ok(FrameSpec {
             hair: self.hair_spec(),
             curves: self.hair.curves,
             backend: self.hair.backend,
             material,
             lights: self.build_lights()?,
-            shapes: self.build_shapes(),
-            settings: self.render_settings(),
+            shapes: self.build_shapes()?,
+            settings,
         })
+    }
+
+    /// The scene's camera placed as the first `Camera` prim of the USD stage `file` places it (position, view
+    /// direction, up, vertical field of view); the scene's other camera keys (margin, orbit) stay.
+    fn usd_camera(&self, file: &Path) -> Result<CameraConfig, SceneError> {
+        let path = self.base_dir.join(file);
+        let stage = crate::usd::read(&path, None, crate::hair::source::USD_DEFAULT_RADIUS)
+            .map_err(|e| SceneError::Invalid {
+                path: self.source.clone(),
+                message: format!("camera.usd: {e}"),
+            })?;
+        let Some(cam) = stage.camera else {
+            return Err(SceneError::Invalid {
+                path: self.source.clone(),
+                message: format!("camera.usd: {} has no Camera prim", path.display()),
+            });
+        };
+        let mut camera = self.camera.clone();
+        camera.usd = None;
+        camera.position = Some(cam.position.to_array());
+        camera.look_at = Some((cam.position + cam.forward).to_array());
+        camera.up = cam.up.to_array();
+        camera.fov = cam.vertical_fov_degrees;
+        camera.validate().map_err(|message| SceneError::Invalid {
+            path: self.source.clone(),
+            message: format!(
+                "camera.usd: {} places the camera so that {message}",
+                path.display()
+            ),
+        })?;
+        Ok(camera)
     }
 
     /// Applies command-line overrides and checks the result like a scene file (a bad value is reported like a bad

@@ -49,7 +49,7 @@ impl Convergence {
                 self.quarters = [self.halves[0], self.halves[1], self.at_three, sums];
             }
             self.halves = [self.halves[1], sums];
-        } else if self.n % 3 == 0 && (self.n / 3).is_power_of_two() {
+        } else if self.n.is_multiple_of(3) && (self.n / 3).is_power_of_two() {
             self.at_three = self.mean.map(|m| (m * k) as f32);
         }
     }

@@ -219,7 +219,7 @@ fn the_image_rule_meets_the_image_target_with_fewer_samples_than_the_per_pixel_r
 fn the_image_rule_delivers_its_aim_where_noisy_pixels_neighbour_constant_ones() {
     let target = 0.05;
     let (width, pixels) = (40, 1200);
-    let strand = |p: usize| p % 2 == 0;
+    let strand = |p: usize| p.is_multiple_of(2);
     let mean = |p: usize| if strand(p) { 0.5 + (p % 5) as f32 } else { 0.3 };
     let mut s = 13u64;
     let (counts, stats) = {

@@ -42,12 +42,8 @@ pub(super) fn rasterise(
         if opacity <= 0.0 {
             continue;
         }
-        let first_cp = strands.strand_offsets[s] as usize;
-        let last_cp = strands.strand_offsets[s + 1] as usize;
-        if last_cp < first_cp + 4 {
-            continue;
-        }
-        for first in first_cp..=last_cp - 4 {
+        for segment in strands.segments_of(s) {
+            let first = strands.segment_first[segment] as usize;
             let cps = &strands.control_points[first..first + 4];
             // Number of pieces: the control polygon's projected length bounds the curve's, in texels.
             let mut length = 0.0;

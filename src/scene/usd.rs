@@ -1,0 +1,158 @@
+//! `cuticle render groom.usd`: a scene made for a USD stage with defaults, so a groom renders without a TOML file.
+//!
+//! The scene is written as TOML text and parsed like any scene file, so it is checked by the same rules and
+//! `--print-scene`-style debugging needs nothing new: the stage's curves are the hair, its meshes the shapes, its
+//! first camera the camera (auto-framed when it has none), its distant and dome lights the lights (a sun and a
+//! sky like the default scene's when it has none), and the material Chiang et al.'s reference fibre (brown).
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use crate::usd::{UsdLight, UsdStage};
+
+use super::{Scene, SceneError};
+
+/// The default scene's sun and sky, for a stage without lights.
+const DEFAULT_LIGHTS: &str = "[[light]]\nkind = \"distant\"\ndirection = [-1.0, -1.0, -0.6]\nirradiance = 3.0\n\
+                              color = [1.0, 0.93, 0.82]\n\n[environment]\nradiance = [0.25, 0.32, 0.45]\n";
+
+/// A TOML string literal of `text` (quoted and escaped as TOML wants).
+fn quoted(text: &str) -> String {
+    toml::Value::String(text.to_owned()).to_string()
+}
+
+/// A TOML array of three floats.
+fn triple(v: glam::Vec3) -> String {
+    format!("[{:?}, {:?}, {:?}]", v.x, v.y, v.z)
+}
+
+/// The scene text for `stage`, read from `file` (named relative to the scene's directory as `name`).
+fn scene_text(name: &str, stage: &UsdStage) -> String {
+    let file = quoted(name);
+    let mut text = format!(
+        "# The USD stage {file} with cuticle's defaults (`cuticle render` of a USD file).\n\n[hair]\nfile = {file}\n\n"
+    );
+    if stage.camera.is_some() {
+        let _ = write!(text, "[camera]\nusd = {file}\n\n");
+    } else {
+        text.push_str("[camera]\nview = [0.3, -0.3, -1.0]\nmargin = 0.9\n\n");
+    }
+    text.push_str("[material]\nmodel = \"chiang\"\n\n");
+    if !stage.meshes.is_empty() {
+        let _ = write!(text, "[[shape]]\nkind = \"usd\"\nfile = {file}\n\n");
+    }
+    let mut lit = false;
+    let mut dome = false;
+    for light in &stage.lights {
+        match light {
+            UsdLight::Distant {
+                direction_to_light,
+                color,
+                intensity,
+                exposure,
+                angle_degrees,
+            } => {
+                let _ = write!(
+                    text,
+                    "[[light]]\nkind = \"distant\"\ndirection = {}\nirradiance = {:?}\ncolor = {}\n\
+                     angular_radius = {:?}\n\n",
+                    triple(-*direction_to_light),
+                    intensity * exposure.exp2(),
+                    triple(*color),
+                    (0.5 * angle_degrees).clamp(0.0, 90.0),
+                );
+                lit = true;
+            }
+            // One environment: the first dome.
+            UsdLight::Dome {
+                color,
+                intensity,
+                exposure,
+                texture,
+            } if !dome => {
+                let scale = intensity * exposure.exp2();
+                match texture {
+                    Some(map) => {
+                        let _ = write!(
+                            text,
+                            "[environment]\nmap = {}\nintensity = {scale:?}\n\n",
+                            quoted(&map.to_string_lossy())
+                        );
+                    }
+                    None => {
+                        let _ = write!(
+                            text,
+                            "[environment]\nradiance = {}\n\n",
+                            triple(*color * scale)
+                        );
+                    }
+                }
+                dome = true;
+                lit = true;
+            }
+            UsdLight::Dome { .. } => {}
+        }
+    }
+    if !lit {
+        text.push_str(DEFAULT_LIGHTS);
+    }
+    text
+}
+
+impl Scene {
+    /// The scene `cuticle render groom.usd` renders: the stage at `path` with defaults ([`self`](super::usd)).
+    /// Errors name the stage (and prim) as the USD reader reports them.
+    pub fn from_usd(path: &Path) -> Result<Scene, SceneError> {
+        let stage =
+            crate::usd::read(path, None, crate::hair::source::USD_DEFAULT_RADIUS).map_err(|e| {
+                SceneError::Invalid {
+                    path: path.to_path_buf(),
+                    message: e.to_string(),
+                }
+            })?;
+        let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        let name = path
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        Scene::parse(&scene_text(&name, &stage), path, &base)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_stage_becomes_a_scene_with_its_camera_meshes_and_lights() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/usd");
+        let stage = crate::usd::read(&dir.join("groom.usda"), None, 0.005).unwrap();
+        let text = scene_text("groom.usda", &stage);
+        let scene = Scene::parse(&text, &dir.join("groom.usda"), &dir).unwrap();
+        assert_eq!(scene.hair.file.as_deref(), Some(Path::new("groom.usda")));
+        assert_eq!(scene.camera.usd.as_deref(), Some(Path::new("groom.usda")));
+        assert_eq!(scene.shapes.len(), 1);
+        // The stage's distant light travels away from the direction towards it.
+        let Some(UsdLight::Distant {
+            direction_to_light, ..
+        }) = stage.lights.first()
+        else {
+            panic!(
+                "the test stage's first light is distant: {:?}",
+                stage.lights
+            );
+        };
+        assert!(text.contains(&format!("direction = {}", triple(-*direction_to_light))));
+        // Without lights or camera: the default sun and sky, an auto-framed camera.
+        let bare = UsdStage {
+            camera: None,
+            lights: Vec::new(),
+            meshes: Vec::new(),
+            ..stage
+        };
+        let scene = Scene::parse(&scene_text("a \"b\".usda", &bare), &dir.join("x"), &dir).unwrap();
+        assert_eq!(scene.hair.file.as_deref(), Some(Path::new("a \"b\".usda")));
+        assert!(scene.camera.usd.is_none() && scene.shapes.is_empty());
+        assert_eq!(scene.lights.len(), 1);
+    }
+}
