@@ -3,6 +3,8 @@
 
     scripts/usd-test-data.py                 # tests/data/usd/: groom.usda/.usdc/.usdz, bases.usda
     scripts/usd-test-data.py --big DIR       # DIR/big.usdc and DIR/big.hair: 100 000 strands, for timing
+    scripts/usd-test-data.py --head DIR      # DIR/head-groom.usdc: 5 000 strands on a head, camera and sun, for
+                                             # comparing with Cycles (scripts/cycles-usd.py)
 
 Deterministic: every value comes from closed forms (no random numbers, no timestamps), so running it again
 rewrites the same files.
@@ -174,9 +176,62 @@ def big(directory, strands=100_000, points=16):
         f.write(struct.pack("<%df" % (3 * len(pts)), *([0.5] * (3 * len(pts)))))
 
 
+def head_groom(directory, strands=5000, points=12):
+    """A denser groom on the groom stage's head (a 40x24 UV sphere of radius 1 about (0, 1.5, 0)): strands rooted
+    on its top (polar angle up to 80 degrees, a golden-angle spiral; points in the head's space), growing out along
+    the normal and drooping;
+    pinned B-splines with widths tapering 0.012 -> 0.006; a camera, a sun and a constant sky."""
+    os.makedirs(directory, exist_ok=True)
+    stage = Usd.Stage.CreateNew(os.path.join(directory, "head-groom.usdc"))
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
+    world = UsdGeom.Xform.Define(stage, "/World")
+    stage.SetDefaultPrim(world.GetPrim())
+    head = UsdGeom.Xform.Define(stage, "/World/Head")
+    head.AddTranslateOp().Set(Gf.Vec3d(0.0, 1.5, 0.0))
+    mesh = sphere(stage, "/World/Head/Skin", 1.0, 40, 24)
+    mesh.CreateDisplayColorPrimvar(UsdGeom.Tokens.constant).Set([Gf.Vec3f(0.8, 0.6, 0.5)])
+    pts, widths = [], []
+    golden = math.pi * (3.0 - math.sqrt(5.0))
+    top = 1.0 - math.cos(math.radians(80.0))
+    for i in range(strands):
+        y = 1.0 - top * (i + 0.5) / strands
+        r = math.sqrt(max(0.0, 1.0 - y * y))
+        phi = golden * i
+        n = (r * math.cos(phi), y, r * math.sin(phi))
+        for k in range(points):
+            s = 0.9 * k / (points - 1)
+            pts.append((n[0] * (1 + 0.5 * s), n[1] * (1 + 0.5 * s) - 0.9 * s * s, n[2] * (1 + 0.5 * s)))
+            widths.append(0.012 * (1.0 - 0.5 * k / (points - 1)))
+    c = UsdGeom.BasisCurves.Define(stage, "/World/Head/Hair")
+    c.CreateTypeAttr("cubic")
+    c.CreateBasisAttr("bspline")
+    c.CreateWrapAttr("pinned")
+    c.CreatePointsAttr([Gf.Vec3f(*p) for p in pts])
+    c.CreateCurveVertexCountsAttr([points] * strands)
+    c.CreateWidthsAttr(widths)
+    c.SetWidthsInterpolation(UsdGeom.Tokens.vertex)
+    c.CreateDisplayColorPrimvar(UsdGeom.Tokens.constant).Set([Gf.Vec3f(0.35, 0.2, 0.1)])
+    cam = UsdGeom.Camera.Define(stage, "/World/Camera")
+    cam.AddTranslateOp().Set(Gf.Vec3d(0.0, 2.4, 8.0))
+    cam.AddRotateXOp().Set(-8.0)
+    cam.CreateFocalLengthAttr(50.0)
+    cam.CreateHorizontalApertureAttr(24.0)
+    cam.CreateVerticalApertureAttr(24.0)
+    sun = UsdLux.DistantLight.Define(stage, "/World/Sun")
+    sun.AddRotateXYZOp().Set(Gf.Vec3f(-50.0, 30.0, 0.0))
+    sun.CreateIntensityAttr(3.0)
+    sky = UsdLux.DomeLight.Define(stage, "/World/Sky")
+    sky.CreateColorAttr(Gf.Vec3f(0.3, 0.35, 0.4))
+    sky.CreateIntensityAttr(1.0)
+    stage.GetRootLayer().Save()
+
+
 def main():
     if len(sys.argv) == 3 and sys.argv[1] == "--big":
         big(sys.argv[2])
+        return
+    if len(sys.argv) == 3 and sys.argv[1] == "--head":
+        head_groom(sys.argv[2])
         return
     os.makedirs(OUT, exist_ok=True)
     groom_stage(os.path.join(OUT, "groom.usda"))
