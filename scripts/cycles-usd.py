@@ -7,7 +7,8 @@ usd-core`; its site-packages are added to Blender's path) and rebuilt in Blender
         [--res 400] [--spp 64] [--threads 2] [--pxr SITE_PACKAGES]
 
 - Meshes: points in world space (each prim's local-to-world transform), faces as authored (Blender keeps
-  polygons; Cycles triangulates them as cuticle does), smooth shading off (cuticle shades the flat triangles).
+  polygons; Cycles triangulates them), shaded smooth unless `subdivisionScheme = "none"`, as cuticle does (neither
+  subdivides).
 - Curves: `bspline` curves with `pinned` or `nonperiodic` wrap and vertex or constant widths (what
   `scripts/usd-test-data.py --head` writes). cuticle traces the uniform cubic B-spline; Cycles 3.4 draws
   Catmull-Rom curves through the points it is given, so each B-spline segment is evaluated at 8 points (and its
@@ -137,6 +138,8 @@ def build_mesh(prim, Usd, UsdGeom):
         at += c
     me = bpy.data.meshes.new(str(prim.GetName()))
     me.from_pydata([tuple(p) for p in pts], [], faces)
+    smooth = mesh.GetSubdivisionSchemeAttr().Get() != "none"
+    me.polygons.foreach_set("use_smooth", [smooth] * len(me.polygons))
     ob = bpy.data.objects.new(str(prim.GetName()), me)
     bpy.context.scene.collection.objects.link(ob)
     color = (0.5, 0.5, 0.5)

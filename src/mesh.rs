@@ -30,6 +30,9 @@ pub struct TriangleMesh {
     pub corner_albedo: Option<Vec<[Vec3; 3]>>,
     /// The albedo where `corner_albedo` is `None`.
     pub albedo: Vec3,
+    /// Unit shading normals at the points, interpolated across each triangle ([`TriangleMesh::shading_normal`]);
+    /// `None`: each triangle is shaded with its own normal (flat).
+    pub vertex_normals: Option<Vec<Vec3>>,
 }
 
 impl TriangleMesh {
@@ -76,6 +79,14 @@ impl TriangleMesh {
                 self.albedo.to_array()
             ));
         }
+        if let Some(normals) = &self.vertex_normals {
+            if normals.len() != n {
+                return fail(format!("{} normals for {n} points", normals.len()));
+            }
+            if let Some(i) = normals.iter().position(|v| !v.is_finite()) {
+                return fail(format!("normal {i} is not finite"));
+            }
+        }
         if let Some(corners) = &self.corner_albedo {
             if corners.len() != self.triangles.len() {
                 return fail(format!(
@@ -113,6 +124,10 @@ impl TriangleMesh {
                 .corner_albedo
                 .as_ref()
                 .map_or(0, |c| c.len() * std::mem::size_of::<[Vec3; 3]>())
+            + self
+                .vertex_normals
+                .as_ref()
+                .map_or(0, |v| v.len() * std::mem::size_of::<Vec3>())
             + self.name.len()
     }
 
@@ -127,6 +142,47 @@ impl TriangleMesh {
     pub fn normal(&self, t: u32) -> Vec3 {
         let [a, b, c] = self.corners(t);
         (b - a).cross(c - a).normalize_or_zero()
+    }
+
+    /// The shading normal at barycentric (`u`, `v`) of triangle `t`, on the side of its geometric normal
+    /// `geometric` ([`TriangleMesh::normal`]): the points' normals interpolated, or `geometric` itself for a flat
+    /// mesh or where the interpolation vanishes.
+    #[inline]
+    pub fn shading_normal(&self, t: u32, u: f32, v: f32, geometric: Vec3) -> Vec3 {
+        let Some(normals) = &self.vertex_normals else {
+            return geometric;
+        };
+        let [a, b, c] = self.triangles[t as usize].map(|i| normals[i as usize]);
+        let n = (a * (1.0 - u - v) + b * u + c * v).normalize_or_zero();
+        if n == Vec3::ZERO {
+            geometric
+        } else if n.dot(geometric) < 0.0 {
+            -n
+        } else {
+            n
+        }
+    }
+
+    /// The mesh shaded smoothly: each point's normal is the area-weighted mean of its triangles' normals (what a
+    /// subdivision surface's limit normal approaches on a fine cage; a coarse cage is still seen by its
+    /// silhouette).
+    pub fn smoothed(mut self) -> TriangleMesh {
+        let mut normals = vec![Vec3::ZERO; self.positions.len()];
+        for tri in &self.triangles {
+            let [a, b, c] = tri.map(|i| self.positions[i as usize]);
+            // (b − a) × (c − a) is twice the triangle's area along its normal: the area weighting.
+            let n = (b - a).cross(c - a);
+            if n.is_finite() {
+                for &i in tri {
+                    normals[i as usize] += n;
+                }
+            }
+        }
+        for n in &mut normals {
+            *n = n.normalize_or_zero();
+        }
+        self.vertex_normals = Some(normals);
+        self
     }
 
     /// The albedo at barycentric (`u`, `v`) of triangle `t`: the point a + u (b − a) + v (c − a).
@@ -147,6 +203,13 @@ impl TriangleMesh {
     pub fn transformed(mut self, m: Mat4) -> TriangleMesh {
         for p in &mut self.positions {
             *p = m.transform_point3(*p);
+        }
+        if let Some(normals) = &mut self.vertex_normals {
+            // Normals move by the inverse transpose of the linear part.
+            let n = glam::Mat3::from_mat4(m).inverse().transpose();
+            for v in normals {
+                *v = (n * *v).normalize_or_zero();
+            }
         }
         if m.determinant() < 0.0 {
             for tri in &mut self.triangles {
@@ -213,6 +276,7 @@ mod tests {
             triangles: fan.iter().map(|t| t.points).collect(),
             corner_albedo: None,
             albedo: Vec3::splat(0.5),
+            vertex_normals: None,
         }
     }
 
@@ -274,6 +338,44 @@ mod tests {
         assert_eq!(m.albedo_at(0, 0.0, 0.0), Vec3::X);
         assert_eq!(m.albedo_at(0, 1.0, 0.0), Vec3::Y);
         assert_eq!(m.albedo_at(1, 0.25, 0.5), Vec3::new(0.25, 0.25, 0.5));
+    }
+
+    #[test]
+    fn smooth_normals_interpolate_and_keep_to_the_front() {
+        // A roof of two triangles folded along x = 0.5: their normals lean ±x, the ridge's points get the mean.
+        let mut m = square();
+        m.positions = vec![
+            Vec3::ZERO,
+            Vec3::new(0.5, 0.0, 0.5),
+            Vec3::new(0.5, 1.0, 0.5),
+            Vec3::Y,
+        ];
+        m.positions.push(Vec3::X);
+        m.positions.push(Vec3::new(1.0, 1.0, 0.0));
+        m.triangles = vec![[0, 1, 2], [0, 2, 3], [1, 4, 5], [1, 5, 2]];
+        let m = m.smoothed();
+        assert!(m.validate().is_ok());
+        let normals = m.vertex_normals.as_ref().unwrap();
+        // The four triangles have equal areas; ridge point 1 is in one left triangle (normal ∝ (−1, 0, 1)) and two
+        // right ones (∝ (1, 0, 1)): its normal is ∝ (1, 0, 3). Point 0 is on the left slope alone.
+        let ridge = Vec3::new(1.0, 0.0, 3.0).normalize();
+        assert!((normals[1] - ridge).length() < 1e-6, "{:?}", normals[1]);
+        assert!((normals[0] - Vec3::new(-1.0, 0.0, 1.0).normalize()).length() < 1e-6);
+        let g = m.normal(0);
+        assert!((m.shading_normal(0, 1.0, 0.0, g) - ridge).length() < 1e-6);
+        let halfway = m.shading_normal(0, 0.5, 0.0, g);
+        assert!((halfway - (normals[0] + ridge).normalize()).length() < 1e-6);
+        // Asked with the geometric normal flipped, the shading normal follows it to that side.
+        assert!(m.shading_normal(0, 0.3, 0.3, -g).dot(-g) > 0.0);
+        assert_eq!(square().shading_normal(0, 0.2, 0.2, Vec3::Z), Vec3::Z);
+        // Moved and scaled unevenly, the normals stay perpendicular to the moved surface.
+        let stretched = m
+            .clone()
+            .transformed(Mat4::from_scale(Vec3::new(1.0, 1.0, 3.0)));
+        let n = stretched.vertex_normals.as_ref().unwrap()[0];
+        let edge = stretched.positions[1] - stretched.positions[0];
+        assert!(n.dot(edge.normalize()).abs() < 0.75, "{n}");
+        assert!((n.length() - 1.0).abs() < 1e-6);
     }
 
     #[test]

@@ -73,8 +73,11 @@ impl Quad {
 pub struct ShapeHit {
     /// Ray parameter.
     pub t: f32,
-    /// Unit normal of the quad or triangle hit (either side may face the ray).
+    /// Unit shading normal: the quad's or triangle's own, or a smooth mesh's interpolated one, on the side of
+    /// `geometric` (either side may face the ray).
     pub normal: Vec3,
+    /// Unit normal of the quad or triangle hit: which side of the surface the ray is on.
+    pub geometric: Vec3,
     /// Lambert albedo.
     pub albedo: Vec3,
 }
@@ -198,6 +201,7 @@ impl Shapes {
                 best = Some(ShapeHit {
                     t,
                     normal: q.normal(),
+                    geometric: q.normal(),
                     albedo: q.albedo,
                 });
             }
@@ -207,9 +211,11 @@ impl Shapes {
             let segment = Ray::segment(ray.origin, ray.dir, ray.tnear, tmax);
             if let Ok(Some(h)) = tracer.intersect(&segment) {
                 let mesh = &self.meshes[h.mesh as usize];
+                let geometric = mesh.normal(h.triangle);
                 best = Some(ShapeHit {
                     t: h.t,
-                    normal: mesh.normal(h.triangle),
+                    normal: mesh.shading_normal(h.triangle, h.u, h.v, geometric),
+                    geometric,
                     albedo: mesh.albedo_at(h.triangle, h.u, h.v),
                 });
             }

@@ -37,6 +37,7 @@ fn mesh(name: &str, positions: Vec<Vec3>, triangles: Vec<[u32; 3]>) -> TriangleM
         triangles,
         corner_albedo: None,
         albedo: Vec3::splat(0.5),
+        vertex_normals: None,
     }
 }
 

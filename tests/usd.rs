@@ -440,3 +440,35 @@ fn bad_files_fail_with_their_name_and_prim() {
         .to_string();
     assert!(e.starts_with("/nonexistent/groom.usda"), "{e}");
 }
+
+#[test]
+fn a_subdivision_surface_is_shaded_smoothly_and_a_polygon_mesh_flat() {
+    let dir = tempfile::tempdir().unwrap();
+    let quad = |scheme: &str| {
+        format!(
+            "#usda 1.0\ndef Mesh \"M\"\n{{\n{scheme}int[] faceVertexCounts = [4]\nint[] faceVertexIndices = [0, 1, 2, 3]\n\
+             point3f[] points = [(0, 0, 0), (1, 0, 0), (1, 1, 0.5), (0, 1, 0)]\n}}\n"
+        )
+    };
+    // No `subdivisionScheme`: catmullClark, USD's default, a smooth surface.
+    let smooth = usd::read(&write(dir.path(), "s.usda", quad("").as_bytes()), None, R).unwrap();
+    let normals = smooth.meshes[0].vertex_normals.as_ref().unwrap();
+    assert_eq!(normals.len(), 4);
+    // Point 0 is in both triangles of the fan (0, 1, 2) and (0, 2, 3): its normal is between theirs.
+    let (a, b) = (smooth.meshes[0].normal(0), smooth.meshes[0].normal(1));
+    assert!(a != b && normals[0].dot(a) > 0.9 && normals[0].dot(b) > 0.9 && normals[0] != a);
+    let flat = usd::read(
+        &write(
+            dir.path(),
+            "f.usda",
+            quad("uniform token subdivisionScheme = \"none\"\n").as_bytes(),
+        ),
+        None,
+        R,
+    )
+    .unwrap();
+    assert!(flat.meshes[0].vertex_normals.is_none());
+    // The groom's head (no scheme authored) is smooth.
+    let groom = usd::read(&data("groom.usda"), None, R).unwrap();
+    assert!(groom.meshes[0].vertex_normals.is_some());
+}

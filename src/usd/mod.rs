@@ -986,14 +986,21 @@ impl<'a> Reader<'a> {
                 c.iter_mut().for_each(|c| c.swap(1, 2));
             }
         }
-        let mesh = TriangleMesh {
+        // `subdivisionScheme` other than "none" (catmullClark by default) marks a smooth surface: shaded with
+        // smooth normals over its cage (not subdivided).
+        let smooth = self.token(prim, "subdivisionScheme", "catmullClark")? != "none";
+        let mut mesh = TriangleMesh {
             name: format!("{}:{pp}", self.path.display()),
             positions: points.clone(),
             triangles,
             corner_albedo,
             albedo,
+            vertex_normals: None,
         }
         .transformed(world.as_mat4());
+        if smooth {
+            mesh = mesh.smoothed();
+        }
         mesh.validate().map_err(|e| bad(e.message))?;
         Ok(mesh)
     }

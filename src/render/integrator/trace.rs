@@ -115,7 +115,9 @@ impl<'a> Integrator<'a> {
             NonHair::Emitter(radiance, i) => Found::Emitter(radiance, i),
             NonHair::Shape(s) => {
                 let wo = -ray.dir.normalize();
-                let normal = if s.normal.dot(wo) >= 0.0 {
+                // The side the ray came from is the geometric normal's to decide; a smooth mesh's shading normal
+                // can lean past the view direction at a silhouette.
+                let normal = if s.geometric.dot(wo) >= 0.0 {
                     s.normal
                 } else {
                     -s.normal
