@@ -3,7 +3,7 @@
 #   - the native libraries: Embree 3 (curves), OpenImageIO (images), clang/libclang (bindgen), pkg-config, a C++
 #     compiler, openimageio-tools (oiiotool/idiff, used by the tests) and unzip (scripts/embree4.sh, CI's Embree 4
 #     step);
-#   - a Rust toolchain >= the crate's rust-version (1.85) through rustup, unless one is already on PATH or in
+#   - a Rust toolchain >= the crate's rust-version (1.88) through rustup, unless one is already on PATH or in
 #     ~/.cargo/bin (Debian 12's own rustc is 1.63, too old);
 #   - Intel Open Image Denoise 2.5.1 for `render --denoise`, in ${XDG_DATA_HOME:-~/.local/share}/cuticle/oidn
 #     (scripts/oidn.sh: Debian 12 has no package; cuticle loads it only when asked to denoise).
@@ -18,7 +18,7 @@ $SUDO apt-get install -y -qq --no-install-recommends \
     ca-certificates curl git build-essential pkg-config clang libclang-dev \
     libembree-dev libopenimageio-dev openimageio-tools unzip >/dev/null
 
-need="1.85"
+need="1.88"
 PATH="$HOME/.cargo/bin:$PATH"
 have=$(cargo --version 2>/dev/null | sed -n 's/^cargo \([0-9]*\.[0-9]*\).*/\1/p')
 if [ -n "$have" ] && [ "$(printf '%s\n%s\n' "$need" "$have" | sort -V | head -n1)" = "$need" ]; then
