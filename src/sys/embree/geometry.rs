@@ -171,16 +171,7 @@ impl CurveGeometry {
             CurveBasis::FlatBSpline => RTC_GEOMETRY_TYPE_FLAT_BSPLINE_CURVE,
         };
         let handle = &device.inner;
-        let raw = handle.call("create curve geometry", || {
-            // SAFETY: `handle.raw` is a live device and `kind` a geometry type from the header.
-            unsafe { rtcNewGeometry(handle.raw, kind) }
-        })?;
-        if raw.is_null() {
-            return Err(EmbreeError {
-                code: ErrorCode::Unknown,
-                message: "create curve geometry: embree returned no geometry".into(),
-            });
-        }
+        let raw = new_geometry(handle, kind, "create curve geometry")?;
         // From here on `Drop` releases `raw` on every error path.
         let geometry = CurveGeometry {
             raw,
@@ -218,6 +209,26 @@ impl CurveGeometry {
     pub fn strands(&self) -> &Arc<StrandTable> {
         &self.strands
     }
+}
+
+/// A new geometry of `kind` (a geometry type from the header) on the device, its failure an error saying `what`
+/// was being done. The caller owns the handle and releases it (its type's `Drop`).
+pub(super) fn new_geometry(
+    handle: &Arc<DeviceHandle>,
+    kind: RTCGeometryType,
+    what: &str,
+) -> Result<RTCGeometry, EmbreeError> {
+    let raw = handle.call(what, || {
+        // SAFETY: `handle.raw` is a live device and `kind` a geometry type from the header.
+        unsafe { rtcNewGeometry(handle.raw, kind) }
+    })?;
+    if raw.is_null() {
+        return Err(EmbreeError {
+            code: ErrorCode::Unknown,
+            message: format!("{what}: embree returned no geometry"),
+        });
+    }
+    Ok(raw)
 }
 
 /// Copies `data` into a new Embree-owned buffer of `kind` (slot 0) in `format`, which must describe `T`, of the

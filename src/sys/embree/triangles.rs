@@ -4,9 +4,9 @@ use std::fmt;
 use std::sync::Arc;
 
 use super::device::{Device, DeviceHandle};
-use super::error::{EmbreeError, ErrorCode};
+use super::error::EmbreeError;
 use super::ffi::*;
-use super::geometry::fill_buffer;
+use super::geometry::{fill_buffer, new_geometry};
 #[cfg(doc)]
 use super::scene::Scene;
 
@@ -70,16 +70,7 @@ impl TriangleGeometry {
             )));
         }
         let handle = &device.inner;
-        let raw = handle.call("create triangle geometry", || {
-            // SAFETY: `handle.raw` is a live device and the type a geometry type from the header.
-            unsafe { rtcNewGeometry(handle.raw, RTC_GEOMETRY_TYPE_TRIANGLE) }
-        })?;
-        if raw.is_null() {
-            return Err(EmbreeError {
-                code: ErrorCode::Unknown,
-                message: "create triangle geometry: embree returned no geometry".into(),
-            });
-        }
+        let raw = new_geometry(handle, RTC_GEOMETRY_TYPE_TRIANGLE, "create triangle geometry")?;
         // From here on `Drop` releases `raw` on every error path.
         let geometry = TriangleGeometry {
             raw,
