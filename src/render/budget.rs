@@ -69,10 +69,11 @@ pub fn hair_counts(source: &HairSource) -> Result<(u64, u64), HairError> {
     }
 }
 
-/// Bytes of a USD file per point [`usd_counts`] assumes: a point is 12 bytes of floats in `.usdc` (LZ4 gains little
-/// on them), 4 more with its width; 15 or more characters in `.usda`. Points per strand: 16, the real grooms'
-/// typical count (furball.hair 16, straight.hair 25).
-const USD_BYTES_PER_POINT: u64 = 16;
+/// Bytes of a USD file per point [`usd_counts`] assumes: measured on `scripts/usd-test-data.py --big`'s `.usdc`
+/// (1.6 M points with per-point widths in 19.2 MB: 12.0 bytes a point, its width compressed away); a `.usda` takes
+/// 15 or more characters a point, so it is over-counted. Points per strand: 16, the real grooms' typical count
+/// (furball.hair 16, straight.hair 25).
+const USD_BYTES_PER_POINT: u64 = 12;
 
 /// The strands and points a USD file holds, estimated from its size before it is read ([`USD_BYTES_PER_POINT`]):
 /// the stage is read once, by the frame's load, and a stage's curves are not counted without reading it. An

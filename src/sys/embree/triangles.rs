@@ -70,7 +70,11 @@ impl TriangleGeometry {
             )));
         }
         let handle = &device.inner;
-        let raw = new_geometry(handle, RTC_GEOMETRY_TYPE_TRIANGLE, "create triangle geometry")?;
+        let raw = new_geometry(
+            handle,
+            RTC_GEOMETRY_TYPE_TRIANGLE,
+            "create triangle geometry",
+        )?;
         // From here on `Drop` releases `raw` on every error path.
         let geometry = TriangleGeometry {
             raw,
