@@ -55,7 +55,7 @@ impl HairSource {
         let scaled = || format!(" with hair.radius_scale = {radius_scale:e}");
         if let HairSource::Usd { path, prim } = self {
             let stage = crate::usd::read(path, prim.as_deref(), USD_DEFAULT_RADIUS)
-                .map_err(|e| HairError::invalid(path, usd_message(&e)))?;
+                .map_err(|e| HairError::invalid(path, e.without_file()))?;
             return match stage.strands {
                 Some(s) if s.strand_count() > 0 => {
                     if radius_scale != 1.0 {
@@ -105,15 +105,6 @@ impl HairSource {
 /// centimetres, the unit DCCs write grooms in). USD leaves the default to the renderer; `hair.radius_scale`
 /// scales it like any other radius.
 pub const USD_DEFAULT_RADIUS: f32 = 0.005;
-
-/// A USD reader's error as a hair error's message: the reader's message names the file (and prim) itself, so
-/// the prim and message are kept without the file repeated.
-fn usd_message(e: &crate::usd::UsdError) -> String {
-    match &e.prim {
-        Some(prim) => format!("{prim}: {}", e.message),
-        None => e.message.clone(),
-    }
-}
 
 /// A hair model with the adjustments a scene applies to it.
 #[derive(Debug, Clone, PartialEq)]

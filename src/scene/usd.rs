@@ -107,7 +107,7 @@ impl Scene {
             crate::usd::read(path, None, crate::hair::source::USD_DEFAULT_RADIUS).map_err(|e| {
                 SceneError::Invalid {
                     path: path.to_path_buf(),
-                    message: e.to_string(),
+                    message: e.without_file(),
                 }
             })?;
         let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
@@ -154,5 +154,16 @@ mod tests {
         assert_eq!(scene.hair.file.as_deref(), Some(Path::new("a \"b\".usda")));
         assert!(scene.camera.usd.is_none() && scene.shapes.is_empty());
         assert_eq!(scene.lights.len(), 1);
+    }
+
+    #[test]
+    fn a_bad_stage_is_one_error_naming_its_file_once() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("bad.usdc");
+        std::fs::write(&path, b"garbage").unwrap();
+        let message = Scene::from_usd(&path).unwrap_err().to_string();
+        let name = path.display().to_string();
+        assert!(message.starts_with(&format!("{name}: ")), "{message}");
+        assert_eq!(message.matches(&name).count(), 1, "{message}");
     }
 }

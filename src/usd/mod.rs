@@ -65,6 +65,14 @@ impl UsdError {
             message: message.into(),
         }
     }
+
+    /// The message with its prim but not its file, for an error that names the file itself.
+    pub fn without_file(&self) -> String {
+        match &self.prim {
+            Some(prim) => format!("{prim}: {}", self.message),
+            None => self.message.clone(),
+        }
+    }
 }
 
 /// A stage read as a groom, world space.
