@@ -54,7 +54,7 @@ impl HairSource {
     pub fn strands(&self, radius_scale: f32) -> Result<(Strands, usize), HairError> {
         let scaled = || format!(" with hair.radius_scale = {radius_scale:e}");
         if let HairSource::Usd { path, prim } = self {
-            let stage = crate::usd::read(path, prim.as_deref(), USD_DEFAULT_RADIUS)
+            let stage = crate::usd::read(path, prim.as_deref(), crate::usd::DEFAULT_RADIUS)
                 .map_err(|e| HairError::invalid(path, e.without_file()))?;
             return match stage.strands {
                 Some(s) if s.strand_count() > 0 => {
@@ -100,11 +100,6 @@ impl HairSource {
         Ok((Strands::from_model(&model), zero_length))
     }
 }
-
-/// Radius of a USD curve without `widths`, in the stage's units: 0.005 (a width of 0.01: 100 µm in a stage in
-/// centimetres, the unit DCCs write grooms in). USD leaves the default to the renderer; `hair.radius_scale`
-/// scales it like any other radius.
-pub const USD_DEFAULT_RADIUS: f32 = 0.005;
 
 /// A hair model with the adjustments a scene applies to it.
 #[derive(Debug, Clone, PartialEq)]

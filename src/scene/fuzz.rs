@@ -49,7 +49,7 @@ pub fn usd(data: &[u8]) -> bool {
     if std::fs::write(&path, bytes).is_err() {
         return false;
     }
-    crate::usd::read(&path, None, crate::hair::source::USD_DEFAULT_RADIUS).is_ok()
+    crate::usd::read(&path, None, crate::usd::DEFAULT_RADIUS).is_ok()
 }
 
 /// What separates the tiles of one `merge` input: the bytes between are one tile file each (at most

@@ -103,13 +103,12 @@ impl Scene {
     /// The scene `cuticle render groom.usd` renders: the stage at `path` with defaults ([`self`](super::usd)).
     /// Errors name the stage (and prim) as the USD reader reports them.
     pub fn from_usd(path: &Path) -> Result<Scene, SceneError> {
-        let stage =
-            crate::usd::read(path, None, crate::hair::source::USD_DEFAULT_RADIUS).map_err(|e| {
-                SceneError::Invalid {
-                    path: path.to_path_buf(),
-                    message: e.without_file(),
-                }
-            })?;
+        let stage = crate::usd::read(path, None, crate::usd::DEFAULT_RADIUS).map_err(|e| {
+            SceneError::Invalid {
+                path: path.to_path_buf(),
+                message: e.without_file(),
+            }
+        })?;
         let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
         let name = path
             .file_name()

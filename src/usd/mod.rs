@@ -251,8 +251,10 @@ pub fn summary(path: &Path, root: Option<&str>) -> Result<UsdSummary, UsdError> 
     })
 }
 
-/// The radius `summary` reads curves without widths with (it reports counts and bounds only).
-const DEFAULT_RADIUS: f32 = 0.005;
+/// Radius of a USD curve without `widths`, in the stage's units: 0.005 (a width of 0.01: 100 µm in a stage in
+/// centimetres, the unit DCCs write grooms in). USD leaves the default to the renderer; `hair.radius_scale`
+/// scales it like any other radius.
+pub const DEFAULT_RADIUS: f32 = 0.005;
 
 impl fmt::Display for UsdSummary {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
