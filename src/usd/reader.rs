@@ -1,0 +1,293 @@
+//! One read of a stage: the traversal, attribute values with their time samples, and primvars.
+
+use std::path::Path;
+
+use glam::DMat4;
+use openusd::{sdf, usd};
+
+use crate::hair::Strands;
+
+use super::values::{floats, scalar, token, vec3s};
+use super::{UsdError, UsdStage};
+
+/// One read in progress.
+pub(super) struct Reader<'a> {
+    pub(super) path: &'a Path,
+    pub(super) stage: usd::Stage,
+    pub(super) default_radius: f32,
+    pub(super) out: UsdStage,
+}
+
+/// An openusd error on `prim`.
+pub(super) fn usd_err(file: &Path, prim: &sdf::Path, e: anyhow::Error) -> UsdError {
+    prim_err(file, prim, format!("{e:#}"))
+}
+
+/// A prim-level error.
+pub(super) fn prim_err(path: &Path, prim: &sdf::Path, message: impl Into<String>) -> UsdError {
+    UsdError {
+        path: path.to_path_buf(),
+        prim: Some(prim.to_string()),
+        message: message.into(),
+    }
+}
+
+impl<'a> Reader<'a> {
+    pub(super) fn new(path: &'a Path, name: &str, default_radius: f32) -> Result<Self, UsdError> {
+        let stage = usd::Stage::open(name)
+            .map_err(|e| UsdError::file(path, format!("cannot open the stage: {e:#}")))?;
+        Ok(Reader {
+            path,
+            stage,
+            default_radius,
+            out: UsdStage::default(),
+        })
+    }
+
+    pub(super) fn read(mut self, root: Option<&str>) -> Result<UsdStage, UsdError> {
+        let file = self.path;
+        let token = |key: &str| -> Option<String> {
+            match self.stage.stage_metadata(key).ok().flatten() {
+                Some(sdf::Value::Token(t)) => Some(t.as_str().to_owned()),
+                Some(sdf::Value::String(s)) => Some(s),
+                _ => None,
+            }
+        };
+        self.out.up_axis = token("upAxis").unwrap_or_else(|| "Y".into());
+        self.out.meters_per_unit = match self.stage.stage_metadata("metersPerUnit").ok().flatten() {
+            Some(v) => scalar(&v).unwrap_or(0.01),
+            None => 0.01,
+        };
+        let root_path = match root {
+            None => sdf::Path::abs_root(),
+            Some(r) => sdf::Path::new(r)
+                .map_err(|e| UsdError::file(self.path, format!("root {r:?}: {e}")))?,
+        };
+        // The root's own world transform: its ancestors' ops, outermost first.
+        let mut chain = Vec::new();
+        let mut p = root_path.parent();
+        while let Some(q) = p {
+            if q == sdf::Path::abs_root() {
+                break;
+            }
+            p = q.parent();
+            chain.push(q);
+        }
+        let mut world = DMat4::IDENTITY;
+        for q in chain.iter().rev() {
+            let prim = self.stage.prim(q.clone());
+            world = self.world_of(&prim, world)?;
+        }
+        let root_prim = self.stage.prim(root_path.clone());
+        if root.is_some()
+            && !root_prim
+                .is_valid()
+                .map_err(|e| usd_err(file, &root_path, e))?
+        {
+            return Err(prim_err(self.path, &root_path, "no such prim on the stage"));
+        }
+        let mut stack = vec![(root_prim, world)];
+        let mut strands = Strands::default();
+        while let Some((prim, parent)) = stack.pop() {
+            let ppath = prim.path().clone();
+            let is_root = ppath == sdf::Path::abs_root();
+            let world = if is_root {
+                parent
+            } else {
+                let e = |e| usd_err(file, &ppath, e);
+                if !prim.is_active().map_err(e)?
+                    || !prim.is_defined().map_err(e)?
+                    || prim.is_abstract().map_err(e)?
+                {
+                    continue;
+                }
+                let world = self.world_of(&prim, parent)?;
+                let ty = prim
+                    .type_name()
+                    .map_err(e)?
+                    .map(|t| t.as_str().to_owned())
+                    .unwrap_or_default();
+                *self.out.prim_types.entry(ty.clone()).or_default() += 1;
+                if prim.is_instance().map_err(e)? {
+                    self.warn(
+                        &ppath,
+                        "instanced prim: its prototype's geometry is not read",
+                    );
+                }
+                match ty.as_str() {
+                    "BasisCurves" => {
+                        let s = self.curves(&prim, world)?;
+                        if s.strand_count() > 0 {
+                            strands.append(&s);
+                            self.out.curve_prims.push(ppath.to_string());
+                        }
+                    }
+                    "Mesh" => {
+                        let m = self.mesh(&prim, world)?;
+                        self.out.meshes.push(m);
+                    }
+                    "Camera" => {
+                        if self.out.camera.is_none() {
+                            self.out.camera = Some(self.camera(&prim, world)?);
+                        } else {
+                            self.warn(&ppath, "a second camera: only the first is read");
+                        }
+                    }
+                    "DistantLight" | "DomeLight" => {
+                        let l = self.light(&prim, &ty, world)?;
+                        self.out.lights.push(l);
+                    }
+                    t if t.ends_with("Light") => self.warn(
+                        &ppath,
+                        &format!("{t} is not read (only DistantLight and DomeLight)"),
+                    ),
+                    _ => {}
+                }
+                world
+            };
+            let children = prim.children().map_err(|e| usd_err(file, &ppath, e))?;
+            for c in children.into_iter().rev() {
+                stack.push((c, world));
+            }
+        }
+        if strands.strand_count() > 0 {
+            self.out.strands = Some(strands);
+        }
+        Ok(self.out)
+    }
+
+    pub(super) fn warn(&mut self, prim: &sdf::Path, message: &str) {
+        self.out
+            .warnings
+            .push(format!("{}:{prim}: {message}", self.path.display()));
+    }
+
+    /// The value of `prim.name`: its default, else its earliest time sample (with a warning), else `None`.
+    pub(super) fn get(
+        &mut self,
+        prim: &usd::Prim,
+        name: &str,
+    ) -> Result<Option<sdf::Value>, UsdError> {
+        let file = self.path;
+        let attr = prim.attribute(name);
+        let e = |e| usd_err(file, prim.path(), e);
+        match attr.get::<sdf::Value>().map_err(e)? {
+            Some(sdf::Value::ValueBlock) => return Ok(None),
+            Some(v) => return Ok(Some(v)),
+            None => {}
+        }
+        let samples = attr.time_samples().map_err(e)?.unwrap_or_default();
+        let earliest = samples.into_iter().min_by(|a, b| a.0.total_cmp(&b.0));
+        if let Some((t, v)) = earliest {
+            self.warn(
+                prim.path(),
+                &format!("{name} has no default value: its earliest time sample (t = {t}) is read"),
+            );
+            return Ok((!matches!(v, sdf::Value::ValueBlock)).then_some(v));
+        }
+        Ok(None)
+    }
+
+    /// `get` converted by `f`; a value of another type is an error naming the attribute.
+    pub(super) fn get_as<T>(
+        &mut self,
+        prim: &usd::Prim,
+        name: &str,
+        what: &str,
+        f: impl Fn(&sdf::Value) -> Option<T>,
+    ) -> Result<Option<T>, UsdError> {
+        match self.get(prim, name)? {
+            None => Ok(None),
+            Some(v) => f(&v)
+                .map(Some)
+                .ok_or_else(|| prim_err(self.path, prim.path(), format!("{name} is not {what}"))),
+        }
+    }
+
+    /// The interpolation metadata of a primvar (`default` when not authored).
+    pub(super) fn interpolation(&self, prim: &usd::Prim, name: &str, default: &str) -> String {
+        match prim
+            .attribute(name)
+            .get_metadata::<sdf::Value>("interpolation")
+            .ok()
+            .flatten()
+        {
+            Some(sdf::Value::Token(t)) => t.as_str().to_owned(),
+            _ => default.to_owned(),
+        }
+    }
+
+    pub(super) fn token(
+        &mut self,
+        prim: &usd::Prim,
+        name: &str,
+        default: &str,
+    ) -> Result<String, UsdError> {
+        Ok(self
+            .get_as(prim, name, "a token", token)?
+            .unwrap_or_else(|| default.to_owned()))
+    }
+
+    /// A colour primvar and its interpolation, its length checked against `expect`.
+    #[allow(clippy::type_complexity)]
+    pub(super) fn primvar3(
+        &mut self,
+        prim: &usd::Prim,
+        name: &str,
+        expect: &dyn Fn(&str) -> Option<usize>,
+    ) -> Result<Option<(Vec<[f32; 3]>, String)>, UsdError> {
+        let Some(v) = self.get_as(prim, name, "a colour array", vec3s)? else {
+            return Ok(None);
+        };
+        if v.is_empty() {
+            return Ok(None);
+        }
+        let interp = self.interpolation(prim, name, "constant");
+        self.check_len(prim, name, v.len(), &interp, expect)?;
+        Ok(Some((
+            v.into_iter().map(|c| c.to_array()).collect(),
+            interp,
+        )))
+    }
+
+    /// A float primvar and its interpolation, its length checked against `expect`.
+    pub(super) fn primvar1(
+        &mut self,
+        prim: &usd::Prim,
+        name: &str,
+        expect: &dyn Fn(&str) -> Option<usize>,
+    ) -> Result<Option<(Vec<f32>, String)>, UsdError> {
+        let Some(v) = self.get_as(prim, name, "a float array", floats)? else {
+            return Ok(None);
+        };
+        if v.is_empty() {
+            return Ok(None);
+        }
+        let interp = self.interpolation(prim, name, "constant");
+        self.check_len(prim, name, v.len(), &interp, expect)?;
+        Ok(Some((v, interp)))
+    }
+
+    pub(super) fn check_len(
+        &self,
+        prim: &usd::Prim,
+        name: &str,
+        len: usize,
+        interp: &str,
+        expect: &dyn Fn(&str) -> Option<usize>,
+    ) -> Result<(), UsdError> {
+        match expect(interp) {
+            Some(n) if n == len => Ok(()),
+            Some(n) => Err(prim_err(
+                self.path,
+                prim.path(),
+                format!("{name} has {len} values; {interp} interpolation needs {n}"),
+            )),
+            None => Err(prim_err(
+                self.path,
+                prim.path(),
+                format!("{name}: unknown interpolation {interp:?}"),
+            )),
+        }
+    }
+}

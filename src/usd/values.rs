@@ -1,0 +1,79 @@
+//! `sdf::Value`s converted to the numbers the reader uses; `None` for a value of another type.
+
+use glam::{DQuat, DVec3, Vec3};
+use openusd::sdf;
+
+pub(super) fn scalar(v: &sdf::Value) -> Option<f64> {
+    Some(match v {
+        sdf::Value::Float(x) => f64::from(*x),
+        sdf::Value::Double(x) => *x,
+        sdf::Value::Half(x) => f64::from(x.to_f32()),
+        sdf::Value::Int(x) => f64::from(*x),
+        _ => return None,
+    })
+}
+
+pub(super) fn token(v: &sdf::Value) -> Option<String> {
+    match v {
+        sdf::Value::Token(t) => Some(t.as_str().to_owned()),
+        sdf::Value::String(s) => Some(s.clone()),
+        _ => None,
+    }
+}
+
+pub(super) fn vec3(v: &sdf::Value) -> Option<DVec3> {
+    Some(match v {
+        sdf::Value::Vec3f(a) => DVec3::new(a.x.into(), a.y.into(), a.z.into()),
+        sdf::Value::Vec3d(a) => DVec3::new(a.x, a.y, a.z),
+        sdf::Value::Vec3h(a) => DVec3::new(a.x.to_f64(), a.y.to_f64(), a.z.to_f64()),
+        // A one-element colour array (`color3f[] displayColor = [(…)]`).
+        sdf::Value::Vec3fVec(a) if a.len() == 1 => {
+            DVec3::new(a[0].x.into(), a[0].y.into(), a[0].z.into())
+        }
+        _ => return None,
+    })
+}
+
+pub(super) fn quat(v: &sdf::Value) -> Option<DQuat> {
+    Some(match v {
+        sdf::Value::Quatf(q) => DQuat::from_xyzw(q.x.into(), q.y.into(), q.z.into(), q.w.into()),
+        sdf::Value::Quatd(q) => DQuat::from_xyzw(q.x, q.y, q.z, q.w),
+        sdf::Value::Quath(q) => {
+            DQuat::from_xyzw(q.x.to_f64(), q.y.to_f64(), q.z.to_f64(), q.w.to_f64())
+        }
+        _ => return None,
+    })
+}
+
+pub(super) fn vec3s(v: &sdf::Value) -> Option<Vec<Vec3>> {
+    Some(match v {
+        sdf::Value::Vec3fVec(a) => a.iter().map(|p| Vec3::new(p.x, p.y, p.z)).collect(),
+        sdf::Value::Vec3dVec(a) => a
+            .iter()
+            .map(|p| DVec3::new(p.x, p.y, p.z).as_vec3())
+            .collect(),
+        sdf::Value::Vec3hVec(a) => a
+            .iter()
+            .map(|p| Vec3::new(p.x.to_f32(), p.y.to_f32(), p.z.to_f32()))
+            .collect(),
+        _ => return None,
+    })
+}
+
+pub(super) fn floats(v: &sdf::Value) -> Option<Vec<f32>> {
+    Some(match v {
+        sdf::Value::FloatVec(a) => a.clone(),
+        sdf::Value::DoubleVec(a) => a.iter().map(|&x| x as f32).collect(),
+        sdf::Value::HalfVec(a) => a.iter().map(|x| x.to_f32()).collect(),
+        sdf::Value::Float(x) => vec![*x],
+        _ => return None,
+    })
+}
+
+pub(super) fn ints(v: &sdf::Value) -> Option<Vec<i64>> {
+    Some(match v {
+        sdf::Value::IntVec(a) => a.iter().map(|&x| i64::from(x)).collect(),
+        sdf::Value::Int64Vec(a) => a.clone(),
+        _ => return None,
+    })
+}
