@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Writes the USD reader's test files with Pixar's own library (`pip install usd-core`, the `pxr` module).
 
-    scripts/usd-test-data.py                 # tests/data/usd/: groom.usda/.usdc/.usdz, bases.usda
+    scripts/usd-test-data.py                 # tests/data/usd/: groom.usda/.usdc/.usdz, bases.usda,
+                                             # instancing.usda and .expected
     scripts/usd-test-data.py --big DIR       # DIR/big.usdc and DIR/big.hair: 100 000 strands, for timing
     scripts/usd-test-data.py --head DIR      # DIR/head-groom.usdc: 5 000 strands on a head, camera and sun, for
                                              # comparing with Cycles (scripts/cycles-usd.py)
@@ -147,6 +148,107 @@ def bases_stage(path):
     stage.GetRootLayer().Save()
 
 
+def instancing_stage(path):
+    """Instanceable prims, a point instancer (rotated, scaled, one instance hidden, a curve and a mesh prototype),
+    guide curves and an invisible prim. Beside it, `instancing.expected`: the world points of every strand and mesh
+    a final frame shows, as Pixar's library places them (one line each: `curve` or `mesh`, then x y z ...)."""
+    stage = Usd.Stage.CreateNew(path)
+    world = UsdGeom.Xform.Define(stage, "/World")
+    stage.SetDefaultPrim(world.GetPrim())
+    world.AddRotateYOp().Set(30.0)
+    # A tuft defined once under a class and instanced three times.
+    protos = stage.CreateClassPrim("/Protos")
+    tuft = UsdGeom.Xform.Define(stage, "/Protos/Tuft")
+    c = UsdGeom.BasisCurves.Define(stage, "/Protos/Tuft/Curves")
+    c.CreateTypeAttr("cubic")
+    c.CreateBasisAttr("bspline")
+    c.CreateCurveVertexCountsAttr([4, 4])
+    c.CreatePointsAttr([(0, 0, 0), (0, 1, 0), (0.25, 2, 0), (0.5, 3, 0), (1, 0, 0), (1, 1, 0.5), (1, 2, 1), (1, 3, 1.5)])
+    c.CreateWidthsAttr([0.1])
+    c.SetWidthsInterpolation("constant")
+    for i in range(3):
+        x = UsdGeom.Xform.Define(stage, "/World/Tuft%d" % i)
+        x.AddTranslateOp().Set(Gf.Vec3d(2.0 * i, 0.0, 0.0))
+        x.AddScaleOp().Set(Gf.Vec3f(1.0 + 0.5 * i))
+        x.GetPrim().GetReferences().AddInternalReference("/Protos/Tuft")
+        x.GetPrim().SetInstanceable(True)
+    # A point instancer with a curve prototype (its own transform applies inside each instance) and a mesh one.
+    pi = UsdGeom.PointInstancer.Define(stage, "/World/Scatter")
+    pi.AddTranslateOp().Set(Gf.Vec3d(0.0, 0.0, 5.0))
+    p0 = UsdGeom.Xform.Define(stage, "/World/Scatter/Prototypes/Strand")
+    p0.AddRotateZOp().Set(15.0)
+    cc = UsdGeom.BasisCurves.Define(stage, "/World/Scatter/Prototypes/Strand/C")
+    cc.CreateTypeAttr("cubic")
+    cc.CreateBasisAttr("bspline")
+    cc.CreateCurveVertexCountsAttr([5])
+    cc.CreatePointsAttr([(0, 0, 0), (0, 0.5, 0.1), (0.1, 1, 0.2), (0.2, 1.5, 0.2), (0.3, 2, 0.1)])
+    cc.CreateWidthsAttr([0.05])
+    cc.SetWidthsInterpolation("constant")
+    quad = UsdGeom.Mesh.Define(stage, "/World/Scatter/Prototypes/Card")
+    quad.CreatePointsAttr([(-0.5, 0, -0.5), (0.5, 0, -0.5), (0.5, 0, 0.5), (-0.5, 0, 0.5)])
+    quad.CreateFaceVertexCountsAttr([4])
+    quad.CreateFaceVertexIndicesAttr([0, 3, 2, 1])
+    quad.CreateDisplayColorAttr([(0.8, 0.6, 0.4)])
+    pi.CreatePrototypesRel().SetTargets([p0.GetPath(), quad.GetPath()])
+    pi.CreateProtoIndicesAttr([0, 0, 1, 0, 1])
+    pi.CreatePositionsAttr([(0, 0, 0), (1, 0, 0), (2, -1, 0), (3, 0, 0), (4, -1, 0)])
+    half = math.sqrt(0.5)
+    pi.CreateOrientationsAttr([Gf.Quath(1, 0, 0, 0), Gf.Quath(half, 0, half, 0), Gf.Quath(half, half, 0, 0),
+                               Gf.Quath(0.5, 0.5, 0.5, 0.5), Gf.Quath(1, 0, 0, 0)])
+    pi.CreateScalesAttr([(1, 1, 1), (2, 2, 2), (1, 1, 1), (0.5, 0.5, 0.5), (1.5, 1.5, 1.5)])
+    pi.CreateIdsAttr([10, 11, 12, 13, 14])
+    pi.CreateInvisibleIdsAttr([13])
+    # What a final frame leaves out.
+    g = UsdGeom.BasisCurves.Define(stage, "/World/Guides")
+    g.CreateCurveVertexCountsAttr([4])
+    g.CreatePointsAttr([(9, 0, 0), (9, 1, 0), (9, 2, 0), (9, 3, 0)])
+    g.CreatePurposeAttr("guide")
+    UsdGeom.Xform.Define(stage, "/World/Hidden")
+    h = UsdGeom.BasisCurves.Define(stage, "/World/Hidden/C")
+    h.CreateCurveVertexCountsAttr([4])
+    h.CreatePointsAttr([(8, 0, 0), (8, 1, 0), (8, 2, 0), (8, 3, 0)])
+    UsdGeom.Imageable(stage.GetPrimAtPath("/World/Hidden")).CreateVisibilityAttr("invisible")
+    stage.GetRootLayer().Save()
+
+    # The expected world points, from Pixar's library: instance proxies with their world transforms, the
+    # instancer's transforms (instancer world × instance × prototype's own ops).
+    lines = []
+    time = Usd.TimeCode.Default()
+    xf = UsdGeom.XformCache(time)
+    flat = lambda pts: " ".join("%.9g %.9g %.9g" % (p[0], p[1], p[2]) for p in pts)
+    for prim in Usd.PrimRange(stage.GetPseudoRoot(), Usd.TraverseInstanceProxies()):
+        if not prim.IsA(UsdGeom.BasisCurves) or "Scatter" in str(prim.GetPath()):
+            continue
+        img = UsdGeom.Imageable(prim)
+        if img.ComputeVisibility(time) == "invisible" or img.ComputePurpose() not in ("default", "render"):
+            continue
+        m = xf.GetLocalToWorldTransform(prim)
+        pts = [m.Transform(Gf.Vec3d(*p)) for p in UsdGeom.BasisCurves(prim).GetPointsAttr().Get()]
+        counts = UsdGeom.BasisCurves(prim).GetCurveVertexCountsAttr().Get()
+        k = 0
+        for n in counts:
+            lines.append("curve " + flat(pts[k:k + n]))
+            k += n
+    inst = pi.ComputeInstanceTransformsAtTime(time, time, UsdGeom.PointInstancer.ExcludeProtoXform,
+                                              UsdGeom.PointInstancer.IgnoreMask)
+    mask = pi.ComputeMaskAtTime(time)
+    instancer_world = xf.GetLocalToWorldTransform(pi.GetPrim())
+    for i, m in enumerate(inst):
+        if mask and not mask[i]:
+            continue
+        proto = stage.GetPrimAtPath(pi.GetPrototypesRel().GetTargets()[pi.GetProtoIndicesAttr().Get()[i]])
+        for prim in Usd.PrimRange(proto):
+            if not prim.IsA(UsdGeom.PointBased):
+                continue
+            # The prim's transform relative to the prototype root, the root's own ops included.
+            local = xf.GetLocalToWorldTransform(prim) * xf.GetLocalToWorldTransform(proto.GetParent()).GetInverse()
+            full = local * m * instancer_world
+            pts = [full.Transform(Gf.Vec3d(*p)) for p in UsdGeom.PointBased(prim).GetPointsAttr().Get()]
+            lines.append(("curve " if prim.IsA(UsdGeom.BasisCurves) else "mesh ") + flat(pts))
+    with open(os.path.splitext(path)[0] + ".expected", "w") as f:
+        f.write("\n".join(lines) + "\n")
+
+
 def big(directory, strands=100_000, points=16):
     """The same strands as .usdc (pinned B-spline, per-vertex widths) and as .hair (thickness array)."""
     os.makedirs(directory, exist_ok=True)
@@ -240,6 +342,7 @@ def main():
     layer.Export(os.path.join(OUT, "groom.usdc"))
     UsdUtils.CreateNewUsdzPackage(os.path.join(OUT, "groom.usdc"), os.path.join(OUT, "groom.usdz"))
     bases_stage(os.path.join(OUT, "bases.usda"))
+    instancing_stage(os.path.join(OUT, "instancing.usda"))
 
 
 if __name__ == "__main__":

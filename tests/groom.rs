@@ -319,3 +319,48 @@ fn the_memory_estimate_holds_the_head_and_its_tracer() {
         .unwrap_err();
     assert!(refused.to_string().contains("meshes"), "{refused}");
 }
+
+#[test]
+fn an_instanced_groom_is_checked_against_the_memory_limit_with_the_strands_it_makes() {
+    // 4 000 instances of a 50-strand tuft from a file of a few kilobytes: 200 000 strands, 1.6 M points.
+    let dir = tempfile::tempdir().unwrap();
+    let mut tuft = String::new();
+    for k in 0..50 {
+        let x = 0.01 * k as f32;
+        tuft += &format!("({x},0,0),({x},0.1,0),({x},0.2,0.01),({x},0.3,0.02),({x},0.4,0.03),({x},0.5,0.04),({x},0.6,0.05),({x},0.7,0.06),");
+    }
+    let positions: Vec<String> = (0..4000)
+        .map(|i| format!("({},{},0)", i % 64, i / 64))
+        .collect();
+    let text = format!(
+        "#usda 1.0\ndef PointInstancer \"Fur\" {{\n  rel prototypes = </Fur/Tuft>\n  int[] protoIndices = [{}]\n  \
+         point3f[] positions = [{}]\n  def BasisCurves \"Tuft\" {{\n    uniform token basis = \"bspline\"\n    \
+         int[] curveVertexCounts = [{}]\n    point3f[] points = [{}]\n  }}\n}}\n",
+        vec!["0"; 4000].join(","),
+        positions.join(","),
+        vec!["8"; 50].join(","),
+        tuft.trim_end_matches(',')
+    );
+    let stage = dir.path().join("fur.usda");
+    std::fs::write(&stage, text).unwrap();
+    let scene = format!(
+        "[hair]\nfile = {stage:?}\n\n[camera]\nview = [0.0, 0.0, -1.0]\n\n[film]\nresolution = [32, 32]\nspp = 1\n"
+    );
+    let spec = Scene::parse(&scene, &dir.path().join("s.toml"), dir.path())
+        .unwrap()
+        .resolve()
+        .unwrap();
+    // The file's size alone estimates far less than the strands it makes.
+    let before = cuticle::render::budget::estimate_frame(&spec, 2, false).unwrap();
+    let made = cuticle::render::budget::estimate_frame_of(&spec, (200_000, 1_600_000), 2, false);
+    assert!(
+        made.total() > before.total() + (100 << 20),
+        "{before:?} {made:?}"
+    );
+    let limit = (before.total() + made.total()) / 2;
+    let e = match cuticle::render::Frame::load_within(spec, limit, "a test limit") {
+        Ok(_) => panic!("a frame over the limit was built"),
+        Err(e) => e.to_string(),
+    };
+    assert!(e.contains("a test limit"), "{e}");
+}

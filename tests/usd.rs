@@ -472,3 +472,134 @@ fn a_subdivision_surface_is_shaded_smoothly_and_a_polygon_mesh_flat() {
     let groom = usd::read(&data("groom.usda"), None, R).unwrap();
     assert!(groom.meshes[0].vertex_normals.is_some());
 }
+
+/// The world points of every strand (`curve`) and mesh (`mesh`) in `instancing.expected`, as Pixar's library
+/// places them.
+fn expected_points(kind: &str) -> Vec<Vec<Vec3>> {
+    let text = std::fs::read_to_string(data("instancing.expected")).unwrap();
+    text.lines()
+        .filter_map(|l| l.strip_prefix(kind).map(str::trim))
+        .map(|l| {
+            let v: Vec<f32> = l.split(' ').map(|x| x.parse().unwrap()).collect();
+            v.chunks(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect()
+        })
+        .collect()
+}
+
+/// Whether `got` holds the point lists of `want`, in any order, each point within `tol`.
+fn same_point_sets(mut got: Vec<Vec<Vec3>>, mut want: Vec<Vec<Vec3>>, tol: f32) {
+    let key =
+        |v: &Vec<Vec3>| (v[0].x * 1e4).round() as i64 * 1_000_003 + (v[0].z * 1e4).round() as i64;
+    got.sort_by_key(key);
+    want.sort_by_key(key);
+    assert_eq!(got.len(), want.len(), "how many");
+    for (g, w) in got.iter().zip(&want) {
+        assert_eq!(g.len(), w.len());
+        for (a, b) in g.iter().zip(w) {
+            assert!((*a - *b).abs().max_element() <= tol, "{a} against {b}");
+        }
+    }
+}
+
+#[test]
+fn instances_and_point_instancers_land_where_pixars_library_puts_them_and_guides_are_left_out() {
+    let s = usd::read(&data("instancing.usda"), None, R).unwrap();
+    let st = s.strands.as_ref().unwrap();
+    let strands: Vec<Vec<Vec3>> = (0..st.strand_count())
+        .map(|k| {
+            let (a, b) = (
+                st.strand_offsets[k] as usize,
+                st.strand_offsets[k + 1] as usize,
+            );
+            st.control_points[a..b]
+                .iter()
+                .map(|c| Vec3::new(c[0], c[1], c[2]))
+                .collect()
+        })
+        .collect();
+    // Three instances of a two-strand tuft, two visible instances of a one-strand prototype: the guide curves,
+    // the invisible prim and the hidden instance are not there.
+    assert_eq!(strands.len(), 8);
+    same_point_sets(strands, expected_points("curve"), 2e-6);
+    let meshes: Vec<Vec<Vec3>> = s.meshes.iter().map(|m| m.positions.clone()).collect();
+    same_point_sets(meshes, expected_points("mesh"), 2e-6);
+    assert_eq!(s.skipped.guide, 1);
+    assert_eq!(s.skipped.invisible, 1);
+    // Widths scale with the instance: the tuft's 0.1 at scales 1, 1.5 and 2, the strand's 0.05 at 1 and 2. The
+    // file's half-precision quaternions are up to 2.2e-4 from unit length, and their matrix scales by that much.
+    let mut radii: Vec<f32> = (0..st.strand_count())
+        .map(|k| st.control_points[st.strand_offsets[k] as usize][3])
+        .collect();
+    radii.sort_by(f32::total_cmp);
+    let want = [0.025, 0.05, 0.05, 0.05, 0.075, 0.075, 0.1, 0.1];
+    for (r, w) in radii.iter().zip(want) {
+        assert!((r - w).abs() <= 2.5e-4 * w, "radii {radii:?}");
+    }
+}
+
+#[test]
+fn a_point_instancer_that_would_make_too_much_or_points_outside_its_prototypes_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let stage = |indices: &str, positions: &str| {
+        format!(
+            "#usda 1.0\ndef PointInstancer \"P\" {{\n  rel prototypes = </P/Protos/C>\n  int[] protoIndices = \
+             {indices}\n  point3f[] positions = {positions}\n  def Scope \"Protos\" {{\n    def BasisCurves \"C\" \
+             {{\n      uniform token basis = \"bspline\"\n      int[] curveVertexCounts = [4]\n      point3f[] \
+             points = [(0,0,0),(0,1,0),(0,2,0),(0,3,0)]\n    }}\n  }}\n}}\n"
+        )
+    };
+    fails_in(
+        dir.path(),
+        "index.usda",
+        &stage("[0, 1]", "[(0,0,0),(1,0,0)]"),
+        "/P",
+        "protoIndices[1] is 1, outside the 1 prototypes",
+    );
+    fails_in(
+        dir.path(),
+        "count.usda",
+        &stage("[0, 0]", "[(0,0,0)]"),
+        "/P",
+        "positions has 1 values for 2 protoIndices",
+    );
+    // An instancer placing another: 4 points × 65,536 inner instances × 10,000 outer ones is 2.6 × 10⁹ points,
+    // refused before any is made.
+    let positions = |n: usize| {
+        let v: Vec<String> = (0..n).map(|i| format!("({i},0,0)")).collect();
+        format!("[{}]", v.join(","))
+    };
+    let zeros = |n: usize| format!("[{}]", vec!["0"; n].join(","));
+    let nested = format!(
+        "#usda 1.0\ndef PointInstancer \"Outer\" {{\n  rel prototypes = </Outer/Inner>\n  int[] protoIndices = {}\n  \
+         point3f[] positions = {}\n  def PointInstancer \"Inner\" {{\n    rel prototypes = </Outer/Inner/C>\n    \
+         int[] protoIndices = {}\n    point3f[] positions = {}\n    def BasisCurves \"C\" {{\n      uniform token \
+         basis = \"bspline\"\n      int[] curveVertexCounts = [4]\n      point3f[] points = \
+         [(0,0,0),(0,1,0),(0,2,0),(0,3,0)]\n    }}\n  }}\n}}\n",
+        zeros(10_000),
+        positions(10_000),
+        zeros(65_536),
+        positions(65_536)
+    );
+    fails_in(
+        dir.path(),
+        "nested.usda",
+        &nested,
+        "/Outer",
+        "10000 instances make 2621440000 points, more than the reader's limit",
+    );
+    // Two instances read fine, and the prototype under the instancer is not read as itself.
+    let p = write(
+        dir.path(),
+        "ok.usda",
+        stage("[0, 0]", "[(0,0,0),(1,0,0)]").as_bytes(),
+    );
+    let s = usd::read(&p, None, R).unwrap();
+    assert_eq!(s.strands.unwrap().strand_count(), 2);
+}
+
+fn fails_in(dir: &Path, name: &str, text: &str, prim: &str, says: &str) {
+    let p = write(dir, name, text.as_bytes());
+    let e = usd::read(&p, None, R).unwrap_err();
+    assert_eq!(e.prim.as_deref(), Some(prim), "{e}");
+    assert!(e.to_string().contains(says), "{e}");
+}

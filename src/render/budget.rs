@@ -77,7 +77,8 @@ const USD_BYTES_PER_POINT: u64 = 12;
 
 /// The strands and points a USD file holds, estimated from its size before it is read ([`USD_BYTES_PER_POINT`]):
 /// the stage is read once, by the frame's load, and a stage's curves are not counted without reading it. An
-/// estimate, not a bound: a stage of mostly meshes is over-counted, a compressed one under-counted.
+/// estimate, not a bound: a stage of mostly meshes is over-counted, a compressed or instanced one under-counted, so
+/// [`super::Frame::load_adjusted`] checks the frame again with the counts read, before the tracer is built.
 fn usd_counts(path: &std::path::Path) -> Result<(u64, u64), HairError> {
     let len = std::fs::metadata(path)
         .map_err(|source| HairError::Io {
@@ -274,7 +275,18 @@ pub fn estimate_frame(
     adaptive: bool,
 ) -> Result<MemoryEstimate, HairError> {
     let counts = hair_counts(&spec.hair.source)?;
-    Ok(MemoryEstimate {
+    Ok(estimate_frame_of(spec, counts, threads, adaptive))
+}
+
+/// [`estimate_frame`] for hair of `counts` (strands, points): a USD stage's counts once it is read, which its
+/// file's size does not bound (a point instancer places its prototypes any number of times).
+pub fn estimate_frame_of(
+    spec: &super::FrameSpec,
+    counts: (u64, u64),
+    threads: usize,
+    adaptive: bool,
+) -> MemoryEstimate {
+    MemoryEstimate {
         meshes: mesh_bytes(&spec.shapes),
         ..estimate(
             counts,
@@ -285,7 +297,7 @@ pub fn estimate_frame(
             threads,
             adaptive,
         )
-    })
+    }
 }
 
 /// Bytes per triangle of a mesh tracer at its build peak. Measured after the build on a 100 352-triangle sphere

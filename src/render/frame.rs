@@ -140,6 +140,24 @@ impl Frame {
         let start = Instant::now();
         let (strands, zero_length_strands) = spec.hair.load_counting()?;
         let load_seconds = start.elapsed().as_secs_f64();
+        // A USD stage's size does not bound its strands (instancing): checked again with the counts read, before
+        // the tracer, the frame's largest part, is built.
+        let estimate = if matches!(spec.hair.source, crate::hair::HairSource::Usd { .. }) {
+            let counts = (
+                strands.strand_count() as u64,
+                strands.control_points.len() as u64,
+            );
+            let read = super::budget::estimate_frame_of(
+                &spec,
+                counts,
+                rayon::current_num_threads(),
+                adaptive,
+            );
+            read.check(limit, limit_source)?;
+            read
+        } else {
+            estimate
+        };
         adjust(&strands, &mut spec);
         let mut frame = Frame::build(strands, spec)?;
         frame.load_seconds = load_seconds;

@@ -19,6 +19,10 @@
 //!   uniform, vertex, faceVarying) becomes the corner albedo, else the bound `UsdPreviewSurface`'s constant
 //!   `inputs:diffuseColor`, else 0.5 grey with a warning.
 //! - **Lights**: `DistantLight` and `DomeLight`; other lights are skipped with a warning.
+//! - **Instancing**: instanceable prims through their instance proxies (the composed stage puts a prototype's
+//!   children under every instance); `PointInstancer`s by placing their prototypes ([`instancer`]).
+//! - **Left out**, with their subtrees, as a final frame leaves them: `visibility = "invisible"` and `purpose`
+//!   `guide` or `proxy` ([`Skipped`] counts them).
 //!
 //! Bad input: every error names the file and, where there is one, the prim. Counts are checked against the
 //! arrays before anything proportional to them is allocated. `openusd` 0.6 can panic on malformed binary files
@@ -32,6 +36,7 @@ mod basis_curves;
 mod camera;
 mod crate_check;
 pub mod curves;
+mod instancer;
 mod lux;
 mod meshes;
 mod reader;
@@ -104,8 +109,21 @@ pub struct UsdStage {
     pub up_axis: String,
     /// The stage's `metersPerUnit` (0.01 when not authored); reported, not applied.
     pub meters_per_unit: f64,
+    /// Prims left out with their subtrees because a final frame does not show them.
+    pub skipped: Skipped,
     /// What was skipped or approximated, one line each.
     pub warnings: Vec<String>,
+}
+
+/// Prims left out, with their subtrees, by what marks them.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Skipped {
+    /// `visibility = "invisible"`.
+    pub invisible: usize,
+    /// `purpose = "guide"` (a groom's guide curves).
+    pub guide: usize,
+    /// `purpose = "proxy"` (a preview stand-in for render geometry).
+    pub proxy: usize,
 }
 
 /// A camera in world space. USD cameras look down their −Z axis with +Y up.
@@ -221,6 +239,8 @@ pub struct UsdSummary {
     pub bounds: Option<(Vec3, Vec3)>,
     /// `upAxis` and `metersPerUnit`.
     pub units: (String, f64),
+    /// Prims left out as invisible, guides or proxies.
+    pub skipped: Skipped,
     /// Warnings.
     pub warnings: usize,
 }
@@ -254,6 +274,7 @@ pub fn summary(path: &Path, root: Option<&str>) -> Result<UsdSummary, UsdError> 
         lights: s.lights.len(),
         bounds,
         units: (s.up_axis.clone(), s.meters_per_unit),
+        skipped: s.skipped,
         warnings: s.warnings.len(),
     })
 }
@@ -287,6 +308,14 @@ impl fmt::Display for UsdSummary {
         )?;
         if let Some((lo, hi)) = self.bounds {
             write!(f, "; bounds {:?} .. {:?}", lo.to_array(), hi.to_array())?;
+        }
+        let k = self.skipped;
+        if k.invisible + k.guide + k.proxy > 0 {
+            write!(
+                f,
+                "; left out: {} invisible, {} guide, {} proxy prims",
+                k.invisible, k.guide, k.proxy
+            )?;
         }
         if self.warnings > 0 {
             write!(f, "; {} warnings", self.warnings)?;

@@ -6,6 +6,7 @@ use glam::DMat4;
 use openusd::{sdf, usd};
 
 use crate::hair::Strands;
+use crate::mesh::TriangleMesh;
 
 use super::values::{floats, scalar, token, vec3s};
 use super::{UsdError, UsdStage};
@@ -16,6 +17,14 @@ pub(super) struct Reader<'a> {
     pub(super) stage: usd::Stage,
     pub(super) default_radius: f32,
     pub(super) out: UsdStage,
+}
+
+/// Curves and meshes read from one subtree, in traversal order.
+#[derive(Default)]
+pub(super) struct Geometry {
+    pub(super) strands: Strands,
+    pub(super) curve_prims: Vec<String>,
+    pub(super) meshes: Vec<TriangleMesh>,
 }
 
 /// An openusd error on `prim`.
@@ -86,8 +95,34 @@ impl<'a> Reader<'a> {
         {
             return Err(prim_err(self.path, &root_path, "no such prim on the stage"));
         }
-        let mut stack = vec![(root_prim, world)];
-        let mut strands = Strands::default();
+        let mut geometry = Geometry::default();
+        self.walk(root_prim, world, &mut geometry, 0)?;
+        if geometry.strands.strand_count() > 0 {
+            self.out.strands = Some(geometry.strands);
+        }
+        self.out.curve_prims = geometry.curve_prims;
+        self.out.meshes = geometry.meshes;
+        Ok(self.out)
+    }
+
+    /// Reads the geometry under `root` (included) into `geometry`, `world` being the transform of `root`'s
+    /// parent. `depth` counts the point instancers this walk is inside: cameras and lights are read only outside
+    /// them (a prototype's camera or light is not one of the stage's).
+    ///
+    /// Skipped with their subtrees, as a renderer's final frame skips them: inactive, undefined (`over`) and
+    /// abstract (`class`) prims, `visibility = "invisible"`, and `purpose` `guide` or `proxy` (a groom's guide
+    /// curves, a preview stand-in). Instanceable prims are read through their instance proxies: the stage
+    /// composes a prototype's children under each instance, so nothing is needed here. A `PointInstancer`'s
+    /// children are read only as its prototypes, once per instance ([`Reader::point_instancer`]).
+    pub(super) fn walk(
+        &mut self,
+        root: usd::Prim,
+        world: DMat4,
+        geometry: &mut Geometry,
+        depth: u32,
+    ) -> Result<(), UsdError> {
+        let file = self.path;
+        let mut stack = vec![(root, world)];
         while let Some((prim, parent)) = stack.pop() {
             let ppath = prim.path().clone();
             let is_root = ppath == sdf::Path::abs_root();
@@ -101,31 +136,56 @@ impl<'a> Reader<'a> {
                 {
                     continue;
                 }
-                let world = self.world_of(&prim, parent)?;
                 let ty = prim
                     .type_name()
                     .map_err(e)?
                     .map(|t| t.as_str().to_owned())
                     .unwrap_or_default();
                 *self.out.prim_types.entry(ty.clone()).or_default() += 1;
-                if prim.is_instance().map_err(e)? {
-                    self.warn(
-                        &ppath,
-                        "instanced prim: its prototype's geometry is not read",
-                    );
+                // `visibility` and `purpose` belong to imageable prims, which are typed; a typeless prim's are
+                // not read, as USD does not read them.
+                let typed = !ty.is_empty();
+                if typed && self.token(&prim, "visibility", "inherited")? == "invisible" {
+                    self.out.skipped.invisible += 1;
+                    continue;
                 }
+                let purpose = if typed {
+                    self.token(&prim, "purpose", "default")?
+                } else {
+                    String::new()
+                };
+                match purpose.as_str() {
+                    "guide" => {
+                        self.out.skipped.guide += 1;
+                        continue;
+                    }
+                    "proxy" => {
+                        self.out.skipped.proxy += 1;
+                        continue;
+                    }
+                    _ => {}
+                }
+                let world = self.world_of(&prim, parent)?;
                 match ty.as_str() {
                     "BasisCurves" => {
                         let s = self.curves(&prim, world)?;
                         if s.strand_count() > 0 {
-                            strands.append(&s);
-                            self.out.curve_prims.push(ppath.to_string());
+                            geometry.strands.append(&s);
+                            geometry.curve_prims.push(ppath.to_string());
                         }
                     }
                     "Mesh" => {
                         let m = self.mesh(&prim, world)?;
-                        self.out.meshes.push(m);
+                        geometry.meshes.push(m);
                     }
+                    "PointInstancer" => {
+                        self.point_instancer(&prim, world, geometry, depth)?;
+                        continue;
+                    }
+                    "Camera" if depth > 0 => self.warn(
+                        &ppath,
+                        "a camera in a point instancer's prototype is not read",
+                    ),
                     "Camera" => {
                         if self.out.camera.is_none() {
                             self.out.camera = Some(self.camera(&prim, world)?);
@@ -133,6 +193,10 @@ impl<'a> Reader<'a> {
                             self.warn(&ppath, "a second camera: only the first is read");
                         }
                     }
+                    t if t.ends_with("Light") && depth > 0 => self.warn(
+                        &ppath,
+                        "a light in a point instancer's prototype is not read",
+                    ),
                     "DistantLight" | "DomeLight" => {
                         let l = self.light(&prim, &ty, world)?;
                         self.out.lights.push(l);
@@ -150,10 +214,7 @@ impl<'a> Reader<'a> {
                 stack.push((c, world));
             }
         }
-        if strands.strand_count() > 0 {
-            self.out.strands = Some(strands);
-        }
-        Ok(self.out)
+        Ok(())
     }
 
     pub(super) fn warn(&mut self, prim: &sdf::Path, message: &str) {

@@ -77,3 +77,21 @@ pub(super) fn ints(v: &sdf::Value) -> Option<Vec<i64>> {
         _ => return None,
     })
 }
+
+pub(super) fn quats(v: &sdf::Value) -> Option<Vec<DQuat>> {
+    Some(match v {
+        sdf::Value::QuathVec(a) => a
+            .iter()
+            .map(|q| DQuat::from_xyzw(q.x.to_f64(), q.y.to_f64(), q.z.to_f64(), q.w.to_f64()))
+            .collect(),
+        sdf::Value::QuatfVec(a) => a
+            .iter()
+            .map(|q| DQuat::from_xyzw(q.x.into(), q.y.into(), q.z.into(), q.w.into()))
+            .collect(),
+        sdf::Value::QuatdVec(a) => a
+            .iter()
+            .map(|q| DQuat::from_xyzw(q.x, q.y, q.z, q.w))
+            .collect(),
+        _ => return None,
+    })
+}
