@@ -2,7 +2,8 @@
 """Writes the USD reader's test files with Pixar's own library (`pip install usd-core`, the `pxr` module).
 
     scripts/usd-test-data.py                 # tests/data/usd/: groom.usda/.usdc/.usdz, bases.usda,
-                                             # instancing.usda and .expected
+                                             # instancing.usda and .expected, textured.usda/.usdz
+                                             # and checker.png
     scripts/usd-test-data.py --big DIR       # DIR/big.usdc and DIR/big.hair: 100 000 strands, for timing
     scripts/usd-test-data.py --head DIR      # DIR/head-groom.usdc: 5 000 strands on a head, camera and sun, for
                                              # comparing with Cycles (scripts/cycles-usd.py)
@@ -249,6 +250,86 @@ def instancing_stage(path):
         f.write("\n".join(lines) + "\n")
 
 
+def png(path, rows):
+    """An 8-bit RGB PNG of `rows` (lists of (r, g, b) bytes), written without any imaging library."""
+    import zlib
+    h, w = len(rows), len(rows[0])
+    raw = b"".join(b"\x00" + bytes(c for px in row for c in px) for row in rows)
+    chunk = lambda kind, data: (struct.pack(">I", len(data)) + kind + data
+                                + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF))
+    with open(path, "wb") as f:
+        f.write(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0))
+                + chunk(b"IDAT", zlib.compress(raw, 9)) + chunk(b"IEND", b""))
+
+
+# The texture's texels, top row first: what tests/usd.rs expects at each texel centre.
+TEXELS = [[(255, 0, 0), (0, 255, 0), (0, 0, 255), (255, 255, 255)],
+          [(128, 128, 128), (64, 32, 16), (200, 100, 50), (0, 0, 0)]]
+
+
+def textured_material(stage, path, texture, **inputs):
+    """A UsdPreviewSurface whose diffuseColor is a UsdUVTexture of `texture` read at primvar `st`."""
+    mat = UsdShade.Material.Define(stage, path)
+    surface = UsdShade.Shader.Define(stage, path + "/Surface")
+    surface.CreateIdAttr("UsdPreviewSurface")
+    tex = UsdShade.Shader.Define(stage, path + "/Texture")
+    tex.CreateIdAttr("UsdUVTexture")
+    tex.CreateInput("file", Sdf.ValueTypeNames.Asset).Set(Sdf.AssetPath(texture))
+    for name, (kind, value) in inputs.items():
+        tex.CreateInput(name, kind).Set(value)
+    reader = UsdShade.Shader.Define(stage, path + "/St")
+    reader.CreateIdAttr("UsdPrimvarReader_float2")
+    reader.CreateInput("varname", Sdf.ValueTypeNames.Token).Set("st")
+    tex.CreateInput("st", Sdf.ValueTypeNames.Float2).ConnectToSource(reader.ConnectableAPI(), "result")
+    surface.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).ConnectToSource(tex.ConnectableAPI(), "rgb")
+    mat.CreateSurfaceOutput().ConnectToSource(surface.ConnectableAPI(), "surface")
+    return mat
+
+
+def textured_stage(path):
+    """Two unit-high cards facing +z under a camera: `Card` (x 0..2) reads checker.png as sRGB (`auto`, an 8-bit
+    PNG) with indexed faceVarying st; `Raw` (x 3..5) reads it raw, scaled by 0.5 and biased by 0.1 in red, wrapS
+    clamp, with vertex st running past [0, 1] in s. checker.png (4 x 2 texels, TEXELS) is written beside it, and
+    the stage is packaged with it as textured.usdz."""
+    directory = os.path.dirname(path)
+    png(os.path.join(directory, "checker.png"), TEXELS)
+    stage = Usd.Stage.CreateNew(path)
+    world = UsdGeom.Xform.Define(stage, "/World")
+    stage.SetDefaultPrim(world.GetPrim())
+    card = UsdGeom.Mesh.Define(stage, "/World/Card")
+    card.CreatePointsAttr([(0, 0, 0), (2, 0, 0), (2, 1, 0), (0, 1, 0)])
+    card.CreateFaceVertexCountsAttr([4])
+    card.CreateFaceVertexIndicesAttr([0, 1, 2, 3])
+    card.CreateSubdivisionSchemeAttr("none")
+    st = UsdGeom.PrimvarsAPI(card.GetPrim()).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray,
+                                                           UsdGeom.Tokens.faceVarying)
+    st.Set([(0, 0), (1, 0), (1, 1), (0, 1)])
+    st.SetIndices([0, 1, 2, 3])
+    UsdShade.MaterialBindingAPI.Apply(card.GetPrim()).Bind(
+        textured_material(stage, "/World/Looks/Srgb", "checker.png"))
+    raw = UsdGeom.Mesh.Define(stage, "/World/Raw")
+    raw.CreatePointsAttr([(3, 0, 0), (5, 0, 0), (5, 1, 0), (3, 1, 0)])
+    raw.CreateFaceVertexCountsAttr([4])
+    raw.CreateFaceVertexIndicesAttr([0, 1, 2, 3])
+    raw.CreateSubdivisionSchemeAttr("none")
+    UsdGeom.PrimvarsAPI(raw.GetPrim()).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray,
+                                                     UsdGeom.Tokens.vertex).Set([(-0.5, 0), (1.5, 0), (1.5, 1),
+                                                                                 (-0.5, 1)])
+    UsdShade.MaterialBindingAPI.Apply(raw.GetPrim()).Bind(textured_material(
+        stage, "/World/Looks/Raw", "checker.png",
+        sourceColorSpace=(Sdf.ValueTypeNames.Token, "raw"),
+        wrapS=(Sdf.ValueTypeNames.Token, "clamp"),
+        scale=(Sdf.ValueTypeNames.Float4, Gf.Vec4f(0.5, 0.5, 0.5, 1.0)),
+        bias=(Sdf.ValueTypeNames.Float4, Gf.Vec4f(0.1, 0.0, 0.0, 0.0))))
+    cam = UsdGeom.Camera.Define(stage, "/World/Camera")
+    cam.AddTranslateOp().Set(Gf.Vec3d(2.5, 0.5, 10.0))
+    cam.CreateFocalLengthAttr(50.0)
+    cam.CreateHorizontalApertureAttr(30.0)
+    cam.CreateVerticalApertureAttr(6.0)
+    stage.GetRootLayer().Save()
+    UsdUtils.CreateNewUsdzPackage(path, os.path.splitext(path)[0] + ".usdz")
+
+
 def big(directory, strands=100_000, points=16):
     """The same strands as .usdc (pinned B-spline, per-vertex widths) and as .hair (thickness array)."""
     os.makedirs(directory, exist_ok=True)
@@ -343,6 +424,7 @@ def main():
     UsdUtils.CreateNewUsdzPackage(os.path.join(OUT, "groom.usdc"), os.path.join(OUT, "groom.usdz"))
     bases_stage(os.path.join(OUT, "bases.usda"))
     instancing_stage(os.path.join(OUT, "instancing.usda"))
+    textured_stage(os.path.join(OUT, "textured.usda"))
 
 
 if __name__ == "__main__":

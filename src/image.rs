@@ -481,8 +481,22 @@ pub fn read(path: impl AsRef<Path>) -> Result<Image, ImageError> {
 /// `max_bytes` (its header's width × channels × 4 × the rows decoding holds, [`decoded_rows`]): a small compressed
 /// file can declare a huge image.
 pub fn read_at_most(path: impl AsRef<Path>, max_bytes: u64) -> Result<Image, ImageError> {
-    let path = path.as_ref();
+    Ok(read_at_most_with(path.as_ref(), &[], max_bytes)?.0)
+}
+
+/// [`read_at_most`], with the string attributes named in `names` (`None` where the file has none): a texture's
+/// `oiio:ColorSpace` says whether its texels are sRGB-encoded.
+pub fn read_at_most_with(
+    path: &Path,
+    names: &[&str],
+    max_bytes: u64,
+) -> Result<(Image, Vec<Option<String>>), ImageError> {
     let file = open_as(path, false, max_bytes)?;
+    let attributes = file.attributes(names).map_err(|source| ImageError::Oiio {
+        path: path.to_path_buf(),
+        context: "openimageio cannot read its header".to_owned(),
+        source,
+    })?;
     let bytes = [
         file.width as u64,
         decoded_rows(file.height),
@@ -507,7 +521,7 @@ pub fn read_at_most(path: impl AsRef<Path>, max_bytes: u64) -> Result<Image, Ima
             ),
         ));
     }
-    decode(path, file)
+    Ok((decode(path, file)?, attributes))
 }
 
 /// Opens the image at `path` for reading (its header only; see [`oiio::OpenImage`]).

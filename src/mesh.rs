@@ -1,9 +1,11 @@
 //! Triangle meshes: the surfaces hair grows from (a scalp, a head) and anything else a groom file brings beside its
 //! curves. Plain data, as a reader produces it: world-space positions, triangles as index triples, and a Lambert
-//! albedo, constant or per triangle corner. The tracers ([`crate::accel::mesh`]) and the shading
+//! albedo, constant, per triangle corner or from a texture. The tracers ([`crate::accel::mesh`]) and the shading
 //! ([`crate::shape`]) read it; nothing here knows a file format.
 
-use glam::{Mat4, Vec3};
+use std::sync::Arc;
+
+use glam::{Mat4, Vec2, Vec3};
 
 /// What is wrong with a mesh, naming it (its file and prim).
 #[derive(Debug, thiserror::Error)]
@@ -33,6 +35,107 @@ pub struct TriangleMesh {
     /// Unit shading normals at the points, interpolated across each triangle ([`TriangleMesh::shading_normal`]);
     /// `None`: each triangle is shaded with its own normal (flat).
     pub vertex_normals: Option<Vec<Vec3>>,
+    /// Texture coordinates at each triangle's three corners, and the texture they look up: the albedo wherever
+    /// both are there (it takes the place of `corner_albedo` and `albedo`).
+    pub texture: Option<MeshTexture>,
+}
+
+/// How a texture's coordinate outside [0, 1] is brought back (USD's `UsdUVTexture` `wrapS`/`wrapT`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TextureWrap {
+    /// The texture tiles.
+    Repeat,
+    /// The edge texel continues.
+    Clamp,
+    /// The texture tiles, every other copy mirrored.
+    Mirror,
+    /// Black outside.
+    Black,
+}
+
+/// A texture's texels: linear RGB, top row first, as decoded once and shared by every mesh (and instance) using it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TextureImage {
+    /// Where it came from, for messages.
+    pub name: String,
+    /// Width in texels (≥ 1).
+    pub width: usize,
+    /// Height in texels (≥ 1).
+    pub height: usize,
+    /// `width × height` linear RGB texels, top row first.
+    pub texels: Vec<Vec3>,
+}
+
+/// A mesh's albedo texture: coordinates per triangle corner and the texture they look up, `albedo = texel × scale +
+/// bias` (USD's `UsdUVTexture`), clamped to [0, 1].
+#[derive(Debug, Clone, PartialEq)]
+pub struct MeshTexture {
+    /// Texture coordinates (s, t) at each triangle's corners; t = 0 is the image's bottom row.
+    pub corner_st: Vec<[Vec2; 3]>,
+    /// The texels.
+    pub image: Arc<TextureImage>,
+    /// Wrap of s and of t.
+    pub wrap: [TextureWrap; 2],
+    /// Multiplies the texel.
+    pub scale: Vec3,
+    /// Added after the scale.
+    pub bias: Vec3,
+}
+
+impl TextureImage {
+    /// The texel at integer (x, y) after wrapping (`None`: black, outside a [`TextureWrap::Black`] texture).
+    #[inline]
+    fn texel(&self, x: i64, y: i64, wrap: [TextureWrap; 2]) -> Vec3 {
+        let fold = |i: i64, n: usize, w: TextureWrap| -> Option<usize> {
+            let n = n as i64;
+            Some(match w {
+                TextureWrap::Repeat => i.rem_euclid(n),
+                TextureWrap::Clamp => i.clamp(0, n - 1),
+                TextureWrap::Mirror => {
+                    let k = i.rem_euclid(2 * n);
+                    if k < n {
+                        k
+                    } else {
+                        2 * n - 1 - k
+                    }
+                }
+                TextureWrap::Black => {
+                    if !(0..n).contains(&i) {
+                        return None;
+                    }
+                    i
+                }
+            } as usize)
+        };
+        match (fold(x, self.width, wrap[0]), fold(y, self.height, wrap[1])) {
+            (Some(x), Some(y)) => self.texels[y * self.width + x],
+            _ => Vec3::ZERO,
+        }
+    }
+
+    /// The bilinearly filtered texel at (s, t): texel centres at (i + ½) / width, t = 0 at the bottom row (USD's and
+    /// OpenGL's convention; the image's first row is its top).
+    pub fn lookup(&self, st: Vec2, wrap: [TextureWrap; 2]) -> Vec3 {
+        if !st.is_finite() {
+            return Vec3::ZERO;
+        }
+        // Far coordinates are folded into one period first (exact for repeat and mirror, and for clamp and black
+        // beyond ±1e6 nothing changes), so the integer conversions below cannot overflow.
+        let st = st.clamp(Vec2::splat(-1e6), Vec2::splat(1e6));
+        let x = st.x as f64 * self.width as f64 - 0.5;
+        let y = (1.0 - st.y as f64) * self.height as f64 - 0.5;
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = ((x - x0) as f32, (y - y0) as f32);
+        let (x0, y0) = (x0 as i64, y0 as i64);
+        let t = |dx: i64, dy: i64| self.texel(x0 + dx, y0 + dy, wrap);
+        (t(0, 0) * (1.0 - fx) + t(1, 0) * fx) * (1.0 - fy)
+            + (t(0, 1) * (1.0 - fx) + t(1, 1) * fx) * fy
+    }
+
+    /// Bytes the texels take.
+    pub fn bytes(&self) -> usize {
+        self.texels.len() * std::mem::size_of::<Vec3>() + self.name.len()
+    }
 }
 
 impl TriangleMesh {
@@ -105,6 +208,35 @@ impl TriangleMesh {
                 ));
             }
         }
+        if let Some(tex) = &self.texture {
+            if tex.corner_st.len() != self.triangles.len() {
+                return fail(format!(
+                    "{} texture coordinate triples for {} triangles",
+                    tex.corner_st.len(),
+                    self.triangles.len()
+                ));
+            }
+            if let Some(t) = tex
+                .corner_st
+                .iter()
+                .position(|c| c.iter().any(|st| !st.is_finite()))
+            {
+                return fail(format!("triangle {t}'s texture coordinates are not finite"));
+            }
+            let i = &tex.image;
+            if i.width == 0 || i.height == 0 || i.texels.len() != i.width * i.height {
+                return fail(format!(
+                    "texture {} has {} texels for {} x {}",
+                    i.name,
+                    i.texels.len(),
+                    i.width,
+                    i.height
+                ));
+            }
+            if !(tex.scale.is_finite() && tex.bias.is_finite()) {
+                return fail(format!("texture {}'s scale or bias is not finite", i.name));
+            }
+        }
         Ok(())
     }
 
@@ -116,7 +248,7 @@ impl TriangleMesh {
         )
     }
 
-    /// Bytes the mesh holds.
+    /// Bytes the mesh holds, without its texture's texels (shared; [`TextureImage::bytes`]).
     pub fn bytes(&self) -> usize {
         self.positions.len() * std::mem::size_of::<Vec3>()
             + self.triangles.len() * std::mem::size_of::<[u32; 3]>()
@@ -128,6 +260,10 @@ impl TriangleMesh {
                 .vertex_normals
                 .as_ref()
                 .map_or(0, |v| v.len() * std::mem::size_of::<Vec3>())
+            + self
+                .texture
+                .as_ref()
+                .map_or(0, |t| t.corner_st.len() * std::mem::size_of::<[Vec2; 3]>())
             + self.name.len()
     }
 
@@ -188,6 +324,12 @@ impl TriangleMesh {
     /// The albedo at barycentric (`u`, `v`) of triangle `t`: the point a + u (b − a) + v (c − a).
     #[inline]
     pub fn albedo_at(&self, t: u32, u: f32, v: f32) -> Vec3 {
+        if let Some(tex) = &self.texture {
+            let [a, b, c] = tex.corner_st[t as usize];
+            let st = a * (1.0 - u - v) + b * u + c * v;
+            let texel = tex.image.lookup(st, tex.wrap);
+            return (texel * tex.scale + tex.bias).clamp(Vec3::ZERO, Vec3::ONE);
+        }
         match &self.corner_albedo {
             None => self.albedo,
             Some(corners) => {
@@ -217,6 +359,11 @@ impl TriangleMesh {
             }
             if let Some(corners) = &mut self.corner_albedo {
                 for c in corners {
+                    c.swap(1, 2);
+                }
+            }
+            if let Some(tex) = &mut self.texture {
+                for c in &mut tex.corner_st {
                     c.swap(1, 2);
                 }
             }
@@ -277,7 +424,83 @@ mod tests {
             corner_albedo: None,
             albedo: Vec3::splat(0.5),
             vertex_normals: None,
+            texture: None,
         }
+    }
+
+    /// A 2 × 2 texture: top row red, green; bottom row blue, white.
+    fn four_texels() -> Arc<TextureImage> {
+        Arc::new(TextureImage {
+            name: "four".into(),
+            width: 2,
+            height: 2,
+            texels: vec![Vec3::X, Vec3::Y, Vec3::Z, Vec3::ONE],
+        })
+    }
+
+    #[test]
+    fn a_texture_is_looked_up_with_t_up_bilinearly_and_wrapped() {
+        let img = four_texels();
+        let repeat = [TextureWrap::Repeat; 2];
+        // Texel centres: s, t = 0.25 or 0.75, t = 0 at the bottom row.
+        assert_eq!(img.lookup(Vec2::new(0.25, 0.75), repeat), Vec3::X);
+        assert_eq!(img.lookup(Vec2::new(0.75, 0.75), repeat), Vec3::Y);
+        assert_eq!(img.lookup(Vec2::new(0.25, 0.25), repeat), Vec3::Z);
+        assert_eq!(img.lookup(Vec2::new(0.75, 0.25), repeat), Vec3::ONE);
+        // Halfway between the top two: their mean.
+        assert_eq!(
+            img.lookup(Vec2::new(0.5, 0.75), repeat),
+            Vec3::new(0.5, 0.5, 0.0)
+        );
+        // One period over, the same texel; at s = 0 repeat blends the row's two ends, clamp keeps the edge.
+        assert_eq!(img.lookup(Vec2::new(1.25, -0.75), repeat), Vec3::Z);
+        assert_eq!(
+            img.lookup(Vec2::new(0.0, 0.75), repeat),
+            Vec3::new(0.5, 0.5, 0.0)
+        );
+        let clamp = [TextureWrap::Clamp; 2];
+        assert_eq!(img.lookup(Vec2::new(-3.0, 0.75), clamp), Vec3::X);
+        // Mirror: s in (1, 2) runs backwards.
+        let mirror = [TextureWrap::Mirror; 2];
+        assert_eq!(img.lookup(Vec2::new(1.25, 0.75), mirror), Vec3::Y);
+        // Black outside, and half black half a texel past the edge.
+        let black = [TextureWrap::Black; 2];
+        assert_eq!(img.lookup(Vec2::new(-0.75, 0.75), black), Vec3::ZERO);
+        assert_eq!(img.lookup(Vec2::new(0.0, 0.75), black), Vec3::X * 0.5);
+        assert_eq!(img.lookup(Vec2::new(f32::NAN, 0.5), repeat), Vec3::ZERO);
+        assert!(img.lookup(Vec2::new(1e30, -1e30), repeat).is_finite());
+    }
+
+    #[test]
+    fn a_textured_mesh_takes_its_albedo_from_the_texture_scaled_biased_and_clamped() {
+        let mut m = square();
+        m.texture = Some(MeshTexture {
+            // Triangle 0 (0, 1, 2) mapped so its corners sit on texel centres.
+            corner_st: vec![
+                [
+                    Vec2::new(0.25, 0.25),
+                    Vec2::new(0.75, 0.25),
+                    Vec2::new(0.75, 0.75),
+                ];
+                2
+            ],
+            image: four_texels(),
+            wrap: [TextureWrap::Repeat; 2],
+            scale: Vec3::splat(0.5),
+            bias: Vec3::new(0.1, 0.0, 0.0),
+        });
+        m.validate().unwrap();
+        assert_eq!(m.albedo_at(0, 0.0, 0.0), Vec3::new(0.1, 0.0, 0.5));
+        assert_eq!(m.albedo_at(0, 1.0, 0.0), Vec3::new(0.6, 0.5, 0.5));
+        assert_eq!(m.albedo_at(0, 0.0, 1.0), Vec3::new(0.1, 0.5, 0.0));
+        m.texture.as_mut().unwrap().scale = Vec3::splat(4.0);
+        assert_eq!(m.albedo_at(0, 1.0, 0.0), Vec3::ONE, "clamped to 1");
+        m.texture.as_mut().unwrap().corner_st.pop();
+        assert!(m
+            .validate()
+            .unwrap_err()
+            .message
+            .contains("1 texture coordinate triples for 2 triangles"));
     }
 
     #[test]

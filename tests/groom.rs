@@ -364,3 +364,60 @@ fn an_instanced_groom_is_checked_against_the_memory_limit_with_the_strands_it_ma
     };
     assert!(e.contains("a test limit"), "{e}");
 }
+
+#[test]
+fn a_textured_head_mesh_renders_its_texture_as_its_albedo() {
+    // textured.usda's camera sees x in [−0.5, 5.5] and y in [−0.1, 1.1] at the cards (z = 0): `Card` (x 0..2)
+    // maps s = x / 2, t = y onto checker.png. One strand stands behind the camera, out of view.
+    let dir = tempfile::tempdir().unwrap();
+    let hair = dir.path().join("strand.usda");
+    std::fs::write(
+        &hair,
+        "#usda 1.0\ndef BasisCurves \"H\" {\n  uniform token basis = \"bspline\"\n  int[] curveVertexCounts = [4]\n  \
+         point3f[] points = [(0,0,20),(0,1,20),(0,2,20),(0,3,20)]\n}\n",
+    )
+    .unwrap();
+    let stage = stage_dir().join("textured.usda");
+    let text = format!(
+        "[hair]\nfile = {hair:?}\n\n[camera]\nusd = {stage:?}\n\n[film]\nresolution = [300, 60]\nspp = 1\n\
+         aovs = [\"all\"]\n\n[[shape]]\nkind = \"usd\"\nfile = {stage:?}\n\n[environment]\nradiance = [1.0, 1.0, 1.0]\n"
+    );
+    let scene = Scene::parse(&text, &dir.path().join("t.toml"), dir.path()).unwrap();
+    let texture = cuticle::usd::read(&stage, None, 0.005).unwrap().meshes[0]
+        .texture
+        .clone()
+        .unwrap();
+    let image = render_scene(&scene, 2);
+    let albedo = ["albedo.R", "albedo.G", "albedo.B"].map(|c| channel(&image, c));
+    let mut checked = 0;
+    for j in 0..60 {
+        for i in 0..300 {
+            let x = -0.5 + 6.0 * (i as f32 + 0.5) / 300.0;
+            let y = 1.1 - 1.2 * (j as f32 + 0.5) / 60.0;
+            // Inside the card, away from its edges (a pixel's centre ray lands within 1e-4 of (x, y)).
+            if !(0.01..1.99).contains(&x) || !(0.01..0.99).contains(&y) {
+                continue;
+            }
+            // The albedo channel is filtered over the pixel's samples: it must lie within what the texture
+            // holds over the filter's footprint (±2 pixels, 0.04 in x and y).
+            let (mut lo, mut hi) = (glam::Vec3::INFINITY, glam::Vec3::NEG_INFINITY);
+            for a in -4..=4 {
+                for b in -4..=4 {
+                    let (px, py) = (x + 0.01 * a as f32, y + 0.01 * b as f32);
+                    let v = texture
+                        .image
+                        .lookup(glam::Vec2::new(px / 2.0, py), texture.wrap);
+                    lo = lo.min(v);
+                    hi = hi.max(v);
+                }
+            }
+            let got = glam::Vec3::from_array(albedo.each_ref().map(|c| c[j * 300 + i]));
+            assert!(
+                got.cmpge(lo - 1e-4).all() && got.cmple(hi + 1e-4).all(),
+                "pixel ({i}, {j}) at ({x}, {y}): albedo {got}, texture from {lo} to {hi}"
+            );
+            checked += 1;
+        }
+    }
+    assert!(checked > 4000, "{checked} pixels on the card");
+}

@@ -38,6 +38,7 @@ fn mesh(name: &str, positions: Vec<Vec3>, triangles: Vec<[u32; 3]>) -> TriangleM
         corner_albedo: None,
         albedo: Vec3::splat(0.5),
         vertex_normals: None,
+        texture: None,
     }
 }
 

@@ -603,3 +603,84 @@ fn fails_in(dir: &Path, name: &str, text: &str, prim: &str, says: &str) {
     assert_eq!(e.prim.as_deref(), Some(prim), "{e}");
     assert!(e.to_string().contains(says), "{e}");
 }
+
+/// sRGB-encoded byte → linear.
+fn srgb(byte: u8) -> f32 {
+    let c = byte as f32 / 255.0;
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// checker.png's texels, top row first (`TEXELS` in scripts/usd-test-data.py).
+const TEXELS: [[[u8; 3]; 4]; 2] = [
+    [[255, 0, 0], [0, 255, 0], [0, 0, 255], [255, 255, 255]],
+    [[128, 128, 128], [64, 32, 16], [200, 100, 50], [0, 0, 0]],
+];
+
+/// The albedo of `mesh` at texture coordinates `st` on its first quad (corners st (0,0), (1,0), (1,1), (0,1) for
+/// `Card`; triangle 0 is (0, 1, 2), triangle 1 (0, 2, 3)), through the mesh's own triangle lookup.
+fn albedo_at_st(mesh: &cuticle::mesh::TriangleMesh, s: f32, t: f32) -> Vec3 {
+    let tex = mesh.texture.as_ref().expect("a texture");
+    // Solve st = a + u (b − a) + v (c − a) on triangle 0.
+    let [a, b, c] = tex.corner_st[0];
+    let (e1, e2, p) = (b - a, c - a, glam::Vec2::new(s, t) - a);
+    let det = e1.perp_dot(e2);
+    let (u, v) = (p.perp_dot(e2) / det, e1.perp_dot(p) / det);
+    mesh.albedo_at(0, u, v)
+}
+
+#[test]
+fn a_usd_preview_surface_texture_gives_the_albedo_in_usda_and_in_usdz() {
+    for name in ["textured.usda", "textured.usdz"] {
+        let s = usd::read(&data(name), None, R).unwrap();
+        assert!(s.warnings.is_empty(), "{:?}", s.warnings);
+        let card = &s.meshes[0];
+        assert!(card.name.ends_with("/World/Card"));
+        // An 8-bit PNG with sourceColorSpace auto is sRGB: every texel centre gives its texel, decoded.
+        for (row, texels) in TEXELS.iter().enumerate() {
+            for (col, texel) in texels.iter().enumerate() {
+                let (s_, t_) = ((col as f32 + 0.5) / 4.0, 1.0 - (row as f32 + 0.5) / 2.0);
+                let got = albedo_at_st(card, s_, t_);
+                let want = Vec3::from_array(texel.map(srgb));
+                assert!(
+                    (got - want).abs().max_element() < 2e-6,
+                    "{name} texel ({col}, {row}): {got} against {want}"
+                );
+            }
+        }
+        // Raw, × 0.5 + (0.1, 0, 0), wrapS clamp: s = −0.5 keeps the left column; s runs −0.5..1.5 over the card.
+        let raw = &s.meshes[1];
+        let tex = raw.texture.as_ref().unwrap();
+        let raw_at = |s_: f32, t_: f32| {
+            tex.image.lookup(glam::Vec2::new(s_, t_), tex.wrap) * tex.scale + tex.bias
+        };
+        let byte = |c: u8| c as f32 / 255.0;
+        let want = Vec3::new(byte(128) * 0.5 + 0.1, byte(128) * 0.5, byte(128) * 0.5);
+        assert!((raw_at(-0.4, 0.25) - want).abs().max_element() < 2e-6);
+        // The card's corner at x = 3 has s = −0.5.
+        assert!(
+            (raw.texture.as_ref().unwrap().corner_st[0][0] - glam::Vec2::new(-0.5, 0.0)).length()
+                < 1e-6
+        );
+        assert!(tex.image.name.contains("checker.png"));
+    }
+}
+
+#[test]
+fn a_missing_or_unreadable_texture_is_an_error_naming_the_shader() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(data("textured.usda"))
+        .unwrap()
+        .replace("@checker.png@", "@nothing-here.png@");
+    let p = write(dir.path(), "t.usda", text.as_bytes());
+    let e = usd::read(&p, None, R).unwrap_err();
+    assert_eq!(e.prim.as_deref(), Some("/World/Looks/Srgb/Texture"), "{e}");
+    assert!(e.to_string().contains("nothing-here.png"), "{e}");
+    // A file that is not an image.
+    std::fs::write(dir.path().join("nothing-here.png"), b"not an image").unwrap();
+    let e = usd::read(&p, None, R).unwrap_err();
+    assert!(e.to_string().contains("nothing-here.png"), "{e}");
+}

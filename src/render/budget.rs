@@ -305,10 +305,10 @@ pub fn estimate_frame_of(
 /// which is not measured on its own.
 pub const MESH_ACCEL_BYTES_PER_TRIANGLE: u64 = 180;
 
-/// Bytes of `shapes`' meshes (their data, already in memory) and of the tracer built over them
+/// Bytes of `shapes`' meshes (their data and textures, already in memory) and of the tracer built over them
 /// ([`MESH_ACCEL_BYTES_PER_TRIANGLE`]).
 pub fn mesh_bytes(shapes: &crate::shape::Shapes) -> u64 {
-    shapes
+    let meshes = shapes
         .meshes()
         .iter()
         .map(|m| {
@@ -316,7 +316,17 @@ pub fn mesh_bytes(shapes: &crate::shape::Shapes) -> u64 {
                 (m.triangles.len() as u64).saturating_mul(MESH_ACCEL_BYTES_PER_TRIANGLE),
             )
         })
-        .fold(0, u64::saturating_add)
+        .fold(0, u64::saturating_add);
+    // Textures are shared between meshes (and a point instancer's copies): each counted once.
+    let mut seen = std::collections::HashSet::new();
+    let textures = shapes
+        .meshes()
+        .iter()
+        .filter_map(|m| m.texture.as_ref())
+        .filter(|t| seen.insert(std::sync::Arc::as_ptr(&t.image)))
+        .map(|t| t.image.bytes() as u64)
+        .fold(0, u64::saturating_add);
+    meshes.saturating_add(textures)
 }
 
 /// How many deep opacity maps of `shadows.deep_opacity.resolution` `lights` get under `settings`, in texels: one

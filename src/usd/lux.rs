@@ -1,7 +1,5 @@
 //! `UsdLux` distant and dome lights.
 
-use std::path::{Path, PathBuf};
-
 use glam::{DMat4, DVec3, Vec3};
 use openusd::{sdf, usd};
 
@@ -52,12 +50,7 @@ impl Reader<'_> {
         } else {
             let texture = match self.get(prim, "inputs:texture:file")? {
                 Some(sdf::Value::AssetPath(a)) if !a.as_str().is_empty() => {
-                    let p = PathBuf::from(a.resolved_path().unwrap_or(a.as_str()));
-                    Some(if p.is_relative() {
-                        self.path.parent().unwrap_or(Path::new("")).join(p)
-                    } else {
-                        p
-                    })
+                    Some(self.asset_file(a.resolved_path().unwrap_or(a.as_str())))
                 }
                 _ => None,
             };

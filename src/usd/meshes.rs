@@ -3,9 +3,10 @@
 use glam::{DMat4, Vec3};
 use openusd::usd;
 
-use crate::mesh::{fan_triangulate, TriangleMesh};
+use crate::mesh::{fan_triangulate, MeshTexture, TriangleMesh};
 
-use super::values::{ints, vec3, vec3s};
+use super::materials::Diffuse;
+use super::values::{ints, vec2s, vec3s};
 use super::MAX_POINTS;
 use super::{prim_err, Reader, UsdError};
 
@@ -77,27 +78,59 @@ impl Reader<'_> {
             clamped |= k != v;
             k
         };
-        if let Some((colors, interp)) = self.primvar3(prim, "primvars:displayColor", &expect)? {
-            if interp == "constant" {
-                albedo = clamp(colors[0]);
-            } else {
-                let per: Vec<[Vec3; 3]> = fan
-                    .iter()
-                    .map(|t| match interp.as_str() {
-                        "uniform" => [clamp(colors[t.face as usize]); 3],
-                        "faceVarying" => t.corners.map(|i| clamp(colors[i as usize])),
-                        _ => t.points.map(|i| clamp(colors[i as usize])),
-                    })
-                    .collect();
-                corner_albedo = Some(per);
+        // The bound material first, as a renderer's final frame shades it; `displayColor` is the look of a
+        // prim without one.
+        let mut texture = None;
+        match self.material_diffuse(prim)? {
+            Some(Diffuse::Texture(tex)) => {
+                let name = format!("primvars:{}", tex.varname);
+                match self.primvar(prim, &name, "a texture coordinate array", vec2s, &expect)? {
+                    Some((st, interp)) => {
+                        let corner_st = fan
+                            .iter()
+                            .map(|t| match interp.as_str() {
+                                "constant" => [st[0]; 3],
+                                "uniform" => [st[t.face as usize]; 3],
+                                "faceVarying" => t.corners.map(|i| st[i as usize]),
+                                _ => t.points.map(|i| st[i as usize]),
+                            })
+                            .collect();
+                        texture = Some(MeshTexture {
+                            corner_st,
+                            image: tex.image,
+                            wrap: tex.wrap,
+                            scale: tex.scale,
+                            bias: tex.bias,
+                        });
+                    }
+                    None => self.warn(
+                        &pp,
+                        &format!("the material's texture reads {name}, which the mesh has not: albedo 0.5"),
+                    ),
+                }
             }
-        } else if let Some(c) = self.material_color(prim)? {
-            albedo = clamp(c);
-        } else {
-            self.warn(
-                &pp,
-                "no displayColor and no UsdPreviewSurface diffuseColor: albedo 0.5",
-            );
+            Some(Diffuse::Color(c)) => albedo = clamp(c.to_array()),
+            None => {
+                if let Some((colors, interp)) =
+                    self.primvar3(prim, "primvars:displayColor", &expect)?
+                {
+                    if interp == "constant" {
+                        albedo = clamp(colors[0]);
+                    } else {
+                        let per: Vec<[Vec3; 3]> = fan
+                            .iter()
+                            .map(|t| match interp.as_str() {
+                                "uniform" => [clamp(colors[t.face as usize]); 3],
+                                "faceVarying" => t.corners.map(|i| clamp(colors[i as usize])),
+                                _ => t.points.map(|i| clamp(colors[i as usize])),
+                            })
+                            .collect();
+                        corner_albedo = Some(per);
+                    }
+                } else {
+                    self.warn(&pp, "no UsdPreviewSurface and no displayColor: albedo 0.5");
+                }
+            }
         }
         if clamped {
             self.warn(&pp, "colours outside [0, 1] clamped");
@@ -110,6 +143,9 @@ impl Reader<'_> {
             if let Some(c) = &mut corner_albedo {
                 c.iter_mut().for_each(|c| c.swap(1, 2));
             }
+            if let Some(t) = &mut texture {
+                t.corner_st.iter_mut().for_each(|c| c.swap(1, 2));
+            }
         }
         // `subdivisionScheme` other than "none" (catmullClark by default) marks a smooth surface: shaded with
         // smooth normals over its cage (not subdivided).
@@ -121,6 +157,7 @@ impl Reader<'_> {
             corner_albedo,
             albedo,
             vertex_normals: None,
+            texture,
         }
         .transformed(world.as_mat4());
         if smooth {
@@ -128,54 +165,5 @@ impl Reader<'_> {
         }
         mesh.validate().map_err(|e| bad(e.message))?;
         Ok(mesh)
-    }
-
-    /// The constant `inputs:diffuseColor` of the `UsdPreviewSurface` bound by `material:binding`, if that chain
-    /// is there.
-    pub(super) fn material_color(
-        &mut self,
-        prim: &usd::Prim,
-    ) -> Result<Option<[f32; 3]>, UsdError> {
-        let targets = prim
-            .relationship("material:binding")
-            .targets()
-            .unwrap_or_default();
-        let Some(material) = targets.first() else {
-            return Ok(None);
-        };
-        let mat = self.stage.prim(material.clone());
-        let outputs = mat
-            .attribute("outputs:surface")
-            .connections()
-            .unwrap_or_default();
-        let Some(out) = outputs.first() else {
-            return Ok(None);
-        };
-        let shader = self.stage.prim(out.prim_path());
-        let id = self.token(&shader, "info:id", "")?;
-        if id != "UsdPreviewSurface" {
-            self.warn(
-                prim.path(),
-                &format!(
-                    "bound shader {} is {id:?}, not UsdPreviewSurface: albedo 0.5",
-                    shader.path()
-                ),
-            );
-            return Ok(None);
-        }
-        let connected = !shader
-            .attribute("inputs:diffuseColor")
-            .connections()
-            .unwrap_or_default()
-            .is_empty();
-        if connected {
-            self.warn(
-                prim.path(),
-                "diffuseColor is connected (a texture?): its constant value, if any, is read",
-            );
-        }
-        Ok(self
-            .get_as(&shader, "inputs:diffuseColor", "a colour", vec3)?
-            .map(|c| c.as_vec3().to_array()))
     }
 }

@@ -15,9 +15,10 @@
 //!   through [`Strands::from_model`], so a `.hair` strand written as a pinned B-spline reads back bit for bit.
 //!   `primvars:displayColor` and `primvars:displayOpacity` give the strand's colour and opacity at its root
 //!   (clamped to [0, 1], with a warning).
-//! - **Meshes**: polygons fanned into triangles; `leftHanded` reverses the winding; `displayColor` (constant,
-//!   uniform, vertex, faceVarying) becomes the corner albedo, else the bound `UsdPreviewSurface`'s constant
-//!   `inputs:diffuseColor`, else 0.5 grey with a warning.
+//! - **Meshes**: polygons fanned into triangles; `leftHanded` reverses the winding. The albedo is the bound
+//!   `UsdPreviewSurface`'s `diffuseColor`, constant or a `UsdUVTexture` ([`materials`]); without one,
+//!   `displayColor` (constant, uniform, vertex, faceVarying) as the corner albedo; else 0.5 grey with a warning.
+//!   Indexed primvars (`<name>:indices`) are expanded.
 //! - **Lights**: `DistantLight` and `DomeLight`; other lights are skipped with a warning.
 //! - **Instancing**: instanceable prims through their instance proxies (the composed stage puts a prototype's
 //!   children under every instance); `PointInstancer`s by placing their prototypes ([`instancer`]).
@@ -38,6 +39,7 @@ mod crate_check;
 pub mod curves;
 mod instancer;
 mod lux;
+mod materials;
 mod meshes;
 mod reader;
 mod values;
@@ -218,6 +220,16 @@ pub fn read(path: &Path, root: Option<&str>, default_radius: f32) -> Result<UsdS
             ))
         }
     }
+}
+
+/// Whether `path` is a zip archive (a `.usdz` package, whatever its extension).
+fn is_package(path: &Path) -> bool {
+    use std::io::Read as _;
+    let mut magic = [0u8; 4];
+    std::fs::File::open(path)
+        .and_then(|mut f| f.read_exact(&mut magic))
+        .is_ok()
+        && &magic == b"PK\x03\x04"
 }
 
 /// What `cuticle info` prints about a stage.

@@ -1,14 +1,16 @@
 //! One read of a stage: the traversal, attribute values with their time samples, and primvars.
 
-use std::path::Path;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use glam::DMat4;
 use openusd::{sdf, usd};
 
 use crate::hair::Strands;
-use crate::mesh::TriangleMesh;
+use crate::mesh::{TextureImage, TriangleMesh};
 
-use super::values::{floats, scalar, token, vec3s};
+use super::values::{floats, ints, scalar, token, vec3s};
 use super::{UsdError, UsdStage};
 
 /// One read in progress.
@@ -17,6 +19,9 @@ pub(super) struct Reader<'a> {
     pub(super) stage: usd::Stage,
     pub(super) default_radius: f32,
     pub(super) out: UsdStage,
+    /// Textures decoded so far, by file and `sourceColorSpace`: each is decoded once however many meshes and
+    /// instances use it.
+    pub(super) textures: HashMap<(PathBuf, String), Arc<TextureImage>>,
 }
 
 /// Curves and meshes read from one subtree, in traversal order.
@@ -50,6 +55,7 @@ impl<'a> Reader<'a> {
             stage,
             default_radius,
             out: UsdStage::default(),
+            textures: HashMap::new(),
         })
     }
 
@@ -289,7 +295,47 @@ impl<'a> Reader<'a> {
             .unwrap_or_else(|| default.to_owned()))
     }
 
-    /// A colour primvar and its interpolation, its length checked against `expect`.
+    /// A primvar's values and interpolation, converted by `f` (`what` names the type in an error), its length
+    /// checked against `expect`. An indexed primvar (`<name>:indices`) is expanded: each index picks a value, and
+    /// the indices take the interpolation's length.
+    pub(super) fn primvar<T: Clone>(
+        &mut self,
+        prim: &usd::Prim,
+        name: &str,
+        what: &str,
+        f: impl Fn(&sdf::Value) -> Option<Vec<T>>,
+        expect: &dyn Fn(&str) -> Option<usize>,
+    ) -> Result<Option<(Vec<T>, String)>, UsdError> {
+        let Some(v) = self.get_as(prim, name, what, f)? else {
+            return Ok(None);
+        };
+        if v.is_empty() {
+            return Ok(None);
+        }
+        let indices_name = format!("{name}:indices");
+        let v = match self.get_as(prim, &indices_name, "an int array", ints)? {
+            None => v,
+            Some(indices) => {
+                if let Some(i) = indices.iter().position(|&k| k < 0 || k as usize >= v.len()) {
+                    return Err(prim_err(
+                        self.path,
+                        prim.path(),
+                        format!(
+                            "{indices_name}[{i}] is {}, outside the {} values",
+                            indices[i],
+                            v.len()
+                        ),
+                    ));
+                }
+                indices.iter().map(|&k| v[k as usize].clone()).collect()
+            }
+        };
+        let interp = self.interpolation(prim, name, "constant");
+        self.check_len(prim, name, v.len(), &interp, expect)?;
+        Ok(Some((v, interp)))
+    }
+
+    /// A colour primvar ([`Reader::primvar`]).
     #[allow(clippy::type_complexity)]
     pub(super) fn primvar3(
         &mut self,
@@ -297,36 +343,19 @@ impl<'a> Reader<'a> {
         name: &str,
         expect: &dyn Fn(&str) -> Option<usize>,
     ) -> Result<Option<(Vec<[f32; 3]>, String)>, UsdError> {
-        let Some(v) = self.get_as(prim, name, "a colour array", vec3s)? else {
-            return Ok(None);
-        };
-        if v.is_empty() {
-            return Ok(None);
-        }
-        let interp = self.interpolation(prim, name, "constant");
-        self.check_len(prim, name, v.len(), &interp, expect)?;
-        Ok(Some((
-            v.into_iter().map(|c| c.to_array()).collect(),
-            interp,
-        )))
+        Ok(self
+            .primvar(prim, name, "a colour array", vec3s, expect)?
+            .map(|(v, interp)| (v.into_iter().map(|c| c.to_array()).collect(), interp)))
     }
 
-    /// A float primvar and its interpolation, its length checked against `expect`.
+    /// A float primvar ([`Reader::primvar`]).
     pub(super) fn primvar1(
         &mut self,
         prim: &usd::Prim,
         name: &str,
         expect: &dyn Fn(&str) -> Option<usize>,
     ) -> Result<Option<(Vec<f32>, String)>, UsdError> {
-        let Some(v) = self.get_as(prim, name, "a float array", floats)? else {
-            return Ok(None);
-        };
-        if v.is_empty() {
-            return Ok(None);
-        }
-        let interp = self.interpolation(prim, name, "constant");
-        self.check_len(prim, name, v.len(), &interp, expect)?;
-        Ok(Some((v, interp)))
+        self.primvar(prim, name, "a float array", floats, expect)
     }
 
     pub(super) fn check_len(

@@ -95,3 +95,29 @@ pub(super) fn quats(v: &sdf::Value) -> Option<Vec<DQuat>> {
         _ => return None,
     })
 }
+
+/// Texture coordinates (`texCoord2f[]`, `float2[]` and their double and half forms).
+pub(super) fn vec2s(v: &sdf::Value) -> Option<Vec<glam::Vec2>> {
+    Some(match v {
+        sdf::Value::Vec2fVec(a) => a.iter().map(|p| glam::Vec2::new(p.x, p.y)).collect(),
+        sdf::Value::Vec2dVec(a) => a
+            .iter()
+            .map(|p| glam::Vec2::new(p.x as f32, p.y as f32))
+            .collect(),
+        sdf::Value::Vec2hVec(a) => a
+            .iter()
+            .map(|p| glam::Vec2::new(p.x.to_f32(), p.y.to_f32()))
+            .collect(),
+        _ => return None,
+    })
+}
+
+/// A `float4` (or `float3`, taken with alpha 1) as its first three components.
+pub(super) fn rgb_of4(v: &sdf::Value) -> Option<Vec3> {
+    Some(match v {
+        sdf::Value::Vec4f(a) => Vec3::new(a.x, a.y, a.z),
+        sdf::Value::Vec4d(a) => DVec3::new(a.x, a.y, a.z).as_vec3(),
+        sdf::Value::Vec4h(a) => Vec3::new(a.x.to_f32(), a.y.to_f32(), a.z.to_f32()),
+        other => vec3(other)?.as_vec3(),
+    })
+}
