@@ -684,3 +684,18 @@ fn a_missing_or_unreadable_texture_is_an_error_naming_the_shader() {
     let e = usd::read(&p, None, R).unwrap_err();
     assert!(e.to_string().contains("nothing-here.png"), "{e}");
 }
+
+#[test]
+fn a_read_of_some_parts_converts_only_those_and_counts_the_meshes_it_left() {
+    let all = usd::read(&data("groom.usda"), None, R).unwrap();
+    let none = usd::read_parts(&data("groom.usda"), None, R, usd::Parts::NONE).unwrap();
+    assert_eq!((none.strands.is_none(), none.meshes.len()), (true, 0));
+    assert_eq!(none.mesh_prims, all.meshes.len());
+    assert_eq!((none.camera, &none.lights), (all.camera, &all.lights));
+    let curves = usd::Parts {
+        curves: true,
+        meshes: false,
+    };
+    let hair = usd::read_parts(&data("groom.usda"), None, R, curves).unwrap();
+    assert_eq!((hair.strands, hair.meshes.len()), (all.strands, 0));
+}

@@ -54,8 +54,13 @@ impl HairSource {
     pub fn strands(&self, radius_scale: f32) -> Result<(Strands, usize), HairError> {
         let scaled = || format!(" with hair.radius_scale = {radius_scale:e}");
         if let HairSource::Usd { path, prim } = self {
-            let stage = crate::usd::read(path, prim.as_deref(), crate::usd::DEFAULT_RADIUS)
-                .map_err(|e| HairError::invalid(path, e.without_file()))?;
+            let curves = crate::usd::Parts {
+                curves: true,
+                meshes: false,
+            };
+            let stage =
+                crate::usd::read_parts(path, prim.as_deref(), crate::usd::DEFAULT_RADIUS, curves)
+                    .map_err(|e| HairError::invalid(path, e.without_file()))?;
             return match stage.strands {
                 Some(s) if s.strand_count() > 0 => {
                     if radius_scale != 1.0 {

@@ -577,9 +577,16 @@ impl Scene {
                         path: self.source.clone(),
                         message: format!("shape[{i}]: {message}"),
                     };
-                    let stage =
-                        crate::usd::read(&path, prim.as_deref(), crate::usd::DEFAULT_RADIUS)
-                            .map_err(|e| invalid(e.to_string()))?;
+                    let stage = crate::usd::read_parts(
+                        &path,
+                        prim.as_deref(),
+                        crate::usd::DEFAULT_RADIUS,
+                        crate::usd::Parts {
+                            curves: false,
+                            meshes: true,
+                        },
+                    )
+                    .map_err(|e| invalid(e.to_string()))?;
                     if stage.meshes.is_empty() {
                         return Err(invalid(format!(
                             "{} has no Mesh prims under {}",

@@ -355,11 +355,15 @@ impl Scene {
     /// direction, up, vertical field of view); the scene's other camera keys (margin, orbit) stay.
     fn usd_camera(&self, file: &Path) -> Result<CameraConfig, SceneError> {
         let path = self.base_dir.join(file);
-        let stage = crate::usd::read(&path, None, crate::usd::DEFAULT_RADIUS).map_err(|e| {
-            SceneError::Invalid {
-                path: self.source.clone(),
-                message: format!("camera.usd: {e}"),
-            }
+        let stage = crate::usd::read_parts(
+            &path,
+            None,
+            crate::usd::DEFAULT_RADIUS,
+            crate::usd::Parts::NONE,
+        )
+        .map_err(|e| SceneError::Invalid {
+            path: self.source.clone(),
+            message: format!("camera.usd: {e}"),
         })?;
         let Some(cam) = stage.camera else {
             return Err(SceneError::Invalid {

@@ -38,7 +38,7 @@ fn scene_text(name: &str, stage: &UsdStage) -> String {
         text.push_str("[camera]\nview = [0.3, -0.3, -1.0]\nmargin = 0.9\n\n");
     }
     text.push_str("[material]\nmodel = \"chiang\"\n\n");
-    if !stage.meshes.is_empty() {
+    if stage.mesh_prims > 0 {
         let _ = write!(text, "[[shape]]\nkind = \"usd\"\nfile = {file}\n\n");
     }
     let mut lit = false;
@@ -103,11 +103,16 @@ impl Scene {
     /// The scene `cuticle render groom.usd` renders: the stage at `path` with defaults ([`self`](super::usd)).
     /// Errors name the stage (and prim) as the USD reader reports them.
     pub fn from_usd(path: &Path) -> Result<Scene, SceneError> {
-        let stage = crate::usd::read(path, None, crate::usd::DEFAULT_RADIUS).map_err(|e| {
-            SceneError::Invalid {
-                path: path.to_path_buf(),
-                message: e.without_file(),
-            }
+        // Camera, lights and counts only: the curves and meshes are read once each, by the scene's hair and shape.
+        let stage = crate::usd::read_parts(
+            path,
+            None,
+            crate::usd::DEFAULT_RADIUS,
+            crate::usd::Parts::NONE,
+        )
+        .map_err(|e| SceneError::Invalid {
+            path: path.to_path_buf(),
+            message: e.without_file(),
         })?;
         let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
         let name = path
@@ -125,7 +130,13 @@ mod tests {
     #[test]
     fn a_stage_becomes_a_scene_with_its_camera_meshes_and_lights() {
         let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/usd");
-        let stage = crate::usd::read(&dir.join("groom.usda"), None, 0.005).unwrap();
+        let stage = crate::usd::read_parts(
+            &dir.join("groom.usda"),
+            None,
+            0.005,
+            crate::usd::Parts::NONE,
+        )
+        .unwrap();
         let text = scene_text("groom.usda", &stage);
         let scene = Scene::parse(&text, &dir.join("groom.usda"), &dir).unwrap();
         assert_eq!(scene.hair.file.as_deref(), Some(Path::new("groom.usda")));
@@ -146,7 +157,7 @@ mod tests {
         let bare = UsdStage {
             camera: None,
             lights: Vec::new(),
-            meshes: Vec::new(),
+            mesh_prims: 0,
             ..stage
         };
         let scene = Scene::parse(&scene_text("a \"b\".usda", &bare), &dir.join("x"), &dir).unwrap();

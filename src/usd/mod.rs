@@ -101,6 +101,8 @@ pub struct UsdStage {
     pub curve_prims: Vec<String>,
     /// Every `Mesh` prim, fanned into triangles, named `file:/prim/path`.
     pub meshes: Vec<TriangleMesh>,
+    /// `Mesh` prims a final frame shows (read or not: [`read_parts`]).
+    pub mesh_prims: usize,
     /// The first `Camera` prim in traversal order.
     pub camera: Option<UsdCamera>,
     /// `DistantLight` and `DomeLight` prims.
@@ -175,6 +177,39 @@ pub enum UsdLight {
 /// Reads the stage at `path`, from the prim `root` down (the whole stage when `None`). Curves without widths get
 /// `default_radius` (tapered, as a `.hair` file without thickness).
 pub fn read(path: &Path, root: Option<&str>, default_radius: f32) -> Result<UsdStage, UsdError> {
+    read_parts(path, root, default_radius, Parts::ALL)
+}
+
+/// Which geometry a read converts; the camera, lights, units and prim counts are always read. A scene that takes
+/// its hair, its head and its camera from one stage reads each part once.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Parts {
+    /// `BasisCurves` as strands.
+    pub curves: bool,
+    /// `Mesh` prims as triangle meshes (their textures decoded).
+    pub meshes: bool,
+}
+
+impl Parts {
+    /// Curves and meshes.
+    pub const ALL: Parts = Parts {
+        curves: true,
+        meshes: true,
+    };
+    /// Neither: the camera, lights and counts.
+    pub const NONE: Parts = Parts {
+        curves: false,
+        meshes: false,
+    };
+}
+
+/// [`read`], converting only the geometry `parts` names ([`UsdStage::mesh_prims`] counts the meshes left).
+pub fn read_parts(
+    path: &Path,
+    root: Option<&str>,
+    default_radius: f32,
+    parts: Parts,
+) -> Result<UsdStage, UsdError> {
     if !(default_radius.is_finite() && default_radius > 0.0) {
         return Err(UsdError::file(
             path,
@@ -205,7 +240,8 @@ pub fn read(path: &Path, root: Option<&str>, default_radius: f32) -> Result<UsdS
         crate_check::check(path)
             .map_err(|e| UsdError::file(path, format!("malformed crate file: {e}")))?;
     }
-    let run = std::panic::AssertUnwindSafe(|| Reader::new(path, name, default_radius)?.read(root));
+    let run =
+        std::panic::AssertUnwindSafe(|| Reader::new(path, name, default_radius, parts)?.read(root));
     match std::panic::catch_unwind(run) {
         Ok(result) => result,
         Err(panic) => {

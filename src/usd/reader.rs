@@ -11,13 +11,15 @@ use crate::hair::Strands;
 use crate::mesh::{TextureImage, TriangleMesh};
 
 use super::values::{floats, ints, scalar, token, vec3s};
-use super::{UsdError, UsdStage};
+use super::{Parts, UsdError, UsdStage};
 
 /// One read in progress.
 pub(super) struct Reader<'a> {
     pub(super) path: &'a Path,
     pub(super) stage: usd::Stage,
     pub(super) default_radius: f32,
+    /// The geometry this read converts.
+    pub(super) parts: Parts,
     pub(super) out: UsdStage,
     /// Textures decoded so far, by file and `sourceColorSpace`: each is decoded once however many meshes and
     /// instances use it.
@@ -47,13 +49,19 @@ pub(super) fn prim_err(path: &Path, prim: &sdf::Path, message: impl Into<String>
 }
 
 impl<'a> Reader<'a> {
-    pub(super) fn new(path: &'a Path, name: &str, default_radius: f32) -> Result<Self, UsdError> {
+    pub(super) fn new(
+        path: &'a Path,
+        name: &str,
+        default_radius: f32,
+        parts: Parts,
+    ) -> Result<Self, UsdError> {
         let stage = usd::Stage::open(name)
             .map_err(|e| UsdError::file(path, format!("cannot open the stage: {e:#}")))?;
         Ok(Reader {
             path,
             stage,
             default_radius,
+            parts,
             out: UsdStage::default(),
             textures: HashMap::new(),
         })
@@ -173,6 +181,8 @@ impl<'a> Reader<'a> {
                 }
                 let world = self.world_of(&prim, parent)?;
                 match ty.as_str() {
+                    "BasisCurves" if !self.parts.curves => {}
+                    "Mesh" if !self.parts.meshes => self.out.mesh_prims += 1,
                     "BasisCurves" => {
                         let s = self.curves(&prim, world)?;
                         if s.strand_count() > 0 {
@@ -181,6 +191,7 @@ impl<'a> Reader<'a> {
                         }
                     }
                     "Mesh" => {
+                        self.out.mesh_prims += 1;
                         let m = self.mesh(&prim, world)?;
                         geometry.meshes.push(m);
                     }
