@@ -3,7 +3,8 @@
 //! The scene is written as TOML text and parsed like any scene file, so it is checked by the same rules and
 //! `--print-scene`-style debugging needs nothing new: the stage's curves are the hair, its meshes the shapes, its
 //! first camera the camera (auto-framed when it has none), its distant and dome lights the lights (a sun and a
-//! sky like the default scene's when it has none), and the material Chiang et al.'s reference fibre (brown).
+//! sky like the default scene's when it has none; the default camera and sun stand up along the stage's `upAxis`),
+//! and the material Chiang et al.'s reference fibre (brown).
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -12,9 +13,23 @@ use crate::usd::{UsdLight, UsdStage};
 
 use super::{Scene, SceneError};
 
-/// The default scene's sun and sky, for a stage without lights.
-const DEFAULT_LIGHTS: &str = "[[light]]\nkind = \"distant\"\ndirection = [-1.0, -1.0, -0.6]\nirradiance = 3.0\n\
-                              color = [1.0, 0.93, 0.82]\n\n[environment]\nradiance = [0.25, 0.32, 0.45]\n";
+/// The default scene's sun and sky, for a stage without lights: the sun's direction (Y up) and the rest.
+const DEFAULT_SUN: [f32; 3] = [-1.0, -1.0, -0.6];
+const DEFAULT_LIGHTS: &str = "irradiance = 3.0\ncolor = [1.0, 0.93, 0.82]\n\n[environment]\n\
+                              radiance = [0.25, 0.32, 0.45]\n";
+
+/// The default camera's view direction (Y up: looking along −z, slightly down).
+const DEFAULT_VIEW: [f32; 3] = [0.3, -0.3, -1.0];
+
+/// A Y-up direction in a stage whose `upAxis` is `axis`: for "Z", turned +90° about x, (x, y, z) → (x, −z, y), so
+/// the default camera and sun keep their places relative to the ground.
+fn upright(v: [f32; 3], axis: &str) -> glam::Vec3 {
+    if axis == "Z" {
+        glam::Vec3::new(v[0], -v[2], v[1])
+    } else {
+        glam::Vec3::from_array(v)
+    }
+}
 
 /// A TOML string literal of `text` (quoted and escaped as TOML wants).
 fn quoted(text: &str) -> String {
@@ -35,7 +50,12 @@ fn scene_text(name: &str, stage: &UsdStage) -> String {
     if stage.camera.is_some() {
         let _ = write!(text, "[camera]\nusd = {file}\n\n");
     } else {
-        text.push_str("[camera]\nview = [0.3, -0.3, -1.0]\nmargin = 0.9\n\n");
+        let _ = write!(
+            text,
+            "[camera]\nview = {}\nup = {}\nmargin = 0.9\n\n",
+            triple(upright(DEFAULT_VIEW, &stage.up_axis)),
+            triple(upright([0.0, 1.0, 0.0], &stage.up_axis)),
+        );
     }
     text.push_str("[material]\nmodel = \"chiang\"\n\n");
     if stage.mesh_prims > 0 {
@@ -94,7 +114,11 @@ fn scene_text(name: &str, stage: &UsdStage) -> String {
         }
     }
     if !lit {
-        text.push_str(DEFAULT_LIGHTS);
+        let _ = write!(
+            text,
+            "[[light]]\nkind = \"distant\"\ndirection = {}\n{DEFAULT_LIGHTS}",
+            triple(upright(DEFAULT_SUN, &stage.up_axis))
+        );
     }
     text
 }
@@ -164,6 +188,16 @@ mod tests {
         assert_eq!(scene.hair.file.as_deref(), Some(Path::new("a \"b\".usda")));
         assert!(scene.camera.usd.is_none() && scene.shapes.is_empty());
         assert_eq!(scene.lights.len(), 1);
+        assert_eq!(scene.camera.up, [0.0, 1.0, 0.0]);
+        // A Z-up stage: the default camera's up is +z, and it looks along +y, slightly down, as a Y-up stage's
+        // looks along −z.
+        let z_up = UsdStage {
+            up_axis: "Z".into(),
+            ..bare
+        };
+        let scene = Scene::parse(&scene_text("z.usda", &z_up), &dir.join("x"), &dir).unwrap();
+        assert_eq!(scene.camera.up, [0.0, 0.0, 1.0]);
+        assert_eq!(scene.camera.view, [0.3, 1.0, -0.3]);
     }
 
     #[test]

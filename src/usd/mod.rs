@@ -8,7 +8,8 @@
 //!
 //! - **Time**: every attribute's default value; an attribute with only time samples gives its earliest sample, and
 //!   a warning says so.
-//! - **Units**: `upAxis` and `metersPerUnit` are reported, not applied: a Z-up stage is read as it is.
+//! - **Units**: `upAxis` and `metersPerUnit` are reported; points stay in the stage's space (a Z-up stage is read
+//!   as it is, and `cuticle render` of it stands its default camera and sun along +z: [`crate::scene`]).
 //! - **Curves** ([`curves`]): every basis, wrap and width interpolation converted exactly; `widths` are diameters.
 //!   Without widths every curve gets `default_radius`, tapered to half at the tip like a `.hair` file without
 //!   thickness ([`Strands::from_model`], thesis §5.2); authored widths are used as they are. Pinned B-splines go
@@ -109,7 +110,7 @@ pub struct UsdStage {
     pub lights: Vec<UsdLight>,
     /// Prims traversed, by type name (`""` for typeless prims).
     pub prim_types: BTreeMap<String, usize>,
-    /// The stage's `upAxis` ("Y" when not authored); reported, not applied.
+    /// The stage's `upAxis` ("Y" when not authored); points are not turned by it.
     pub up_axis: String,
     /// The stage's `metersPerUnit` (0.01 when not authored); reported, not applied.
     pub meters_per_unit: f64,
