@@ -3,7 +3,7 @@
 use glam::{DMat4, Vec3};
 use openusd::usd;
 
-use crate::mesh::{fan_triangulate, MeshTexture, TriangleMesh};
+use crate::mesh::{fan_triangulate, FanTriangle, MeshTexture, TriangleMesh};
 
 use super::materials::Diffuse;
 use super::values::{ints, vec2s, vec3s};
@@ -86,17 +86,8 @@ impl Reader<'_> {
                 let name = format!("primvars:{}", tex.varname);
                 match self.primvar(prim, &name, "a texture coordinate array", vec2s, &expect)? {
                     Some((st, interp)) => {
-                        let corner_st = fan
-                            .iter()
-                            .map(|t| match interp.as_str() {
-                                "constant" => [st[0]; 3],
-                                "uniform" => [st[t.face as usize]; 3],
-                                "faceVarying" => t.corners.map(|i| st[i as usize]),
-                                _ => t.points.map(|i| st[i as usize]),
-                            })
-                            .collect();
                         texture = Some(MeshTexture {
-                            corner_st,
+                            corner_st: per_corner(&fan, &interp, &st),
                             image: tex.image,
                             wrap: tex.wrap,
                             scale: tex.scale,
@@ -117,15 +108,8 @@ impl Reader<'_> {
                     if interp == "constant" {
                         albedo = clamp(colors[0]);
                     } else {
-                        let per: Vec<[Vec3; 3]> = fan
-                            .iter()
-                            .map(|t| match interp.as_str() {
-                                "uniform" => [clamp(colors[t.face as usize]); 3],
-                                "faceVarying" => t.corners.map(|i| clamp(colors[i as usize])),
-                                _ => t.points.map(|i| clamp(colors[i as usize])),
-                            })
-                            .collect();
-                        corner_albedo = Some(per);
+                        let colors: Vec<Vec3> = colors.into_iter().map(&mut clamp).collect();
+                        corner_albedo = Some(per_corner(&fan, &interp, &colors));
                     }
                 } else {
                     self.warn(&pp, "no UsdPreviewSurface and no displayColor: albedo 0.5");
@@ -166,4 +150,17 @@ impl Reader<'_> {
         mesh.validate().map_err(|e| bad(e.message))?;
         Ok(mesh)
     }
+}
+
+/// A primvar's values at each triangle's three corners, by its interpolation (its length already checked against
+/// it): one value for all, one per polygon, one per polygon corner (`faceVarying`), else one per point.
+fn per_corner<T: Copy>(fan: &[FanTriangle], interp: &str, values: &[T]) -> Vec<[T; 3]> {
+    fan.iter()
+        .map(|t| match interp {
+            "constant" => [values[0]; 3],
+            "uniform" => [values[t.face as usize]; 3],
+            "faceVarying" => t.corners.map(|i| values[i as usize]),
+            _ => t.points.map(|i| values[i as usize]),
+        })
+        .collect()
 }
