@@ -23,10 +23,12 @@
 //! Bad input: every error names the file and, where there is one, the prim. Counts are checked against the
 //! arrays before anything proportional to them is allocated. `openusd` 0.6 can panic on malformed binary files
 //! (a `todo!` for old versions, out-of-range lookup tables), so the whole read runs under
-//! [`std::panic::catch_unwind`] and a panic becomes a [`UsdError`]. Its allocations from a `.usdc`'s declared
-//! sizes cannot be caught: a crate file's structural tables are walked first ([`crate_check`]); the counts of its
-//! value arrays (and a `.usdz`'s inner crate file) are not, so a hostile file can still make it allocate more than
-//! the file (its size is bounded by [`MAX_FILE_BYTES`] before it is opened).
+//! [`std::panic::catch_unwind`] and a panic becomes a [`UsdError`]. What cannot be caught (its allocations from a
+//! `.usdc`'s declared sizes, its recursion into values holding themselves, its loops) is checked first: a crate
+//! file is walked as openusd will read it ([`crate_check`]: tables, path tree and every field's value, each size
+//! held to the file). A `.usdz`'s inner crate files, and layers the stage composes from other files (sublayers,
+//! references, payloads), are opened by openusd without that walk. The file's size is bounded by
+//! [`MAX_FILE_BYTES`] before it is opened.
 
 mod crate_check;
 pub mod curves;
@@ -173,11 +175,8 @@ pub fn read(path: &Path, root: Option<&str>, default_radius: f32) -> Result<UsdS
             "the path is not UTF-8, which openusd needs",
         ));
     };
-    // A crate file's structural tables are checked before openusd allocates them ([`crate_check`]).
-    if crate_check::is_crate(path) {
-        crate_check::check(path)
-            .map_err(|e| UsdError::file(path, format!("malformed crate file: {e}")))?;
-    }
+    // A crate file is walked before openusd allocates what it declares ([`crate_check`]).
+    crate_check::check(path).map_err(|e| UsdError::file(path, format!("malformed file: {e}")))?;
     let run = std::panic::AssertUnwindSafe(|| Reader::new(path, name, default_radius)?.read(root));
     match std::panic::catch_unwind(run) {
         Ok(result) => result,
