@@ -1,7 +1,8 @@
 //! A walk over a `.usdc` (crate) file before openusd opens it: openusd 0.6 allocates what the file declares (a
 //! token table of 9 PB from a 10 KB file, a token array of more than a terabyte: both found by `fuzz/`'s `usd`
 //! target), and an allocation that fails aborts the process, so every size it allocates from is held to the file
-//! here first, as are its recursion and loops.
+//! here first, as are its recursion and loops. A `.usdz`'s crate files are walked the same way, each in its byte
+//! range of the package.
 //!
 //! The layout (Pixar's `crateFile.cpp`, as openusd reads it, versions 0.4 and later): a 32-byte bootstrap
 //! (`PXR-USDC`, version, offset of the table of contents), the table of contents (a count, then 32-byte sections:
@@ -83,10 +84,23 @@ fn is_crate(path: &Path) -> bool {
         && &magic == MAGIC
 }
 
-/// Walks the stage file at `path` as openusd will read it when it is a crate file; anything else (a `.usda`, a
-/// `.usdz`) passes. `Err` says what is wrong, for the reader to name the file.
+/// Whether `name` has the extension of a `.usdz` (openusd picks a layer's format by extension, in any case).
+fn is_package(name: &str) -> bool {
+    extension_is(name, &["usdz"])
+}
+
+/// Whether `name`'s extension is one of `exts`, in any case.
+fn extension_is(name: &str, exts: &[&str]) -> bool {
+    name.rsplit_once('.')
+        .is_some_and(|(_, ext)| exts.iter().any(|e| ext.eq_ignore_ascii_case(e)))
+}
+
+/// Walks the stage file at `path` as openusd will read it: a `.usdz`'s stored crate files, or the file itself when
+/// it is a crate file; anything else (a `.usda`) passes. `Err` says what is wrong, for the reader to name the file.
 pub(super) fn check(path: &Path) -> Result<(), String> {
-    if is_crate(path) {
+    if path.to_str().is_some_and(is_package) {
+        check_package(path)
+    } else if is_crate(path) {
         let file = File::open(path).map_err(|e| e.to_string())?;
         let len = file.metadata().map_err(|e| e.to_string())?.len();
         walk(&mut Crate {
@@ -99,7 +113,53 @@ pub(super) fn check(path: &Path) -> Result<(), String> {
     }
 }
 
-/// A crate file's bytes: the `len` bytes of `src` from `base` (a whole file, or a range of one). Offsets are
+/// A `.usdz` (a zip archive, USDZ spec): every stored entry that starts with [`MAGIC`] is walked in its byte range.
+/// The entries are those of the archive's central directory, as openusd lists them with the same `zip` crate.
+/// openusd opens an entry as a layer by its name's extension (a `.usd` by its magic) and inflates a compressed one,
+/// which the walk cannot see into, so a compressed entry with a USD extension is refused (the spec stores every
+/// entry uncompressed); other compressed entries (textures) are no layer openusd reads. An archive `zip` cannot
+/// read passes: openusd reports it.
+fn check_package(path: &Path) -> Result<(), String> {
+    let file = File::open(path).map_err(|e| e.to_string())?;
+    let len = file.metadata().map_err(|e| e.to_string())?.len();
+    let Ok(mut archive) = zip::ZipArchive::new(file) else {
+        return Ok(());
+    };
+    let mut src = File::open(path).map_err(|e| e.to_string())?;
+    for k in 0..archive.len() {
+        let Ok(entry) = archive.by_index_raw(k) else {
+            continue; // openusd fails to read it too
+        };
+        let (name, method) = (entry.name().to_owned(), entry.compression());
+        let (start, size) = (entry.data_start(), entry.compressed_size());
+        drop(entry);
+        if method != zip::CompressionMethod::Stored {
+            if extension_is(&name, &["usd", "usda", "usdc", "usdz"]) {
+                return Err(format!(
+                    "the package's {name} is compressed ({method}); a .usdz stores its layers uncompressed"
+                ));
+            }
+            continue;
+        }
+        let Some(start) = start else { continue };
+        if start.checked_add(size).is_none_or(|end| end > len) {
+            return Err(format!(
+                "the package's {name} ({size} bytes at byte {start}) runs past the end of the file ({len} bytes)"
+            ));
+        }
+        let mut layer = Crate {
+            src: &mut src,
+            base: start,
+            len: size,
+        };
+        if size >= 32 && &layer.bytes::<8>(0)? == MAGIC {
+            walk(&mut layer).map_err(|e| format!("the package's {name}: {e}"))?;
+        }
+    }
+    Ok(())
+}
+
+/// A crate file's bytes: the `len` bytes of `src` from `base` (a whole file, or an entry of a `.usdz`). Offsets are
 /// the crate file's own, from its first byte.
 struct Crate<R> {
     src: R,
@@ -578,9 +638,7 @@ impl<R: Read + Seek> Values<'_, R> {
             1 | 2 if array => self.array(at, Kind::Other, 1, compressed),
             3 | 4 if array => self.array(at, Kind::Ints, 4, compressed),
             5 | 6 if array => self.array(at, Kind::Ints, 8, compressed),
-            7..=9 if array && !inlined => {
-                self.array(at, Kind::Floats, 1 << (ty - 6), compressed)
-            }
+            7..=9 if array && !inlined => self.array(at, Kind::Floats, 1 << (ty - 6), compressed),
             // string, asset path and path expression arrays: string indices.
             10 | 12 | 57 if array => self.list_at(at, Text::Token),
             // token arrays: counted as other arrays are.
@@ -1164,6 +1222,50 @@ mod tests {
         with_section(bytes.to_vec(), "PATHS", &section)
     }
 
+    /// A `.usdz` of `entries` (name, bytes), stored as the USDZ spec asks.
+    fn package(entries: &[(&str, &[u8])]) -> Vec<u8> {
+        use std::io::Write;
+        let mut zip = zip::ZipWriter::new(Cursor::new(Vec::new()));
+        let stored = zip::write::SimpleFileOptions::default()
+            .compression_method(zip::CompressionMethod::Stored);
+        for (name, bytes) in entries {
+            zip.start_file(*name, stored).unwrap();
+            zip.write_all(bytes).unwrap();
+        }
+        zip.finish().unwrap().into_inner()
+    }
+
+    /// A `.usdz` whose groom.usdc, `layer`, is deflated (as the spec does not allow and openusd reads: zip's
+    /// deflate is built for openusd).
+    fn deflated(layer: &[u8]) -> Vec<u8> {
+        use std::io::Write;
+        let mut zip = zip::ZipWriter::new(Cursor::new(Vec::new()));
+        let deflated = zip::write::SimpleFileOptions::default()
+            .compression_method(zip::CompressionMethod::Deflated);
+        zip.start_file("groom.usdc", deflated).unwrap();
+        zip.write_all(layer).unwrap();
+        zip.finish().unwrap().into_inner()
+    }
+
+    /// `package` with its entry `name` marked as deflated (compression method 8) in its local and central headers.
+    fn marked_deflated(mut package: Vec<u8>, name: &str) -> Vec<u8> {
+        let u16_at = |p: &[u8], o: usize| u16::from_le_bytes([p[o], p[o + 1]]) as usize;
+        for k in 0..package.len() - 4 {
+            // The method's offset, and where the name and its length are, in a local or central header.
+            let (method, name_at, length_at) =
+                match u32::from_le_bytes(package[k..k + 4].try_into().unwrap()) {
+                    0x0403_4b50 => (k + 8, k + 30, k + 26),
+                    0x0201_4b50 => (k + 10, k + 46, k + 28),
+                    _ => continue,
+                };
+            if package.get(name_at..name_at + u16_at(&package, length_at)) == Some(name.as_bytes())
+            {
+                package[method..method + 2].copy_from_slice(&8u16.to_le_bytes());
+            }
+        }
+        package
+    }
+
     /// The hostile files of these tests, by name.
     fn hostile() -> Vec<(&'static str, Vec<u8>)> {
         let good = data("groom.usdc");
@@ -1234,6 +1336,11 @@ mod tests {
                 "c-path-tree-quadratic.usdc",
                 with_path_chain(&good, 1 << 15, -1),
             ),
+            (
+                "z-points-2pow40.usdz",
+                package(&[("groom.usdc", &bad_points)]),
+            ),
+            ("z-deflated-points-2pow40.usdz", deflated(&bad_points)),
         ]
     }
 
@@ -1321,6 +1428,50 @@ mod tests {
         // 2^15 nested paths: 2^29 path strings of up to 2^15 components, from a few KB.
         let e = walked(&hostile_file("c-path-tree-quadratic.usdc")).unwrap_err();
         assert!(e.contains("tables and values declare"), "{e}");
+    }
+
+    #[test]
+    fn a_package_s_crate_files_are_walked_and_compressed_layers_refused() {
+        let good = data("groom.usdc");
+        assert_eq!(checked("g.usdz", &data("groom.usdz")), Ok(()));
+        assert_eq!(
+            checked("g.usdz", &package(&[("groom.usdc", &good)])),
+            Ok(())
+        );
+        // The points at 2^40 in the package's groom.usdc, through `usd::read`.
+        let (at, _) = largest_array(&good, 24);
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("g.usdz");
+        std::fs::write(&path, hostile_file("z-points-2pow40.usdz")).unwrap();
+        let e = super::super::read(&path, None, 0.01)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(&format!(
+                "malformed file: the package's groom.usdc: value array at byte {at} declares 1099511627776 elements of \
+                 12 bytes"
+            )),
+            "{e}"
+        );
+        // Also when the crate file is not the first entry nor named as one.
+        let named = package(&[
+            ("a.usda", b"#usda 1.0\n"),
+            ("b.bin", &with(good.clone(), at, 1 << 40)),
+        ]);
+        assert!(checked("g.usdz", &named)
+            .unwrap_err()
+            .contains("the package's b.bin"));
+        // A compressed layer is refused; a compressed texture is left.
+        let e = checked("g.usdz", &hostile_file("z-deflated-points-2pow40.usdz")).unwrap_err();
+        assert!(e.contains("groom.usdc is compressed (Deflated)"), "{e}");
+        assert!(checked("g.usdz", &deflated(&good))
+            .unwrap_err()
+            .contains("compressed (Deflated)"));
+        let texture = marked_deflated(
+            package(&[("groom.usdc", &good), ("sky.exr", b"not read")]),
+            "sky.exr",
+        );
+        assert_eq!(checked("g.usdz", &texture), Ok(()));
     }
 
     #[test]

@@ -25,10 +25,10 @@
 //! (a `todo!` for old versions, out-of-range lookup tables), so the whole read runs under
 //! [`std::panic::catch_unwind`] and a panic becomes a [`UsdError`]. What cannot be caught (its allocations from a
 //! `.usdc`'s declared sizes, its recursion into values holding themselves, its loops) is checked first: a crate
-//! file is walked as openusd will read it ([`crate_check`]: tables, path tree and every field's value, each size
-//! held to the file). A `.usdz`'s inner crate files, and layers the stage composes from other files (sublayers,
-//! references, payloads), are opened by openusd without that walk. The file's size is bounded by
-//! [`MAX_FILE_BYTES`] before it is opened.
+//! file, and each crate file in a `.usdz`, is walked as openusd will read it ([`crate_check`]: tables, path tree and
+//! every field's value, each size held to the file), and a `.usdz` layer stored compressed is refused. Layers the
+//! stage composes from other files (sublayers, references, payloads) are opened by openusd without that walk. The
+//! file's size is bounded by [`MAX_FILE_BYTES`] before it is opened.
 
 mod crate_check;
 pub mod curves;
@@ -175,7 +175,7 @@ pub fn read(path: &Path, root: Option<&str>, default_radius: f32) -> Result<UsdS
             "the path is not UTF-8, which openusd needs",
         ));
     };
-    // A crate file is walked before openusd allocates what it declares ([`crate_check`]).
+    // A crate file, or each one in a .usdz, is walked before openusd allocates what it declares ([`crate_check`]).
     crate_check::check(path).map_err(|e| UsdError::file(path, format!("malformed file: {e}")))?;
     let run = std::panic::AssertUnwindSafe(|| Reader::new(path, name, default_radius)?.read(root));
     match std::panic::catch_unwind(run) {
