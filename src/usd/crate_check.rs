@@ -1266,7 +1266,7 @@ mod tests {
         package
     }
 
-    /// The hostile files of these tests, by name.
+    /// The hostile files of these tests, by corpus name (`fuzz/corpus/usd/`, less the format byte).
     fn hostile() -> Vec<(&'static str, Vec<u8>)> {
         let good = data("groom.usdc");
         let (points, _) = largest_array(&good, 24);
@@ -1472,6 +1472,18 @@ mod tests {
             "sky.exr",
         );
         assert_eq!(checked("g.usdz", &texture), Ok(()));
+    }
+
+    /// Writes [`hostile`] into the fuzz corpus, each behind its format byte (1: `.usdc`, 2: `.usdz`):
+    /// `cargo test --release --lib write_usd_corpus -- --ignored`.
+    #[test]
+    #[ignore]
+    fn write_usd_corpus() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz/corpus/usd");
+        for (name, bytes) in hostile() {
+            let kind = if name.ends_with(".usdz") { 2u8 } else { 1 };
+            std::fs::write(dir.join(name), [&[kind][..], &bytes].concat()).unwrap();
+        }
     }
 
     #[test]
