@@ -122,6 +122,8 @@ fn usd_corpus_replays_and_real_seeds_parse() {
         "a-bases.usda",
         "c-groom.usdc",
         "z-groom.usdz",
+        "a-instancing.usda",
+        "z-textured.usdz",
     ] {
         assert!(
             ok.iter().any(|n| n == seed),
@@ -129,12 +131,27 @@ fn usd_corpus_replays_and_real_seeds_parse() {
         );
     }
     // The fuzzer's two finds: token tables declaring more than the file holds (openusd panicked on one and
-    // allocated 9 PB on the other); `usd::read` refuses both before openusd reads them.
+    // allocated 9 PB on the other). The rest are `src/usd/crate_check.rs`'s hostile files: arrays declaring 2^40
+    // elements (openusd aborts allocating 4-13 TB), values holding themselves (a stack overflow, or a loop), path
+    // trees built exponentially often or quadratically long, the same inside a .usdz, and a deflated .usdz layer.
+    // `usd::read` refuses all of them before openusd reads them. And a prim named `a}`, which openusd takes for its
+    // own parent (any query of it recursed until the stack overflowed): refused before it is queried.
     for hostile in [
         "c-truncated.usdc",
         "a-huge-count.usda",
         "c-token-table-overflow.usdc",
         "c-token-table-9pb.usdc",
+        "c-points-2pow40.usdc",
+        "c-token-array-2pow40.usdc",
+        "c-compressed-ints-2pow40.usdc",
+        "c-dictionary-holding-itself.usdc",
+        "c-dictionary-looping.usdc",
+        "c-time-samples-holding-themselves.usdc",
+        "c-path-tree-exponential.usdc",
+        "c-path-tree-quadratic.usdc",
+        "z-points-2pow40.usdz",
+        "z-deflated-points-2pow40.usdz",
+        "a-prim-own-parent.usda",
     ] {
         assert!(!ok.iter().any(|n| n == hostile), "{hostile} accepted");
     }

@@ -699,3 +699,17 @@ fn a_read_of_some_parts_converts_only_those_and_counts_the_meshes_it_left() {
     let hair = usd::read_parts(&data("groom.usda"), None, R, curves).unwrap();
     assert_eq!((hair.strands, hair.meshes.len()), (all.strands, 0));
 }
+
+#[test]
+fn a_prim_name_the_parser_takes_for_its_own_parent_is_refused_before_it_is_queried() {
+    // openusd 0.6 parses `a}` into a path whose parent is itself; any query of the prim recursed until the stack
+    // overflowed (found by the `usd` fuzz target).
+    let dir = tempfile::tempdir().unwrap();
+    fails_in(
+        dir.path(),
+        "own.usda",
+        "#usda 1.0\ndef Xform \"W\"\n{\n    def Xform \"a}\"\n    {\n    }\n}\n",
+        "/W/a}",
+        "cannot place under its parent",
+    );
+}

@@ -155,7 +155,12 @@ impl Reader<'_> {
             },
             None => "st".to_owned(),
         };
-        let image = if super::is_package(self.path) && PathBuf::from(&file).is_relative() {
+        let image = if self
+            .path
+            .to_str()
+            .is_some_and(super::crate_check::is_package)
+            && PathBuf::from(&file).is_relative()
+        {
             self.packaged_texture(&file, &space).map_err(bad)?
         } else {
             let path = self.asset_file(&file);

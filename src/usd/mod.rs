@@ -29,10 +29,12 @@
 //! Bad input: every error names the file and, where there is one, the prim. Counts are checked against the
 //! arrays before anything proportional to them is allocated. `openusd` 0.6 can panic on malformed binary files
 //! (a `todo!` for old versions, out-of-range lookup tables), so the whole read runs under
-//! [`std::panic::catch_unwind`] and a panic becomes a [`UsdError`]. Its allocations from a `.usdc`'s declared
-//! sizes cannot be caught: a crate file's structural tables are walked first ([`crate_check`]); the counts of its
-//! value arrays (and a `.usdz`'s inner crate file) are not, so a hostile file can still make it allocate more than
-//! the file (its size is bounded by [`MAX_FILE_BYTES`] before it is opened).
+//! [`std::panic::catch_unwind`] and a panic becomes a [`UsdError`]. What cannot be caught (its allocations from a
+//! `.usdc`'s declared sizes, its recursion into values holding themselves, its loops) is checked first: a crate
+//! file, and each crate file in a `.usdz`, is walked as openusd will read it ([`crate_check`]: tables, path tree and
+//! every field's value, each size held to the file), and a `.usdz` layer stored compressed is refused. Layers the
+//! stage composes from other files (sublayers, references, payloads) are opened by openusd without that walk. The
+//! file's size is bounded by [`MAX_FILE_BYTES`] before it is opened.
 
 mod basis_curves;
 mod camera;
@@ -236,11 +238,8 @@ pub fn read_parts(
             "the path is not UTF-8, which openusd needs",
         ));
     };
-    // A crate file's structural tables are checked before openusd allocates them ([`crate_check`]).
-    if crate_check::is_crate(path) {
-        crate_check::check(path)
-            .map_err(|e| UsdError::file(path, format!("malformed crate file: {e}")))?;
-    }
+    // A crate file, or each one in a .usdz, is walked before openusd allocates what it declares ([`crate_check`]).
+    crate_check::check(path).map_err(|e| UsdError::file(path, format!("malformed file: {e}")))?;
     let run =
         std::panic::AssertUnwindSafe(|| Reader::new(path, name, default_radius, parts)?.read(root));
     match std::panic::catch_unwind(run) {
@@ -257,16 +256,6 @@ pub fn read_parts(
             ))
         }
     }
-}
-
-/// Whether `path` is a zip archive (a `.usdz` package, whatever its extension).
-fn is_package(path: &Path) -> bool {
-    use std::io::Read as _;
-    let mut magic = [0u8; 4];
-    std::fs::File::open(path)
-        .and_then(|mut f| f.read_exact(&mut magic))
-        .is_ok()
-        && &magic == b"PK\x03\x04"
 }
 
 /// What `cuticle info` prints about a stage.

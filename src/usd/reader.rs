@@ -94,6 +94,14 @@ impl<'a> Reader<'a> {
                 break;
             }
             p = q.parent();
+            // A malformed name can be its own parent (see [`Reader::walk`]).
+            if p.as_ref() == Some(&q) {
+                return Err(prim_err(
+                    self.path,
+                    &q,
+                    "a prim name the USD parser cannot place under its parent",
+                ));
+            }
             chain.push(q);
         }
         let mut world = DMat4::IDENTITY;
@@ -228,6 +236,15 @@ impl<'a> Reader<'a> {
             };
             let children = prim.children().map_err(|e| usd_err(file, &ppath, e))?;
             for c in children.into_iter().rev() {
+                // openusd 0.6 takes some malformed names (`a}`) for a path whose parent is itself, and any query
+                // of such a prim recurses until the stack overflows: refused before it is touched.
+                if c.path().parent().as_ref() != Some(&ppath) {
+                    return Err(prim_err(
+                        file,
+                        c.path(),
+                        "a prim name the USD parser cannot place under its parent",
+                    ));
+                }
                 stack.push((c, world));
             }
         }
