@@ -134,8 +134,9 @@ fn usd_corpus_replays_and_real_seeds_parse() {
     // allocated 9 PB on the other). The rest are `src/usd/crate_check.rs`'s hostile files: arrays declaring 2^40
     // elements (openusd aborts allocating 4-13 TB), values holding themselves (a stack overflow, or a loop), path
     // trees built exponentially often or quadratically long, the same inside a .usdz, and a deflated .usdz layer.
-    // `usd::read` refuses all of them before openusd reads them. And a prim named `a}`, which openusd takes for its
-    // own parent (any query of it recursed until the stack overflowed): refused before it is queried.
+    // `usd::read` refuses all of them before openusd reads them. And a prim named `a}` and an attribute named
+    // `xfor}Op:scale`, which openusd takes for their own parents (a query of the prim recursed until the stack
+    // overflowed; of the attribute, looped for good): refused before they are queried.
     for hostile in [
         "c-truncated.usdc",
         "a-huge-count.usda",
@@ -152,6 +153,7 @@ fn usd_corpus_replays_and_real_seeds_parse() {
         "z-points-2pow40.usdz",
         "z-deflated-points-2pow40.usdz",
         "a-prim-own-parent.usda",
+        "a-attribute-own-parent.usda",
     ] {
         assert!(!ok.iter().any(|n| n == hostile), "{hostile} accepted");
     }

@@ -701,7 +701,7 @@ fn a_read_of_some_parts_converts_only_those_and_counts_the_meshes_it_left() {
 }
 
 #[test]
-fn a_prim_name_the_parser_takes_for_its_own_parent_is_refused_before_it_is_queried() {
+fn names_the_parser_takes_for_their_own_parent_are_refused_before_they_are_queried() {
     // openusd 0.6 parses `a}` into a path whose parent is itself; any query of the prim recursed until the stack
     // overflowed (found by the `usd` fuzz target).
     let dir = tempfile::tempdir().unwrap();
@@ -711,5 +711,24 @@ fn a_prim_name_the_parser_takes_for_its_own_parent_is_refused_before_it_is_queri
         "#usda 1.0\ndef Xform \"W\"\n{\n    def Xform \"a}\"\n    {\n    }\n}\n",
         "/W/a}",
         "cannot place under its parent",
+    );
+    // An attribute named so (here an xformOp) looped for good in openusd's index cache.
+    fails_in(
+        dir.path(),
+        "attr.usda",
+        "#usda 1.0\ndef Xform \"W\"\n{\n    uniform token[] xformOpOrder = [\"xfor}Op:scale\"]\n}\n",
+        "/W",
+        "attribute name \"xfor}Op:scale\" is not one the USD parser can resolve",
+    );
+    // And a root asked for by such a name.
+    let p = write(
+        dir.path(),
+        "root.usda",
+        b"#usda 1.0\ndef Xform \"W\"\n{\n}\n",
+    );
+    let e = usd::read(&p, Some("/W/a}"), R).unwrap_err();
+    assert!(
+        e.to_string().contains("cannot place under its parent"),
+        "{e}"
     );
 }

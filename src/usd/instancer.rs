@@ -93,7 +93,7 @@ impl Reader<'_> {
             if read.contains_key(&k) {
                 continue;
             }
-            let target = self.stage.prim(prototypes[k].clone());
+            let target = self.prim_at(&prototypes[k], prim)?;
             if !target
                 .is_valid()
                 .map_err(|e| bad(format!("prototype {}: {e:#}", prototypes[k])))?

@@ -58,9 +58,12 @@ fn srgb_to_linear(c: f32) -> f32 {
 
 impl Reader<'_> {
     /// The shader a prim's `name` input or output is connected to, if it is connected.
-    fn source_of(&self, prim: &usd::Prim, name: &str) -> Option<usd::Prim> {
+    fn source_of(&self, prim: &usd::Prim, name: &str) -> Result<Option<usd::Prim>, UsdError> {
         let connections = prim.attribute(name).connections().unwrap_or_default();
-        connections.first().map(|c| self.stage.prim(c.prim_path()))
+        connections
+            .first()
+            .map(|c| self.prim_at(&c.prim_path(), prim))
+            .transpose()
     }
 
     /// The diffuse colour of the `UsdPreviewSurface` bound to `prim` by `material:binding`: its texture, its
@@ -76,8 +79,8 @@ impl Reader<'_> {
         let Some(material) = targets.first() else {
             return Ok(None);
         };
-        let mat = self.stage.prim(material.clone());
-        let Some(shader) = self.source_of(&mat, "outputs:surface") else {
+        let mat = self.prim_at(material, prim)?;
+        let Some(shader) = self.source_of(&mat, "outputs:surface")? else {
             return Ok(None);
         };
         let id = self.token(&shader, "info:id", "")?;
@@ -91,7 +94,7 @@ impl Reader<'_> {
             );
             return Ok(None);
         }
-        if let Some(texture) = self.source_of(&shader, "inputs:diffuseColor") {
+        if let Some(texture) = self.source_of(&shader, "inputs:diffuseColor")? {
             let id = self.token(&texture, "info:id", "")?;
             if id == "UsdUVTexture" {
                 return Ok(Some(Diffuse::Texture(self.uv_texture(&texture)?)));
@@ -146,7 +149,7 @@ impl Reader<'_> {
                 "inputs:sourceColorSpace: unknown colour space {space:?}"
             )));
         }
-        let varname = match self.source_of(shader, "inputs:st") {
+        let varname = match self.source_of(shader, "inputs:st")? {
             Some(reader) => match self.get(&reader, "inputs:varname")? {
                 Some(v) => token(&v).filter(|t| !t.is_empty()).ok_or_else(|| {
                     bad(format!("{}: inputs:varname is not a name", reader.path()))

@@ -34,6 +34,21 @@ pub(super) struct Geometry {
     pub(super) meshes: Vec<TriangleMesh>,
 }
 
+/// Whether each step of `path`'s parent chain is shorter than the last. openusd 0.6 takes some malformed names
+/// (a prim `a}`, an attribute `xfor}Op:scale`) for a path that is its own parent, and any query of it recursed until
+/// the stack overflowed or looped for good (both found by the `usd` fuzz target): such paths are refused before
+/// they are queried.
+pub(super) fn well_formed(path: &sdf::Path) -> bool {
+    let mut p = path.clone();
+    while let Some(q) = p.parent() {
+        if q.as_str().len() >= p.as_str().len() {
+            return false;
+        }
+        p = q;
+    }
+    true
+}
+
 /// An openusd error on `prim`.
 pub(super) fn usd_err(file: &Path, prim: &sdf::Path, e: anyhow::Error) -> UsdError {
     prim_err(file, prim, format!("{e:#}"))
@@ -86,6 +101,13 @@ impl<'a> Reader<'a> {
             Some(r) => sdf::Path::new(r)
                 .map_err(|e| UsdError::file(self.path, format!("root {r:?}: {e}")))?,
         };
+        if !well_formed(&root_path) {
+            return Err(prim_err(
+                self.path,
+                &root_path,
+                "a prim name the USD parser cannot place under its parent",
+            ));
+        }
         // The root's own world transform: its ancestors' ops, outermost first.
         let mut chain = Vec::new();
         let mut p = root_path.parent();
@@ -94,14 +116,6 @@ impl<'a> Reader<'a> {
                 break;
             }
             p = q.parent();
-            // A malformed name can be its own parent (see [`Reader::walk`]).
-            if p.as_ref() == Some(&q) {
-                return Err(prim_err(
-                    self.path,
-                    &q,
-                    "a prim name the USD parser cannot place under its parent",
-                ));
-            }
             chain.push(q);
         }
         let mut world = DMat4::IDENTITY;
@@ -257,6 +271,41 @@ impl<'a> Reader<'a> {
             .push(format!("{}:{prim}: {message}", self.path.display()));
     }
 
+    /// The prim at `path` (a relationship's target, a connection's source), refused if the path is malformed
+    /// ([`well_formed`]); `from` is the prim that named it.
+    pub(super) fn prim_at(
+        &self,
+        path: &sdf::Path,
+        from: &usd::Prim,
+    ) -> Result<usd::Prim, UsdError> {
+        if !well_formed(path) {
+            return Err(prim_err(
+                self.path,
+                from.path(),
+                format!("names {path}, a path the USD parser cannot resolve"),
+            ));
+        }
+        Ok(self.stage.prim(path.clone()))
+    }
+
+    /// Refuses an attribute name (from the file: an `xformOpOrder` entry, a primvar reader's `varname`) whose path
+    /// is malformed ([`well_formed`]).
+    pub(super) fn check_attribute(&self, prim: &usd::Prim, name: &str) -> Result<(), UsdError> {
+        let ok = prim
+            .path()
+            .append_property(name)
+            .is_ok_and(|p| well_formed(&p));
+        if ok {
+            Ok(())
+        } else {
+            Err(prim_err(
+                self.path,
+                prim.path(),
+                format!("attribute name {name:?} is not one the USD parser can resolve"),
+            ))
+        }
+    }
+
     /// The value of `prim.name`: its default, else its earliest time sample (with a warning), else `None`.
     pub(super) fn get(
         &mut self,
@@ -264,6 +313,7 @@ impl<'a> Reader<'a> {
         name: &str,
     ) -> Result<Option<sdf::Value>, UsdError> {
         let file = self.path;
+        self.check_attribute(prim, name)?;
         let attr = prim.attribute(name);
         let e = |e| usd_err(file, prim.path(), e);
         match attr.get::<sdf::Value>().map_err(e)? {
@@ -301,6 +351,9 @@ impl<'a> Reader<'a> {
 
     /// The interpolation metadata of a primvar (`default` when not authored).
     pub(super) fn interpolation(&self, prim: &usd::Prim, name: &str, default: &str) -> String {
+        if self.check_attribute(prim, name).is_err() {
+            return default.to_owned();
+        }
         match prim
             .attribute(name)
             .get_metadata::<sdf::Value>("interpolation")
