@@ -146,13 +146,14 @@ impl Reader<'_> {
                 * DMat4::from_scale(scale);
             let g = &read[&k];
             if g.strands.strand_count() > 0 {
-                let mut s = g.strands.clone();
+                // Appended in the prototype's space, then moved in place: no copy per instance.
+                let first = geometry.strands.control_points.len();
+                geometry.strands.append(&g.strands);
                 let r = world_radius_scale(m);
-                for c in &mut s.control_points {
+                for c in &mut geometry.strands.control_points[first..] {
                     let p = m.transform_point3(DVec3::new(c[0].into(), c[1].into(), c[2].into()));
                     *c = [p.x as f32, p.y as f32, p.z as f32, c[3] * r];
                 }
-                geometry.strands.append(&s);
             }
             for mesh in &g.meshes {
                 let mut mesh = mesh.clone().transformed(m.as_mat4());

@@ -216,14 +216,9 @@ impl Reader<'_> {
             .map_err(|e| fail(&e))?;
         std::io::copy(&mut entry.by_ref().take(MAX_TEXTURE_BYTES), &mut copy)
             .map_err(|e| fail(&e))?;
-        let image = self.texture_image(copy.path(), space)?;
-        // Named after the package entry, not the temporary copy, and cached under that name.
-        let image = Arc::new(TextureImage {
-            name: format!("{}[{name}]", self.path.display()),
-            ..(*image).clone()
-        });
-        self.textures
-            .remove(&(copy.path().to_path_buf(), space.to_owned()));
+        // Named after the package entry, not the temporary copy.
+        let name = format!("{}[{name}]", self.path.display());
+        let image = Arc::new(decode_texture(copy.path(), name, space)?);
         self.textures.insert(key, image.clone());
         Ok(image)
     }
@@ -234,42 +229,48 @@ impl Reader<'_> {
         if let Some(t) = self.textures.get(&key) {
             return Ok(t.clone());
         }
-        let (image, attrs) =
-            crate::image::read_at_most_with(path, &["oiio:ColorSpace"], MAX_TEXTURE_BYTES)
-                .map_err(|e| format!("texture: {e}"))?;
-        let srgb = match space {
-            "sRGB" => true,
-            "raw" => false,
-            _ => attrs[0]
-                .as_deref()
-                .is_some_and(|c| c.to_ascii_lowercase().contains("srgb")),
-        };
-        let find = |name: &str| image.channels.iter().position(|c| c == name);
-        let n = image.channels.len();
-        let rgb = match (find("R"), find("G"), find("B")) {
-            (Some(r), Some(g), Some(b)) => [r, g, b],
-            _ if n >= 1 => [0, 0, 0],
-            _ => return Err(format!("texture {}: no channels", path.display())),
-        };
-        let alpha = find("A");
-        let decode = |c: f32| if srgb { srgb_to_linear(c) } else { c };
-        let texels = image
-            .data
-            .chunks_exact(n)
-            .map(|px| {
-                // The image holds colour premultiplied by alpha; an albedo is the colour itself.
-                let a = alpha.map_or(1.0, |a| px[a]);
-                let k = if a > 0.0 { 1.0 / a } else { 1.0 };
-                Vec3::from_array(rgb.map(|i| decode(px[i] * k)))
-            })
-            .collect();
-        let t = Arc::new(TextureImage {
-            name: path.display().to_string(),
-            width: image.width,
-            height: image.height,
-            texels,
-        });
-        self.textures.insert(key, t.clone());
-        Ok(t)
+        let image = Arc::new(decode_texture(path, path.display().to_string(), space)?);
+        self.textures.insert(key, image.clone());
+        Ok(image)
     }
+}
+
+/// The texels of the image file `path` as linear RGB, named `name`: sRGB-decoded as `sourceColorSpace` `space`
+/// says (see the module doc), premultiplied alpha undone.
+fn decode_texture(path: &Path, name: String, space: &str) -> Result<TextureImage, String> {
+    let (image, attrs) =
+        crate::image::read_at_most_with(path, &["oiio:ColorSpace"], MAX_TEXTURE_BYTES)
+            .map_err(|e| format!("texture: {e}"))?;
+    let srgb = match space {
+        "sRGB" => true,
+        "raw" => false,
+        _ => attrs[0]
+            .as_deref()
+            .is_some_and(|c| c.to_ascii_lowercase().contains("srgb")),
+    };
+    let find = |name: &str| image.channels.iter().position(|c| c == name);
+    let n = image.channels.len();
+    let rgb = match (find("R"), find("G"), find("B")) {
+        (Some(r), Some(g), Some(b)) => [r, g, b],
+        _ if n >= 1 => [0, 0, 0],
+        _ => return Err(format!("texture {name}: no channels")),
+    };
+    let alpha = find("A");
+    let decode = |c: f32| if srgb { srgb_to_linear(c) } else { c };
+    let texels = image
+        .data
+        .chunks_exact(n)
+        .map(|px| {
+            // The image holds colour premultiplied by alpha; an albedo is the colour itself.
+            let a = alpha.map_or(1.0, |a| px[a]);
+            let k = if a > 0.0 { 1.0 / a } else { 1.0 };
+            Vec3::from_array(rgb.map(|i| decode(px[i] * k)))
+        })
+        .collect();
+    Ok(TextureImage {
+        name,
+        width: image.width,
+        height: image.height,
+        texels,
+    })
 }
