@@ -1,4 +1,4 @@
-//! The pure-Rust strand tracer: [`WideBvh`] traversal (the [`Bvh`] build collapsed to 4-wide nodes)
+//! The pure-Rust strand tracer: [`WideBvh`] traversal (the binned-SAH build collapsed to 4-wide nodes)
 //! with the ray–curve tests of [`crate::accel::curves`], behind the [`Tracer`] trait, reproducing
 //! [`crate::accel::embree::EmbreeTracer`] query for query.
 //!
@@ -20,7 +20,7 @@
 use std::time::Instant;
 
 use super::bvh::wide::{Primitive, WideBvh};
-use super::bvh::{BuildOptions, Bvh, Control};
+use super::bvh::{BuildOptions, Control};
 use super::curves::flat::RibbonRay;
 use super::curves::{flat, round, CurveHit};
 use super::{strand_present, CurveKind, Hit, Tracer};
@@ -46,10 +46,10 @@ impl BvhTracer {
     /// [`BvhTracer::new`] with explicit build options.
     ///
     /// # Panics
-    /// If `options` are out of range (see [`Bvh::build`]).
+    /// If `options` are out of range (see [`WideBvh::build`]).
     pub fn with_options(strands: &Strands, kind: CurveKind, options: BuildOptions) -> Self {
         let start = Instant::now();
-        let bvh = WideBvh::new(&Bvh::build(strands, options), strands);
+        let bvh = WideBvh::build(strands, options);
         BvhTracer {
             bvh,
             kind,

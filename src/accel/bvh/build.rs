@@ -139,26 +139,34 @@ fn check_options(options: &BuildOptions) {
 /// Builds the tree over the segments of `strands` (see [`Bvh::build`]).
 pub(super) fn build(strands: &Strands, options: BuildOptions) -> Bvh {
     check_options(&options);
+    check_span_levels(&options);
+    let refs = primitive_refs(strands, options.bounding);
+    let polygons = polygons(strands, &options);
+    from_refs(refs, options, &polygons)
+}
+
+/// Checks the span levels of [`Bounding::Spans`] and [`Bounding::SpanRefs`].
+fn check_span_levels(options: &BuildOptions) {
     if let Bounding::Spans { levels } | Bounding::SpanRefs { levels } = options.bounding {
         assert!(
             (1..=3).contains(&levels),
             "bvh: span levels must be in 1..=3, got {levels}"
         );
     }
-    let refs = primitive_refs(strands, options.bounding);
-    // Oriented splits need the segment's geometry; a span reference is not a whole segment, so span-reference
-    // trees keep the aligned build.
-    let polygons: Vec<Polygon> =
-        if options.oriented_splits && !matches!(options.bounding, Bounding::SpanRefs { .. }) {
-            use rayon::prelude::*;
-            (0..strands.segment_count() as u32)
-                .into_par_iter()
-                .map(|segment| polygon(strands, segment))
-                .collect()
-        } else {
-            Vec::new()
-        };
-    from_refs(refs, options, &polygons)
+}
+
+/// Each segment's [`Polygon`] when the build searches oriented splits, else nothing. A span reference is not a
+/// whole segment, so span-reference trees keep the aligned build.
+fn polygons(strands: &Strands, options: &BuildOptions) -> Vec<Polygon> {
+    if options.oriented_splits && !matches!(options.bounding, Bounding::SpanRefs { .. }) {
+        use rayon::prelude::*;
+        (0..strands.segment_count() as u32)
+            .into_par_iter()
+            .map(|segment| polygon(strands, segment))
+            .collect()
+    } else {
+        Vec::new()
+    }
 }
 
 /// Builds the tree over primitives given by their boxes alone (see [`Bvh::build_boxes`]): primitive `i` is
@@ -191,20 +199,11 @@ pub(super) fn build_boxes(boxes: &[Aabb], options: BuildOptions) -> Bvh {
 /// The build both entry points share: the tree over `refs`, with oriented splits where `polygons` (by primitive
 /// id) is not empty.
 fn from_refs(mut refs: Vec<PrimRef>, options: BuildOptions, polygons: &[Polygon]) -> Bvh {
-    let cx = Context {
-        options: &options,
-        polygons,
-    };
-    assert!(
-        refs.len() <= u32::MAX as usize,
-        "bvh: {} primitives exceed u32 indices",
-        refs.len()
-    );
-    let nodes = if refs.is_empty() {
-        Vec::new()
-    } else {
-        subtree(&mut refs, 0, 0, &cx)
-    };
+    let top = top_of(&mut refs, &options, polygons, &|chunk: Chunk| chunk.nodes);
+    let mut nodes = Vec::new();
+    if let Some(top) = top {
+        assemble(top, &mut nodes);
+    }
     Bvh {
         nodes,
         primitives: refs.iter().map(|r| r.segment).collect(),
@@ -236,87 +235,151 @@ fn primitive_refs(strands: &Strands, bounding: Bounding) -> Vec<PrimRef> {
     }
 }
 
-/// Builds the subtree over `refs` (which start at `base` in the final primitive array) as a depth-first node array
-/// (pbrt-v3's layout: first child right after its parent, second child at `offset`).
-///
-/// The top levels run in parallel (`rayon::join`) and return [`Piece`]s, which are put together once at the end:
-/// each node is copied once. (Concatenating the children's node arrays at every parallel level copied the whole
-/// tree once per level, about log₂(n / [`PARALLEL_MIN`]) times, and held two copies at the top: on 15·10⁶ segments
-/// 12 copies of 0.9 GiB.)
-fn subtree(refs: &mut [PrimRef], base: u32, depth: u32, cx: &Context) -> Vec<Node> {
-    assemble(pieces(refs, base, depth, cx))
-}
-
-/// A part of the node array, in depth-first order.
+/// The top levels of a tree, built in parallel ([`build_top`]): inner nodes of at least [`PARALLEL_MIN`]
+/// primitives, and below them the subtrees built on one thread ([`Chunk`]), each handed to the caller as soon as it
+/// is built, so that no tree of the whole model needs to exist at once.
 #[derive(Debug)]
-enum Piece {
-    /// An inner node of the parallel top levels; its second child is the first node of piece `right` (an index
-    /// into the same piece list).
-    Inner { bounds: Aabb, right: usize },
-    /// A subtree built on one thread, its second-child offsets relative to its own first node.
-    Nodes(Vec<Node>),
+pub(super) enum Top<R> {
+    /// A node of the parallel levels: its box, its primitives (`count` from `first`) and its two children.
+    Inner {
+        bounds: Aabb,
+        first: u32,
+        count: u32,
+        children: Box<[Top<R>; 2]>,
+    },
+    /// A subtree built on one thread: its box, its primitives, and what the caller made of it.
+    Chunk {
+        bounds: Aabb,
+        first: u32,
+        count: u32,
+        value: R,
+    },
 }
 
-impl Piece {
-    fn len(&self) -> usize {
+impl<R> Top<R> {
+    /// The box of everything below.
+    pub(super) fn bounds(&self) -> Aabb {
         match self {
-            Piece::Inner { .. } => 1,
-            Piece::Nodes(nodes) => nodes.len(),
+            Top::Inner { bounds, .. } | Top::Chunk { bounds, .. } => *bounds,
+        }
+    }
+
+    /// The first primitive below and the number of primitives.
+    pub(super) fn range(&self) -> (u32, u32) {
+        match self {
+            Top::Inner { first, count, .. } | Top::Chunk { first, count, .. } => (*first, *count),
         }
     }
 }
 
-/// The pieces of the subtree over `refs`, with piece indices relative to the returned list.
-fn pieces(refs: &mut [PrimRef], base: u32, depth: u32, cx: &Context) -> Vec<Piece> {
-    if refs.len() < PARALLEL_MIN {
-        let mut nodes = Vec::new();
-        sequential(refs, base, depth, cx, &mut nodes);
-        return vec![Piece::Nodes(nodes)];
+/// A subtree built on one thread below the parallel levels: its binary nodes in depth-first order (second-child
+/// offsets relative to its first node, leaf offsets into the whole primitive array) and its primitives, which
+/// start at `base` in the final order.
+pub(super) struct Chunk<'a> {
+    pub(super) nodes: Vec<Node>,
+    pub(super) base: u32,
+    refs: &'a [PrimRef],
+}
+
+impl Chunk<'_> {
+    /// The segment ids of the chunk's primitives `first..first + count` (indices into the whole array).
+    pub(super) fn segments(
+        &self,
+        first: u32,
+        count: u32,
+    ) -> impl Iterator<Item = u32> + Clone + '_ {
+        let start = (first - self.base) as usize;
+        self.refs[start..start + count as usize]
+            .iter()
+            .map(|r| r.segment)
     }
-    let (bounds, centroids) = node_bounds(refs);
-    let Some(mid) = split(refs, &bounds, &centroids, depth, cx) else {
-        return vec![Piece::Nodes(vec![leaf(&bounds, base, refs.len())])];
-    };
-    let (left, right) = refs.split_at_mut(mid);
-    let (l, r) = rayon::join(
-        || pieces(left, base, depth + 1, cx),
-        || pieces(right, base + mid as u32, depth + 1, cx),
+}
+
+/// Builds the tree over the segments of `strands` as [`build`] does, handing each subtree below the parallel
+/// levels to `chunk` on the thread that built it. Returns the top levels (nothing for no segments) and every leaf
+/// entry's segment id in final order; the tree is the same for any thread count, and so is every chunk.
+pub(super) fn build_top<R: Send>(
+    strands: &Strands,
+    options: BuildOptions,
+    chunk: &(impl Fn(Chunk) -> R + Sync),
+) -> (Option<Top<R>>, Vec<u32>) {
+    check_options(&options);
+    check_span_levels(&options);
+    let mut refs = primitive_refs(strands, options.bounding);
+    let polygons = polygons(strands, &options);
+    let top = top_of(&mut refs, &options, &polygons, chunk);
+    (top, refs.iter().map(|r| r.segment).collect())
+}
+
+/// The top levels over `refs`, which end in final order (see [`build_top`]).
+fn top_of<R: Send>(
+    refs: &mut [PrimRef],
+    options: &BuildOptions,
+    polygons: &[Polygon],
+    chunk: &(impl Fn(Chunk) -> R + Sync),
+) -> Option<Top<R>> {
+    let cx = Context { options, polygons };
+    assert!(
+        refs.len() <= u32::MAX as usize,
+        "bvh: {} primitives exceed u32 indices",
+        refs.len()
     );
-    let right_start = 1 + l.len();
-    let mut out = Vec::with_capacity(right_start + r.len());
-    out.push(Piece::Inner {
-        bounds,
-        right: right_start,
-    });
-    for (shift, part) in [(1, l), (right_start, r)] {
-        out.extend(part.into_iter().map(|piece| match piece {
-            Piece::Inner { bounds, right } => Piece::Inner {
-                bounds,
-                right: right + shift,
-            },
-            nodes => nodes,
-        }));
-    }
-    out
+    (!refs.is_empty()).then(|| top(refs, 0, 0, &cx, chunk))
 }
 
-/// The node array of a piece list: second-child piece indices become node indices, and each subtree's relative
-/// offsets are shifted by where it lands.
-fn assemble(pieces: Vec<Piece>) -> Vec<Node> {
-    let mut start = Vec::with_capacity(pieces.len());
-    let mut total = 0;
-    for piece in &pieces {
-        start.push(total);
-        total += piece.len();
-    }
-    let mut out = Vec::with_capacity(total);
-    for piece in pieces {
-        match piece {
-            Piece::Inner { bounds, right } => out.push(inner(&bounds, start[right] as u32)),
-            Piece::Nodes(nodes) => place(&mut out, nodes),
+fn top<R: Send>(
+    refs: &mut [PrimRef],
+    base: u32,
+    depth: u32,
+    cx: &Context,
+    chunk: &(impl Fn(Chunk) -> R + Sync),
+) -> Top<R> {
+    let count = refs.len() as u32;
+    if refs.len() >= PARALLEL_MIN {
+        let (bounds, centroids) = node_bounds(refs);
+        if let Some(mid) = split(refs, &bounds, &centroids, depth, cx) {
+            let (left, right) = refs.split_at_mut(mid);
+            let (l, r) = rayon::join(
+                || top(left, base, depth + 1, cx, chunk),
+                || top(right, base + mid as u32, depth + 1, cx, chunk),
+            );
+            return Top::Inner {
+                bounds,
+                first: base,
+                count,
+                children: Box::new([l, r]),
+            };
         }
     }
-    out
+    // At most 2n − 1 nodes.
+    let mut nodes = Vec::with_capacity(2 * refs.len() - 1);
+    sequential(refs, base, depth, cx, &mut nodes);
+    let bounds = nodes[0].bounds();
+    let value = chunk(Chunk { nodes, base, refs });
+    Top::Chunk {
+        bounds,
+        first: base,
+        count,
+        value,
+    }
+}
+
+/// The binary node array of a tree's top levels and chunks: depth first, second-child offsets shifted to where
+/// each chunk lands.
+fn assemble(top: Top<Vec<Node>>, out: &mut Vec<Node>) {
+    match top {
+        Top::Inner {
+            bounds, children, ..
+        } => {
+            let me = out.len();
+            out.push(inner(&bounds, 0));
+            let [left, right] = *children;
+            assemble(left, out);
+            out[me].offset = out.len() as u32;
+            assemble(right, out);
+        }
+        Top::Chunk { value, .. } => place(out, value),
+    }
 }
 
 /// Appends a subtree built with indices from 0, shifting its second-child indices by where it lands.

@@ -19,8 +19,9 @@
 //!   the fur ball it does not pay (off by default; numbers at [`BuildOptions::default`]).
 //! - **Layout**: pbrt-v3's linear BVH (Pharr, Jakob & Humphreys, §4.3.4): 32-byte nodes in depth-first order, the
 //!   first child right after its parent, the second child's index in the node.
-//! - **Traversal** (this file's, kept as the build's output and the reference the tests compare [`wide`] with; the
-//!   tracer walks [`wide::WideBvh`], the same tree collapsed to 4-wide nodes): a fixed stack of [`STACK_SIZE`]
+//! - **Traversal** (this file's, for trees over triangles and as the reference the tests compare [`wide`] with;
+//!   the curve tracer walks [`wide::WideBvh`], the same tree collapsed to 4-wide nodes chunk by chunk as the build
+//!   finishes them, [`wide::WideBvh::build`]): a fixed stack of [`STACK_SIZE`]
 //!   entries (no allocation per ray); both children's boxes are tested at the parent, the nearer entered first and
 //!   the other stacked with its entry distance, skipped when a closer hit has been found by the time it is popped
 //!   (measured against pbrt's split-axis order: 2–4 % fewer box tests). Boxes use the robust slab test of Ize 2013

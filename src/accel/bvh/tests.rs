@@ -334,9 +334,14 @@ fn sphere_hit(ray: &Ray, spheres: &[glam::Vec4], tfar: f32) -> Option<f32> {
 /// nearest sphere the walk finds is the one a test of every segment finds, bit for bit; the all-hits walk offers
 /// every segment with a sphere on the ray, each with its own control points and strand, and offers a segment once
 /// unless the tree references it once per span. Returns (rays hitting a sphere, segments offered).
-fn check_wide_traversal(bvh: &Bvh, strands: &Strands, rays: &[Ray], what: &str) -> (usize, usize) {
-    let wide = wide::WideBvh::new(bvh, strands);
-    let once = !matches!(bvh.options().bounding, Bounding::SpanRefs { .. });
+fn check_wide_traversal(
+    wide: &wide::WideBvh,
+    bounding: Bounding,
+    strands: &Strands,
+    rays: &[Ray],
+    what: &str,
+) -> (usize, usize) {
+    let once = !matches!(bounding, Bounding::SpanRefs { .. });
     wide.check_bounds(strands, once);
     let spheres: Vec<[glam::Vec4; 5]> = (0..strands.segment_count())
         .map(|s| {
@@ -489,7 +494,15 @@ fn random_bundle_builds_valid_trees_that_traverse_like_brute_force() {
             // Guard against a vacuous test: most rays must hit something.
             assert!(hits > rays.len() / 4, "{what}: only {hits} rays hit");
             assert!(reported > rays.len(), "{what}: {reported} boxes crossed");
-            let (hits, offered) = check_wide_traversal(&bvh, &strands, &rays, &what);
+            // One chunk (span references: two per segment, more than one chunk): the lean build is the collapse
+            // of the whole binary tree, bit for bit.
+            let wide = wide::WideBvh::build(&strands, options);
+            assert!(
+                bvh.primitives().len() >= build::PARALLEL_MIN
+                    || wide == wide::WideBvh::new(&bvh, &strands),
+                "{what}: the lean build differs from the collapsed binary tree"
+            );
+            let (hits, offered) = check_wide_traversal(&wide, bounding, &strands, &rays, &what);
             assert!(
                 offered > rays.len() / 2,
                 "{what}, wide: {offered} segments offered"
@@ -517,7 +530,21 @@ fn straight_hair_builds_a_valid_tree_that_traverses_like_brute_force() {
         check_invariants(&bvh, &strands, &what);
         let (hits, _) = check_traversal(&bvh, &strands, &rays, &what);
         assert!(hits > rays.len() / 4, "{what}: only {hits} rays hit");
-        check_wide_traversal(&bvh, &strands, &rays, &what);
+        check_wide_traversal(
+            &wide::WideBvh::new(&bvh, &strands),
+            bounding,
+            &strands,
+            &rays,
+            &what,
+        );
+        // Many chunks: the lean build's own tree.
+        assert!(strands.segment_count() > 4 * build::PARALLEL_MIN);
+        let lean = wide::WideBvh::build(&strands, options);
+        let (hits, _) = check_wide_traversal(&lean, bounding, &strands, &rays, &what);
+        assert!(
+            hits > rays.len() / 20,
+            "{what}, lean: only {hits} sphere hits"
+        );
     }
 }
 
@@ -571,6 +598,13 @@ fn check_deterministic(strands: &Strands, what: &str) {
             two.primitives(),
             "{what}: primitive order"
         );
+        // The lean wide build: chunks land where they finish, so compare the trees, not the arrays.
+        let one = pool(1).install(|| wide::WideBvh::build(strands, options));
+        let two = pool(2).install(|| wide::WideBvh::build(strands, options));
+        assert!(
+            one.shape() == two.shape(),
+            "{what}, {bounding:?}: lean wide trees differ between 1 and 2 threads"
+        );
     }
 }
 
@@ -606,7 +640,15 @@ fn degenerate_input_builds_and_traverses() {
         );
         assert!(!empty.for_each(ray, |s, _| panic!("segment {s} in an empty bvh")));
     }
-    check_wide_traversal(&empty, &Strands::default(), &rays, "empty");
+    let lean = wide::WideBvh::build(&Strands::default(), BuildOptions::default());
+    assert!(lean == wide::WideBvh::new(&empty, &Strands::default()));
+    check_wide_traversal(
+        &lean,
+        BuildOptions::default().bounding,
+        &Strands::default(),
+        &rays,
+        "empty",
+    );
     let cases = [
         ("one strand", random_bundle(1, 5, 3)),
         (
@@ -628,7 +670,9 @@ fn degenerate_input_builds_and_traverses() {
             let what = format!("{what}, {bounding:?}");
             check_invariants(&bvh, strands, &what);
             check_traversal(&bvh, strands, &rays, &what);
-            check_wide_traversal(&bvh, strands, &rays, &what);
+            let lean = wide::WideBvh::build(strands, options);
+            assert!(lean == wide::WideBvh::new(&bvh, strands), "{what}");
+            check_wide_traversal(&lean, bounding, strands, &rays, &what);
         }
     }
     // A ray through the coincident point's box hits it: the traversal handles zero-size boxes.
@@ -830,7 +874,10 @@ fn oriented_splits_separate_crossing_bundles() {
     let rays = random_rays(lo, hi, BUNDLE_RAYS, 5);
     let (hits, _) = check_traversal(&oriented, &strands, &rays, what);
     assert!(hits > rays.len() / 20, "{what}: only {hits} rays hit");
-    check_wide_traversal(&oriented, &strands, &rays, what);
+    let options = oriented.options();
+    let lean = wide::WideBvh::build(&strands, options);
+    assert!(lean == wide::WideBvh::new(&oriented, &strands), "{what}");
+    check_wide_traversal(&lean, options.bounding, &strands, &rays, what);
     let split = bundles_below(&oriented);
     assert!(
         split == [(true, false), (false, true)] || split == [(false, true), (true, false)],

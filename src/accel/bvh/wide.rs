@@ -64,9 +64,11 @@ use arrayvec::ArrayVec;
 use glam::{Vec3, Vec4};
 
 use super::build::for_each_span_points;
-use super::{Bvh, Control, FAR_SCALE};
+use super::{BuildOptions, Bvh, Control, FAR_SCALE};
 use crate::hair::Strands;
 use crate::ray::Ray;
+
+mod collapse;
 
 /// Traversal stack entries: a 4-wide node pushes at most three children (always three, the extra ones cut off at
 /// once), and the tree is at most as deep as the binary one ([`super::STACK_SIZE`] levels).
@@ -239,11 +241,11 @@ impl Obb {
     }
 
     /// The box in frame `axes` around the spans of `segments`, padded for rounding.
-    fn around(strands: &Strands, segments: &[u32], axes: [Vec3; 3]) -> Obb {
+    fn around(strands: &Strands, segments: impl Iterator<Item = u32>, axes: [Vec3; 3]) -> Obb {
         let mut lo = Vec3::INFINITY;
         let mut hi = Vec3::NEG_INFINITY;
         let mut scale = 0.0f32;
-        for &segment in segments {
+        for segment in segments {
             for_each_span_points(strands, segment, 2, |points| {
                 for q in points {
                     let x = q.truncate();
@@ -265,9 +267,9 @@ impl Obb {
     }
 
     /// The box oriented along the segments' mean chord direction (Woop et al. 2014), or `None` without one.
-    fn oriented(strands: &Strands, segments: &[u32]) -> Option<Obb> {
+    fn oriented(strands: &Strands, segments: impl Iterator<Item = u32> + Clone) -> Option<Obb> {
         let mut axis = Vec3::ZERO;
-        for &segment in segments {
+        for segment in segments.clone() {
             let first = strands.segment_first[segment as usize] as usize;
             let a = Vec3::from_slice(&strands.control_points[first][..3]);
             let b = Vec3::from_slice(&strands.control_points[first + 3][..3]);
@@ -371,12 +373,30 @@ pub struct WideBvh {
 }
 
 impl WideBvh {
+    /// The wide tree over the segments of `strands`, built with `options` without ever holding the binary tree
+    /// of the whole model ([`collapse::build`]).
+    ///
+    /// # Panics
+    /// If `options` are out of range (see [`Bvh::build`]).
+    pub fn build(strands: &Strands, options: BuildOptions) -> WideBvh {
+        collapse::build(strands, options)
+    }
+
     /// Collapses `bvh` (built over `strands`) into 4-wide nodes, oriented where that is tighter, and stores each
-    /// leaf entry's curve.
+    /// leaf entry's curve: the tree [`WideBvh::build`] makes, up to the nodes where its chunks meet the top levels.
     pub fn new(bvh: &Bvh, strands: &Strands) -> WideBvh {
+        collapse::from_binary(bvh, strands)
+    }
+
+    /// The tree of collapsed `nodes` under `root` (and its box), with a leaf entry per segment id of `order`.
+    fn assemble(
+        nodes: collapse::Nodes,
+        root: Option<(Child, super::Aabb)>,
+        order: &[u32],
+        strands: &Strands,
+    ) -> WideBvh {
         use rayon::prelude::*;
-        let primitives = bvh
-            .primitives()
+        let primitives = order
             .par_iter()
             .map(|&segment| {
                 let first = strands.segment_first[segment as usize] as usize;
@@ -389,32 +409,16 @@ impl WideBvh {
                 }
             })
             .collect();
-        let mut wide = WideBvh {
-            nodes: Vec::new(),
-            oriented: Vec::new(),
+        WideBvh {
+            nodes: nodes.aligned,
+            oriented: nodes.oriented,
             primitives,
-            root: None,
-        };
-        let binary = bvh.nodes();
-        // Every small subtree's oriented box, in parallel (most of the collapse's work; done inside it, serially,
-        // the build took 3x Embree's on 2 threads).
-        let segments = bvh.primitives();
-        let obbs: Vec<Option<Obb>> = (0..binary.len())
-            .into_par_iter()
-            .map(|i| {
-                let (first, count) = range(binary, i);
-                let below = &segments[first as usize..(first + count) as usize];
-                (count <= OBB_MAX)
-                    .then(|| Obb::oriented(strands, below))
-                    .flatten()
-            })
-            .collect();
-        if let Some(top) = binary.first() {
-            let mut root_box = Boxes4::EMPTY;
-            root_box.set(0, Vec3::from_array(top.lo), Vec3::from_array(top.hi));
-            wide.root = Some((wide.collapse(binary, 0, &obbs), root_box));
+            root: root.map(|(child, b)| {
+                let mut root_box = Boxes4::EMPTY;
+                root_box.set(0, b.lo, b.hi);
+                (child, root_box)
+            }),
         }
-        wide
     }
 
     /// Memory of nodes and leaf entries, bytes.
@@ -427,96 +431,6 @@ impl WideBvh {
     /// The leaf entries, leaf by leaf.
     pub fn primitives(&self) -> &[Primitive] {
         &self.primitives
-    }
-
-    /// The wide child for binary node `i`, appending the wide nodes below it (depth first).
-    /// `obbs[k]` is binary node k's oriented box, if it has one.
-    fn collapse(&mut self, binary: &[super::Node], i: usize, obbs: &[Option<Obb>]) -> Child {
-        let node = &binary[i];
-        if node.is_leaf() {
-            return Child {
-                index: node.offset,
-                count: node.count,
-            };
-        }
-        // Open inner children, largest surface area first, until there are four.
-        let mut open: Vec<usize> = vec![i + 1, node.offset as usize];
-        while open.len() < 4 {
-            let Some(k) = open
-                .iter()
-                .enumerate()
-                .filter(|(_, &c)| !binary[c].is_leaf())
-                .max_by(|(_, &a), (_, &b)| {
-                    binary[a]
-                        .bounds()
-                        .area()
-                        .total_cmp(&binary[b].bounds().area())
-                })
-                .map(|(k, _)| k)
-            else {
-                break;
-            };
-            let c = open[k];
-            open.splice(k..=k, [c + 1, binary[c].offset as usize]);
-        }
-        // Oriented boxes for small subtrees, where the strands share a direction.
-        let aligned_area: f32 = open.iter().map(|&c| binary[c].bounds().area()).sum();
-        let oriented_area: f32 = open
-            .iter()
-            .map(|&c| {
-                obbs[c].map_or(binary[c].bounds().area(), |o| {
-                    o.area().min(binary[c].bounds().area())
-                })
-            })
-            .sum();
-        let mut children = [Child { index: 0, count: 0 }; 4];
-        for (lane, &c) in open.iter().enumerate() {
-            children[lane] = self.collapse(binary, c, obbs);
-        }
-        let valid = (1 << open.len()) - 1;
-        if oriented_area < OBB_AREA * aligned_area {
-            let mut lanes = Vec::with_capacity(4);
-            for &c in &open {
-                let o = &obbs[c];
-                let b = binary[c].bounds();
-                let aligned = Obb {
-                    centre: b.centroid(),
-                    axes: [Vec3::X, Vec3::Y, Vec3::Z],
-                    half: 0.5 * (b.hi - b.lo)
-                        + Vec3::splat(
-                            1e-5 * b.lo.abs().max(b.hi.abs()).max_element() + f32::MIN_POSITIVE,
-                        ),
-                };
-                let obb = match o {
-                    Some(o) if o.area() < aligned.area() => *o,
-                    _ => aligned,
-                };
-                lanes.push(obb);
-            }
-            self.oriented.push(WideNode {
-                boxes: Obbs4::new(&lanes),
-                children,
-                valid,
-            });
-            return Child {
-                index: self.oriented.len() as u32 - 1,
-                count: ORIENTED,
-            };
-        }
-        let mut boxes = Boxes4::EMPTY;
-        for (lane, &c) in open.iter().enumerate() {
-            let b = binary[c].bounds();
-            boxes.set(lane, b.lo, b.hi);
-        }
-        self.nodes.push(WideNode {
-            boxes,
-            children,
-            valid,
-        });
-        Child {
-            index: self.nodes.len() as u32 - 1,
-            count: 0,
-        }
     }
 
     /// The closest primitive along `ray`: [`Bvh::closest`]'s contract, the callback given the leaf entry.
@@ -691,6 +605,64 @@ impl WideBvh {
 
 #[cfg(test)]
 impl WideBvh {
+    /// The tree as words, depth first from the root: per inner node its kind, valid lanes and boxes' bits, then
+    /// its children; per leaf its first entry and count; then every leaf entry. Two trees that differ only in
+    /// where their nodes are stored have the same shape.
+    pub fn shape(&self) -> Vec<u32> {
+        let mut out = Vec::new();
+        if let Some((root, root_box)) = self.root {
+            out.extend(
+                root_box
+                    .lo
+                    .iter()
+                    .chain(&root_box.hi)
+                    .flat_map(|v| v.to_array().map(f32::to_bits)),
+            );
+            self.shape_of(root, &mut out);
+        }
+        for p in &self.primitives {
+            out.extend(p.control_points.iter().flatten().map(|x| x.to_bits()));
+            out.extend([p.segment, p.strand, p.opacity.to_bits()]);
+        }
+        out
+    }
+
+    fn shape_of(&self, child: Child, out: &mut Vec<u32>) {
+        let words = |v: &[Vec4]| -> Vec<u32> {
+            v.iter()
+                .flat_map(|v| v.to_array().map(f32::to_bits))
+                .collect()
+        };
+        let (children, valid) = match child.count {
+            0 => {
+                let n = &self.nodes[child.index as usize];
+                out.push(0);
+                out.extend(words(&n.boxes.lo));
+                out.extend(words(&n.boxes.hi));
+                (n.children, n.valid)
+            }
+            ORIENTED => {
+                let n = &self.oriented[child.index as usize];
+                out.push(1);
+                for row in &n.boxes.m {
+                    out.extend(words(row));
+                }
+                out.extend(words(&n.boxes.t));
+                (n.children, n.valid)
+            }
+            count => {
+                out.extend([2, child.index, count]);
+                return;
+            }
+        };
+        out.push(valid);
+        for (lane, &below) in children.iter().enumerate() {
+            if valid & (1 << lane) != 0 {
+                self.shape_of(below, out);
+            }
+        }
+    }
+
     /// Asserts that every lane's box, aligned or oriented, holds the eighth spans of every segment below it
     /// (their control points, each inflated by its radius), up to 10⁻⁵ of the coordinates' scale: the culling is
     /// conservative, and the walk can only skip segments the ray cannot hit. `whole_segments: false` (a tree
@@ -764,20 +736,6 @@ impl WideBvh {
             p - reach >= 0.0 && p + reach <= 1.0
         })
     }
-}
-
-/// First leaf entry and number of entries below binary node `i` (a subtree's entries are contiguous).
-fn range(binary: &[super::Node], i: usize) -> (u32, u32) {
-    let mut lo = i;
-    while !binary[lo].is_leaf() {
-        lo += 1;
-    }
-    let mut hi = i;
-    while !binary[hi].is_leaf() {
-        hi = binary[hi].offset as usize;
-    }
-    let first = binary[lo].offset;
-    (first, binary[hi].offset + binary[hi].count - first)
 }
 
 #[cfg(test)]
