@@ -22,13 +22,14 @@ use super::settings::{RenderSettings, ShadowMode};
 /// the tracer copies, indexed by (backend, curves). Measured (peak RSS of `render --res 64x64 --spp 1 --threads 2`
 /// on procedural fur balls of 16 points per strand, less the 1-strand render's 140 MB and the strands' own
 /// [`STRAND_BYTES_PER_POINT`]): Embree 3.13 round and flat 119 B (50 000 strands) and 107 B (200 000); the Rust
-/// BVH 373 B and 360 B (it keeps each segment's four control points in its leaves, and its build's scratch).
-/// Rounded up; flat Rust BVH taken as round (same leaves).
+/// BVH 144 B and 145 B, round and flat alike (it keeps each segment's four control points in its leaves; its lean
+/// build holds the primitive references, the wide nodes and the leaves at its peak; `groom-1m.toml` with
+/// `strands` set, `--backend bvh`). Rounded up.
 pub const ACCEL_BYTES_PER_SEGMENT: [(Backend, CurveKind, u64); 4] = [
     (Backend::Embree, CurveKind::Round, 140),
     (Backend::Embree, CurveKind::Flat, 140),
-    (Backend::Bvh, CurveKind::Round, 400),
-    (Backend::Bvh, CurveKind::Flat, 400),
+    (Backend::Bvh, CurveKind::Round, 160),
+    (Backend::Bvh, CurveKind::Flat, 160),
 ];
 
 /// Peak bytes per pixel of adaptive sampling's state beyond a fixed-spp frame's: each pixel's film sums and

@@ -4,8 +4,8 @@
 //!
 //! - **4-wide nodes** (Wald, Benthin & Boulos 2008, "Getting rid of packets"; Dammertz et al. 2008, "Shallow
 //!   bounding volume hierarchies"; Embree's BVH4): each binary inner node is replaced by up to four descendants,
-//!   opening the child of largest surface area first (Embree's and pbrt's "collapse" heuristic), so a ray loads
-//!   one node and tests four boxes where the binary tree loaded two nodes per level. 8-wide nodes (AVX lanes) cost
+//!   the cover of least surface-area cost ([`collapse`]), so a ray loads one node and tests four boxes where the
+//!   binary tree loaded two nodes per level. 8-wide nodes (AVX lanes) cost
 //!   more instructions (bench trace ray loops, furball 96x96: round 2.94 G against 2.78 G, flat 1.45 G against
 //!   1.29 G) for no wall-clock gain that one run separates from noise, so the nodes are 4-wide.
 //! - **Oriented nodes** (Woop et al. 2014, "Exploiting local orientation similarity for efficient ray traversal
