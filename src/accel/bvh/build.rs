@@ -77,6 +77,7 @@ pub(super) fn for_each_span(
 
 /// Calls `f` with the four control points (x, y, z, radius) of each of the 2^`levels` spans of `segment`, in order
 /// along the curve.
+#[cfg(test)]
 pub(super) fn for_each_span_points(
     strands: &Strands,
     segment: u32,
@@ -610,20 +611,32 @@ fn partition(refs: &mut [PrimRef], left: impl Fn(&PrimRef) -> bool) -> usize {
     }
 }
 
-/// A segment's [`Polygon`]: the points of its quarter spans, the first span's four and each later span's last.
-fn polygon(strands: &Strands, segment: u32) -> Polygon {
-    let mut points = [Vec4::ZERO; 7];
-    let mut k = 0;
-    for_each_span_points(strands, segment, 2, |span| {
-        if k == 0 {
-            points[..4].copy_from_slice(&span);
-            k = 4;
-        } else {
-            points[k] = span[3];
-            k += 1;
-        }
-    });
-    points
+/// A segment's [`Polygon`]: its control polygon after two levels of [`subdivide`], computed directly. The
+/// quarter spans [`subdivide`] makes share their points (span k is points k..k + 4 here, each computed by the
+/// same operations on the same operands, so bit for bit the same): two levels of the recursion compute 15 points
+/// and hand out 16 where the spans have 7.
+pub(super) fn polygon(strands: &Strands, segment: u32) -> Polygon {
+    let first = strands.segment_first[segment as usize] as usize;
+    let p: [Vec4; 4] = std::array::from_fn(|i| Vec4::from_array(strands.control_points[first + i]));
+    let e = |a: Vec4, b: Vec4| 0.5 * (a + b);
+    let v = |a: Vec4, b: Vec4, c: Vec4| 0.125 * (a + 6.0 * b + c);
+    // Level 1: E₀ V₁ E₁ V₂ E₂; level 2 refines that five-point polygon the same way.
+    let (e0, v1, e1, v2, e2) = (
+        e(p[0], p[1]),
+        v(p[0], p[1], p[2]),
+        e(p[1], p[2]),
+        v(p[1], p[2], p[3]),
+        e(p[2], p[3]),
+    );
+    [
+        e(e0, v1),
+        v(e0, v1, e1),
+        e(v1, e1),
+        v(v1, e1, v2),
+        e(e1, v2),
+        v(e1, v2, e2),
+        e(v2, e2),
+    ]
 }
 
 /// An orthonormal frame whose third axis is `axis` (a unit vector), as the rows of a rotation.

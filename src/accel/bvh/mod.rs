@@ -412,6 +412,19 @@ impl Bvh {
 
 /// The bounds of one segment as `bounding` defines them (the union of its spans' boxes for the span modes).
 pub fn segment_bounds(strands: &Strands, segment: u32, bounding: Bounding) -> Aabb {
+    if bounding == (Bounding::Spans { levels: 2 }) {
+        // The default bounding: the quarter spans' points are the seven of the refined polygon, and the union of
+        // the spans' boxes is the box of those points (the same minima and maxima of the same values).
+        return build::polygon(strands, segment)
+            .iter()
+            .fold(Aabb::EMPTY, |b, c| {
+                let (x, r) = (c.truncate(), Vec3::splat(c.w.abs()));
+                b.union(Aabb {
+                    lo: x - r,
+                    hi: x + r,
+                })
+            });
+    }
     let mut b = Aabb::EMPTY;
     build::for_each_span(strands, segment, bounding, |span| b = b.union(span));
     b

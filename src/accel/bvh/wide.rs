@@ -63,7 +63,9 @@ use arrayvec::ArrayVec;
 
 use glam::{Vec3, Vec4};
 
+#[cfg(test)]
 use super::build::for_each_span_points;
+use super::build::polygon;
 use super::{BuildOptions, Bvh, Control, FAR_SCALE};
 use crate::hair::Strands;
 use crate::ray::Ray;
@@ -246,16 +248,15 @@ impl Obb {
         let mut hi = Vec3::NEG_INFINITY;
         let mut scale = 0.0f32;
         for segment in segments {
-            for_each_span_points(strands, segment, 2, |points| {
-                for q in points {
-                    let x = q.truncate();
-                    let p = Vec3::new(axes[0].dot(x), axes[1].dot(x), axes[2].dot(x));
-                    let r = q.w.abs();
-                    lo = lo.min(p - r);
-                    hi = hi.max(p + r);
-                    scale = scale.max(x.abs().max_element() + r);
-                }
-            });
+            // The quarter spans' points: the seven of the refined polygon.
+            for q in polygon(strands, segment) {
+                let x = q.truncate();
+                let p = Vec3::new(axes[0].dot(x), axes[1].dot(x), axes[2].dot(x));
+                let r = q.w.abs();
+                lo = lo.min(p - r);
+                hi = hi.max(p + r);
+                scale = scale.max(x.abs().max_element() + r);
+            }
         }
         let mid = 0.5 * (lo + hi);
         let pad = 1e-5 * scale + f32::MIN_POSITIVE;
