@@ -452,7 +452,7 @@ fn split(
         2
     };
     if depth < MEDIAN_DEPTH && extent[widest] > 0.0 {
-        let best = best_plane(refs.iter().map(|r| r.bounds), n, centroids, options.bins);
+        let best = best_plane(refs.iter().map(|r| r.bounds), centroids, options.bins);
         if let Some(plane) = best {
             // SAH (MacDonald & Booth 1990): C = C_trav + C_isect · (A_L N_L + A_R N_R) / A against C_isect · N.
             let area = bounds.area();
@@ -531,7 +531,6 @@ fn bin_index(c: f32, lo: f32, scale: f32, bins: usize) -> usize {
 /// costs and chosen plane are bit for bit the same.
 fn best_plane(
     boxes_in: impl IntoIterator<Item = Aabb>,
-    total: usize,
     centroids: &Aabb,
     bins: usize,
 ) -> Option<Plane> {
@@ -560,27 +559,35 @@ fn best_plane(
             continue;
         }
         let (count, boxes) = (&count[axis], &boxes[axis]);
-        // right_cost[i] = A · N of bins i.. ; sweep left to right adding the left side.
+        // Only planes after a non-empty bin are swept: every plane in a run of empty bins partitions as the first
+        // plane of the run and costs the same (a union with an empty box changes nothing), and the first of equal
+        // costs is the one kept, so the plane chosen is the one a sweep over every bin chooses, with one area per
+        // non-empty bin (most nodes have few primitives; their 16 bins are mostly empty).
+        let mut used = [0usize; MAX_BINS];
+        let mut m = 0;
+        for (i, &c) in count.iter().enumerate().take(bins) {
+            if c > 0 {
+                used[m] = i;
+                m += 1;
+            }
+        }
+        // right_cost[p] = A · N of the non-empty bins from the p-th on; sweep left to right adding the left side.
         let mut right_cost = [0.0f32; MAX_BINS];
         let (mut acc, mut n) = (Aabb::EMPTY, 0usize);
-        for i in (1..bins).rev() {
-            acc = acc.union(boxes[i]);
-            n += count[i];
-            right_cost[i] = acc.area() * n as f32;
+        for p in (1..m).rev() {
+            acc = acc.union(boxes[used[p]]);
+            n += count[used[p]];
+            right_cost[p] = acc.area() * n as f32;
         }
         let (mut acc, mut n) = (Aabb::EMPTY, 0usize);
-        for i in 1..bins {
-            acc = acc.union(boxes[i - 1]);
-            n += count[i - 1];
-            let right_n = total - n;
-            if n == 0 || right_n == 0 {
-                continue;
-            }
-            let cost = acc.area() * n as f32 + right_cost[i];
+        for p in 1..m {
+            acc = acc.union(boxes[used[p - 1]]);
+            n += count[used[p - 1]];
+            let cost = acc.area() * n as f32 + right_cost[p];
             if best.is_none_or(|b| cost < b.cost) {
                 best = Some(Plane {
                     axis,
-                    bin: i,
+                    bin: used[p - 1] + 1,
                     cost,
                     lo: lo[axis],
                     scale: scale[axis],
@@ -712,7 +719,7 @@ fn oriented_split(
             let m = b.centroid();
             c.union(Aabb { lo: m, hi: m })
         });
-        if let Some(plane) = best_plane(boxes.iter().copied(), n, &centroids, cx.options.bins) {
+        if let Some(plane) = best_plane(boxes.iter().copied(), &centroids, cx.options.bins) {
             consider(OrientedChoice {
                 cost: plane.cost + ORIENTED_TRAVERSAL * area,
                 left: boxes
@@ -779,5 +786,102 @@ fn partition_marked(refs: &mut [PrimRef], left: &mut [bool]) -> usize {
         left.swap(i, j - 1);
         i += 1;
         j -= 1;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::util::hash::{hash64, unit_f32};
+
+    /// The sweep over every bin boundary (Wald 2007 as written), the reference for [`best_plane`]'s sweep over
+    /// non-empty bins: (axis, cost, which boxes go left).
+    fn every_bin(boxes: &[Aabb], centroids: &Aabb, bins: usize) -> Option<(usize, f32, Vec<bool>)> {
+        let (lo, hi) = (centroids.lo, centroids.hi);
+        let mut best: Option<(usize, usize, f32, f32, f32)> = None;
+        for axis in 0..3 {
+            if hi[axis] <= lo[axis] {
+                continue;
+            }
+            let scale = bins as f32 * (1.0 - 1e-6) / (hi[axis] - lo[axis]);
+            let bin = |b: &Aabb| bin_index(b.centroid()[axis], lo[axis], scale, bins);
+            let mut count = vec![0usize; bins];
+            let mut acc_box = vec![Aabb::EMPTY; bins];
+            for b in boxes {
+                count[bin(b)] += 1;
+                acc_box[bin(b)] = acc_box[bin(b)].union(*b);
+            }
+            for i in 1..bins {
+                let (mut l, mut r) = (Aabb::EMPTY, Aabb::EMPTY);
+                let (mut nl, mut nr) = (0, 0);
+                for k in 0..bins {
+                    if k < i {
+                        l = l.union(acc_box[k]);
+                        nl += count[k];
+                    } else {
+                        r = r.union(acc_box[k]);
+                        nr += count[k];
+                    }
+                }
+                if nl == 0 || nr == 0 {
+                    continue;
+                }
+                let cost = l.area() * nl as f32 + r.area() * nr as f32;
+                if best.is_none_or(|b| cost < b.2) {
+                    best = Some((axis, i, cost, lo[axis], scale));
+                }
+            }
+        }
+        best.map(|(axis, i, cost, lo, scale)| {
+            let left = boxes
+                .iter()
+                .map(|b| bin_index(b.centroid()[axis], lo, scale, bins) < i)
+                .collect();
+            (axis, cost, left)
+        })
+    }
+
+    #[test]
+    fn sweeping_non_empty_bins_chooses_the_plane_a_sweep_of_every_bin_does() {
+        let mut compared = 0;
+        for case in 0..400u64 {
+            let n = 2 + (hash64(case) % 40) as usize;
+            // Clusters, so that most bins are empty, and some coincident centroids.
+            let clusters = 1 + (hash64(case ^ 0x55) % 4) as usize;
+            let boxes: Vec<Aabb> = (0..n)
+                .map(|i| {
+                    let k = (i % clusters) as u64;
+                    let u = |d: u64| unit_f32(hash64(case * 1000 + i as u64 * 7 + d));
+                    let c = Vec3::new(k as f32 * 10.0, k as f32 * 3.0, 0.0)
+                        + Vec3::new(u(1), u(2), u(3)) * if case % 5 == 0 { 0.0 } else { 1.0 };
+                    let h = Vec3::new(u(4), u(5), u(6)) * 0.5;
+                    Aabb {
+                        lo: c - h,
+                        hi: c + h,
+                    }
+                })
+                .collect();
+            let centroids = boxes.iter().fold(Aabb::EMPTY, |c, b| {
+                let m = b.centroid();
+                c.union(Aabb { lo: m, hi: m })
+            });
+            for bins in [2, 7, 16, 32] {
+                let want = every_bin(&boxes, &centroids, bins);
+                let got = best_plane(boxes.iter().copied(), &centroids, bins).map(|p| {
+                    let left = boxes
+                        .iter()
+                        .map(|b| bin_index(b.centroid()[p.axis], p.lo, p.scale, p.bins) < p.bin)
+                        .collect::<Vec<_>>();
+                    (p.axis, p.cost, left)
+                });
+                assert_eq!(
+                    got.as_ref().map(|g| (g.0, g.1.to_bits(), &g.2)),
+                    want.as_ref().map(|w| (w.0, w.1.to_bits(), &w.2)),
+                    "case {case}, {n} boxes, {bins} bins"
+                );
+                compared += usize::from(want.is_some());
+            }
+        }
+        assert!(compared > 1000, "only {compared} cases had a plane");
     }
 }
