@@ -397,6 +397,13 @@ fn check_wide_traversal(
 }
 
 #[test]
+fn wide_nodes_are_128_and_224_bytes() {
+    // The boxes (96 or 192 bytes, 16-byte aligned) and 21 bytes of links: one 16-byte step each.
+    assert_eq!(std::mem::size_of::<wide::WideNode<wide::Boxes4>>(), 128);
+    assert_eq!(std::mem::size_of::<wide::WideNode<wide::Obbs4>>(), 224);
+}
+
+#[test]
 fn node_is_32_bytes() {
     assert_eq!(std::mem::size_of::<Node>(), 32);
 }

@@ -22,7 +22,7 @@
 //!   per-segment span capsules (112 bytes per segment): 193 bytes per segment against 229 with capsules (Embree:
 //!   143; 138 with four segments per leaf), and 2.5× fewer last-level cache misses in the ray loops.
 //! - **Oriented lanes as affine maps onto the unit cube** ([`Obbs4`], the form of Embree's oriented nodes), 240
-//!   bytes per node. Quantised lanes (the encoding of Embree's `CurveNi` leaves, after Ylitie, Karras & Laine 2017:
+//!   bytes per node (224 with the children packed, [`Links`]). Quantised lanes (the encoding of Embree's `CurveNi` leaves, after Ylitie, Karras & Laine 2017:
 //!   16-bit frames and bounds relative to the node's box, 172 bytes per node) save cache misses (estimated cycles
 //!   1.083 G against 1.096 G for orthonormal `f32` frames with lower and upper bounds) but cost ~110 instructions
 //!   per node test, a third of the camera rays' walk (perf). The unit-cube map needs no bounds and no widening:
@@ -337,13 +337,89 @@ struct Child {
     count: u32,
 }
 
-/// A 4-wide node: the boxes of up to four children ([`Boxes4`] or [`Obbs4`]) and which lanes hold one.
+/// A 4-wide node: the boxes of up to four children ([`Boxes4`] or [`Obbs4`]) and the children they lead to.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct WideNode<B> {
     boxes: B,
-    children: [Child; 4],
+    links: Links,
+}
+
+/// A node's four children in 21 bytes, where four [`Child`]ren and a lane mask take 36: an aligned node is then 128
+/// bytes and an oriented one 224 (144 and 240 with the boxes' 16-byte alignment). A leaf's entry count fits a byte
+/// ([`super::BuildOptions::max_leaf`] ≤ 255). Measured (`bench trace scenes/furball.toml --threads 1 --repetitions
+/// 3`, two interleaved runs each, BVH ÷ Embree time per ray, unpacked → packed): 170.3 → 164.0 bytes per segment;
+/// round camera 1.91 / 1.84 → 1.96 / 1.82, secondary 1.33 / 1.24 → 1.19 / 1.12, exact shadows 1.05 / 1.12 → 1.08 /
+/// 0.98, stochastic 1.00 / 1.16 → 1.11 / 1.05; flat 1.87 / 1.80 → 1.91 / 1.94, 1.72 / 1.77 → 1.56 / 1.57, 1.56 /
+/// 1.60 → 1.54 / 1.52, 1.62 / 1.70 → 1.63 / 1.70: no slower, the one child rebuilt per lane a walk takes
+/// costing no more than the 16 bytes per node it saves.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Links {
+    /// Per lane: an inner node's index, or a leaf's first entry.
+    index: [u32; 4],
+    /// Per lane: a leaf's entry count, 0 for an inner node.
+    count: [u8; 4],
+    /// Bits 0–3: the lanes that hold a child; bits 4–7: the lanes whose inner node is oriented.
+    lanes: u8,
+}
+
+impl Links {
+    /// The links to `children` (lanes without one: none).
+    fn new(children: &[Child]) -> Links {
+        let mut links = Links {
+            index: [0; 4],
+            count: [0; 4],
+            lanes: 0,
+        };
+        for (lane, c) in children.iter().enumerate() {
+            links.index[lane] = c.index;
+            links.lanes |= 1 << lane;
+            match c.count {
+                0 => {}
+                ORIENTED => links.lanes |= 16 << lane,
+                n => {
+                    links.count[lane] =
+                        u8::try_from(n).expect("a leaf holds at most 255 entries (max_leaf)")
+                }
+            }
+        }
+        links
+    }
+
+    /// The children, inner nodes' indices moved by `aligned` or `oriented` (by kind), leaves as they are.
+    fn shifted(mut self, aligned: u32, oriented: u32) -> Links {
+        for lane in 0..4 {
+            if self.lanes & (1 << lane) != 0 && self.count[lane] == 0 {
+                self.index[lane] += if self.lanes & (16 << lane) != 0 {
+                    oriented
+                } else {
+                    aligned
+                };
+            }
+        }
+        self
+    }
+
+    /// The four children (lanes without one included: see [`Links::valid`]).
+    #[cfg(test)]
+    fn children(&self) -> [Child; 4] {
+        std::array::from_fn(|lane| self.child(lane))
+    }
+
     /// Bit mask of the lanes that hold a child.
-    valid: u32,
+    #[inline(always)]
+    fn valid(&self) -> u32 {
+        u32::from(self.lanes & 15)
+    }
+
+    /// The child in `lane` (without a branch: an oriented lane's count, 0, ORs with all ones).
+    #[inline(always)]
+    fn child(&self, lane: usize) -> Child {
+        let oriented = u32::from((self.lanes >> (4 + lane)) & 1);
+        Child {
+            index: self.index[lane],
+            count: u32::from(self.count[lane]) | oriented.wrapping_neg(),
+        }
+    }
 }
 
 /// A leaf entry: everything a ray–curve test and the shadow bookkeeping need, in one place, so that a leaf is
@@ -537,14 +613,14 @@ impl WideBvh {
                     return true;
                 }
             } else {
-                let (tmin, mask, children) = if current.count == 0 {
+                let (tmin, mask, links) = if current.count == 0 {
                     let node = &self.nodes[current.index as usize];
                     let (t, m) = node.boxes.test(r);
-                    (t, m & node.valid, &node.children)
+                    (t, m & node.links.valid(), &node.links)
                 } else {
                     let node = &self.oriented[current.index as usize];
                     let (t, m) = node.boxes.test(r);
-                    (t, m & node.valid, &node.children)
+                    (t, m & node.links.valid(), &node.links)
                 };
                 let tmin = tmin.to_array();
                 if mask != 0 {
@@ -559,7 +635,7 @@ impl WideBvh {
                     // Dropping the distances' two lowest bits only reorders children whose entry distances agree
                     // to 2⁻²¹ relative, which changes no query's answer.
                     if mask.is_power_of_two() {
-                        current = children[mask.trailing_zeros() as usize];
+                        current = links.child(mask.trailing_zeros() as usize);
                         self.prefetch(current);
                         continue;
                     }
@@ -577,15 +653,15 @@ impl WideBvh {
                     // key[1] again as filler (n < 4), removed by the truncation.
                     let n = mask.count_ones() as usize;
                     for i in 0..n {
-                        self.prefetch(children[(key[i] & 3) as usize]);
+                        self.prefetch(links.child((key[i] & 3) as usize));
                     }
                     let top = stack.len() + n - 1;
                     for i in 0..3 {
                         let lane = (key[(n - 1).saturating_sub(i).max(1)] & 3) as usize;
-                        stack.push((children[lane], tmin[lane]));
+                        stack.push((links.child(lane), tmin[lane]));
                     }
                     stack.truncate(top);
-                    current = children[(key[0] & 3) as usize];
+                    current = links.child((key[0] & 3) as usize);
                     continue;
                 }
             }
@@ -640,7 +716,7 @@ impl WideBvh {
                 out.push(0);
                 out.extend(words(&n.boxes.lo));
                 out.extend(words(&n.boxes.hi));
-                (n.children, n.valid)
+                (n.links.children(), n.links.valid())
             }
             ORIENTED => {
                 let n = &self.oriented[child.index as usize];
@@ -649,7 +725,7 @@ impl WideBvh {
                     out.extend(words(row));
                 }
                 out.extend(words(&n.boxes.t));
-                (n.children, n.valid)
+                (n.links.children(), n.links.valid())
             }
             count => {
                 out.extend([2, child.index, count]);
@@ -681,11 +757,11 @@ impl WideBvh {
         let (children, valid) = match child.count {
             0 => {
                 let n = &self.nodes[child.index as usize];
-                (n.children, n.valid)
+                (n.links.children(), n.links.valid())
             }
             ORIENTED => {
                 let n = &self.oriented[child.index as usize];
-                (n.children, n.valid)
+                (n.links.children(), n.links.valid())
             }
             count => {
                 let first = child.index as usize;

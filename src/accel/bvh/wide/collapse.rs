@@ -32,7 +32,7 @@ use std::sync::Mutex;
 use arrayvec::ArrayVec;
 use glam::Vec3;
 
-use super::{Boxes4, Child, Obb, Obbs4, WideBvh, WideNode, OBB_AREA, OBB_MAX, ORIENTED};
+use super::{Boxes4, Child, Links, Obb, Obbs4, WideBvh, WideNode, OBB_AREA, OBB_MAX, ORIENTED};
 use crate::accel::bvh::build::{self, Chunk, Top};
 use crate::accel::bvh::{Aabb, BuildOptions, Bvh, Node};
 use crate::hair::Strands;
@@ -48,20 +48,21 @@ impl Nodes {
     /// Appends `other`, whose children index its own arrays, and returns where its child `root` now is.
     fn append(&mut self, other: Nodes, root: Child) -> Child {
         let (aligned, oriented) = (self.aligned.len() as u32, self.oriented.len() as u32);
-        let shift = move |c: Child| match c.count {
+        self.aligned
+            .extend(shifted(other.aligned, aligned, oriented));
+        self.oriented
+            .extend(shifted(other.oriented, aligned, oriented));
+        match root.count {
             0 => Child {
-                index: c.index + aligned,
+                index: root.index + aligned,
                 count: 0,
             },
             ORIENTED => Child {
-                index: c.index + oriented,
+                index: root.index + oriented,
                 count: ORIENTED,
             },
-            _ => c,
-        };
-        self.aligned.extend(shifted(other.aligned, shift));
-        self.oriented.extend(shifted(other.oriented, shift));
-        shift(root)
+            _ => root,
+        }
     }
 
     /// Makes the node over `lanes` (oriented where its children's oriented boxes are tighter, see
@@ -85,11 +86,8 @@ impl Nodes {
             .zip(&obbs)
             .map(|(l, o)| o.map_or(l.bounds.area(), |o| o.area().min(l.bounds.area())))
             .sum();
-        let mut children = [Child { index: 0, count: 0 }; 4];
-        for (lane, l) in lanes.iter().enumerate() {
-            children[lane] = l.child;
-        }
-        let valid = (1 << lanes.len()) - 1;
+        let children: ArrayVec<Child, 4> = lanes.iter().map(|l| l.child).collect();
+        let links = Links::new(&children);
         if oriented_area < OBB_AREA * aligned_area {
             let boxes: ArrayVec<Obb, 4> = lanes
                 .iter()
@@ -104,8 +102,7 @@ impl Nodes {
                 .collect();
             self.oriented.push(WideNode {
                 boxes: Obbs4::new(&boxes),
-                children,
-                valid,
+                links,
             });
             return Child {
                 index: self.oriented.len() as u32 - 1,
@@ -116,11 +113,7 @@ impl Nodes {
         for (lane, l) in lanes.iter().enumerate() {
             boxes.set(lane, l.bounds.lo, l.bounds.hi);
         }
-        self.aligned.push(WideNode {
-            boxes,
-            children,
-            valid,
-        });
+        self.aligned.push(WideNode { boxes, links });
         Child {
             index: self.aligned.len() as u32 - 1,
             count: 0,
@@ -128,13 +121,14 @@ impl Nodes {
     }
 }
 
-/// `nodes` with each child moved by `shift`.
+/// `nodes` with their inner children moved by `aligned` or `oriented` (by kind).
 fn shifted<B>(
     nodes: Vec<WideNode<B>>,
-    shift: impl Fn(Child) -> Child,
+    aligned: u32,
+    oriented: u32,
 ) -> impl Iterator<Item = WideNode<B>> {
     nodes.into_iter().map(move |mut n| {
-        n.children = n.children.map(&shift);
+        n.links = n.links.shifted(aligned, oriented);
         n
     })
 }
