@@ -652,8 +652,8 @@ impl WideBvh {
                     // whose trip count (1–3) mispredicts. Pushed farthest first: key[n − 1], …, key[1], then
                     // key[1] again as filler (n < 4), removed by the truncation.
                     let n = mask.count_ones() as usize;
-                    for i in 0..n {
-                        self.prefetch(links.child((key[i] & 3) as usize));
+                    for k in &key[..n] {
+                        self.prefetch(links.child((k & 3) as usize));
                     }
                     let top = stack.len() + n - 1;
                     for i in 0..3 {
