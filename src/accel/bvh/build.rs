@@ -121,8 +121,8 @@ fn hull_box(p: &[Vec4; 4]) -> Aabb {
 /// Checks the options every build shares.
 fn check_options(options: &BuildOptions) {
     assert!(
-        (1..=255).contains(&options.max_leaf),
-        "bvh: max_leaf must be in 1..=255, got {}",
+        (1..=254).contains(&options.max_leaf),
+        "bvh: max_leaf must be in 1..=254, got {}",
         options.max_leaf
     );
     assert!(

@@ -186,7 +186,8 @@ pub enum Bounding {
 pub struct BuildOptions {
     /// Segment bounds.
     pub bounding: Bounding,
-    /// Largest number of primitives in a leaf (1–255).
+    /// Largest number of primitives in a leaf (1–254: the wide tree keeps a leaf's count in a byte beside its node
+    /// kinds).
     pub max_leaf: usize,
     /// SAH bins per axis (2–32).
     pub bins: usize,

@@ -314,8 +314,9 @@ impl WideRay {
     }
 }
 
-/// [`Child::count`] of an oriented inner node.
-const ORIENTED: u32 = u32::MAX;
+/// [`Child::count`] of an oriented inner node: a count byte no leaf has ([`super::BuildOptions::max_leaf`] ≤ 254),
+/// so that a node's packed children ([`Links`]) widen to a [`Child`] with no select.
+const ORIENTED: u32 = 255;
 
 /// Largest subtree (segments) given an oriented box: it bounds the build's extra work. On the fur ball 64 and
 /// 8 192 give the same tree (larger subtrees of the aligned SAH tree mix directions, so their oriented boxes never
@@ -333,7 +334,7 @@ const OBB_AREA: f32 = 0.8;
 struct Child {
     /// Inner: node index. Leaf: index of its first entry in [`WideBvh::primitives`].
     index: u32,
-    /// Leaf: number of entries (> 0). Inner: 0.
+    /// Leaf: number of entries (1–254). Aligned inner node: 0. Oriented inner node: [`ORIENTED`].
     count: u32,
 }
 
@@ -345,20 +346,20 @@ pub struct WideNode<B> {
 }
 
 /// A node's four children in 21 bytes, where four [`Child`]ren and a lane mask take 36: an aligned node is then 128
-/// bytes and an oriented one 224 (144 and 240 with the boxes' 16-byte alignment). A leaf's entry count fits a byte
-/// ([`super::BuildOptions::max_leaf`] ≤ 255). Measured (`bench trace scenes/furball.toml --threads 1 --repetitions
-/// 3`, two interleaved runs each, BVH ÷ Embree time per ray, unpacked → packed): 170.3 → 164.0 bytes per segment;
-/// round camera 1.91 / 1.84 → 1.96 / 1.82, secondary 1.33 / 1.24 → 1.19 / 1.12, exact shadows 1.05 / 1.12 → 1.08 /
-/// 0.98, stochastic 1.00 / 1.16 → 1.11 / 1.05; flat 1.87 / 1.80 → 1.91 / 1.94, 1.72 / 1.77 → 1.56 / 1.57, 1.56 /
-/// 1.60 → 1.54 / 1.52, 1.62 / 1.70 → 1.63 / 1.70: no slower, the one child rebuilt per lane a walk takes
-/// costing no more than the 16 bytes per node it saves.
+/// bytes and an oriented one 224 (144 and 240 with the boxes' 16-byte alignment). A child's count is a byte: 0 for
+/// an aligned node, [`ORIENTED`] for an oriented one, a leaf's entry count otherwise (at most 254), so that a lane
+/// widens to a [`Child`] by two loads. Measured (`bench trace scenes/furball.toml --threads 1 --repetitions 3`, two
+/// interleaved runs each, BVH ÷ Embree time per ray, unpacked → packed with the kind in a lane bit): 170.3 → 164.0
+/// bytes per segment, the times within the runs' spread; but callgrind (ray loops, `--res 96x96 --threads 1
+/// --backend bvh`) counted 6.4 % (round) and 9.9 % (flat) more instructions with the kind in a bit, which this
+/// encoding removes (numbers in the commit).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 struct Links {
     /// Per lane: an inner node's index, or a leaf's first entry.
     index: [u32; 4],
-    /// Per lane: a leaf's entry count, 0 for an inner node.
+    /// Per lane: the child's [`Child::count`] as a byte.
     count: [u8; 4],
-    /// Bits 0–3: the lanes that hold a child; bits 4–7: the lanes whose inner node is oriented.
+    /// Bits 0–3: the lanes that hold a child.
     lanes: u8,
 }
 
@@ -373,14 +374,8 @@ impl Links {
         for (lane, c) in children.iter().enumerate() {
             links.index[lane] = c.index;
             links.lanes |= 1 << lane;
-            match c.count {
-                0 => {}
-                ORIENTED => links.lanes |= 16 << lane,
-                n => {
-                    links.count[lane] =
-                        u8::try_from(n).expect("a leaf holds at most 255 entries (max_leaf)")
-                }
-            }
+            links.count[lane] =
+                u8::try_from(c.count).expect("a leaf holds at most 254 entries (max_leaf)");
         }
         links
     }
@@ -388,12 +383,12 @@ impl Links {
     /// The children, inner nodes' indices moved by `aligned` or `oriented` (by kind), leaves as they are.
     fn shifted(mut self, aligned: u32, oriented: u32) -> Links {
         for lane in 0..4 {
-            if self.lanes & (1 << lane) != 0 && self.count[lane] == 0 {
-                self.index[lane] += if self.lanes & (16 << lane) != 0 {
-                    oriented
-                } else {
-                    aligned
-                };
+            if self.lanes & (1 << lane) != 0 {
+                match u32::from(self.count[lane]) {
+                    0 => self.index[lane] += aligned,
+                    ORIENTED => self.index[lane] += oriented,
+                    _ => {}
+                }
             }
         }
         self
@@ -408,16 +403,15 @@ impl Links {
     /// Bit mask of the lanes that hold a child.
     #[inline(always)]
     fn valid(&self) -> u32 {
-        u32::from(self.lanes & 15)
+        u32::from(self.lanes)
     }
 
-    /// The child in `lane` (without a branch: an oriented lane's count, 0, ORs with all ones).
+    /// The child in `lane`.
     #[inline(always)]
     fn child(&self, lane: usize) -> Child {
-        let oriented = u32::from((self.lanes >> (4 + lane)) & 1);
         Child {
             index: self.index[lane],
-            count: u32::from(self.count[lane]) | oriented.wrapping_neg(),
+            count: u32::from(self.count[lane]),
         }
     }
 }
@@ -431,7 +425,10 @@ impl Links {
 /// Embree time per ray, 80 → 76 bytes): 164.0 → 160.0 bytes per segment; round camera 1.80 / 2.05 → 1.90 / 1.87,
 /// secondary 1.21 / 1.08 → 1.21 / 1.23, exact shadows 1.08 / 1.05 → 1.14 / 1.08, stochastic 1.18 / 1.10 → 1.08 /
 /// 1.11; flat 2.01 / 1.90 → 1.87 / 1.90, 1.64 / 1.74 → 1.85 / 1.75, 1.41 / 1.55 → 1.50 / 1.61, 1.72 / 1.71 → 1.72 /
-/// 1.62: within the runs' spread.
+/// 1.62: within the runs' spread. Callgrind with cache simulation (ray loops of `bench trace scenes/furball.toml
+/// --threads 1 --repetitions 1 --res 96x96 --backend bvh --curves flat`, estimated cycles = instructions + 10 per
+/// L1 miss + 200 per last-level miss): 978.7 M with 80-byte leaves and unpacked nodes, 994.8 M with 76-byte leaves
+/// and the packed nodes of [`Links`] (+1.6 %), for 6 % fewer bytes per segment.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[repr(C)]
 pub struct Primitive {
