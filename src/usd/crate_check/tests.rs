@@ -63,12 +63,26 @@ fn reps(bytes: &[u8]) -> Vec<u64> {
     reps
 }
 
-/// The offset of the count of the largest uncompressed array of type `ty` among `bytes`' fields.
+/// The offset of the count of the largest uncompressed array of type `ty` among `bytes`' fields, and the count.
 fn largest_array(bytes: &[u8], ty: u64) -> (usize, u64) {
+    largest(bytes, ty, false)
+}
+
+/// The offset of the largest compressed array of type `ty` among `bytes`' fields, and its count.
+fn largest_compressed(bytes: &[u8], ty: u64) -> (usize, u64) {
+    largest(bytes, ty, true)
+}
+
+/// The offset and count of the largest array of type `ty` among `bytes`' fields that is stored in the file
+/// (offset not 0, where the file's magic is), compressed or not as `compressed` says.
+fn largest(bytes: &[u8], ty: u64, compressed: bool) -> (usize, u64) {
     reps(bytes)
         .into_iter()
         .filter(|r| {
-            r >> 63 != 0 && (r >> 48) & 0xff == ty && r & 1 << 61 == 0 && r & 0xffff_ffff_ffff != 0
+            r >> 63 != 0
+                && (r >> 48) & 0xff == ty
+                && (r & 1 << 61 != 0) == compressed
+                && r & 0xffff_ffff_ffff != 0
         })
         .map(|r| (r & 0xffff_ffff_ffff) as usize)
         .map(|at| {
@@ -138,22 +152,6 @@ fn field_of(bytes: &[u8], ty: u64, at: usize) -> usize {
     reps(bytes)
         .iter()
         .position(|r| (r >> 48) & 0xff == ty && r & 0xffff_ffff_ffff == at as u64)
-        .unwrap()
-}
-
-/// The offset of the largest compressed array of type `ty` among `bytes`' fields, and its count.
-fn largest_compressed(bytes: &[u8], ty: u64) -> (usize, u64) {
-    reps(bytes)
-        .into_iter()
-        .filter(|r| r >> 63 != 0 && (r >> 48) & 0xff == ty && r & 1 << 61 != 0)
-        .map(|r| (r & 0xffff_ffff_ffff) as usize)
-        .map(|at| {
-            (
-                at,
-                u64::from_le_bytes(bytes[at..at + 8].try_into().unwrap()),
-            )
-        })
-        .max_by_key(|&(_, count)| count)
         .unwrap()
 }
 
