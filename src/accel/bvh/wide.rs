@@ -340,6 +340,21 @@ struct Child {
     count: u32,
 }
 
+impl Child {
+    /// The child with an inner node's index moved by `aligned` or `oriented` (by its kind); a leaf as it is.
+    fn shifted(self, aligned: u32, oriented: u32) -> Child {
+        let shift = match self.count {
+            0 => aligned,
+            ORIENTED => oriented,
+            _ => 0,
+        };
+        Child {
+            index: self.index + shift,
+            ..self
+        }
+    }
+}
+
 /// A 4-wide node: the boxes of up to four children ([`Boxes4`] or [`Obbs4`]) and the children they lead to.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct WideNode<B> {
@@ -386,11 +401,7 @@ impl Links {
     fn shifted(mut self, aligned: u32, oriented: u32) -> Links {
         for lane in 0..4 {
             if self.lanes & (1 << lane) != 0 {
-                match u32::from(self.count[lane]) {
-                    0 => self.index[lane] += aligned,
-                    ORIENTED => self.index[lane] += oriented,
-                    _ => {}
-                }
+                self.index[lane] = self.child(lane).shifted(aligned, oriented).index;
             }
         }
         self

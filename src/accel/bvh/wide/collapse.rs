@@ -52,17 +52,7 @@ impl Nodes {
             .extend(shifted(other.aligned, aligned, oriented));
         self.oriented
             .extend(shifted(other.oriented, aligned, oriented));
-        match root.count {
-            0 => Child {
-                index: root.index + aligned,
-                count: 0,
-            },
-            ORIENTED => Child {
-                index: root.index + oriented,
-                count: ORIENTED,
-            },
-            _ => root,
-        }
+        root.shifted(aligned, oriented)
     }
 
     /// Makes the node over `lanes` (oriented where its children's oriented boxes are tighter, see
