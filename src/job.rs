@@ -19,8 +19,8 @@ use crate::quality::denoised::DenoisedSchedule;
 use crate::quality::{self, pilot::PilotPlan, Decision, Fixed, QualityMode};
 use crate::render::Request as RenderRequest;
 use crate::render::{
-    budget, thread_pool, Frame, FrameError, Region, RenderSettings, RenderStats, ShadowMode,
-    ThreadPoolError,
+    budget, thread_pool, Frame, FrameError, Reconstruction, Region, RenderSettings, RenderStats,
+    ShadowMode, ThreadPoolError,
 };
 use crate::scene::{Overrides, Scene, SceneError};
 use crate::shadow::ShadowMaps;
@@ -307,6 +307,13 @@ impl Job {
             }
             None => (frame.settings.clone(), None, None),
         };
+        let mut settings = settings;
+        if request.denoise.is_some() || auto.is_some() {
+            // Splatting correlates neighbouring pixels' noise. OIDN cannot denoise that (its documentation: weighted
+            // pixel sampling "causes the denoising to fail"), and auto's pilots model each pixel's noise from its
+            // own samples. Both render with filter importance sampling.
+            settings.film.reconstruction = Reconstruction::Importance;
+        }
         let [width, height] = settings.film.resolution;
         settings
             .camera
@@ -401,6 +408,16 @@ impl Job {
             r.tiles_done,
             r.tiles_total,
         );
+        let mut info = info;
+        let reconstruction = if settings.splats() {
+            Reconstruction::Splat
+        } else {
+            Reconstruction::Importance
+        };
+        info.attributes.push((
+            farm::KEY_RECONSTRUCTION.to_owned(),
+            reconstruction.name().to_owned(),
+        ));
         if !r.is_complete() {
             let signal = cancel.map_or(0, |c| c.load(Ordering::Relaxed)) as i32;
             let partial = self

@@ -45,6 +45,8 @@ margin = 0.9
 [film]
 resolution = [40, 40]
 spp = 16
+# Each pixel its own samples: the standard errors over hair pixels assume independent pixels.
+reconstruction = "importance"
 
 [material]
 model = "chiang"

@@ -324,7 +324,7 @@ fn study_auto_writes_its_table_and_fits() {
 fn the_image_rule_meets_the_target_with_fewer_samples_than_the_per_pixel_rule_and_is_deterministic()
 {
     use cuticle::render::adaptive::{Convergence, Schedule};
-    use cuticle::render::film::PixelSums;
+    use cuticle::render::film::Accumulate;
     use cuticle::render::{PixelSampling, PixelSource};
 
     /// The per-pixel rule ([`Schedule::next_total`]) as a sampling strategy: rounds of samples, in index order,
@@ -332,7 +332,7 @@ fn the_image_rule_meets_the_target_with_fewer_samples_than_the_per_pixel_rule_an
     /// test brings the per-pixel one to compare.
     struct PerPixel(Schedule);
     impl PixelSampling for PerPixel {
-        fn take(&self, source: &mut PixelSource<'_>, sums: &mut PixelSums) -> u32 {
+        fn take(&self, source: &mut PixelSource<'_>, sums: &mut dyn Accumulate) -> u32 {
             let mut convergence = Convergence::default();
             let mut i = 0;
             while let Some(total) = self.0.next_total(i, &convergence) {
@@ -491,7 +491,8 @@ fn calibrate_cost_model() {
 fn one_render_cut_after_each_vertex_equals_the_renders_at_each_path_length() {
     let s = scene(&format!(
         "[hair]\nprocedural = {{ kind = \"fur-ball\", strands = 4000 }}\nopacity = 1.0\n\
-         [film]\nresolution = [24, 16]\nspp = 4\naovs = []\n[integrator]\npath_length = 3\n{SUN}{SKY}"
+         [film]\nresolution = [24, 16]\nspp = 4\naovs = []\nreconstruction = \"importance\"\n\
+         [integrator]\npath_length = 3\n{SUN}{SKY}"
     ));
     let frame = Frame::load(s.resolve().unwrap()).unwrap();
     let pool = thread_pool(Some(2)).unwrap();

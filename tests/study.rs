@@ -23,6 +23,9 @@ margin = 0.9
 
 [film]
 resolution = [32, 32]
+# Each pixel its own samples, as the measures' sanity checks below assume: a splat spreads the hair's alpha (and
+# so the shadowed mask) over every pixel within 1.5 px of a strand.
+reconstruction = "importance"
 
 [material]
 model = "kajiya-kay"

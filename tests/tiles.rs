@@ -46,22 +46,29 @@ fn same_bits(a: &image::Image, b: &image::Image) {
 #[test]
 fn four_tiles_merged_equal_the_full_frame_bit_for_bit() {
     let dir = tempfile::tempdir().unwrap();
-    let full = dir.path().join("full.exr");
-    render(&full, &[]);
+    // Both films: a splatted pixel sums its neighbours' samples, across bands and work tiles.
+    for reconstruction in ["importance", "splat"] {
+        let film = ["--reconstruction", reconstruction];
+        let full = dir.path().join("full.exr");
+        render(&full, &film);
+        let tiles: Vec<PathBuf> = (0..4)
+            .map(|i| {
+                let t = dir.path().join(format!("tile{i}.exr"));
+                render(&t, &[&film[..], &["--tile", &format!("{i}/4")]].concat());
+                t
+            })
+            .collect();
+        let merged = dir.path().join("merged.exr");
+        let mut args = vec!["merge", "-o", merged.to_str().unwrap()];
+        args.extend(tiles.iter().map(|t| t.to_str().unwrap()));
+        ok(cuticle(&args));
+        // Every channel (beauty, AOVs, the centre-ray depth, tangent and id) equal bit for bit.
+        same_bits(&image::read(&full).unwrap(), &image::read(&merged).unwrap());
+        assert!(dir.path().join("merged.png").is_file());
+    }
     let tiles: Vec<PathBuf> = (0..4)
-        .map(|i| {
-            let t = dir.path().join(format!("tile{i}.exr"));
-            render(&t, &["--tile", &format!("{i}/4")]);
-            t
-        })
+        .map(|i| dir.path().join(format!("tile{i}.exr")))
         .collect();
-    let merged = dir.path().join("merged.exr");
-    let mut args = vec!["merge", "-o", merged.to_str().unwrap()];
-    args.extend(tiles.iter().map(|t| t.to_str().unwrap()));
-    ok(cuticle(&args));
-    // Every channel (beauty, AOVs, the centre-ray depth, tangent and id) equal bit for bit.
-    same_bits(&image::read(&full).unwrap(), &image::read(&merged).unwrap());
-    assert!(dir.path().join("merged.png").is_file());
 
     // A tile records its place in the frame and its job.
     let (_, window, attrs) =
@@ -101,20 +108,24 @@ fn four_tiles_merged_equal_the_full_frame_bit_for_bit() {
 #[test]
 fn a_crop_equals_the_same_region_of_the_full_frame() {
     let dir = tempfile::tempdir().unwrap();
-    let full = dir.path().join("full.exr");
-    render(&full, &[]);
-    let crop = dir.path().join("crop.exr");
-    render(&crop, &["--crop", "5,3,38,21"]);
-    let (full, crop) = (image::read(&full).unwrap(), image::read(&crop).unwrap());
-    assert_eq!((crop.width, crop.height), (33, 18));
-    for (c, name) in crop.channels.iter().enumerate() {
-        let f = full.channel_index(name).unwrap();
-        for y in 0..crop.height {
-            for x in 0..crop.width {
-                assert_eq!(
-                    crop.get(x, y, c).to_bits(),
-                    full.get(x + 5, y + 3, f).to_bits()
-                );
+    for reconstruction in ["importance", "splat"] {
+        let film = ["--reconstruction", reconstruction];
+        let full = dir.path().join("full.exr");
+        render(&full, &film);
+        let crop = dir.path().join("crop.exr");
+        render(&crop, &[&film[..], &["--crop", "5,3,38,21"]].concat());
+        let (full, crop) = (image::read(&full).unwrap(), image::read(&crop).unwrap());
+        assert_eq!((crop.width, crop.height), (33, 18));
+        for (c, name) in crop.channels.iter().enumerate() {
+            let f = full.channel_index(name).unwrap();
+            for y in 0..crop.height {
+                for x in 0..crop.width {
+                    assert_eq!(
+                        crop.get(x, y, c).to_bits(),
+                        full.get(x + 5, y + 3, f).to_bits(),
+                        "{reconstruction}: {name} at ({x}, {y}) of the crop"
+                    );
+                }
             }
         }
     }

@@ -10,7 +10,8 @@ use cuticle::job::{AutoPlan, Job, Part, Request};
 use cuticle::quality::delivered::{delivered, delivered_denoised};
 use cuticle::quality::{Fixed, QualityMode};
 use cuticle::render::{
-    self, LightSelection, MultipleScattering, RenderStats, Shading, ShadowMode, TransmittanceMode,
+    self, LightSelection, MultipleScattering, Reconstruction, RenderStats, Shading, ShadowMode,
+    TransmittanceMode,
 };
 use cuticle::scene::Overrides;
 
@@ -69,6 +70,11 @@ pub struct RenderArgs {
     /// tracer, the reference; the same image either way (overrides integrator.shading).
     #[arg(long, value_parser = scene_name::<Shading>)]
     shading: Option<Shading>,
+    /// splat: each sample counts in every pixel its filter reaches (less noise at the same spp); importance: each
+    /// counts in its own pixel, its offset drawn from the filter; the same converged image (overrides
+    /// film.reconstruction).
+    #[arg(long, value_parser = scene_name::<Reconstruction>)]
+    reconstruction: Option<Reconstruction>,
     /// path: light between fibres by path tracing (integrator.path_length bounces); dual: by dual scattering,
     /// Chiang's model only, paths end at the first shading point (overrides integrator.multiple_scattering).
     #[arg(long, value_parser = scene_name::<MultipleScattering>)]
@@ -140,6 +146,7 @@ pub fn render_command(args: RenderArgs) -> Result<()> {
         resolution: args.res,
         seed: args.seed,
         aovs: args.aovs.map(|a| a.0),
+        reconstruction: args.reconstruction,
         curves: args.curves,
         backend: args.backend,
         shadows: args.shadows,
@@ -403,6 +410,13 @@ pub fn merge_command(args: &MergeArgs) -> Result<()> {
         cuticle::image::denoise::available().map_err(|e| anyhow::anyhow!("--denoise: {e}"))?;
     }
     let mut merged = cuticle::farm::merge(&args.tiles)?;
+    if args.denoise.is_some() && merged.splatted() {
+        bail!(
+            "--denoise: the tiles were rendered with film.reconstruction = \"splat\", whose noise is shared by \
+             neighbouring pixels and which Open Image Denoise cannot remove; render them with --reconstruction \
+             importance to denoise the merged frame"
+        );
+    }
     if let Some(guide) = args.denoise {
         let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
         cuticle::image::denoise::add_denoised(&mut merged.image, guide, threads)

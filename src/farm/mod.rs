@@ -19,7 +19,7 @@ use std::sync::atomic::AtomicUsize;
 use std::sync::Arc;
 
 use crate::image::{self, DataWindow, ExrInfo, Image, ImageError};
-use crate::render::Region;
+use crate::render::{Reconstruction, Region};
 use crate::util::atomic_file;
 use crate::util::hash::{fold_words, mix64};
 
@@ -31,6 +31,9 @@ pub const KEY_COMPLETE: &str = "cuticle:complete";
 pub const KEY_TILES: &str = "cuticle:tiles";
 /// Header attribute: the animation frame.
 pub const KEY_FRAME: &str = "cuticle:frame";
+/// Header attribute: how the samples became pixels, `splat` or `importance` ([`crate::render::Reconstruction`]);
+/// `merge --denoise` refuses splatted frames. Frames without it were rendered by filter importance sampling.
+pub const KEY_RECONSTRUCTION: &str = "cuticle:reconstruction";
 
 /// A farm step failed. Each message names the file.
 #[derive(Debug, thiserror::Error)]
@@ -250,12 +253,20 @@ pub fn merge_within(tiles: &[PathBuf], max_bytes: u64) -> Result<Merged, FarmErr
         return Err(FarmError::Merge("merge: no tiles given".to_owned()));
     };
     let mut frame: Option<(Image, String, String, DataWindow)> = None;
+    // How the first tile was reconstructed: every tile of one job was (the job hash covers the scene's film).
+    let mut reconstruction = None;
     // Which tile wrote each pixel (index + 1; 0: none yet).
     let mut owner: Vec<u32> = Vec::new();
     for (t, path) in tiles.iter().enumerate() {
-        let (tile, window, attrs) =
-            image::read_with_info_at_most(path, &[KEY_JOB, KEY_COMPLETE, KEY_FRAME], max_bytes)?;
-        let [job, complete, frame_no] = [0, 1, 2].map(|i| attrs[i].clone());
+        let (tile, window, attrs) = image::read_with_info_at_most(
+            path,
+            &[KEY_JOB, KEY_COMPLETE, KEY_FRAME, KEY_RECONSTRUCTION],
+            max_bytes,
+        )?;
+        let [job, complete, frame_no, built] = [0, 1, 2, 3].map(|i| attrs[i].clone());
+        if t == 0 {
+            reconstruction = built;
+        }
         let Some(job) = job else {
             return Err(fail(
                 path,
@@ -339,16 +350,28 @@ pub fn merge_within(tiles: &[PathBuf], max_bytes: u64) -> Result<Merged, FarmErr
         )));
     }
     let tiles_total = tiles.len();
+    let mut attributes = vec![
+        (KEY_JOB.to_owned(), job),
+        (KEY_COMPLETE.to_owned(), "1".to_owned()),
+        (KEY_TILES.to_owned(), format!("{tiles_total} merged")),
+        (KEY_FRAME.to_owned(), frame_no),
+    ];
+    attributes.extend(reconstruction.map(|r| (KEY_RECONSTRUCTION.to_owned(), r)));
     let info = ExrInfo {
         window: None,
-        attributes: vec![
-            (KEY_JOB.to_owned(), job),
-            (KEY_COMPLETE.to_owned(), "1".to_owned()),
-            (KEY_TILES.to_owned(), format!("{tiles_total} merged")),
-            (KEY_FRAME.to_owned(), frame_no),
-        ],
+        attributes,
     };
     Ok(Merged { image, info })
+}
+
+impl Merged {
+    /// Whether the tiles splatted their samples ([`KEY_RECONSTRUCTION`]).
+    pub fn splatted(&self) -> bool {
+        self.info
+            .attributes
+            .iter()
+            .any(|(k, v)| k == KEY_RECONSTRUCTION && v == Reconstruction::Splat.name())
+    }
 }
 
 #[cfg(test)]

@@ -64,7 +64,7 @@
 
 use crate::image::denoise::{self, Guide};
 use crate::image::Image;
-use crate::render::film::PixelSums;
+use crate::render::film::Accumulate;
 use crate::render::strategy::{PixelSampling, PixelSource};
 use crate::render::{Frame, RegionRender, Request};
 use crate::sys::oidn::OidnError;
@@ -233,7 +233,7 @@ fn block_seed(seed: u32, k: u32) -> u32 {
 struct Block(std::ops::Range<u32>);
 
 impl PixelSampling for Block {
-    fn take(&self, source: &mut PixelSource<'_>, sums: &mut PixelSums) -> u32 {
+    fn take(&self, source: &mut PixelSource<'_>, sums: &mut dyn Accumulate) -> u32 {
         source.take(self.0.clone(), |_, s, _| sums.add(s));
         self.0.len() as u32
     }

@@ -90,7 +90,7 @@ use std::ops::Range;
 
 use rayon::prelude::*;
 
-use super::film::{PixelSums, Tile};
+use super::film::{Accumulate, PixelSums, Tile};
 use super::integrator::{PathSample, RayCost, RayCounts};
 use super::Region;
 

@@ -4,7 +4,6 @@
 //! ([`super::adaptive::render_rounds`]).
 
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::Arc;
 use std::time::Instant;
 
 use glam::Vec3;
@@ -15,14 +14,15 @@ use super::camera::Camera;
 use super::film::{self, PixelSums, Tile};
 use super::filter::GaussianFilter;
 use super::integrator::{Integrator, RayCounts};
+use super::splat::{self, Edge, SplatFilter};
 use super::strategy::{Fixed, PixelSampling, PixelSource};
-use super::{Frame, Region, RegionRender, RenderSettings, RenderStats};
+use super::{Frame, Placement, Region, RegionRender, RenderSettings, RenderStats};
 use crate::shadow::ShadowMaps;
 
-/// What every pixel of a render shares: the camera, the pixel filter, the integrator, the seed.
+/// What every pixel of a render shares: the camera, where samples pass in a pixel, the integrator, the seed.
 pub(super) struct Context<'f> {
     pub(super) camera: Camera,
-    pub(super) filter: Arc<GaussianFilter>,
+    pub(super) placement: Placement,
     pub(super) integrator: Integrator<'f>,
     pub(super) seed: u32,
     /// Whether pixels take their samples through the wavefront (`integrator.shading = "lanes"`).
@@ -45,9 +45,15 @@ pub(super) fn render_tiles(
     sampling: Option<&dyn PixelSampling>,
 ) -> RegionRender {
     let [width, height] = settings.film.resolution;
+    let splat = settings
+        .splats()
+        .then(|| SplatFilter::new(settings.film.filter_width));
     let context = Context {
         camera: Camera::from_config(&settings.camera, frame.hair_bounds(), width, height),
-        filter: GaussianFilter::shared(settings.film.filter_width),
+        placement: match splat {
+            Some(_) => Placement::Uniform,
+            None => Placement::Importance(GaussianFilter::shared(settings.film.filter_width)),
+        },
         integrator: Integrator::new(frame, settings, maps),
         seed: settings.film.seed,
         lanes: settings.integrator.lanes(),
@@ -79,7 +85,7 @@ pub(super) fn render_tiles(
         )
     };
     let cancelled = || cancel.is_some_and(|c| c.load(Ordering::Relaxed) != 0);
-    let pixel_by_pixel = |strategy: &dyn PixelSampling| -> Vec<(Tile, RayCounts)> {
+    let pixel_by_pixel = |strategy: &dyn PixelSampling| -> Vec<Rendered> {
         tiles
             .par_iter()
             .filter_map(|&(tx, ty)| {
@@ -88,21 +94,47 @@ pub(super) fn render_tiles(
                 }
                 let mut tile = new_tile(tx, ty);
                 let mut counts = RayCounts::default();
-                for y in tile.y0..tile.y1 {
-                    for x in tile.x0..tile.x1 {
-                        let mut sums = PixelSums::default();
-                        let mut source = PixelSource::new(x, y, &context, &mut counts);
-                        let taken = strategy.take(&mut source, &mut sums);
-                        tile.set_pixel(x, y, |pixel| {
-                            sums.write(taken, pixel);
-                            centre(x, y, pixel, &mut counts);
-                        });
+                let mut edges = Vec::new();
+                if let Some(filter) = splat {
+                    let counts = std::cell::RefCell::new(&mut counts);
+                    edges = splat::render_tile(
+                        &mut tile,
+                        region,
+                        [width, height],
+                        filter,
+                        |x, y, sums| {
+                            let mut counts = counts.borrow_mut();
+                            let mut source = PixelSource::new(x, y, &context, &mut counts);
+                            strategy.take(&mut source, sums)
+                        },
+                        |x, y, taken, pixel| {
+                            pixel[film::channel("spp")] = taken as f32;
+                            centre(x, y, pixel, &mut counts.borrow_mut());
+                        },
+                    );
+                } else {
+                    for y in tile.y0..tile.y1 {
+                        for x in tile.x0..tile.x1 {
+                            let mut sums = PixelSums::default();
+                            let mut source = PixelSource::new(x, y, &context, &mut counts);
+                            let taken = strategy.take(&mut source, &mut sums);
+                            tile.set_pixel(x, y, |pixel| {
+                                sums.write(taken, pixel);
+                                centre(x, y, pixel, &mut counts);
+                            });
+                        }
                     }
                 }
                 bar.inc(1);
-                Some((tile, counts))
+                Some((tile, counts, edges))
             })
             .collect()
+    };
+    let no_edges = |tiles: Vec<(Tile, RayCounts)>| {
+        tiles
+            .into_iter()
+            .map(|(t, c)| (t, c, Vec::new()))
+            .collect::<Vec<_>>()
     };
     let rendered = match (sampling, settings.adaptive) {
         (Some(strategy), _) => (pixel_by_pixel(strategy), None),
@@ -110,9 +142,10 @@ pub(super) fn render_tiles(
             let sample = |x: u32, y: u32, samples, counts: &mut RayCounts, sink: adaptive::Sink| {
                 PixelSource::new(x, y, &context, counts).take(samples, sink)
             };
-            adaptive::render_rounds(
+            let (tiles, noise) = adaptive::render_rounds(
                 &tiles, region, schedule, &bar, &new_tile, &sample, &centre, &cancelled,
-            )
+            );
+            (no_edges(tiles), noise)
         }
         (None, None) => (
             pixel_by_pixel(&Fixed {
@@ -176,23 +209,37 @@ fn write_centre(
     film::write_centre(depth, tangent, id, pixel);
 }
 
-/// The rendered tiles as the region's image, with the render's counters.
+/// A rendered work tile: its pixels, its rays, and the splats it gave pixels it could not finish.
+type Rendered = (Tile, RayCounts, Vec<Edge>);
+
+/// The rendered tiles as the region's image (splatted pixels across tiles finished), with the render's counters.
 fn assemble(
-    (rendered, noise): (Vec<(Tile, RayCounts)>, Option<adaptive::NoiseEstimate>),
+    (rendered, noise): (Vec<Rendered>, Option<adaptive::NoiseEstimate>),
     region: Region,
     layout: &film::Layout,
     start: Instant,
     tiles_total: u32,
 ) -> RegionRender {
     let mut rays = RayCounts::default();
-    for (_, counts) in &rendered {
+    for (_, counts, _) in &rendered {
         rays.add(counts);
     }
     let tiles_done = rendered.len();
+    let done: Vec<Region> = rendered
+        .iter()
+        .map(|(t, _, _)| Region {
+            x0: t.x0,
+            y0: t.y0,
+            x1: t.x1,
+            y1: t.y1,
+        })
+        .collect();
+    let mut edges = Vec::new();
     // Tiles were rendered in frame coordinates; the image holds the region alone.
     let tiles: Vec<Tile> = rendered
         .into_iter()
-        .map(|(mut t, _)| {
+        .map(|(mut t, _, e)| {
+            edges.extend(e);
             (t.x0, t.x1, t.y0, t.y1) = (
                 t.x0 - region.x0,
                 t.x1 - region.x0,
@@ -202,7 +249,8 @@ fn assemble(
             t
         })
         .collect();
-    let image = film::assemble(region.width(), region.height(), &tiles, layout);
+    let mut image = film::assemble(region.width(), region.height(), &tiles, layout);
+    splat::finish_edges(&mut image, region, layout, edges, &done);
     RegionRender {
         image,
         stats: RenderStats {

@@ -226,20 +226,66 @@ pub struct PixelSums {
     albedo: Vec3,
 }
 
-impl PixelSums {
+/// What takes a pixel's camera samples as a sampling strategy draws them: the pixel's own sums
+/// ([`PixelSums`], filter importance sampling) or its splats onto its neighbours
+/// ([`super::splat::SourceSums`]).
+pub trait Accumulate {
     /// Adds one camera sample.
-    pub fn add(&mut self, s: &PathSample) {
-        let l = &s.lobes;
-        let finite = [s.beauty, s.direct, s.indirect, s.albedo]
+    fn add(&mut self, s: &PathSample);
+}
+
+/// How many per-sample values the film sums ([`quantities`]).
+pub const QUANTITIES: usize = 30;
+
+/// Whether every value of `s` the film sums is finite: a sample that is not is dropped ([`dropped_samples`]).
+pub(super) fn is_finite(s: &PathSample) -> bool {
+    let l = &s.lobes;
+    [s.beauty, s.direct, s.indirect, s.albedo]
+        .iter()
+        .all(|v| v.is_finite())
+        && [l.r, l.tt, l.trt, l.glint, l.diffuse]
             .iter()
             .all(|v| v.is_finite())
-            && [l.r, l.tt, l.trt, l.glint, l.diffuse]
-                .iter()
-                .all(|v| v.is_finite())
-            && (s.alpha + s.lit + s.unshadowed).is_finite();
-        if !finite {
+        && (s.alpha + s.lit + s.unshadowed).is_finite()
+}
+
+/// Counts a dropped sample in [`dropped_samples`].
+pub(super) fn count_dropped() {
+    DROPPED.fetch_add(1, Ordering::Relaxed);
+}
+
+/// The values of `s` the film sums, in the order [`PixelSums::from_quantities`] reads them: beauty, alpha, the
+/// lobes R, TT, TRT, glint, diffuse, direct, indirect, lit, unshadowed, albedo.
+pub(super) fn quantities(s: &PathSample) -> [f32; QUANTITIES] {
+    let l = &s.lobes;
+    let mut q = [0.0; QUANTITIES];
+    let parts: [&[f32]; 12] = [
+        &s.beauty.to_array(),
+        &[s.alpha],
+        &l.r.to_array(),
+        &l.tt.to_array(),
+        &l.trt.to_array(),
+        &l.glint.to_array(),
+        &l.diffuse.to_array(),
+        &s.direct.to_array(),
+        &s.indirect.to_array(),
+        &[s.lit],
+        &[s.unshadowed],
+        &s.albedo.to_array(),
+    ];
+    let mut at = 0;
+    for part in parts {
+        q[at..at + part.len()].copy_from_slice(part);
+        at += part.len();
+    }
+    q
+}
+
+impl Accumulate for PixelSums {
+    fn add(&mut self, s: &PathSample) {
+        if !is_finite(s) {
             self.dropped += 1;
-            DROPPED.fetch_add(1, Ordering::Relaxed);
+            count_dropped();
             return;
         }
         self.beauty += s.beauty;
@@ -253,13 +299,44 @@ impl PixelSums {
         self.unshadowed += s.unshadowed;
         self.albedo += s.albedo;
     }
+}
+
+impl PixelSums {
+    /// Sums holding `q` (in [`quantities`]' order), nothing dropped.
+    pub(super) fn from_quantities(q: &[f32; QUANTITIES]) -> PixelSums {
+        let v = |at: usize| Vec3::new(q[at], q[at + 1], q[at + 2]);
+        let a = |at: usize| glam::Vec3A::new(q[at], q[at + 1], q[at + 2]);
+        PixelSums {
+            dropped: 0,
+            beauty: v(0),
+            alpha: q[3],
+            lobes: LobeValues {
+                r: a(4),
+                tt: a(7),
+                trt: a(10),
+                glint: a(13),
+                diffuse: a(16),
+            },
+            direct: v(19),
+            indirect: v(22),
+            lit: q[25],
+            unshadowed: q[26],
+            albedo: v(27),
+        }
+    }
 
     /// Writes the averaged pixel into `pixel` (all of [`CHANNELS`]; the pixel-centre channels are
     /// [`write_centre`]'s).
     pub(super) fn write(&self, spp: u32, pixel: &mut [f32]) {
         // The mean of the samples kept (all of them but in a bug: see `dropped_samples`).
         let kept = spp.saturating_sub(self.dropped);
-        let k = if kept > 0 { 1.0 / kept as f32 } else { 0.0 };
+        self.write_scaled(if kept > 0 { 1.0 / kept as f32 } else { 0.0 }, pixel);
+        pixel[at::SPP] = spp as f32;
+    }
+
+    /// Writes the sums times `k` into `pixel`'s channels written from the samples (all of [`CHANNELS`] but the
+    /// pixel-centre ones and `spp`): the pixel's mean when `k` is one over its samples' count or weight.
+    pub(super) fn write_scaled(&self, k: f32, pixel: &mut [f32]) {
         let l = self.lobes.scaled(k);
         let specular = l.r + l.tt + l.trt + l.glint;
         let shadow = if self.unshadowed > 0.0 {
@@ -284,8 +361,16 @@ impl PixelSums {
             put(at, &v.to_array());
         }
         put(at::SHADOW, &[shadow]);
-        pixel[at::SPP] = spp as f32;
     }
+}
+
+/// Whether channel `c` of [`CHANNELS`] is written from the camera samples ([`PixelSums::write_scaled`]), not from
+/// the pixel's own count or centre ray.
+pub(super) fn from_samples(c: usize) -> bool {
+    !(c == at::SPP
+        || c == at::DEPTH
+        || (at::TANGENT..at::TANGENT + 3).contains(&c)
+        || c == at::STRAND)
 }
 
 /// Writes what one unfiltered ray through the pixel centre found: camera depth, unit tangent and strand id
@@ -334,6 +419,24 @@ impl Tile {
             .zip(self.layout.keep.iter())
         {
             *d = full[c];
+        }
+    }
+}
+
+/// Writes `pixel`'s channels taken from samples ([`from_samples`], all of [`CHANNELS`] given) into pixel (`x`, `y`)
+/// of `image`, which holds `layout`'s channels: a splatted pixel finished after its tiles were assembled.
+pub(super) fn write_from_samples(
+    image: &mut Image,
+    x: u32,
+    y: u32,
+    pixel: &[f32; CHANNELS.len()],
+    layout: &Layout,
+) {
+    let nc = layout.keep.len();
+    let o = (y as usize * image.width + x as usize) * nc;
+    for (d, &c) in image.data[o..o + nc].iter_mut().zip(layout.keep.iter()) {
+        if from_samples(c) {
+            *d = pixel[c];
         }
     }
 }

@@ -211,6 +211,9 @@ pub struct PathSample {
     pub unshadowed: f32,
     /// A one-sample estimate of the first vertex's directional albedo (f cos θ / pdf of its first material sample).
     pub albedo: Vec3,
+    /// Where the camera ray left the film, in pixels from its pixel's top-left corner: set by the pixel's sample
+    /// source ([`crate::render::PixelSource`]), not the integrator; a splatting film weighs the sample by it.
+    pub film: [f32; 2],
 }
 
 /// What [`Integrator::sample_recording`] reports of each path vertex: the light it adds to the beauty and the rays

@@ -20,11 +20,13 @@ pub mod frame;
 pub mod integrator;
 pub mod sampler;
 pub mod settings;
+pub mod splat;
 pub mod strategy;
 pub mod tiles;
 mod wavefront;
 
 use std::sync::atomic::AtomicUsize;
+use std::sync::Arc;
 
 use glam::Vec3;
 
@@ -40,8 +42,8 @@ use sampler::{dim, CameraSample, PixelSampler};
 pub use film::CHANNELS;
 pub use frame::{thread_pool, Frame, FrameError, FrameSpec, ThreadPoolError};
 pub use settings::{
-    FilmConfig, IntegratorConfig, LightSelection, MultipleScattering, RenderSettings, Shading,
-    ShadowConfig, ShadowMode, Strategy, TransmittanceMode,
+    FilmConfig, IntegratorConfig, LightSelection, MultipleScattering, Reconstruction,
+    RenderSettings, Shading, ShadowConfig, ShadowMode, Strategy, TransmittanceMode,
 };
 pub use strategy::{PixelSampling, PixelSource};
 pub use tiles::Region;
@@ -154,18 +156,38 @@ impl RegionRender {
     }
 }
 
-/// Sample `i`'s camera ray through pixel (x, y): the pixel's centre offset by the reconstruction filter's draw from
-/// `sampler`. The frame ([`driver`]) and the pilots' cut renders ([`render_bounces`]) trace the same rays.
+/// Where a pixel's camera samples pass through it: drawn from the pixel filter (filter importance sampling) or
+/// uniform in the pixel (a splatting film, [`splat`], weighs them by the filter afterwards).
+#[derive(Clone)]
+pub(super) enum Placement {
+    /// Offsets from the pixel's centre drawn from the filter.
+    Importance(Arc<GaussianFilter>),
+    /// Uniform in the pixel.
+    Uniform,
+}
+
+/// Sample `i`'s camera ray through pixel (x, y), and where it passes in the pixel (from its top-left corner):
+/// placed by `placement` from `sampler`'s filter dimensions. The frame ([`driver`]) and the pilots' cut renders
+/// ([`render_bounces`]) trace the same rays.
 fn camera_ray(
     camera: &Camera,
-    filter: &GaussianFilter,
+    placement: &Placement,
     sampler: &CameraSample,
     x: u32,
     y: u32,
     i: u32,
-) -> Ray {
-    let (dx, dy) = filter.sample(sampler.get_2d(i, dim::FILTER));
-    camera.ray(x as f32 + 0.5 + dx, y as f32 + 0.5 + dy)
+) -> (Ray, [f32; 2]) {
+    let u = sampler.get_2d(i, dim::FILTER);
+    match placement {
+        Placement::Importance(filter) => {
+            let (dx, dy) = filter.sample(u);
+            (
+                camera.ray(x as f32 + 0.5 + dx, y as f32 + 0.5 + dy),
+                [0.5 + dx, 0.5 + dy],
+            )
+        }
+        Placement::Uniform => (camera.ray(x as f32 + u.0, y as f32 + u.1), [u.0, u.1]),
+    }
 }
 
 /// What [`render_bounces`] made: every path length's estimate of a region from one render.
@@ -213,7 +235,8 @@ pub fn render_bounces(
     let [width, height] = settings.film.resolution;
     let maps = maps.filter(|_| settings.shadows.mode == ShadowMode::DeepOpacity);
     let camera = Camera::from_config(&settings.camera, frame.hair_bounds(), width, height);
-    let filter = GaussianFilter::shared(settings.film.filter_width);
+    // The pilots read each pixel's own samples, as filter importance sampling makes them.
+    let placement = Placement::Importance(GaussianFilter::shared(settings.film.filter_width));
     let integrator = Integrator::new(frame, settings, maps);
     let lanes = settings.integrator.lanes();
     let lengths = settings.integrator.path_length as usize + 1;
@@ -249,7 +272,8 @@ pub fn render_bounces(
                     }
                 }
             };
-            let ray = |sampler: &CameraSample, i| camera_ray(&camera, &filter, sampler, x, y, i);
+            let ray =
+                |sampler: &CameraSample, i| camera_ray(&camera, &placement, sampler, x, y, i).0;
             if lanes {
                 let samples = 0..settings.film.spp;
                 wavefront::run(&integrator, &pixel, samples, ray, |_, s, _, v| add(s, v));

@@ -26,6 +26,8 @@ pub struct FilmConfig {
     pub seed: u32,
     /// Width of the Gaussian pixel filter in pixels (thesis §5.5 used a 3×3 Gaussian).
     pub filter_width: f32,
+    /// How the pixel filter is applied ([`Reconstruction`]).
+    pub reconstruction: Reconstruction,
     /// The AOV layers an EXR holds beside the beauty R, G, B, A (always written): `["all"]` (the default), `[]` for
     /// the beauty alone, or names from [`super::film::aov_layers`], e.g. `["depth", "albedo"]`. Production
     /// renderers write the AOVs a compositor asks for, not every pass: 38 float channels at 512² cost about a
@@ -41,7 +43,37 @@ impl Default for FilmConfig {
             spp: 16,
             seed: 0,
             filter_width: 3.0,
+            reconstruction: Reconstruction::default(),
             aovs: vec![ALL_AOVS.to_owned()],
+        }
+    }
+}
+
+/// `film.reconstruction`: how camera samples become pixels through the pixel filter. Both converge to the same
+/// image, the radiance convolved with the filter (they differ only on the frame's outermost pixels, where a splat
+/// has no samples beyond the edge to weigh); they differ in noise.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Reconstruction {
+    /// Each sample lands uniformly in its pixel and is splatted onto every pixel whose filter reaches it, with the
+    /// filter's weight; a pixel is the weighted mean of the samples that reach it (Mitsuba 3's film, RenderMan's).
+    /// A sample counts in up to (2⌈r − ½⌉ + 1)² pixels, so the noise is lower at the same spp. Frames with
+    /// adaptive sampling use [`Reconstruction::Importance`]: their stop reads each pixel's noise from its own
+    /// samples ([`crate::render::adaptive`]), and so do `--quality auto` (its pilots model each pixel's noise from
+    /// its own samples) and `--denoise` (Open Image Denoise cannot remove noise shared by neighbouring pixels).
+    #[default]
+    Splat,
+    /// Filter importance sampling: each sample's offset is drawn from the filter and counts in its own pixel alone
+    /// with weight 1 (pbrt-v4's film).
+    Importance,
+}
+
+impl Reconstruction {
+    /// The name the scene file uses.
+    pub fn name(self) -> &'static str {
+        match self {
+            Reconstruction::Splat => "splat",
+            Reconstruction::Importance => "importance",
         }
     }
 }
@@ -354,6 +386,15 @@ pub struct RenderSettings {
 }
 
 impl RenderSettings {
+    /// Whether the frame splats its samples ([`Reconstruction::Splat`]): asked for, with a filter wider than a
+    /// pixel (narrower, a sample would count in its own pixel alone, with weight 0 wherever the filter misses it),
+    /// and no adaptive sampling (its stop reads each pixel's noise from the pixel's own samples).
+    pub fn splats(&self) -> bool {
+        self.film.reconstruction == Reconstruction::Splat
+            && super::splat::SplatFilter::new(self.film.filter_width).reach() > 0
+            && self.adaptive.is_none()
+    }
+
     /// The light-transport settings of the integrator.
     pub fn transport(&self) -> Settings {
         let i = &self.integrator;

@@ -32,8 +32,8 @@ use crate::render::{FrameSpec, RenderSettings};
 
 pub use crate::render::camera::CameraConfig;
 pub use crate::render::settings::{
-    FilmConfig, IntegratorConfig, LightSelection, MultipleScattering, Shading, ShadowConfig,
-    ShadowMode, Strategy, TransmittanceMode,
+    FilmConfig, IntegratorConfig, LightSelection, MultipleScattering, Reconstruction, Shading,
+    ShadowConfig, ShadowMode, Strategy, TransmittanceMode,
 };
 
 pub mod fuzz;
@@ -402,6 +402,9 @@ impl Scene {
         if let Some(aovs) = &o.aovs {
             self.film.aovs.clone_from(aovs);
         }
+        if let Some(r) = o.reconstruction {
+            self.film.reconstruction = r;
+        }
         if let Some(curves) = o.curves {
             self.hair.curves = curves;
         }
@@ -453,6 +456,8 @@ pub struct Overrides {
     pub seed: Option<u32>,
     /// `film.aovs`.
     pub aovs: Option<Vec<String>>,
+    /// `film.reconstruction`.
+    pub reconstruction: Option<Reconstruction>,
     /// `hair.curves`.
     pub curves: Option<CurveKind>,
     /// `hair.backend`.

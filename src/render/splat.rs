@@ -1,0 +1,569 @@
+//! Splatting reconstruction ([`Reconstruction::Splat`](super::Reconstruction::Splat)): each camera sample lands
+//! uniformly in its pixel and counts in every pixel whose filter reaches it, weighted by the filter; a pixel is the
+//! weighted mean of the samples that reach it, Σ w f / Σ w.
+//!
+//! With the thesis' 3-pixel Gaussian (σ = ½, truncated at 1.5 px) a sample reaches the 3 × 3 pixels around its
+//! own, so each pixel averages the samples of nine: at the same spp the frame is less noisy than with filter
+//! importance sampling, where a pixel averages its own samples alone, and it converges to the same image.
+//!
+//! # Exact sums, so the image is the same for any tile split
+//!
+//! A pixel's value depends on its neighbours' samples, and a neighbour may be in another work tile or, under
+//! `--tile I/N` and `--crop`, in another process. Each **source** pixel first sums its own samples' splats towards
+//! each pixel it reaches ([`SourceSums`], f32, in sample order: a function of that pixel's sample stream alone).
+//! Those sums are then added into their targets as **fixed-point integers** (value × 2⁶⁴ in an i128, [`fixed`]):
+//! integer addition is associative, so a target's total is the same whatever order its sources arrive in — one
+//! tile, two tiles, two processes. A region rendered alone also renders the **margin** pixels just outside it
+//! (inside the frame) for their splats into it, so its pixels are bit for bit the full frame's.
+//!
+//! Inside a work tile the pixels whose sources all belong to the tile are finished at once ([`render_tile`]); the
+//! rest, a ring of `reach` pixels along edges shared with other tiles, leave the tile as [`Edge`] sums and are
+//! finished when the region is assembled ([`finish_edges`]).
+//!
+//! Fixed point: an f32 sum of at least 2⁻⁶⁴ · 2²⁴ ≈ 10⁻¹² is kept exactly, smaller ones lose their low bits (the
+//! film's values are radiances and weights; 10⁻¹² of the pixel's scale is far below an f32 pixel's precision), and
+//! a cell saturates past 2⁶³ ≈ 9 · 10¹⁸.
+
+use super::film::{self, Accumulate, Layout, PixelSums, Tile, CHANNELS, QUANTITIES};
+use super::integrator::PathSample;
+use super::Region;
+use crate::image::Image;
+
+/// Values a target sums: the film's quantities, then the filter weight.
+const SUMS: usize = QUANTITIES + 1;
+
+/// 2⁻⁶⁴: one unit of [`fixed`].
+const UNIT: f64 = 1.0 / 18_446_744_073_709_551_616.0;
+
+/// The splat's filter: the Gaussian that filter importance sampling draws from ([`super::filter::GaussianFilter`]):
+/// σ = width / 6, truncated at the radius width / 2, separable in x and y.
+#[derive(Debug, Clone, Copy)]
+pub struct SplatFilter {
+    radius: f32,
+    /// 1 / (2σ²).
+    falloff: f32,
+    /// A sample reaches the pixels at offsets −reach ..= reach from its own, in x and in y.
+    reach: u32,
+}
+
+impl SplatFilter {
+    /// The filter of total `width` pixels (> 0).
+    pub fn new(width: f32) -> SplatFilter {
+        let radius = 0.5 * width;
+        let sigma = width / 6.0;
+        // A sample at u ∈ [0, 1) of its pixel reaches a pixel whose centre is nearer than the radius: the centre
+        // of the pixel k away sits at k + ½, so |u − k − ½| < r needs |k| < r + ½ − u, at most ⌈r − ½⌉.
+        let reach = (radius - 0.5).ceil().max(0.0) as u32;
+        SplatFilter {
+            radius,
+            falloff: 1.0 / (2.0 * sigma * sigma),
+            reach,
+        }
+    }
+
+    /// How far, in pixels, a sample reaches from its own pixel.
+    pub fn reach(&self) -> u32 {
+        self.reach
+    }
+
+    /// Pixels per side of the square a sample reaches: 2 · reach + 1.
+    fn side(&self) -> usize {
+        2 * self.reach as usize + 1
+    }
+
+    /// The filter's weights along one axis for a sample at `u` in its pixel: `out[k]` is the weight of the pixel at
+    /// offset k − reach.
+    #[inline]
+    fn weights(&self, u: f32, out: &mut [f32]) {
+        for (k, w) in out.iter_mut().enumerate() {
+            let d = u - (k as f32 - self.reach as f32 + 0.5);
+            *w = if d.abs() < self.radius {
+                (-d * d * self.falloff).exp()
+            } else {
+                0.0
+            };
+        }
+    }
+}
+
+/// One source pixel's samples splatted towards each pixel they reach: `side`² targets of [`SUMS`] values each, in
+/// f32, summed in sample order. Kept and cleared per pixel, so a tile allocates it once.
+pub struct SourceSums {
+    filter: SplatFilter,
+    sums: Vec<f32>,
+    wx: Vec<f32>,
+    wy: Vec<f32>,
+}
+
+impl SourceSums {
+    /// Empty sums for `filter`.
+    pub fn new(filter: SplatFilter) -> SourceSums {
+        let side = filter.side();
+        SourceSums {
+            filter,
+            sums: vec![0.0; side * side * SUMS],
+            wx: vec![0.0; side],
+            wy: vec![0.0; side],
+        }
+    }
+
+    /// Forgets every sample.
+    pub fn clear(&mut self) {
+        self.sums.fill(0.0);
+    }
+
+    /// The sums towards the pixel at offset (dx, dy) from the source, each in −reach ..= reach.
+    fn target(&self, dx: i64, dy: i64) -> &[f32] {
+        let r = i64::from(self.filter.reach);
+        let k = ((dy + r) * self.filter.side() as i64 + dx + r) as usize;
+        &self.sums[k * SUMS..(k + 1) * SUMS]
+    }
+}
+
+impl Accumulate for SourceSums {
+    fn add(&mut self, s: &PathSample) {
+        if !film::is_finite(s) {
+            film::count_dropped();
+            return;
+        }
+        let q = film::quantities(s);
+        self.filter.weights(s.film[0], &mut self.wx);
+        self.filter.weights(s.film[1], &mut self.wy);
+        let side = self.wx.len();
+        for (j, &wy) in self.wy.iter().enumerate() {
+            for (i, &wx) in self.wx.iter().enumerate() {
+                let w = wy * wx;
+                if w == 0.0 {
+                    continue;
+                }
+                let cell = &mut self.sums[(j * side + i) * SUMS..(j * side + i + 1) * SUMS];
+                for (c, v) in cell.iter_mut().zip(q) {
+                    *c += w * v;
+                }
+                cell[QUANTITIES] += w;
+            }
+        }
+    }
+}
+
+/// `v` × 2⁶⁴ as an integer, exactly for |v| ≥ 2⁻⁴⁰, truncated toward zero below, saturated at ±2¹²⁷ (see the
+/// [module docs](self)); 0 for zero, subnormals and NaN.
+#[inline]
+pub fn fixed(v: f32) -> i128 {
+    let bits = v.to_bits();
+    let exponent = ((bits >> 23) & 0xff) as i32;
+    if exponent == 0 || v.is_nan() {
+        return 0;
+    }
+    let mantissa = i128::from((bits & 0x7f_ffff) | 0x80_0000);
+    // v = mantissa · 2^(exponent − 150), so v · 2⁶⁴ = mantissa · 2^(exponent − 86).
+    let shift = exponent - 86;
+    let magnitude = if shift > 103 {
+        i128::MAX
+    } else if shift >= 0 {
+        mantissa << shift
+    } else if shift > -24 {
+        mantissa >> -shift
+    } else {
+        0
+    };
+    if bits >> 31 == 1 {
+        -magnitude
+    } else {
+        magnitude
+    }
+}
+
+/// A target pixel's sums in fixed point ([`fixed`]).
+type Cell = [i128; SUMS];
+
+/// A pixel of the region whose sources are not all in one tile: the fixed-point sums one tile gave it.
+pub struct Edge {
+    x: u32,
+    y: u32,
+    sums: Box<Cell>,
+}
+
+/// A work tile's targets: the tile grown by the reach, clipped to the region (pixels outside it are not output).
+struct Grid {
+    x0: u32,
+    y0: u32,
+    x1: u32,
+    y1: u32,
+    cells: Vec<Cell>,
+}
+
+impl Grid {
+    fn index(&self, x: u32, y: u32) -> usize {
+        ((y - self.y0) * (self.x1 - self.x0) + (x - self.x0)) as usize
+    }
+
+    /// Adds source pixel (`qx`, `qy`)'s splats to the targets inside the grid.
+    fn add(&mut self, qx: u32, qy: u32, source: &SourceSums) {
+        let r = i64::from(source.filter.reach);
+        for dy in -r..=r {
+            let y = i64::from(qy) + dy;
+            if y < i64::from(self.y0) || y >= i64::from(self.y1) {
+                continue;
+            }
+            for dx in -r..=r {
+                let x = i64::from(qx) + dx;
+                if x < i64::from(self.x0) || x >= i64::from(self.x1) {
+                    continue;
+                }
+                let from = source.target(dx, dy);
+                if from[QUANTITIES] == 0.0 {
+                    continue;
+                }
+                let k = self.index(x as u32, y as u32);
+                for (c, &v) in self.cells[k].iter_mut().zip(from) {
+                    *c = c.saturating_add(fixed(v));
+                }
+            }
+        }
+    }
+}
+
+/// The pixel a cell's sums make: all of [`CHANNELS`] written from samples ([`film::from_samples`]), the weighted
+/// mean Σ w f / Σ w.
+fn finish(cell: &Cell) -> [f32; CHANNELS.len()] {
+    let q: [f32; QUANTITIES] = std::array::from_fn(|c| (cell[c] as f64 * UNIT) as f32);
+    let weight = cell[QUANTITIES] as f64 * UNIT;
+    let mut pixel = [0.0; CHANNELS.len()];
+    let k = if weight > 0.0 {
+        (1.0 / weight) as f32
+    } else {
+        0.0
+    };
+    PixelSums::from_quantities(&q).write_scaled(k, &mut pixel);
+    pixel
+}
+
+/// Where a coordinate's source pixel is rendered: the nearest coordinate of the region (a margin pixel belongs to
+/// the tile at the region's edge next to it).
+fn home(v: i64, lo: u32, hi: u32) -> i64 {
+    v.clamp(i64::from(lo), i64::from(hi) - 1)
+}
+
+/// Renders work tile `tile` of `region` in a `size` frame by splatting: every source pixel of the tile (its own
+/// pixels and the margin pixels outside the region it owns, row by row) takes its samples through `take`
+/// (returning how many), its own pixels get their count and centre channels from `own`, and the pixels whose sources
+/// all belong to the tile are finished. Returns the sums of the others, to be finished with the neighbouring
+/// tiles' ([`finish_edges`]).
+pub(super) fn render_tile(
+    tile: &mut Tile,
+    region: Region,
+    size: [u32; 2],
+    filter: SplatFilter,
+    mut take: impl FnMut(u32, u32, &mut SourceSums) -> u32,
+    mut own: impl FnMut(u32, u32, u32, &mut [f32]),
+) -> Vec<Edge> {
+    let r = i64::from(filter.reach);
+    let grown = |lo: u32, hi: u32, region_lo: u32, region_hi: u32| {
+        (
+            (i64::from(lo) - r).max(i64::from(region_lo)) as u32,
+            (i64::from(hi) + r).min(i64::from(region_hi)) as u32,
+        )
+    };
+    let (x0, x1) = grown(tile.x0, tile.x1, region.x0, region.x1);
+    let (y0, y1) = grown(tile.y0, tile.y1, region.y0, region.y1);
+    let mut grid = Grid {
+        x0,
+        y0,
+        x1,
+        y1,
+        cells: vec![[0; SUMS]; ((x1 - x0) * (y1 - y0)) as usize],
+    };
+    let owns = |x: i64, y: i64| {
+        let (hx, hy) = (home(x, region.x0, region.x1), home(y, region.y0, region.y1));
+        (i64::from(tile.x0)..i64::from(tile.x1)).contains(&hx)
+            && (i64::from(tile.y0)..i64::from(tile.y1)).contains(&hy)
+    };
+    let mut source = SourceSums::new(filter);
+    let mut taken = vec![0u32; ((tile.x1 - tile.x0) * (tile.y1 - tile.y0)) as usize];
+    // Sources: the tile and its margin, clipped to the frame, row by row.
+    let sy0 = (i64::from(tile.y0) - r).max(0);
+    let sy1 = (i64::from(tile.y1) + r).min(i64::from(size[1]));
+    let sx0 = (i64::from(tile.x0) - r).max(0);
+    let sx1 = (i64::from(tile.x1) + r).min(i64::from(size[0]));
+    for qy in sy0..sy1 {
+        for qx in sx0..sx1 {
+            let inside = (i64::from(region.x0)..i64::from(region.x1)).contains(&qx)
+                && (i64::from(region.y0)..i64::from(region.y1)).contains(&qy);
+            let is_tile = (i64::from(tile.x0)..i64::from(tile.x1)).contains(&qx)
+                && (i64::from(tile.y0)..i64::from(tile.y1)).contains(&qy);
+            if !(is_tile || (!inside && owns(qx, qy))) {
+                continue;
+            }
+            let (qx, qy) = (qx as u32, qy as u32);
+            source.clear();
+            let n = take(qx, qy, &mut source);
+            if is_tile {
+                taken[((qy - tile.y0) * (tile.x1 - tile.x0) + (qx - tile.x0)) as usize] = n;
+            }
+            grid.add(qx, qy, &source);
+        }
+    }
+    // A target is finished when every frame pixel within reach is rendered by this tile.
+    let (tx0, ty0, tx1, ty1) = (tile.x0, tile.y0, tile.x1, tile.y1);
+    let finished = |x: u32, y: u32| {
+        let axis = |v: u32, frame: u32, lo: u32, hi: u32, tile_lo: u32, tile_hi: u32| {
+            let first = home((i64::from(v) - r).max(0), lo, hi);
+            let last = home((i64::from(v) + r).min(i64::from(frame) - 1), lo, hi);
+            first >= i64::from(tile_lo) && last < i64::from(tile_hi)
+        };
+        axis(x, size[0], region.x0, region.x1, tx0, tx1)
+            && axis(y, size[1], region.y0, region.y1, ty0, ty1)
+    };
+    let mut edges = Vec::new();
+    for y in grid.y0..grid.y1 {
+        for x in grid.x0..grid.x1 {
+            let cell = &grid.cells[grid.index(x, y)];
+            let mine = (tx0..tx1).contains(&x) && (ty0..ty1).contains(&y);
+            if mine {
+                let n = taken[((y - ty0) * (tx1 - tx0) + (x - tx0)) as usize];
+                let done = finished(x, y).then(|| finish(cell));
+                tile.set_pixel(x, y, |pixel| {
+                    if let Some(done) = &done {
+                        pixel.copy_from_slice(done);
+                    }
+                    own(x, y, n, pixel);
+                });
+            }
+            if !finished(x, y) && cell[QUANTITIES] != 0 {
+                edges.push(Edge {
+                    x,
+                    y,
+                    sums: Box::new(*cell),
+                });
+            }
+        }
+    }
+    edges
+}
+
+/// Finishes the pixels of `image` (the assembled `region`, channels of `layout`) whose sources span tiles: each
+/// one's sums from every tile that gave it some, added exactly, written into its sample channels. Pixels outside
+/// `rendered` (tiles a cancel left out) stay as they are.
+pub(super) fn finish_edges(
+    image: &mut Image,
+    region: Region,
+    layout: &Layout,
+    edges: impl IntoIterator<Item = Edge>,
+    rendered: &[Region],
+) {
+    let mut totals: std::collections::HashMap<(u32, u32), Box<Cell>> = Default::default();
+    for e in edges {
+        match totals.entry((e.x, e.y)) {
+            std::collections::hash_map::Entry::Occupied(mut o) => {
+                for (t, v) in o.get_mut().iter_mut().zip(e.sums.iter()) {
+                    *t = t.saturating_add(*v);
+                }
+            }
+            std::collections::hash_map::Entry::Vacant(v) => {
+                v.insert(e.sums);
+            }
+        }
+    }
+    for ((x, y), cell) in totals {
+        let inside = |t: &Region| (t.x0..t.x1).contains(&x) && (t.y0..t.y1).contains(&y);
+        if !rendered.iter().any(inside) {
+            continue;
+        }
+        let pixel = finish(&cell);
+        film::write_from_samples(image, x - region.x0, y - region.y0, &pixel, layout);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::settings::FilmConfig;
+    use glam::Vec3;
+
+    /// Sample `i` of pixel (x, y) of a synthetic frame: a position and a beauty hashed from (x, y, i).
+    fn synthetic(x: u32, y: u32, i: u32) -> PathSample {
+        let h = |k: u32| {
+            let v = (x.wrapping_mul(73_856_093)
+                ^ y.wrapping_mul(19_349_663)
+                ^ i.wrapping_mul(83_492_791))
+            .wrapping_add(k.wrapping_mul(2_654_435_761));
+            let v = v ^ (v >> 15);
+            let v = v.wrapping_mul(2_246_822_519) ^ (v >> 13);
+            (v % 10_000) as f32 / 10_000.0
+        };
+        PathSample {
+            beauty: Vec3::new(h(1) * 3.0, h(2), 0.25 + x as f32 * 0.01),
+            alpha: 1.0,
+            film: [h(3), h(4)],
+            ..Default::default()
+        }
+    }
+
+    /// `region` of a `size` frame rendered in work tiles of `side`² with `spp` synthetic samples per pixel (one more
+    /// in pixels whose x + y is odd), assembled as the driver does: the beauty's R channel.
+    fn render(size: [u32; 2], region: Region, side: u32, filter: SplatFilter) -> Image {
+        let film = FilmConfig {
+            aovs: vec![],
+            ..FilmConfig::default()
+        };
+        let layout = Layout::new(&film);
+        let mut tiles = Vec::new();
+        let mut done = Vec::new();
+        let mut edges = Vec::new();
+        for ty in (region.y0..region.y1).step_by(side as usize) {
+            for tx in (region.x0..region.x1).step_by(side as usize) {
+                let (x1, y1) = ((tx + side).min(region.x1), (ty + side).min(region.y1));
+                let mut tile = Tile::new(tx, ty, x1, y1, &layout);
+                let take = |x: u32, y: u32, sums: &mut SourceSums| {
+                    let n = 3 + (x + y) % 2;
+                    for i in 0..n {
+                        sums.add(&synthetic(x, y, i));
+                    }
+                    n
+                };
+                edges.extend(render_tile(
+                    &mut tile,
+                    region,
+                    size,
+                    filter,
+                    take,
+                    |_, _, _, _| {},
+                ));
+                done.push(Region {
+                    x0: tx,
+                    y0: ty,
+                    x1,
+                    y1,
+                });
+                (tile.x0, tile.x1, tile.y0, tile.y1) = (
+                    tx - region.x0,
+                    x1 - region.x0,
+                    ty - region.y0,
+                    y1 - region.y0,
+                );
+                tiles.push(tile);
+            }
+        }
+        let mut image = film::assemble(region.width(), region.height(), &tiles, &layout);
+        finish_edges(&mut image, region, &layout, edges, &done);
+        image
+    }
+
+    #[test]
+    fn a_splatted_pixel_is_the_filter_weighted_mean_of_every_sample_that_reaches_it() {
+        let size = [9, 7];
+        let full = Region::full(9, 7);
+        let f = SplatFilter::new(3.0);
+        let image = render(size, full, 4, f);
+        let g = |d: f64| {
+            let sigma = 0.5;
+            if d.abs() < 1.5 {
+                (-d * d / (2.0 * sigma * sigma)).exp()
+            } else {
+                0.0
+            }
+        };
+        for py in 0..7u32 {
+            for px in 0..9u32 {
+                let (mut sum, mut weight) = (0.0f64, 0.0f64);
+                for qy in 0..7u32 {
+                    for qx in 0..9u32 {
+                        for i in 0..3 + (qx + qy) % 2 {
+                            let s = synthetic(qx, qy, i);
+                            let w = g(f64::from(qx) + f64::from(s.film[0]) - f64::from(px) - 0.5)
+                                * g(f64::from(qy) + f64::from(s.film[1]) - f64::from(py) - 0.5);
+                            sum += w * f64::from(s.beauty.x);
+                            weight += w;
+                        }
+                    }
+                }
+                let want = sum / weight;
+                let got = f64::from(image.get(px as usize, py as usize, 0));
+                assert!(
+                    (got - want).abs() < 1e-5 * want.abs().max(1.0),
+                    "({px}, {py}): {got} against {want}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn splatted_pixels_do_not_depend_on_the_work_tiles_or_the_region() {
+        let size = [13, 9];
+        let full = Region::full(13, 9);
+        for width in [3.0, 4.0, 5.5] {
+            let f = SplatFilter::new(width);
+            let one = render(size, full, 64, f);
+            for side in [1, 2, 3, 5] {
+                assert_eq!(
+                    render(size, full, side, f).data,
+                    one.data,
+                    "width {width}, tiles of {side}"
+                );
+            }
+            // A crop (its margin rendered for its splats) holds the full frame's pixels bit for bit.
+            let crop = Region {
+                x0: 2,
+                y0: 3,
+                x1: 11,
+                y1: 7,
+            };
+            let part = render(size, crop, 3, f);
+            for y in 0..crop.height() as usize {
+                for x in 0..crop.width() as usize {
+                    assert_eq!(
+                        part.pixel(x, y)
+                            .iter()
+                            .map(|v| v.to_bits())
+                            .collect::<Vec<_>>(),
+                        one.pixel(x + 2, y + 3)
+                            .iter()
+                            .map(|v| v.to_bits())
+                            .collect::<Vec<_>>(),
+                        "width {width}, pixel ({x}, {y}) of the crop"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn fixed_point_is_exact_and_its_sums_do_not_depend_on_order() {
+        for v in [1.0f32, -2.5, 1e-12, 3.0e9, 0.1, -7.25e-5] {
+            let back = fixed(v) as f64 * UNIT;
+            assert_eq!(back as f32, v, "{v}");
+        }
+        assert_eq!(fixed(0.0), 0);
+        assert_eq!(fixed(f32::NAN), 0);
+        assert_eq!(fixed(f32::INFINITY), i128::MAX);
+        assert_eq!(fixed(1e-30), 0);
+        // f32 sums of these depend on the order; their fixed-point sums do not.
+        let values = [1.0f32, 1e8, -1e8, 3e-3];
+        let forward: i128 = values.iter().map(|&v| fixed(v)).sum();
+        let backward: i128 = values.iter().rev().map(|&v| fixed(v)).sum();
+        assert_eq!(forward, backward);
+        let f32_forward: f32 = values.iter().sum();
+        let f32_backward: f32 = values.iter().rev().sum();
+        assert_ne!(f32_forward, f32_backward, "the example must show the order");
+    }
+
+    #[test]
+    fn a_sample_reaches_the_pixels_its_filter_covers() {
+        let f = SplatFilter::new(3.0);
+        assert_eq!(f.reach(), 1);
+        assert_eq!(SplatFilter::new(4.0).reach(), 2);
+        assert_eq!(SplatFilter::new(1.0).reach(), 0);
+        let mut w = [0.0; 3];
+        // At the pixel's centre: its own weight 1, the neighbours' centres 1 px away: exp(−2).
+        f.weights(0.5, &mut w);
+        assert!((w[1] - 1.0).abs() < 1e-6);
+        assert!((w[0] - (-2.0f32).exp()).abs() < 1e-6 && w[0] == w[2]);
+        // On the left edge the right neighbour's centre is 1.5 px away: outside the truncated filter; just inside
+        // it, in with a small weight.
+        f.weights(0.0, &mut w);
+        assert!(w[0] > 0.5 && w[2] == 0.0, "{w:?}");
+        f.weights(0.001, &mut w);
+        assert!(w[2] > 0.0 && w[2] < 0.02, "{w:?}");
+    }
+}
