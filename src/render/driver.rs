@@ -74,6 +74,7 @@ pub(super) fn render_tiles(
         }
     };
     let layout = film::Layout::new(&settings.film);
+    let summed = splat::Summed::new(&layout);
     let new_tile = |tx: u32, ty: u32| {
         let (x0, y0) = (region.x0 + tx * tile_side, region.y0 + ty * tile_side);
         Tile::new(
@@ -102,6 +103,7 @@ pub(super) fn render_tiles(
                         region,
                         [width, height],
                         filter,
+                        &summed,
                         |x, y, sums| {
                             let mut counts = counts.borrow_mut();
                             let mut source = PixelSource::new(x, y, &context, &mut counts);
@@ -250,7 +252,14 @@ fn assemble(
         })
         .collect();
     let mut image = film::assemble(region.width(), region.height(), &tiles, layout);
-    splat::finish_edges(&mut image, region, layout, edges, &done);
+    splat::finish_edges(
+        &mut image,
+        region,
+        layout,
+        &splat::Summed::new(layout),
+        edges,
+        &done,
+    );
     RegionRender {
         image,
         stats: RenderStats {

@@ -281,6 +281,30 @@ pub(super) fn quantities(s: &PathSample) -> [f32; QUANTITIES] {
     q
 }
 
+/// The quantities ([`quantities`], by index) the channels `layout` keeps are made of, in order.
+pub(super) fn quantities_read(layout: &Layout) -> Vec<usize> {
+    let mut read = [false; QUANTITIES];
+    for &c in layout.keep.iter() {
+        if let Some(range) = quantities_of(layer_of(CHANNELS[c])) {
+            read[range].fill(true);
+        }
+    }
+    (0..QUANTITIES).filter(|&i| read[i]).collect()
+}
+
+/// Which of [`quantities`] layer `layer` is made of (`None`: it is not made from the samples).
+fn quantities_of(layer: &str) -> Option<std::ops::Range<usize>> {
+    Some(match layer {
+        "beauty" => 0..4,
+        "diffuse" | "specular" | "lobe_R" | "lobe_TT" | "lobe_TRT" | "lobe_glint" => 4..19,
+        "direct" => 19..22,
+        "indirect" => 22..25,
+        "shadow" => 25..27,
+        "albedo" => 27..30,
+        _ => return None,
+    })
+}
+
 impl Accumulate for PixelSums {
     fn add(&mut self, s: &PathSample) {
         if !is_finite(s) {
