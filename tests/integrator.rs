@@ -7,7 +7,7 @@ mod common;
 
 use common::{bit_differences, channel, render_scene, render_scene_with_stats};
 use cuticle::image::Image;
-use cuticle::scene::{LightSelection, Scene, ShadowMode, Strategy};
+use cuticle::scene::{LightSelection, Reconstruction, Scene, ShadowMode, Strategy};
 
 fn parse(text: &str, base: &Path) -> Scene {
     Scene::parse(text, Path::new("test scene"), base).unwrap_or_else(|e| panic!("{e}"))
@@ -547,19 +547,25 @@ fn passes_add_up() {
 #[test]
 fn bit_identical_with_one_and_two_threads_with_every_feature_on() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = everything(dir.path());
-    let a = render_scene(&scene, 1);
-    let b = render_scene(&scene, 2);
-    assert_eq!(
-        (a.width, a.height, &a.channels),
-        (b.width, b.height, &b.channels)
-    );
-    assert_eq!(a.data.len(), b.data.len());
-    let differing = bit_differences(&a.data, &b.data);
-    assert_eq!(
-        differing, 0,
-        "{differing} values differ between 1 and 2 threads"
-    );
+    let mut scene = everything(dir.path());
+    // The splatting film too: a pixel sums its neighbours' samples, across work tiles.
+    scene.film.reconstruction = Reconstruction::Splat;
+    let splat = (render_scene(&scene, 1), render_scene(&scene, 2));
+    scene.film.reconstruction = Reconstruction::Importance;
+    let (a, b) = (render_scene(&scene, 1), render_scene(&scene, 2));
+    for (what, a, b) in [("importance", &a, &b), ("splat", &splat.0, &splat.1)] {
+        assert_eq!(
+            (a.width, a.height, &a.channels),
+            (b.width, b.height, &b.channels)
+        );
+        assert_eq!(a.data.len(), b.data.len());
+        let differing = bit_differences(&a.data, &b.data);
+        assert_eq!(
+            differing, 0,
+            "{what}: {differing} values differ between 1 and 2 threads"
+        );
+    }
+    assert_ne!(a.data, splat.0.data, "the two films differ");
     // Identical images prove nothing if the features under test left no trace in them: the frame must hold
     // indirect light, shadowed and lit pixels, several strands and several lobes.
     let positive = |name: &str| channel(&a, name).iter().filter(|v| **v > 0.0).count();
