@@ -422,7 +422,7 @@ fn frames_over_the_memory_limit_and_absurd_thread_counts_are_refused() {
         "32768x32768",
     ]));
     assert!(
-        e.contains("film and AOVs 456 GiB") && e.contains("raise --max-memory"),
+        e.contains("film and AOVs 612 GiB") && e.contains("raise --max-memory"),
         "{e}"
     );
     // The benchmarks load frames through the same check (Frame::load, default limit).
@@ -438,7 +438,7 @@ fn frames_over_the_memory_limit_and_absurd_thread_counts_are_refused() {
         "--repetitions",
         "1",
     ]));
-    assert!(e.contains("film and AOVs 456 GiB"), "{e}");
+    assert!(e.contains("film and AOVs 612 GiB"), "{e}");
     let e = error_of(&cuticle(&[
         "render",
         "-q",

@@ -89,7 +89,7 @@ pub(super) fn render_tiles(
     let pixel_by_pixel = |strategy: &dyn PixelSampling| -> Vec<Rendered> {
         tiles
             .par_iter()
-            .filter_map(|&(tx, ty)| {
+            .map_init(splat::Scratch::default, |scratch, &(tx, ty)| {
                 if cancelled() {
                     return None;
                 }
@@ -99,6 +99,7 @@ pub(super) fn render_tiles(
                 if let Some(filter) = splat {
                     let counts = std::cell::RefCell::new(&mut counts);
                     edges = splat::render_tile(
+                        scratch,
                         &mut tile,
                         region,
                         [width, height],
@@ -130,6 +131,7 @@ pub(super) fn render_tiles(
                 bar.inc(1);
                 Some((tile, counts, edges))
             })
+            .flatten()
             .collect()
     };
     let no_edges = |tiles: Vec<(Tile, RayCounts)>| {

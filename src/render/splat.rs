@@ -109,7 +109,7 @@ impl Summed {
     }
 
     /// Values per target: the quantities and the weight, last.
-    fn width(&self) -> usize {
+    pub fn width(&self) -> usize {
         self.quantities.len() + 1
     }
 }
@@ -221,18 +221,27 @@ pub struct Edge {
     sums: Box<[i128]>,
 }
 
+/// What a worker keeps from tile to tile: a tile's target sums (34² × 31 × 16 B = 573 KB with every AOV). Allocated
+/// and freed per tile they cost page faults and TLB shootdowns: a 2048² frame of the default scene at 1 spp with
+/// every AOV took 26.7 s against 18.7 s by filter importance sampling, `perf` putting 6 % of the time in the kernel
+/// under the tile loop.
+#[derive(Default)]
+pub struct Scratch {
+    cells: Vec<i128>,
+}
+
 /// A work tile's targets: the tile grown by the reach, clipped to the region (pixels outside it are not output),
 /// each [`Summed::width`] fixed-point sums.
-struct Grid {
+struct Grid<'s> {
     x0: u32,
     y0: u32,
     x1: u32,
     y1: u32,
     width: usize,
-    cells: Vec<i128>,
+    cells: &'s mut [i128],
 }
 
-impl Grid {
+impl Grid<'_> {
     /// Target (x, y)'s sums.
     fn cell(&self, x: u32, y: u32) -> &[i128] {
         let k = ((y - self.y0) * (self.x1 - self.x0) + (x - self.x0)) as usize;
@@ -260,7 +269,9 @@ impl Grid {
                 let k =
                     ((y as u32 - self.y0) * (self.x1 - self.x0) + (x as u32 - self.x0)) as usize;
                 for (c, &v) in self.cells[k * width..(k + 1) * width].iter_mut().zip(from) {
-                    *c = c.saturating_add(fixed(v));
+                    if v != 0.0 {
+                        *c = c.saturating_add(fixed(v));
+                    }
                 }
             }
         }
@@ -296,7 +307,9 @@ fn home(v: i64, lo: u32, hi: u32) -> i64 {
 /// (returning how many), its own pixels get their count and centre channels from `own`, and the pixels whose sources
 /// all belong to the tile are finished. Returns the sums of the others, to be finished with the neighbouring
 /// tiles' ([`finish_edges`]).
+#[allow(clippy::too_many_arguments)]
 pub(super) fn render_tile(
+    scratch: &mut Scratch,
     tile: &mut Tile,
     region: Region,
     size: [u32; 2],
@@ -315,13 +328,16 @@ pub(super) fn render_tile(
     let (x0, x1) = grown(tile.x0, tile.x1, region.x0, region.x1);
     let (y0, y1) = grown(tile.y0, tile.y1, region.y0, region.y1);
     let width = summed.width();
+    let cells = ((x1 - x0) * (y1 - y0)) as usize * width;
+    scratch.cells.clear();
+    scratch.cells.resize(cells, 0);
     let mut grid = Grid {
         x0,
         y0,
         x1,
         y1,
         width,
-        cells: vec![0; ((x1 - x0) * (y1 - y0)) as usize * width],
+        cells: &mut scratch.cells,
     };
     let owns = |x: i64, y: i64| {
         let (hx, hy) = (home(x, region.x0, region.x1), home(y, region.y0, region.y1));
@@ -489,6 +505,7 @@ mod tests {
                     n
                 };
                 edges.extend(render_tile(
+                    &mut Scratch::default(),
                     &mut tile,
                     region,
                     size,
