@@ -186,6 +186,9 @@ pub fn run(config: &DenoiseStudyConfig) -> Result<DenoiseReport, StudyError> {
         let mut settings = scene.render_settings();
         // The guide must be in the film.
         settings.film.aovs = vec![crate::render::settings::ALL_AOVS.to_owned()];
+        // Frames by filter importance sampling, as `render --denoise` renders them (Open Image Denoise cannot
+        // remove a splat's noise, shared by neighbouring pixels): the noisy and denoised rows are of one frame.
+        settings.film.reconstruction = crate::render::Reconstruction::Importance;
         let key = scene_key(
             "cuticle study denoise reference v1",
             &file.text,

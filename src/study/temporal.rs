@@ -200,6 +200,9 @@ pub fn run(config: &TemporalStudyConfig) -> Result<TemporalReport, StudyError> {
         let frame = pool.install(|| Frame::load(scene.resolve()?).map_err(StudyError::from))?;
         let mut base = scene.render_settings();
         base.camera.orbit_degrees_per_frame = config.orbit_degrees;
+        // Frames by filter importance sampling, as `render --denoise` renders them (Open Image Denoise cannot
+        // remove a splat's noise, shared by neighbouring pixels): the noisy and denoised rows are of one frame.
+        base.film.reconstruction = crate::render::Reconstruction::Importance;
         let seed = base.film.seed;
         // References: frame i of the turntable (frame 0 is the static camera's).
         let mut references = Vec::with_capacity(n);
