@@ -51,7 +51,9 @@ pub const STRAND_BYTES_PER_STRAND: u64 = 4 + 4 + 4 + 12 + 2 * 16;
 /// ([`super::splat::Summed`]: the quantities the kept channels read, and the weight), and fixed: the fixed-point
 /// sums of the pixels along the work tiles' shared edges, kept until the region is assembled. Measured: peak RSS of
 /// the default scene at 2048², 1 spp, splat against importance, 44.6 B per pixel with the beauty alone (5 values),
-/// 66.1 with `shadow,albedo` (10), 115 with every AOV (31); this bound is above all three.
+/// 66.1 with `shadow,albedo` (10), 115 with every AOV (31), at the default filter's reach of 1 px; this bound is
+/// above all three. The edge pixels per pixel grow with the reach r as 8r / 32 (a 32² work tile's edge band
+/// ((32 + 2r)² − (32 − 2r)²) / 32²), so the bound is multiplied by r.
 pub const SPLAT_BYTES_PER_PIXEL: u64 = 32;
 /// See [`SPLAT_BYTES_PER_PIXEL`].
 pub const SPLAT_BYTES_PER_PIXEL_PER_VALUE: u64 = 4;
@@ -221,7 +223,10 @@ pub fn estimate(
     let layout = super::film::Layout::new(&settings.film);
     let splat = if settings.splats() && !adaptive {
         let values = super::splat::Summed::new(&layout).width() as u64;
-        pixels.saturating_mul(SPLAT_BYTES_PER_PIXEL + SPLAT_BYTES_PER_PIXEL_PER_VALUE * values)
+        let reach = u64::from(super::splat::SplatFilter::new(settings.film.filter_width).reach());
+        pixels.saturating_mul(
+            (SPLAT_BYTES_PER_PIXEL + SPLAT_BYTES_PER_PIXEL_PER_VALUE * values) * reach,
+        )
     } else {
         0
     };
@@ -561,6 +566,18 @@ mod tests {
         };
         use crate::render::Reconstruction::{Importance, Splat};
         let pixels = 1_000_000;
+        // A filter of 8 px reaches 4 px (the edge bands of the work tiles 4× as wide).
+        let wide = |aovs: &[&str]| {
+            let mut s = settings(1000, 1000);
+            s.film.filter_width = 8.0;
+            s.film.aovs = aovs.iter().map(|a| a.to_string()).collect();
+            estimate((1, 16), Backend::Embree, CurveKind::Flat, &s, 1, 2, false).film
+        };
+        assert_eq!(
+            wide(&[]),
+            pixels * 4 * 4 * FILM_COPIES
+                + pixels * 4 * (SPLAT_BYTES_PER_PIXEL + 5 * SPLAT_BYTES_PER_PIXEL_PER_VALUE)
+        );
         for (aovs, values, channels) in [(&[][..], 5, 4), (&["all"][..], 31, 38)] {
             let plain = pixels * channels * 4 * FILM_COPIES;
             assert_eq!(bytes(Importance, aovs, false), plain);
