@@ -611,27 +611,20 @@ mod tests {
                     "width {width}, tiles of {side}"
                 );
             }
-            // A crop (its margin rendered for its splats) holds the full frame's pixels bit for bit.
-            let crop = Region {
-                x0: 2,
-                y0: 3,
-                x1: 11,
-                y1: 7,
-            };
-            let part = render(size, crop, 3, f);
-            for y in 0..crop.height() as usize {
-                for x in 0..crop.width() as usize {
-                    assert_eq!(
-                        part.pixel(x, y)
-                            .iter()
-                            .map(|v| v.to_bits())
-                            .collect::<Vec<_>>(),
-                        one.pixel(x + 2, y + 3)
-                            .iter()
-                            .map(|v| v.to_bits())
-                            .collect::<Vec<_>>(),
-                        "width {width}, pixel ({x}, {y}) of the crop"
-                    );
+            // A crop (its margin rendered for its splats) holds the full frame's pixels bit for bit: inside the
+            // frame, on its corners, and a band of whole rows as `--tile` makes.
+            for (x0, y0, x1, y1) in [(2, 3, 11, 7), (0, 0, 5, 9), (8, 0, 13, 4), (0, 5, 13, 9)] {
+                let crop = Region { x0, y0, x1, y1 };
+                let part = render(size, crop, 3, f);
+                for y in 0..crop.height() as usize {
+                    for x in 0..crop.width() as usize {
+                        let bits = |p: &[f32]| p.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+                        assert_eq!(
+                            bits(part.pixel(x, y)),
+                            bits(one.pixel(x + x0 as usize, y + y0 as usize)),
+                            "width {width}, crop {crop:?}, pixel ({x}, {y})"
+                        );
+                    }
                 }
             }
         }
