@@ -159,7 +159,13 @@ pub(super) fn render_tiles(
         ),
     };
     bar.finish_and_clear();
-    assemble(rendered, region, &layout, start, tiles_x * tiles_y)
+    assemble(
+        rendered,
+        region,
+        (&layout, &summed),
+        start,
+        tiles_x * tiles_y,
+    )
 }
 
 /// The progress bar of a render: tiles done, elapsed, estimated time left; hidden unless `show`.
@@ -220,7 +226,7 @@ type Rendered = (Tile, RayCounts, Vec<Edge>);
 fn assemble(
     (rendered, noise): (Vec<Rendered>, Option<adaptive::NoiseEstimate>),
     region: Region,
-    layout: &film::Layout,
+    (layout, summed): (&film::Layout, &splat::Summed),
     start: Instant,
     tiles_total: u32,
 ) -> RegionRender {
@@ -254,14 +260,7 @@ fn assemble(
         })
         .collect();
     let mut image = film::assemble(region.width(), region.height(), &tiles, layout);
-    splat::finish_edges(
-        &mut image,
-        region,
-        layout,
-        &splat::Summed::new(layout),
-        edges,
-        &done,
-    );
+    splat::finish_edges(&mut image, region, layout, summed, edges, &done);
     RegionRender {
         image,
         stats: RenderStats {

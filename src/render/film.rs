@@ -237,6 +237,22 @@ pub trait Accumulate {
 /// How many per-sample values the film sums ([`quantities`]).
 pub const QUANTITIES: usize = 30;
 
+/// Where each value starts in [`quantities`]: the one layout the sample's values, the pixel's sums
+/// ([`PixelSums::from_quantities`]) and the layers' needs ([`quantities_of`]) are read with.
+mod q {
+    pub const BEAUTY: usize = 0;
+    pub const ALPHA: usize = 3;
+    /// The lobes R, TT, TRT, glint, diffuse ([`crate::bsdf::Lobe::ALL`]'s order), three each.
+    pub const LOBES: usize = 4;
+    pub const DIRECT: usize = 19;
+    pub const INDIRECT: usize = 22;
+    pub const LIT: usize = 25;
+    pub const UNSHADOWED: usize = 26;
+    pub const ALBEDO: usize = 27;
+    pub const END: usize = 30;
+}
+const _: () = assert!(q::END == QUANTITIES);
+
 /// Whether every value of `s` the film sums is finite: a sample that is not is dropped ([`dropped_samples`]).
 pub(super) fn is_finite(s: &PathSample) -> bool {
     let l = &s.lobes;
@@ -254,31 +270,22 @@ pub(super) fn count_dropped() {
     DROPPED.fetch_add(1, Ordering::Relaxed);
 }
 
-/// The values of `s` the film sums, in the order [`PixelSums::from_quantities`] reads them: beauty, alpha, the
-/// lobes R, TT, TRT, glint, diffuse, direct, indirect, lit, unshadowed, albedo.
+/// The values of `s` the film sums, at the offsets of [`q`]: beauty, alpha, the lobes, direct, indirect, lit,
+/// unshadowed, albedo.
 pub(super) fn quantities(s: &PathSample) -> [f32; QUANTITIES] {
-    let l = &s.lobes;
-    let mut q = [0.0; QUANTITIES];
-    let parts: [&[f32]; 12] = [
-        &s.beauty.to_array(),
-        &[s.alpha],
-        &l.r.to_array(),
-        &l.tt.to_array(),
-        &l.trt.to_array(),
-        &l.glint.to_array(),
-        &l.diffuse.to_array(),
-        &s.direct.to_array(),
-        &s.indirect.to_array(),
-        &[s.lit],
-        &[s.unshadowed],
-        &s.albedo.to_array(),
-    ];
-    let mut at = 0;
-    for part in parts {
-        q[at..at + part.len()].copy_from_slice(part);
-        at += part.len();
+    let mut values = [0.0; QUANTITIES];
+    let mut put = |at: usize, v: &[f32]| values[at..at + v.len()].copy_from_slice(v);
+    put(q::BEAUTY, &s.beauty.to_array());
+    put(q::ALPHA, &[s.alpha]);
+    for (k, lobe) in Lobe::ALL.into_iter().enumerate() {
+        put(q::LOBES + 3 * k, &s.lobes.get(lobe).to_array());
     }
-    q
+    put(q::DIRECT, &s.direct.to_array());
+    put(q::INDIRECT, &s.indirect.to_array());
+    put(q::LIT, &[s.lit]);
+    put(q::UNSHADOWED, &[s.unshadowed]);
+    put(q::ALBEDO, &s.albedo.to_array());
+    values
 }
 
 /// The quantities ([`quantities`], by index) the channels `layout` keeps are made of, in order.
@@ -295,12 +302,14 @@ pub(super) fn quantities_read(layout: &Layout) -> Vec<usize> {
 /// Which of [`quantities`] layer `layer` is made of (`None`: it is not made from the samples).
 fn quantities_of(layer: &str) -> Option<std::ops::Range<usize>> {
     Some(match layer {
-        "beauty" => 0..4,
-        "diffuse" | "specular" | "lobe_R" | "lobe_TT" | "lobe_TRT" | "lobe_glint" => 4..19,
-        "direct" => 19..22,
-        "indirect" => 22..25,
-        "shadow" => 25..27,
-        "albedo" => 27..30,
+        "beauty" => q::BEAUTY..q::LOBES,
+        "diffuse" | "specular" | "lobe_R" | "lobe_TT" | "lobe_TRT" | "lobe_glint" => {
+            q::LOBES..q::DIRECT
+        }
+        "direct" => q::DIRECT..q::INDIRECT,
+        "indirect" => q::INDIRECT..q::LIT,
+        "shadow" => q::LIT..q::ALBEDO,
+        "albedo" => q::ALBEDO..q::END,
         _ => return None,
     })
 }
@@ -326,26 +335,23 @@ impl Accumulate for PixelSums {
 }
 
 impl PixelSums {
-    /// Sums holding `q` (in [`quantities`]' order), nothing dropped.
-    pub(super) fn from_quantities(q: &[f32; QUANTITIES]) -> PixelSums {
-        let v = |at: usize| Vec3::new(q[at], q[at + 1], q[at + 2]);
-        let a = |at: usize| glam::Vec3A::new(q[at], q[at + 1], q[at + 2]);
+    /// Sums holding `values` (at the offsets of [`q`], as [`quantities`] makes them), nothing dropped.
+    pub(super) fn from_quantities(values: &[f32; QUANTITIES]) -> PixelSums {
+        let v = |at: usize| Vec3::new(values[at], values[at + 1], values[at + 2]);
+        let mut lobes = LobeValues::default();
+        for (k, lobe) in Lobe::ALL.into_iter().enumerate() {
+            *lobes.get_mut(lobe) = v(q::LOBES + 3 * k).into();
+        }
         PixelSums {
             dropped: 0,
-            beauty: v(0),
-            alpha: q[3],
-            lobes: LobeValues {
-                r: a(4),
-                tt: a(7),
-                trt: a(10),
-                glint: a(13),
-                diffuse: a(16),
-            },
-            direct: v(19),
-            indirect: v(22),
-            lit: q[25],
-            unshadowed: q[26],
-            albedo: v(27),
+            beauty: v(q::BEAUTY),
+            alpha: values[q::ALPHA],
+            lobes,
+            direct: v(q::DIRECT),
+            indirect: v(q::INDIRECT),
+            lit: values[q::LIT],
+            unshadowed: values[q::UNSHADOWED],
+            albedo: v(q::ALBEDO),
         }
     }
 
@@ -573,6 +579,38 @@ mod tests {
             (get("depth.Z"), get("tangent.X"), get("strand.id")),
             (7.0, 1.0, 3.0)
         );
+    }
+
+    #[test]
+    fn a_samples_quantities_make_the_pixel_its_sums_make() {
+        let s = PathSample {
+            beauty: Vec3::new(1.0, 2.0, 3.0),
+            alpha: 0.5,
+            lobes: LobeValues {
+                r: glam::Vec3A::new(4.0, 5.0, 6.0),
+                tt: glam::Vec3A::new(7.0, 8.0, 9.0),
+                trt: glam::Vec3A::new(10.0, 11.0, 12.0),
+                glint: glam::Vec3A::new(13.0, 14.0, 15.0),
+                diffuse: glam::Vec3A::new(16.0, 17.0, 18.0),
+            },
+            direct: Vec3::new(19.0, 20.0, 21.0),
+            indirect: Vec3::new(22.0, 23.0, 24.0),
+            lit: 0.25,
+            unshadowed: 0.75,
+            albedo: Vec3::new(0.1, 0.2, 0.3),
+            ..Default::default()
+        };
+        let mut sums = PixelSums::default();
+        sums.add(&s);
+        let (mut a, mut b) = ([0.0; CHANNELS.len()], [0.0; CHANNELS.len()]);
+        sums.write_scaled(1.0, &mut a);
+        PixelSums::from_quantities(&quantities(&s)).write_scaled(1.0, &mut b);
+        assert_eq!(a, b);
+        // Every value has a place of its own.
+        let mut sorted = quantities(&s).to_vec();
+        sorted.sort_by(f32::total_cmp);
+        sorted.dedup();
+        assert_eq!(sorted.len(), QUANTITIES);
     }
 
     #[test]

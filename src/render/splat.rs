@@ -353,17 +353,14 @@ pub(super) fn render_tile(
     let sx1 = (i64::from(tile.x1) + r).min(i64::from(size[0]));
     for qy in sy0..sy1 {
         for qx in sx0..sx1 {
-            let inside = (i64::from(region.x0)..i64::from(region.x1)).contains(&qx)
-                && (i64::from(region.y0)..i64::from(region.y1)).contains(&qy);
-            let is_tile = (i64::from(tile.x0)..i64::from(tile.x1)).contains(&qx)
-                && (i64::from(tile.y0)..i64::from(tile.y1)).contains(&qy);
-            if !(is_tile || (!inside && owns(qx, qy))) {
+            // A pixel of the region is its own home: the tile owns its own pixels and its margin.
+            if !owns(qx, qy) {
                 continue;
             }
             let (qx, qy) = (qx as u32, qy as u32);
             source.clear();
             let n = take(qx, qy, &mut source);
-            if is_tile {
+            if (tile.x0..tile.x1).contains(&qx) && (tile.y0..tile.y1).contains(&qy) {
                 taken[((qy - tile.y0) * (tile.x1 - tile.x0) + (qx - tile.x0)) as usize] = n;
             }
             grid.add(qx, qy, &source);
@@ -384,10 +381,10 @@ pub(super) fn render_tile(
     for y in grid.y0..grid.y1 {
         for x in grid.x0..grid.x1 {
             let cell = grid.cell(x, y);
-            let mine = (tx0..tx1).contains(&x) && (ty0..ty1).contains(&y);
-            if mine {
+            let done = finished(x, y);
+            if (tx0..tx1).contains(&x) && (ty0..ty1).contains(&y) {
                 let n = taken[((y - ty0) * (tx1 - tx0) + (x - tx0)) as usize];
-                let done = finished(x, y).then(|| finish(cell, summed));
+                let done = done.then(|| finish(cell, summed));
                 tile.set_pixel(x, y, |pixel| {
                     if let Some(done) = &done {
                         pixel.copy_from_slice(done);
@@ -395,7 +392,7 @@ pub(super) fn render_tile(
                     own(x, y, n, pixel);
                 });
             }
-            if !finished(x, y) && cell[width - 1] != 0 {
+            if !done && cell[width - 1] != 0 {
                 edges.push(Edge {
                     x,
                     y,
