@@ -256,8 +256,20 @@ impl Job {
         // loader's lock for the whole load (OpenImageIO pulls in some sixty libraries, ~0.1 s), and creating
         // threads needs that lock, so Embree's device and build (TBB starting its workers) would wait for it.
         image::preload();
-        let planned = quality
-            .map(|q| pool.install(|| quality::plan_frame(&frame, &frame.settings, q, fixed)));
+        // Splatting correlates neighbouring pixels' noise. OIDN cannot denoise that (its documentation: weighted
+        // pixel sampling "causes the denoising to fail"): a denoised frame renders with filter importance sampling,
+        // and auto plans for that film.
+        let film_settings = |settings: &RenderSettings| {
+            let mut settings = settings.clone();
+            if request.denoise.is_some() {
+                settings.film.reconstruction = Reconstruction::Importance;
+            }
+            settings
+        };
+        let planned = quality.map(|q| {
+            let settings = film_settings(&frame.settings);
+            pool.install(|| quality::plan_frame(&frame, &settings, q, fixed))
+        });
         let mut denoised = None;
         let (settings, planned_maps, auto) = match planned {
             Some(p) => {
@@ -307,13 +319,7 @@ impl Job {
             }
             None => (frame.settings.clone(), None, None),
         };
-        let mut settings = settings;
-        if request.denoise.is_some() || auto.is_some() {
-            // Splatting correlates neighbouring pixels' noise. OIDN cannot denoise that (its documentation: weighted
-            // pixel sampling "causes the denoising to fail"), and auto's pilots model each pixel's noise from its
-            // own samples. Both render with filter importance sampling.
-            settings.film.reconstruction = Reconstruction::Importance;
-        }
+        let settings = film_settings(&settings);
         let [width, height] = settings.film.resolution;
         settings
             .camera

@@ -155,18 +155,27 @@ fn auto_meets_its_target_and_a_tighter_target_takes_more_samples() {
             .push(p[n]);
         }
         let mean = |v: &[f32]| v.iter().sum::<f32>() / v.len().max(1) as f32;
-        // Background pixels next to the hair borrow their neighbours' variance (render::adaptive), the rest keep
-        // the minimum.
-        let at_min = background
+        // The splatted frame may meet the loose target at the schedule's minimum everywhere, with no round after
+        // the first: the samples' spread is checked where rounds ran, and the tight target must run them.
+        let rounds_ran = hair
             .iter()
-            .filter(|&&s| s == schedule.min as f32)
-            .count();
-        assert!(
-            at_min * 10 > background.len() * 9,
-            "{at_min} of {}",
-            background.len()
-        );
-        assert!(mean(&hair) > 1.5 * mean(&background));
+            .chain(&background)
+            .any(|&s| s > schedule.min as f32);
+        assert!(rounds_ran || target == LOOSE, "no rounds at {target}");
+        if rounds_ran {
+            // Background pixels next to the hair borrow their neighbours' variance (render::adaptive), the rest
+            // keep the minimum.
+            let at_min = background
+                .iter()
+                .filter(|&&s| s == schedule.min as f32)
+                .count();
+            assert!(
+                at_min * 10 > background.len() * 9,
+                "{at_min} of {}",
+                background.len()
+            );
+            assert!(mean(&hair) > 1.5 * mean(&background));
+        }
         // The prediction is a prediction: within a factor 2 of what was measured.
         let predicted = planned.pilot.predicted_noise;
         assert!(

@@ -417,6 +417,9 @@ pub fn plan(
     // noise budget is what the bias leaves of target²: T² − (bias left out)² − the approximations' bias², with half
     // the target set aside for the bounces when the path length was fixed. The spp is the mean frame's: adaptive sampling spends it where the noise is.
     let (mean, standard_error) = pair.rel_mse_with_error();
+    // The pilots measure each pixel's own noise (filter importance sampling); a splatting film puts a share of it
+    // into the image ([`RenderSettings::noise_share`]).
+    let share = settings.noise_share();
     let [a, b] = &pair.0;
     let bias = left.unwrap_or(0.5 * target).min(0.5 * target);
     let noise_budget = target * target - bias * bias - approximation_bias2;
@@ -424,7 +427,7 @@ pub fn plan(
         settings.film.spp
     } else {
         // Noise over the converged image's means, which the target is measured against ([`PilotPlan::darkening`]).
-        let wanted = (f64::from(PILOT_SPP) * mean * darkening / noise_budget).ceil();
+        let wanted = (f64::from(PILOT_SPP) * mean * darkening * share / noise_budget).ceil();
         let spp = (wanted as u32).clamp(quality.min_spp, quality.max_spp);
         let limit = if wanted as u32 > quality.max_spp {
             format!(" (capped by quality.max_spp = {})", quality.max_spp)
@@ -439,8 +442,13 @@ pub fn plan(
             reason: format!(
                 "the pilot's relative MSE at {PILOT_SPP} spp is {mean:.3e} ± {standard_error:.1e} (two independent \
                  estimates; × {darkening:.3} over the longest pilot path's means, as the target's converged image is \
-                 brighter by the bounces left out); noise within {:.4} (√(target² − bias²), target {}) needs \
+                 brighter by the bounces left out{}); noise within {:.4} (√(target² − bias²), target {}) needs \
                  {wanted} spp on average{limit}",
+                if share < 1.0 {
+                    format!("; × {share:.3}, the share of it the splatting film keeps")
+                } else {
+                    String::new()
+                },
                 noise_budget.sqrt(),
                 quality.target
             ),
@@ -473,7 +481,7 @@ pub fn plan(
         spp,
         decisions,
         predicted_seconds,
-        predicted_noise: (mean * darkening * f64::from(PILOT_SPP) / f64::from(spp)).sqrt(),
+        predicted_noise: (mean * darkening * share * f64::from(PILOT_SPP) / f64::from(spp)).sqrt(),
         noise_budget: noise_budget.sqrt(),
         bias_left: left,
         approximations,

@@ -38,6 +38,13 @@ pub const ACCEL_BYTES_PER_SEGMENT: [(Backend, CurveKind, u64); 4] = [
 /// against a fixed-spp render of the same film, 168 B per pixel at 1024² and 175 at 2048²; rounded up.
 pub const ADAPTIVE_BYTES_PER_PIXEL: u64 = 192;
 
+/// Peak bytes per pixel a splatting film adds to adaptive sampling's state, fixed and per value summed per target
+/// ([`super::splat::Summed`]) and target reached ((2 · reach + 1)²): each source pixel's splats, f32, its count and
+/// coordinates, kept between rounds ([`super::adaptive`]). Measured: see `docs/design/decisions.md`.
+pub const ADAPTIVE_SPLAT_BYTES_PER_PIXEL: u64 = 16;
+/// See [`ADAPTIVE_SPLAT_BYTES_PER_PIXEL`].
+pub const ADAPTIVE_SPLAT_BYTES_PER_PIXEL_PER_VALUE: u64 = 4;
+
 /// Bytes per point of the model as read ([`crate::hair::HairModel`]: position 12, radius 4, transparency 4,
 /// colour 12) plus the B-spline strands made from it (control point 16, segment tables 8): both are alive while
 /// the strands are converted.
@@ -221,11 +228,22 @@ pub fn estimate(
     // The tiles and the image hold the channels the film keeps ([`super::film::Layout`]), not all of CHANNELS.
     let channels = super::film::Layout::new(&settings.film).len() as u64;
     let layout = super::film::Layout::new(&settings.film);
-    let splat = if settings.splats() && !adaptive {
-        let values = super::splat::Summed::new(&layout).width() as u64;
-        let reach = u64::from(super::splat::SplatFilter::new(settings.film.filter_width).reach());
+    let values = super::splat::Summed::new(&layout).width() as u64;
+    let reach = u64::from(super::splat::SplatFilter::new(settings.film.filter_width).reach());
+    let splat = if settings.splats() {
         pixels.saturating_mul(
             (SPLAT_BYTES_PER_PIXEL + SPLAT_BYTES_PER_PIXEL_PER_VALUE * values) * reach,
+        )
+    } else {
+        0
+    };
+    let adaptive = adaptive || settings.adaptive.is_some();
+    // Under adaptive sampling a splatting film keeps every source pixel's splats between rounds.
+    let adaptive_splat = if adaptive && settings.splats() {
+        let side = 2 * reach + 1;
+        pixels.saturating_mul(
+            ADAPTIVE_SPLAT_BYTES_PER_PIXEL
+                + ADAPTIVE_SPLAT_BYTES_PER_PIXEL_PER_VALUE * values * side * side,
         )
     } else {
         0
@@ -247,8 +265,10 @@ pub fn estimate(
         meshes: 0,
         film,
         shadow_maps,
-        adaptive: if adaptive || settings.adaptive.is_some() {
-            pixels.saturating_mul(ADAPTIVE_BYTES_PER_PIXEL)
+        adaptive: if adaptive {
+            pixels
+                .saturating_mul(ADAPTIVE_BYTES_PER_PIXEL)
+                .saturating_add(adaptive_splat)
         } else {
             0
         },
@@ -545,8 +565,8 @@ mod tests {
         assert_eq!(e.shadow_maps, 8192 * 8192 * 258 * 4);
     }
 
-    /// A splatting film counts its edge sums, by the values its channels need; filter importance sampling and an
-    /// adaptive frame (which does not splat) do not.
+    /// A splatting film counts its edge sums, by the values its channels need, adaptive or not; filter importance
+    /// sampling does not. Under adaptive sampling each source pixel's splats kept between rounds count too.
     #[test]
     fn a_splatting_film_counts_its_sums() {
         let bytes = |reconstruction, aovs: &[&str], adaptive| {
@@ -562,7 +582,6 @@ mod tests {
                 2,
                 adaptive,
             )
-            .film
         };
         use crate::render::Reconstruction::{Importance, Splat};
         let pixels = 1_000_000;
@@ -580,18 +599,29 @@ mod tests {
         );
         for (aovs, values, channels) in [(&[][..], 5, 4), (&["all"][..], 31, 38)] {
             let plain = pixels * channels * 4 * FILM_COPIES;
-            assert_eq!(bytes(Importance, aovs, false), plain);
-            assert_eq!(bytes(Splat, aovs, true), plain);
+            assert_eq!(bytes(Importance, aovs, false).film, plain);
+            let splat =
+                plain + pixels * (SPLAT_BYTES_PER_PIXEL + SPLAT_BYTES_PER_PIXEL_PER_VALUE * values);
+            assert_eq!(bytes(Splat, aovs, false).film, splat);
+            let adaptive = bytes(Splat, aovs, true);
+            assert_eq!(adaptive.film, splat);
             assert_eq!(
-                bytes(Splat, aovs, false),
-                plain + pixels * (SPLAT_BYTES_PER_PIXEL + SPLAT_BYTES_PER_PIXEL_PER_VALUE * values)
+                adaptive.adaptive,
+                pixels
+                    * (ADAPTIVE_BYTES_PER_PIXEL
+                        + ADAPTIVE_SPLAT_BYTES_PER_PIXEL
+                        + ADAPTIVE_SPLAT_BYTES_PER_PIXEL_PER_VALUE * values * 9)
+            );
+            assert_eq!(
+                bytes(Importance, aovs, true).adaptive,
+                pixels * ADAPTIVE_BYTES_PER_PIXEL
             );
         }
     }
 
     /// An adaptive frame (or one `--quality auto` will make adaptive) counts its per-pixel state: a 6144² film
-    /// that fits a limit at a fixed spp is refused adaptive once the rounds' 6.8 GiB are added, and the refusal
-    /// names them.
+    /// that fits a limit at a fixed spp is refused adaptive once the rounds' 46.5 GiB (6.8 of statistics, the rest
+    /// every AOV's splats) are added, and the refusal names them.
     #[test]
     fn adaptive_sampling_state_is_counted() {
         let film = settings(6144, 6144);
@@ -608,9 +638,15 @@ mod tests {
         let limit = fixed.total() + (1 << 30);
         assert!(fixed.check(limit, "test").is_ok(), "{fixed:?}");
         let auto = estimate((1, 16), Backend::Embree, CurveKind::Flat, &film, 1, 2, true);
-        assert_eq!(auto.adaptive, 6144 * 6144 * ADAPTIVE_BYTES_PER_PIXEL);
+        // Every AOV's 30 quantities and the weight, towards 3 × 3 targets.
+        let splat =
+            ADAPTIVE_SPLAT_BYTES_PER_PIXEL + ADAPTIVE_SPLAT_BYTES_PER_PIXEL_PER_VALUE * 31 * 9;
+        assert_eq!(
+            auto.adaptive,
+            6144 * 6144 * (ADAPTIVE_BYTES_PER_PIXEL + splat)
+        );
         let e = auto.check(limit, "test").unwrap_err().to_string();
-        assert!(e.contains("adaptive sampling 6.8 GiB"), "{e}");
+        assert!(e.contains("adaptive sampling 46.5 GiB"), "{e}");
         let mut scheduled = film.clone();
         scheduled.adaptive = Some(crate::quality::adaptive_schedule(
             16,

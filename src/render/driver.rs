@@ -134,22 +134,29 @@ pub(super) fn render_tiles(
             .flatten()
             .collect()
     };
-    let no_edges = |tiles: Vec<(Tile, RayCounts)>| {
-        tiles
-            .into_iter()
-            .map(|(t, c)| (t, c, Vec::new()))
-            .collect::<Vec<_>>()
-    };
     let rendered = match (sampling, settings.adaptive) {
         (Some(strategy), _) => (pixel_by_pixel(strategy), None),
         (None, Some(schedule)) => {
             let sample = |x: u32, y: u32, samples, counts: &mut RayCounts, sink: adaptive::Sink| {
                 PixelSource::new(x, y, &context, counts).take(samples, sink)
             };
-            let (tiles, noise) = adaptive::render_rounds(
-                &tiles, region, schedule, &bar, &new_tile, &sample, &centre, &cancelled,
-            );
-            (no_edges(tiles), noise)
+            let splatting = splat.map(|filter| adaptive::Splatting {
+                filter,
+                summed: &summed,
+                shares: filter.noise_shares([width, height]),
+                size: [width, height],
+            });
+            adaptive::render_rounds(
+                &tiles,
+                region,
+                schedule,
+                splatting.as_ref(),
+                &bar,
+                &new_tile,
+                &sample,
+                &centre,
+                &cancelled,
+            )
         }
         (None, None) => (
             pixel_by_pixel(&Fixed {
@@ -220,7 +227,7 @@ fn write_centre(
 }
 
 /// A rendered work tile: its pixels, its rays, and the splats it gave pixels it could not finish.
-type Rendered = (Tile, RayCounts, Vec<Edge>);
+pub(super) type Rendered = (Tile, RayCounts, Vec<Edge>);
 
 /// The rendered tiles as the region's image (splatted pixels across tiles finished), with the render's counters.
 fn assemble(

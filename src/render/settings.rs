@@ -57,10 +57,10 @@ impl Default for FilmConfig {
 pub enum Reconstruction {
     /// Each sample lands uniformly in its pixel and is splatted onto every pixel whose filter reaches it, with the
     /// filter's weight; a pixel is the weighted mean of the samples that reach it (Mitsuba 3's film, RenderMan's).
-    /// A sample counts in up to (2⌈r − ½⌉ + 1)² pixels, so the noise is lower at the same spp. Frames with
-    /// adaptive sampling use [`Reconstruction::Importance`]: their stop reads each pixel's noise from its own
-    /// samples ([`crate::render::adaptive`]), and so do `--quality auto` (its pilots model each pixel's noise from
-    /// its own samples) and `--denoise` (Open Image Denoise cannot remove noise shared by neighbouring pixels).
+    /// A sample counts in up to (2⌈r − ½⌉ + 1)² pixels, so the noise is lower at the same spp. Adaptive sampling
+    /// (`--quality auto`) splats too: its stop reads each pixel's own samples and scales them by the pixel's share
+    /// of the splatted image's noise ([`crate::render::splat::SplatFilter::noise_shares`]). `--denoise` uses
+    /// [`Reconstruction::Importance`]: Open Image Denoise cannot remove noise shared by neighbouring pixels.
     #[default]
     Splat,
     /// Filter importance sampling: each sample's offset is drawn from the filter and counts in its own pixel alone
@@ -387,12 +387,26 @@ pub struct RenderSettings {
 
 impl RenderSettings {
     /// Whether the frame splats its samples ([`Reconstruction::Splat`]): asked for, with a filter wider than a
-    /// pixel (narrower, a sample would count in its own pixel alone, with weight 0 wherever the filter misses it),
-    /// and no adaptive sampling (its stop reads each pixel's noise from the pixel's own samples).
+    /// pixel (narrower, a sample would count in its own pixel alone, with weight 0 wherever the filter misses it).
     pub fn splats(&self) -> bool {
         self.film.reconstruction == Reconstruction::Splat
             && super::splat::SplatFilter::new(self.film.filter_width).reach() > 0
-            && self.adaptive.is_none()
+    }
+
+    /// The share of a pixel's variance of the mean that reaches the image inside the frame: the splatting film's
+    /// ([`super::splat::SplatFilter::noise_shares`], 0.32 for the 3-pixel Gaussian) or 1 when each pixel is the
+    /// mean of its own samples. What auto's pilots, which measure each pixel's own noise, scale their prediction
+    /// of the frame's noise by.
+    pub fn noise_share(&self) -> f64 {
+        if !self.splats() {
+            return 1.0;
+        }
+        let filter = super::splat::SplatFilter::new(self.film.filter_width);
+        // Far enough from the frame's edges in both axes to read the inside's share.
+        let side = 4 * filter.reach() + 1;
+        filter
+            .noise_shares([side, side])
+            .at(2 * filter.reach(), 2 * filter.reach())
     }
 
     /// The light-transport settings of the integrator.

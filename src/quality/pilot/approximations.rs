@@ -71,6 +71,8 @@ pub(super) struct Pilots {
     pub(super) predicted: f64,
     /// [`ROUND_CURVE_COST`] for round tubes, 1 for ribbons: the cost model counts rays alike on both.
     curve_cost: f64,
+    /// The share of the pilots' per-pixel noise the frame's film keeps ([`RenderSettings::noise_share`]).
+    share: f64,
 }
 
 impl Pilots {
@@ -89,6 +91,7 @@ impl Pilots {
             pairs,
             predicted,
             curve_cost,
+            share: settings.noise_share(),
         }
     }
 
@@ -97,15 +100,16 @@ impl Pilots {
     }
 
     /// The predicted CPU seconds of a `film_pixels` frame at the noise budget `noise2` (relMSE): the pilots' CPU s
-    /// per estimate, scaled from their pixels to the film's and by the samples the budget needs, relMSE / budget
-    /// times theirs.
+    /// per estimate, scaled from their pixels to the film's and by the samples the budget needs, the frame's
+    /// relMSE (the pilots' times the film's share) / budget times theirs.
     fn frame_seconds(&self, film_pixels: f64, noise2: f64) -> f64 {
         let p = self.longest();
         if noise2 <= 0.0 {
             return f64::INFINITY;
         }
         let pixels = p.0[0].rgb.len().max(1) as f64;
-        self.curve_cost * p.predicted_seconds() * film_pixels / pixels * p.rel_mse() / noise2
+        self.curve_cost * p.predicted_seconds() * film_pixels / pixels * p.rel_mse() * self.share
+            / noise2
     }
 }
 

@@ -27,6 +27,9 @@ pub struct Convergence {
     at_three: [f32; 3],
     /// Samples added whose camera ray hit nothing (alpha 0; [`Convergence::add_uncovered`]).
     uncovered: u32,
+    /// The share of the variance of the pixel's mean that reaches the image, when its samples are splatted over
+    /// its neighbours ([`Convergence::splatted`]); `None`: the pixel is the mean of its own samples alone (share 1).
+    share: Option<f32>,
 }
 
 impl Convergence {
@@ -115,6 +118,18 @@ impl Convergence {
     /// see hair ([`Schedule::split_per_pixel`](super::Schedule::split_per_pixel)).
     pub fn background(&self) -> bool {
         self.n > 0 && self.uncovered == self.n
+    }
+
+    /// The pixel's samples are splatted and `share` of the variance of their mean reaches the image
+    /// ([`SplatFilter::noise_shares`](crate::render::splat::SplatFilter::noise_shares)): what the stop reads of the
+    /// pixel's own samples is scaled by it.
+    pub fn splatted(&mut self, share: f32) {
+        self.share = Some(share);
+    }
+
+    /// The share of the variance of the pixel's mean that reaches the image: 1 unless [`Convergence::splatted`].
+    pub fn share(&self) -> f64 {
+        self.share.map_or(1.0, f64::from)
     }
 
     /// Samples added.

@@ -276,6 +276,15 @@ impl Schedule {
                 *o = t * f64::from(n.max(1));
             }
         }
+        // A splatted pixel's noise reaches the image as a share of its own ([`Convergence::share`]).
+        let mut split = split;
+        for ((o, s), p) in own.iter_mut().zip(split.iter_mut()).zip(pixels) {
+            let share = p.share();
+            *o *= share;
+            if let Some(s) = s {
+                *s *= share;
+            }
+        }
         let model = Self::mean_over_counts(&own, taken);
         let count = pixels.len().max(1) as f64;
         (own, model, split.iter().flatten().sum::<f64>() / count)
