@@ -74,8 +74,9 @@
 //! pixel's count.
 //!
 //! Measured on the default scene at 256×192 (`--quality auto`, seeds 1 and 2, against a 1024-spp path-12
-//! reference): at target 0.05 the splatted frame took a mean 7.3 spp and 1.5 s, delivering 0.041, where filter
-//! importance sampling took 21.2 spp and 3.9 s for 0.040; the stop read 0.049 for both.
+//! reference, `docs/measured/auto.md`): at target 0.05 the splatted frame took a mean 7.3 spp and 1.4 s,
+//! delivering 0.041, where filter importance sampling took 21.2 spp and 4.0 s for 0.040; the stop read 0.049 for
+//! both.
 //!
 //! # Determinism, threads and bands
 //!
