@@ -726,14 +726,9 @@ mod tests {
         }
     }
 
-    /// The noise model adaptive sampling's stop reads ([`SplatFilter::noise_shares`]) against splatted noise: i.i.d.
-    /// samples (uniform on [0, 3), variance ¾) at 8 or 32 per pixel in 4 × 4 blocks, each source summed as the mean
-    /// of its own samples (scale 1/n, as adaptive sampling does). The image's mean squared error is the mean over
-    /// pixels of share · σ² / n within 10 % (its own noise here is ~4 %); with the share left out (1) it would be
-    /// 3× off.
-    #[test]
-    fn the_noise_share_predicts_the_splatted_images_noise() {
-        let (w, h) = (64u32, 64u32);
+    /// A `w` × `h` frame splatted as one work tile with the 3-pixel filter, the beauty alone: each source pixel's
+    /// samples from `samples`, which returns the scale its sums are added with ([`TileSplats::add`]).
+    fn one_tile(w: u32, h: u32, samples: impl Fn(u32, u32, &mut SourceSums) -> f32) -> Image {
         let region = Region::full(w, h);
         let filter = SplatFilter::new(3.0);
         let film = FilmConfig {
@@ -742,6 +737,30 @@ mod tests {
         };
         let layout = Layout::new(&film);
         let summed = Summed::new(&layout);
+        let mut tile = Tile::new(0, 0, w, h, &layout);
+        let mut scratch = Scratch::default();
+        let mut splats = TileSplats::new(&mut scratch, &tile, region, [w, h], filter, &summed);
+        let mut source = SourceSums::new(filter, summed.clone());
+        for (x, y) in sources(&tile, region, [w, h], filter.reach()) {
+            source.clear();
+            let scale = samples(x, y, &mut source);
+            splats.add(x, y, &source, scale);
+        }
+        let taken = vec![0; (w * h) as usize];
+        assert!(splats
+            .finish(&mut tile, &summed, &taken, |_, _, _, _| {})
+            .is_empty());
+        film::assemble(w, h, &[tile], &layout)
+    }
+
+    /// The noise model adaptive sampling's stop reads ([`SplatFilter::noise_shares`]) against splatted noise: i.i.d.
+    /// samples (uniform on [0, 3), variance ¾) at 8 or 32 per pixel in 4 × 4 blocks, each source summed as the mean
+    /// of its own samples (scale 1/n, as adaptive sampling does). The image's mean squared error is the mean over
+    /// pixels of share · σ² / n within 10 % (measured 1.002; its own noise here is ~4 %); with the share left out
+    /// (1) it would be 3× off.
+    #[test]
+    fn the_noise_share_predicts_the_splatted_images_noise() {
+        let (w, h) = (64u32, 64u32);
         let count = |x: u32, y: u32| {
             if (x / 4 + y / 4).is_multiple_of(2) {
                 8
@@ -749,26 +768,15 @@ mod tests {
                 32
             }
         };
-        let mut tile = Tile::new(0, 0, w, h, &layout);
-        let mut scratch = Scratch::default();
-        let mut splats = TileSplats::new(&mut scratch, &tile, region, [w, h], filter, &summed);
-        let mut source = SourceSums::new(filter, summed.clone());
-        for (x, y) in sources(&tile, region, [w, h], filter.reach()) {
-            source.clear();
+        let image = one_tile(w, h, |x, y, source| {
             let n = count(x, y);
             for i in 0..n {
                 source.add(&synthetic(x, y, i));
             }
-            splats.add(x, y, &source, 1.0 / n as f32);
-        }
-        let taken = vec![0; (w * h) as usize];
-        assert!(splats
-            .finish(&mut tile, &summed, &taken, |_, _, _, _| {})
-            .is_empty());
-        tile.x1 -= tile.x0;
-        let image = film::assemble(w, h, &[tile], &layout);
+            1.0 / n as f32
+        });
         let (mean, variance) = (1.5 * 9_999.0 / 10_000.0, 0.75);
-        let shares = filter.noise_shares([w, h]);
+        let shares = SplatFilter::new(3.0).noise_shares([w, h]);
         let (mut measured, mut predicted) = (0.0f64, 0.0f64);
         for y in 0..h {
             for x in 0..w {
@@ -799,21 +807,8 @@ mod tests {
     #[test]
     fn a_source_counts_as_its_own_mean_whatever_its_count() {
         let (w, h) = (12u32, 12u32);
-        let region = Region::full(w, h);
-        let filter = SplatFilter::new(3.0);
-        let film = FilmConfig {
-            aovs: vec![],
-            ..FilmConfig::default()
-        };
-        let layout = Layout::new(&film);
-        let summed = Summed::new(&layout);
         let render = |mixed: bool, scaled: bool| {
-            let mut tile = Tile::new(0, 0, w, h, &layout);
-            let mut scratch = Scratch::default();
-            let mut splats = TileSplats::new(&mut scratch, &tile, region, [w, h], filter, &summed);
-            let mut source = SourceSums::new(filter, summed.clone());
-            for (x, y) in sources(&tile, region, [w, h], filter.reach()) {
-                source.clear();
+            one_tile(w, h, |x, y, source| {
                 let even = (x + y) % 2 == 0;
                 let side = if even || !mixed { 8u32 } else { 2 };
                 for i in 0..side * side {
@@ -827,16 +822,12 @@ mod tests {
                         ..Default::default()
                     });
                 }
-                let scale = if scaled {
+                if scaled {
                     1.0 / (side * side) as f32
                 } else {
                     1.0
-                };
-                splats.add(x, y, &source, scale);
-            }
-            let taken = vec![0; (w * h) as usize];
-            splats.finish(&mut tile, &summed, &taken, |_, _, _, _| {});
-            film::assemble(w, h, &[tile], &layout)
+                }
+            })
         };
         let reference = render(false, false);
         let (scaled, alike) = (render(true, true), render(true, false));
