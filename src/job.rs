@@ -504,15 +504,21 @@ impl Job {
             (None, None) => format!("{} spp", s.film.spp),
         };
         // Dual scattering's strand counts (ray traced; the maps' lookups are on the maps' line) and tables.
-        let counted = match (s.integrator.dual(), self.frame.material.dual()) {
-            (true, Some(d)) if stats.rays.counted > 0 => format!(
+        // The tables are asked for only under dual scattering: asking builds them (~50 ms).
+        let dual = s
+            .integrator
+            .dual()
+            .then(|| self.frame.material.dual())
+            .flatten();
+        let counted = match dual {
+            Some(d) if stats.rays.counted > 0 => format!(
                 ", {} strand counts over {} strands; dual-scattering tables {:.3} s",
                 stats.rays.counted,
                 stats.rays.crossed,
                 d.build_seconds()
             ),
-            (true, Some(d)) => format!("; dual-scattering tables {:.3} s", d.build_seconds()),
-            _ => String::new(),
+            Some(d) => format!("; dual-scattering tables {:.3} s", d.build_seconds()),
+            None => String::new(),
         };
         format!(
             "{} strands ({} curves, {} backend), {width}x{height}, {samples}, {} threads: load {:.2} s, build {:.2} \
