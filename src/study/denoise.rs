@@ -3,8 +3,10 @@
 //!
 //! Per scene: the frame is set up once; the reference is rendered at the study's reference spp as two halves with
 //! seeds no sweep point uses (cached as `cache/denoise-<scene>-<hash>-{0,1}.exr`, the hash covering the scene text,
-//! the film and the reference spp), their mean the reference. Then per spp, one render (its seconds) and one denoise of it (its seconds), and for both the
-//! noisy beauty and the beauty denoised with each guide ([`denoise::Guide`]):
+//! the film and the reference spp), their mean the reference. Then per spp, one render by filter importance sampling
+//! (its seconds; as `render --denoise` renders) and one denoise of it (its seconds), and one render splatted without
+//! the denoiser (method [`NOISY_SPLAT`]: the frame a user gets without `--denoise`), and for both noisy beauties
+//! and the beauty denoised with each guide ([`denoise::Guide`]):
 //!
 //! - **RMSE** of R, G, B against the reference, and **relative RMSE** (√ of the mean of (x − r)² / (r² + 0.01));
 //! - **SSIM** ([`crate::measure::pixels::ssim`]);
@@ -16,7 +18,8 @@
 //! denoised with the colour guide, one exposure for all), `denoise.csv` (one row per scene, spp and method) and
 //! `denoise.md` (the table, and per scene and guide
 //! the read-out: the fewest spp at which the denoised frame reaches both the SSIM and the detail error of the noisy
-//! frame at the largest spp, in what fraction of its time, and how much detail it keeps there).
+//! frame at the largest spp, importance-sampled and splatted, in what fraction of its time, and how much detail it
+//! keeps there).
 
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -28,6 +31,10 @@ use super::{cached_reference, create_dir, SceneFile, StudyError};
 use crate::image::{denoise, Image};
 use crate::measure::{metrics::REL_EPSILON, pixels};
 use crate::render::{Frame, Request};
+
+/// The method of the rows of frames rendered without the denoiser by the splatting film (the default without
+/// `--denoise`); "noisy" rows are the filter-importance-sampled frames the denoiser takes.
+pub const NOISY_SPLAT: &str = "noisy splat";
 
 /// Side of the window centred on the hair over which detail is measured, pixels.
 pub const DETAIL_WINDOW: usize = 64;
@@ -286,6 +293,23 @@ pub fn run(config: &DenoiseStudyConfig) -> Result<DenoiseReport, StudyError> {
                     window,
                 )?);
             }
+            // The frame a user gets without the denoiser: splatted (the film's default), at the same spp.
+            let mut s = s.clone();
+            s.film.reconstruction = crate::render::Reconstruction::Splat;
+            let start = Instant::now();
+            let image = pool.install(|| frame.render(Request::new(&s)).image);
+            let render_seconds = start.elapsed().as_secs_f64();
+            rows.push(measured(
+                file,
+                spp,
+                NOISY_SPLAT,
+                render_seconds,
+                0.0,
+                &rgb_of(&image, ["R", "G", "B"])?,
+                &truth,
+                &halves,
+                window,
+            )?);
             progress.inc(1);
         }
         let crops = figures::mosaic(
@@ -386,40 +410,42 @@ fn markdown(rows: &[Row], config: &DenoiseStudyConfig) -> String {
                 .filter(|r| r.scene == scene && r.method == m)
                 .collect()
         };
-        let noisy = of("noisy");
-        let Some(best) = noisy.iter().max_by_key(|r| r.spp) else {
-            continue;
-        };
-        for guide in denoise::Guide::ALL {
-            let name = guide.name();
-            // The target's form: the fewest spp whose denoised frame is at least as good as the noisy frame at the
-            // most spp in SSIM and in the detail band's error.
-            let reached = of(name)
-                .into_iter()
-                .find(|r| r.ssim >= best.ssim && r.detail_error <= best.detail_error);
-            match reached {
-                Some(d) => {
-                    let _ = writeln!(
-                        md,
-                        "- {scene}, {name}: at {} spp reaches the noisy frame's SSIM ({:.4}) and detail error ({:.3}) \
-                         at {} spp in 1/{:.1} of its time ({:.2} s against {:.2} s); detail kept {:.2}.",
-                        d.spp,
-                        best.ssim,
-                        best.detail_error,
-                        best.spp,
-                        best.seconds() / d.seconds().max(1e-9),
-                        d.seconds(),
-                        best.seconds(),
-                        d.detail
-                    );
-                }
-                None => {
-                    let _ = writeln!(
-                        md,
-                        "- {scene}, {name}: does not reach the noisy frame's SSIM ({:.4}) and detail error ({:.3}) at \
-                         {} spp in the spp swept.",
-                        best.ssim, best.detail_error, best.spp
-                    );
+        for baseline in ["noisy", NOISY_SPLAT] {
+            let noisy = of(baseline);
+            let Some(best) = noisy.iter().max_by_key(|r| r.spp) else {
+                continue;
+            };
+            for guide in denoise::Guide::ALL {
+                let name = guide.name();
+                // The target's form: the fewest spp whose denoised frame is at least as good as the noisy frame at
+                // the most spp in SSIM and in the detail band's error.
+                let reached = of(name)
+                    .into_iter()
+                    .find(|r| r.ssim >= best.ssim && r.detail_error <= best.detail_error);
+                match reached {
+                    Some(d) => {
+                        let _ = writeln!(
+                            md,
+                            "- {scene}, {name}: at {} spp reaches the {baseline} frame's SSIM ({:.4}) and detail error \
+                             ({:.3}) at {} spp in 1/{:.1} of its time ({:.2} s against {:.2} s); detail kept {:.2}.",
+                            d.spp,
+                            best.ssim,
+                            best.detail_error,
+                            best.spp,
+                            best.seconds() / d.seconds().max(1e-9),
+                            d.seconds(),
+                            best.seconds(),
+                            d.detail
+                        );
+                    }
+                    None => {
+                        let _ = writeln!(
+                            md,
+                            "- {scene}, {name}: does not reach the {baseline} frame's SSIM ({:.4}) and detail error \
+                             ({:.3}) at {} spp in the spp swept.",
+                            best.ssim, best.detail_error, best.spp
+                        );
+                    }
                 }
             }
         }
