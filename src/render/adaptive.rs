@@ -324,7 +324,7 @@ pub(super) fn render_rounds(
             let sources = splatting.map(|sp| {
                 let at: Vec<(u32, u32)> =
                     splat::sources(&tile, region, sp.size, sp.filter.reach()).collect();
-                let block = SourceSums::new(sp.filter, sp.summed.clone()).sums().len();
+                let block = SourceSums::len(sp.filter, sp.summed);
                 Sources {
                     sums: vec![0.0; at.len() * block],
                     taken: vec![0; at.len()],

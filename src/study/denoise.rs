@@ -190,6 +190,12 @@ pub fn run(config: &DenoiseStudyConfig) -> Result<DenoiseReport, StudyError> {
         progress.set_message(file.name());
         let scene = file.scene(Some(config.resolution))?;
         let frame = pool.install(|| Frame::load(scene.resolve()?).map_err(StudyError::from))?;
+        // A frame of `settings` and the wall time of its render.
+        let render = |settings: &crate::render::RenderSettings| {
+            let start = Instant::now();
+            let image = pool.install(|| frame.render(Request::new(settings)).image);
+            (image, start.elapsed().as_secs_f64())
+        };
         let mut settings = scene.render_settings();
         // The guide must be in the film.
         settings.film.aovs = vec![crate::render::settings::ALL_AOVS.to_owned()];
@@ -216,9 +222,7 @@ pub fn run(config: &DenoiseStudyConfig) -> Result<DenoiseReport, StudyError> {
                 s.film.spp = config.reference_spp.div_ceil(2);
                 s.film.seed = s.film.seed.wrapping_add(REFERENCE_SEED_OFFSET + half);
                 s.adaptive = None;
-                let start = Instant::now();
-                let image = pool.install(|| frame.render(Request::new(&s)).image);
-                (image, start.elapsed().as_secs_f64())
+                render(&s)
             })?;
             progress.inc(1);
             if half == 0 {
@@ -247,9 +251,7 @@ pub fn run(config: &DenoiseStudyConfig) -> Result<DenoiseReport, StudyError> {
             let mut s = settings.clone();
             s.film.spp = spp;
             s.adaptive = None;
-            let start = Instant::now();
-            let mut image = pool.install(|| frame.render(Request::new(&s)).image);
-            let render_seconds = start.elapsed().as_secs_f64();
+            let (mut image, render_seconds) = render(&s);
             let x = rgb_of(&image, ["R", "G", "B"])?;
             rows.push(measured(
                 file,
@@ -296,9 +298,7 @@ pub fn run(config: &DenoiseStudyConfig) -> Result<DenoiseReport, StudyError> {
             // The frame a user gets without the denoiser: splatted (the film's default), at the same spp.
             let mut s = s.clone();
             s.film.reconstruction = crate::render::Reconstruction::Splat;
-            let start = Instant::now();
-            let image = pool.install(|| frame.render(Request::new(&s)).image);
-            let render_seconds = start.elapsed().as_secs_f64();
+            let (image, render_seconds) = render(&s);
             rows.push(measured(
                 file,
                 spp,

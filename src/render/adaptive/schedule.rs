@@ -268,7 +268,7 @@ impl Schedule {
     ) -> (Vec<f64>, f64, f64) {
         let means = Self::robust_means(width, pixels);
         let mut own = self.gained_variances(&means, taken, pixels);
-        let split = Self::split_per_pixel(&means, pixels);
+        let mut split = Self::split_per_pixel(&means, pixels);
         // A background pixel's s² / (n g(n)) reads the hair's gain, far below its own (module docs): the model
         // takes its corrected halves instead, as a per-sample v for the round's budget.
         for ((o, (t, p)), &n) in own.iter_mut().zip(split.iter().zip(pixels)).zip(taken) {
@@ -277,7 +277,6 @@ impl Schedule {
             }
         }
         // A splatted pixel's noise reaches the image as a share of its own ([`Convergence::share`]).
-        let mut split = split;
         for ((o, s), p) in own.iter_mut().zip(split.iter_mut()).zip(pixels) {
             let share = p.share();
             *o *= share;
