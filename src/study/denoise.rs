@@ -5,8 +5,9 @@
 //! seeds no sweep point uses (cached as `cache/denoise-<scene>-<hash>-{0,1}.exr`, the hash covering the scene text,
 //! the film and the reference spp), their mean the reference. Then per spp, one render by filter importance sampling
 //! (its seconds; as `render --denoise` renders) and one denoise of it (its seconds), and one render splatted without
-//! the denoiser (method [`NOISY_SPLAT`]: the frame a user gets without `--denoise`), and for both noisy beauties
-//! and the beauty denoised with each guide ([`denoise::Guide`]):
+//! the denoiser (method [`NOISY_SPLAT`]: the frame a user gets without `--denoise`) and that frame denoised with the
+//! colour guide ([`DENOISED_SPLAT`]: it shows why `--denoise` does not splat), and for both noisy beauties, the
+//! denoised splat and the beauty denoised with each guide ([`denoise::Guide`]):
 //!
 //! - **RMSE** of R, G, B against the reference, and **relative RMSE** (√ of the mean of (x − r)² / (r² + 0.01));
 //! - **SSIM** ([`crate::measure::pixels::ssim`]);
@@ -35,6 +36,8 @@ use crate::render::{Frame, Request};
 /// The method of the rows of frames rendered without the denoiser by the splatting film (the default without
 /// `--denoise`); "noisy" rows are the filter-importance-sampled frames the denoiser takes.
 pub const NOISY_SPLAT: &str = "noisy splat";
+/// The method of the rows of the splatted frames denoised (colour guide).
+pub const DENOISED_SPLAT: &str = "denoised splat";
 
 /// Side of the window centred on the hair over which detail is measured, pixels.
 pub const DETAIL_WINDOW: usize = 64;
@@ -298,7 +301,7 @@ pub fn run(config: &DenoiseStudyConfig) -> Result<DenoiseReport, StudyError> {
             // The frame a user gets without the denoiser: splatted (the film's default), at the same spp.
             let mut s = s.clone();
             s.film.reconstruction = crate::render::Reconstruction::Splat;
-            let (image, render_seconds) = render(&s);
+            let (mut image, render_seconds) = render(&s);
             rows.push(measured(
                 file,
                 spp,
@@ -306,6 +309,20 @@ pub fn run(config: &DenoiseStudyConfig) -> Result<DenoiseReport, StudyError> {
                 render_seconds,
                 0.0,
                 &rgb_of(&image, ["R", "G", "B"])?,
+                &truth,
+                &halves,
+                window,
+            )?);
+            let start = Instant::now();
+            denoise::add_denoised(&mut image, denoise::Guide::Color, config.threads)
+                .map_err(|e| StudyError::Config(format!("study denoise: {e}")))?;
+            rows.push(measured(
+                file,
+                spp,
+                DENOISED_SPLAT,
+                render_seconds,
+                start.elapsed().as_secs_f64(),
+                &rgb_of(&image, denoise::CHANNELS)?,
                 &truth,
                 &halves,
                 window,
