@@ -312,13 +312,16 @@ fn study_auto_writes_its_table_and_fits() {
     let (mut autos, mut points) = (0, 0);
     for line in csv.lines().skip(1) {
         let f: Vec<&str> = line.split(',').collect();
-        assert_eq!(f.len(), 9, "{line}");
+        assert_eq!(f.len(), 10, "{line}");
         let (target, rel, met): (f64, f64, bool) = (
             f[1].parse().unwrap(),
             f[6].parse().unwrap(),
             f[7].parse().unwrap(),
         );
         assert!(rel.is_finite() && rel >= 0.0, "{line}");
+        // Every method is charged its process's load and build, inside its CPU seconds.
+        let (cpu, setup): (f64, f64) = (f[8].parse().unwrap(), f[9].parse().unwrap());
+        assert!(setup > 0.0 && setup < cpu, "{line}");
         assert_eq!(met, rel <= target, "{line}");
         autos += usize::from(f[2] == "auto");
         points += usize::from(f[2] == "auto point estimates");

@@ -72,9 +72,13 @@ pub(super) struct Measured {
     pub(super) rel_rmse: f64,
     /// Auto only: the pilots' wall time, seconds (included in `seconds`).
     pub(super) pilot_seconds: f64,
-    /// The process's CPU time (user + system, all threads) over the same span, seconds: on a machine shared
-    /// with other work it measures the work done where wall time also measures the others'.
+    /// The process's CPU time (user + system, all threads) over the same span, seconds, plus [`Measured::setup`]:
+    /// on a machine shared with other work it measures the work done where wall time also measures the others'.
     pub(super) cpu_seconds: f64,
+    /// CPU seconds the render's process spends before the timed span, loading the hair and building the tracer
+    /// it starts from (measured once per geometry), included in `cpu_seconds`: what a user's `cuticle render`
+    /// pays too.
+    pub(super) setup: f64,
 }
 
 impl Measured {

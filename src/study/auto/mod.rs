@@ -36,6 +36,9 @@
 //! most T. Times are wall
 //! times on whatever machine runs the study, with the process's CPU time beside them (on a shared machine the
 //! wall time also counts the other work; the CPU time counts this study's): read the ratios, measured in one run.
+//! The CPU time is the render process's: every method is charged the hair's load and its tracer's build (measured
+//! once per geometry; auto is charged the rule's geometry, and its own comparison tracer is inside its timed
+//! span), as a user's `cuticle render` pays them; the CSV gives that share (`setup_cpu_seconds`).
 //! A render under [`REPEAT_BELOW_CPU_SECONDS`](measure::REPEAT_BELOW_CPU_SECONDS) (auto's, pilots included, or a fixed one) is timed
 //! [`TIMING_RUNS`](measure::TIMING_RUNS) times and its fastest wall and CPU times kept.
 
@@ -141,8 +144,9 @@ pub fn run(config: &AutoStudyConfig) -> Result<AutoReport, StudyError> {
         }
     };
     let pool = thread_pool(Some(config.threads))?;
-    let mut csv =
-        String::from("scene,target,method,settings,spp,seconds,rel_rmse,met,cpu_seconds\n");
+    let mut csv = String::from(
+        "scene,target,method,settings,spp,seconds,rel_rmse,met,cpu_seconds,setup_cpu_seconds\n",
+    );
     let mut md = String::from(
         "| scene | target | auto: met? | auto s (CPU s) | pilots s (share) | auto settings, mean spp | fastest fixed by the fits: measured | its s (CPU s) | auto ÷ it (CPU) | fastest fixed that measured meets it | its s (CPU s) | auto ÷ it (CPU) | fixed renders searched | shipped s (CPU s) | auto ÷ shipped (CPU) | point estimates: met?, s |\n\
          |---|---:|---|---:|---:|---|---|---:|---:|---|---:|---:|---:|---:|---:|---|\n",
@@ -179,14 +183,15 @@ pub fn run(config: &AutoStudyConfig) -> Result<AutoReport, StudyError> {
             {
                 let _ = writeln!(
                     csv,
-                    "{name},{target},{},{},{},{:.3},{:.5},{},{:.4}",
+                    "{name},{target},{},{},{},{:.3},{:.5},{},{:.4},{:.4}",
                     m.what,
                     m.settings,
                     m.spp,
                     m.seconds,
                     m.rel_rmse,
                     m.meets(f64::from(target)),
-                    m.cpu_seconds
+                    m.cpu_seconds,
+                    m.setup
                 );
             }
             let fmt_s = |m: &Option<Measured>| {
