@@ -848,3 +848,49 @@ fn plan_at(frame: &Frame, target: f32) -> (quality::Planned, Vec<String>) {
     let why = p.decisions.iter().map(ToString::to_string).collect();
     (p, why)
 }
+
+/// Where the pilots' 4-spp bound keeps ribbons out but a confirmation (4× the samples on a quarter of the windows)
+/// may show them harmless at less than it saves, auto renders it and keeps the ribbons, and the bound it keeps holds
+/// against two 64-spp renders of the whole film per geometry: the default scene (Marschner, strands a fifth of a
+/// pixel wide) at 192², target 0.07.
+#[test]
+fn a_confirmation_with_more_samples_keeps_ribbons_within_the_bias_it_bounds() {
+    let text = std::fs::read_to_string("scenes/default.toml")
+        .unwrap()
+        .replace("resolution = [640, 480]", "resolution = [192, 192]");
+    let s = scene(&text);
+    let (kind, why) = curves_for(&s);
+    assert_eq!(kind, CurveKind::Flat, "{why}");
+    let frame = flat_frame(&s);
+    let (planned, why) = plan_at(&frame, 0.07);
+    let curves = why
+        .iter()
+        .find(|d| d.contains("hair.curves"))
+        .expect("a curve decision");
+    assert!(
+        planned.frame.is_none() && curves.contains("4 spp on") && curves.contains("16 spp on"),
+        "{why:#?}"
+    );
+    let ribbons = planned
+        .pilot
+        .approximations
+        .iter()
+        .find(|a| a.what == "ribbons for tubes")
+        .expect("the ribbons' bias is paid for");
+    let tubes = frame.with_curves(CurveKind::Round).unwrap();
+    let mut settings = planned.settings.clone();
+    settings.integrator.path_length = 3;
+    settings.film.reconstruction = cuticle::render::Reconstruction::Importance;
+    let f = two_seeds(&frame, &settings, None, 64);
+    let r = two_seeds(&tubes, &settings, None, 64);
+    let measured = bias_product([&f[0], &f[1]], [&r[0], &r[1]]).max(0.0).sqrt();
+    eprintln!(
+        "ribbons' bias: kept {} (point {}), measured {measured}",
+        ribbons.bias, ribbons.point
+    );
+    assert!(
+        measured <= ribbons.bias,
+        "the ribbons' bias measured {measured} over the bound kept {}",
+        ribbons.bias
+    );
+}

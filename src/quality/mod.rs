@@ -20,7 +20,8 @@
 //! 3. **Approximations measured** ([`pilot::approximations`]): ribbons against tubes and maps against ray-traced
 //!    shadows, each rendered beside the exact choice on the same pilot windows and seeds; an approximation is kept
 //!    only when its measured bias (two standard errors added) fits half of target² with the others and it is the
-//!    cheaper for the target once its bias is paid for; the maps go finer (×2, ×4, at most 2048²) while they are
+//!    cheaper for the target once its bias is paid for (ribbons the 4-spp pilots cannot show harmless are compared
+//!    again with more samples where what they would save pays for it); the maps go finer (×2, ×4, at most 2048²) while they are
 //!    too biased, else the shadows are ray traced. The bias kept comes off the noise budget.
 //! 4. **Path length**, **light and material samples** and **samples per pixel** ([`pilot`]): measured by pilot
 //!    renders of many small windows spread over the frame at full resolution (so a pixel integrates what it will

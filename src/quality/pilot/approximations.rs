@@ -16,6 +16,10 @@
 //! the fewer; the bias then
 //! comes off the noise budget, and the frame's estimate of its error carries it.
 //!
+//! Where the 4-spp bound keeps ribbons out but the bound a confirmation may expect would let them pay, and what
+//! they would save pays for it, the comparison is rendered again with 4× the samples on a quarter of the windows
+//! (twice at most, [`CONFIRM_SPP_FACTOR`]), which halves the standard error at the first comparison's cost.
+//!
 //! Both choices are rendered as the path-length search's first pilots ([`bounce_pairs`] at
 //! [`FIRST_PILOT_PATH_LENGTH`]), so the choice kept costs nothing more: the search starts from its pilots.
 
@@ -33,6 +37,16 @@ use super::{windows, PILOT_SPP};
 /// Share of target² the approximations auto keeps may take as bias, together: the bounces left out take up to a
 /// quarter (half the target), so the noise keeps at least a quarter of target².
 pub const APPROXIMATION_BIAS_SHARE: f64 = 0.5;
+
+/// How many times more samples per pixel each confirmation of the ribbons' bias takes than the one before (on a
+/// quarter of the windows, [`super::comparison_windows`]), and how many confirmations there may be. The products of
+/// two seeds' differences have a standard error ∝ 1/(spp √pixels), so four times the samples on a quarter of the
+/// pixels halves it at the cost of the first comparison. At 4 spp the bound is mostly the pilots' noise: straight
+/// hair under the city map (128², path 3) reads a point bias of 0.0375 and a bound of 0.0687, where two 256-spp
+/// renders per geometry of the whole film measure the ribbons' bias at −8.4e-6 ± 5.1e-6 relMSE (none); on the
+/// default scene 0.0094 (the pilots' point 0.0116).
+const CONFIRM_SPP_FACTOR: u32 = 4;
+const CONFIRM_STAGES: usize = 2;
 
 /// The finest deep opacity maps auto builds, texels along a side, and how many doublings of the first resolution
 /// it tries: a 2048² map of 16 layers holds 302 MB per light.
@@ -239,27 +253,88 @@ pub fn choose(
         {
             let flat = render(frame, &pilot, chosen.maps.as_ref());
             let tubes = render(&round, &pilot, chosen.maps.as_ref());
-            let a = bias_of(
+            let c_round = tubes.frame_seconds(film_pixels, noise_left(0.0));
+            let c_flat = |bias2: f64| flat.frame_seconds(film_pixels, noise_left(bias2));
+            let pays =
+                |bias2: f64| bias2 <= APPROXIMATION_BIAS_SHARE * target2 && c_flat(bias2) < c_round;
+            let mut a = bias_of(
                 "ribbons for tubes".into(),
                 &flat,
                 &tubes,
                 &windows,
                 margins.approximation_standard_errors,
             );
-            let (c_flat, c_round) = (
-                flat.frame_seconds(film_pixels, noise_left(a.bias2())),
-                tubes.frame_seconds(film_pixels, noise_left(0.0)),
-            );
-            let keep = a.bias2() <= APPROXIMATION_BIAS_SHARE * target2 && c_flat < c_round;
+            let mut listed = vec![format!(
+                "{PILOT_SPP} spp on {} windows: bias {:.4} (point {:.4}), ribbons' frame {:.2}",
+                windows.len(),
+                a.bias,
+                a.point,
+                c_flat(a.bias2())
+            )];
+            // Where the ribbons' bias bound keeps them out but the bound a confirmation may expect would let them
+            // pay, the comparison is rendered again with CONFIRM_SPP_FACTOR× the samples on a quarter of the
+            // windows, while what the ribbons would then save pays for the further pilots (see CONFIRM_SPP_FACTOR).
+            let picked: Vec<Region> = super::comparison_windows(&windows)
+                .into_iter()
+                .map(|i| windows[i])
+                .collect();
+            let pair_cost = flat.predicted + ROUND_CURVE_COST * tubes.predicted;
+            let mut confirm = pilot.clone();
+            let mut windows_before = windows.len() as f64;
+            for _ in 0..CONFIRM_STAGES {
+                if pays(a.bias2()) {
+                    break;
+                }
+                // The standard error falls as 1/(spp √pixels); the bound the confirmation may expect is the point
+                // estimate one standard error lower plus the margin's standard errors at what is left of it.
+                let shrink =
+                    (windows_before / picked.len() as f64).sqrt() / f64::from(CONFIRM_SPP_FACTOR);
+                let expected = (a.point * a.point - a.standard_error).max(0.0)
+                    + shrink * margins.approximation_standard_errors * a.standard_error;
+                let saving = c_round - c_flat(expected);
+                confirm.film.spp *= CONFIRM_SPP_FACTOR;
+                windows_before = picked.len() as f64;
+                let cost =
+                    pair_cost * f64::from(confirm.film.spp / PILOT_SPP) * picked.len() as f64
+                        / windows.len() as f64;
+                if !pays(expected) || saving <= cost {
+                    listed.push(format!(
+                        "not confirmed at {} spp: predicted saving {:.2} s at the bias bound it may expect, its \
+                         pilots {cost:.2} s",
+                        confirm.film.spp,
+                        saving.max(0.0)
+                    ));
+                    break;
+                }
+                let f = render(frame, &confirm, chosen.maps.as_ref());
+                let t = render(&round, &confirm, chosen.maps.as_ref());
+                a = bias_of(
+                    "ribbons for tubes".into(),
+                    &f,
+                    &t,
+                    &picked,
+                    margins.approximation_standard_errors,
+                );
+                listed.push(format!(
+                    "{} spp on {} windows: bias {:.4} (point {:.4}), ribbons' frame {:.2}",
+                    confirm.film.spp,
+                    picked.len(),
+                    a.bias,
+                    a.point,
+                    c_flat(a.bias2())
+                ));
+            }
+            let keep = pays(a.bias2());
             chosen.decisions.push(Decision {
                 key: "hair.curves",
                 value: if keep { "flat" } else { "round" }.into(),
                 reason: format!(
-                    "ribbons against tubes on the same pilots ({PILOT_SPP} spp, path {}): ribbons' bias {:.4} \
-                     (point {:.4}, {} standard error(s) added); predicted CPU s of the frame at the noise the \
-                     target leaves, ribbons {c_flat:.2} (tubes' rays taken as {ROUND_CURVE_COST}× a ribbon's), \
-                     tubes {c_round:.2}",
-                    pilot.integrator.path_length, a.bias, a.point, margins.approximation_standard_errors
+                    "ribbons against tubes on the same pilots (path {}; ribbons' bias with {} standard error(s) \
+                     added; predicted CPU s of the frame at the noise the target leaves, tubes' rays taken as \
+                     {ROUND_CURVE_COST}× a ribbon's): tubes {c_round:.2}; {}",
+                    pilot.integrator.path_length,
+                    margins.approximation_standard_errors,
+                    listed.join("; ")
                 ),
             });
             if keep {
