@@ -85,7 +85,7 @@ pub(super) fn study_scene(
         cache_dir,
         frame_of(scene.hair.curves),
         &base,
-        REFERENCE_PATH_LENGTH,
+        Depth::Cut(REFERENCE_PATH_LENGTH),
     )?;
     progress.inc(1);
 
@@ -295,19 +295,39 @@ pub(super) fn study_scene(
     Ok((rows, reference.noise(), fits_table))
 }
 
+/// How deep a yardstick's paths go.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) enum Depth {
+    /// Cut after this many bounces ([`REFERENCE_PATH_LENGTH`] for the study of the tuned scenes, whose darker hair
+    /// keeps no measurable light past it).
+    Cut(u32),
+    /// Every bounce: path length [`crate::render::integrator::MAX_PATH_LENGTH`] and a tail of 1, so Russian roulette
+    /// alone ends a path (the held-out set's light hair).
+    Every,
+}
+
 /// The study's yardstick for `file` rendered by `frame` at `base`: the scene's own curves and materials, ray-traced
-/// shadows with exact transmittance, path length `path_length` ([`REFERENCE_PATH_LENGTH`] for the study of the
-/// tuned scenes), `reference_spp` samples in two independent halves (their own seeds), each cached by a hash of the
-/// scene and these settings.
+/// shadows with exact transmittance, paths as deep as `depth`, `reference_spp` samples in two independent halves
+/// (their own seeds), each cached by a hash of the scene and these settings.
 pub(super) fn reference_of(
     file: &SceneFile,
     config: &AutoStudyConfig,
     cache_dir: &Path,
     frame: &Frame,
     base: &crate::render::RenderSettings,
-    path_length: u32,
+    depth: Depth,
 ) -> Result<Yardstick, StudyError> {
     let mut reference = base.clone();
+    let (path_length, depth_key) = match depth {
+        Depth::Cut(n) => (n, String::new()),
+        Depth::Every => {
+            reference.integrator.tail = 1.0;
+            (
+                crate::render::integrator::MAX_PATH_LENGTH,
+                " every bounce".to_owned(),
+            )
+        }
+    };
     reference.integrator.path_length = path_length;
     reference.shadows.mode = ShadowMode::Raytraced;
     reference.shadows.transmittance = TransmittanceMode::Exact;
@@ -321,7 +341,7 @@ pub(super) fn reference_of(
             file,
             &[],
             &format!(
-                "{:?} {} {} half {half}",
+                "{:?} {} {}{depth_key} half {half}",
                 config.resolution, config.reference_spp, path_length
             ),
         );
