@@ -1020,15 +1020,28 @@ fn study_auto_alone_writes_met_and_its_estimate_per_scene_and_target() {
     assert_eq!(code, Some(0), "{stderr}");
     assert!(stdout.contains("rows met the target"), "{stdout}");
     let csv = std::fs::read_to_string(out.join("auto-held-out.csv")).unwrap();
+    let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+    let column = |name: &str| {
+        header
+            .iter()
+            .position(|h| *h == name)
+            .unwrap_or_else(|| panic!("no column {name} in {header:?}"))
+    };
+    let (target, measured, estimated, met) = (
+        column("target"),
+        column("measured"),
+        column("estimated"),
+        column("met"),
+    );
     let rows: Vec<&str> = csv.lines().skip(1).collect();
     assert_eq!(rows.len(), 2, "{csv}");
     for r in rows {
         let f: Vec<&str> = r.split(',').collect();
-        let (measured, estimated): (f64, f64) = (f[2].parse().unwrap(), f[3].parse().unwrap());
-        assert!(measured > 0.0 && estimated > 0.0, "{r}");
+        let (m, e): (f64, f64) = (f[measured].parse().unwrap(), f[estimated].parse().unwrap());
+        assert!(m > 0.0 && e > 0.0, "{r}");
         assert_eq!(
-            f[5] == "true",
-            measured <= f[1].parse::<f64>().unwrap(),
+            f[met] == "true",
+            m <= f[target].parse::<f64>().unwrap(),
             "{r}"
         );
     }
