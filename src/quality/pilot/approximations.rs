@@ -46,6 +46,7 @@ pub const APPROXIMATION_BIAS_SHARE: f64 = 0.5;
 /// renders per geometry of the whole film measure the ribbons' bias at −8.4e-6 ± 5.1e-6 relMSE (none); on the
 /// default scene 0.0094 (the pilots' point 0.0116).
 const CONFIRM_SPP_FACTOR: u32 = 4;
+/// See [`CONFIRM_SPP_FACTOR`].
 const CONFIRM_STAGES: usize = 2;
 
 /// The finest deep opacity maps auto builds, texels along a side, and how many doublings of the first resolution
